@@ -1,0 +1,109 @@
+//! Execution policy: how a kernel runs (serially or on the rayon pool that the caller installed).
+//!
+//! Kernels never decide the thread count themselves: a model owns a `rayon::ThreadPool` of the
+//! user's `threads` and runs its step inside `pool.install`, passing `Exec::parallel(..)` down.
+//! Work is always split into fixed blocks of rows ([`ROW_BLOCK`]), independent of the number of
+//! threads, and reductions add the per-block partial results in block order: one thread and many
+//! threads give bit-identical answers.
+
+use rayon::prelude::*;
+
+/// Rows per work block. Fixed (not derived from the thread count) so that reductions are
+/// deterministic.
+pub const ROW_BLOCK: usize = 8;
+
+/// Below this many cells a kernel runs serially even when parallel execution is allowed:
+/// the rayon overhead would dominate.
+pub const PARALLEL_MIN_CELLS: usize = 4096;
+
+/// How a kernel runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Exec {
+    /// Whether kernels may use the installed rayon pool.
+    pub parallel: bool,
+}
+
+impl Exec {
+    /// Serial execution.
+    pub const SERIAL: Exec = Exec { parallel: false };
+
+    /// Parallel execution when `threads > 1`.
+    pub fn with_threads(threads: usize) -> Self {
+        Exec { parallel: threads > 1 }
+    }
+
+    /// Whether a sweep over `cells` cells should run in parallel.
+    #[inline]
+    pub fn use_parallel(self, cells: usize) -> bool {
+        self.parallel && cells >= PARALLEL_MIN_CELLS
+    }
+
+    /// Runs `f(row_index, row)` on every row of a row-major buffer `data` with rows of length
+    /// `stride`. Rows are independent; each row is visited exactly once.
+    pub fn for_each_row<F>(self, data: &mut [f64], stride: usize, f: F)
+    where
+        F: Fn(usize, &mut [f64]) + Sync + Send,
+    {
+        if self.use_parallel(data.len()) {
+            data.par_chunks_mut(stride * ROW_BLOCK).enumerate().for_each(|(b, block)| {
+                for (r, row) in block.chunks_mut(stride).enumerate() {
+                    f(b * ROW_BLOCK + r, row);
+                }
+            });
+        } else {
+            for (r, row) in data.chunks_mut(stride).enumerate() {
+                f(r, row);
+            }
+        }
+    }
+
+    /// Deterministic sum over rows `0..nrows` of `f(row)`: partial sums per block of
+    /// [`ROW_BLOCK`] rows, added in block order.
+    pub fn sum_rows<F>(self, nrows: usize, cells: usize, f: F) -> f64
+    where
+        F: Fn(usize) -> f64 + Sync + Send,
+    {
+        let nblocks = nrows.div_ceil(ROW_BLOCK);
+        let block = |b: usize| -> f64 {
+            let mut s = 0.0;
+            for r in b * ROW_BLOCK..((b + 1) * ROW_BLOCK).min(nrows) {
+                s += f(r);
+            }
+            s
+        };
+        if self.use_parallel(cells) {
+            let partial: Vec<f64> = (0..nblocks).into_par_iter().map(block).collect();
+            partial.iter().sum()
+        } else {
+            let mut s = 0.0;
+            for b in 0..nblocks {
+                s += block(b);
+            }
+            s
+        }
+    }
+
+    /// Deterministic maximum over rows of `f(row)` (NaN propagates).
+    pub fn max_rows<F>(self, nrows: usize, cells: usize, f: F) -> f64
+    where
+        F: Fn(usize) -> f64 + Sync + Send,
+    {
+        let fold = |a: f64, b: f64| if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) };
+        if self.use_parallel(cells) {
+            (0..nrows).into_par_iter().map(&f).reduce(|| f64::NEG_INFINITY, fold)
+        } else {
+            (0..nrows).map(&f).fold(f64::NEG_INFINITY, fold)
+        }
+    }
+}
+
+/// Builds a rayon pool with exactly `threads` threads.
+pub fn build_pool(threads: usize) -> crate::Result<rayon::ThreadPool> {
+    if threads == 0 || threads > 1024 {
+        return Err(crate::Error::param("threads", threads, "an integer in [1, 1024]"));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| crate::Error::param("threads", threads, &format!("a thread count the OS accepts ({e})")))
+}

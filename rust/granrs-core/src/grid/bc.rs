@@ -1,0 +1,201 @@
+//! Boundary conditions per side of the rectangular domain, and the ghost-cell rules that
+//! impose them on MAC velocity fields.
+//!
+//! Normal velocity lives on the boundary itself (u on x = 0 and x = Lx, v on y = 0 and y = Ly);
+//! the tangential velocity lives half a cell inside, and its ghost values encode the condition:
+//!
+//! | condition | tangential ghost (k = 1..HALO)          | normal velocity on the wall |
+//! |-----------|-----------------------------------------|-----------------------------|
+//! | no-slip   | u_t(−k) = −u_t(k−1)                     | 0                           |
+//! | free-slip | u_t(−k) = u_t(k−1)                      | 0                           |
+//! | velocity  | u_t(−k) = 2U − u_t(k−1)                 | prescribed (into the domain)|
+//! | Navier    | u_t(−1) = c u_t(0), c = (b/h − ½)/(b/h + ½) (u_t = b ∂u_t/∂n at the wall) | 0 |
+//! | outflow   | u_t(−k) = u_t(k−1) (∂u_t/∂n = 0)        | unknown, ∂u_n/∂n = 0, p = 0 |
+//! | Coulomb   | as free-slip; the friction stress σ_t = τ_b s is added as a wall flux by the rheology (eq. 8–9) | 0 |
+//!
+//! The pressure (and pressure increment) sees homogeneous Neumann on every side except outflow,
+//! where it is Dirichlet p = 0 on the boundary.
+
+use crate::error::{Error, Result};
+
+/// A side of the rectangular domain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Side {
+    Left,
+    Right,
+    Bottom,
+    Top,
+}
+
+impl Side {
+    /// All four sides in the storage order of [`BoundaryConditions`].
+    pub const ALL: [Side; 4] = [Side::Left, Side::Right, Side::Bottom, Side::Top];
+
+    /// Lower-case name used in Python and the docs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Side::Left => "left",
+            Side::Right => "right",
+            Side::Bottom => "bottom",
+            Side::Top => "top",
+        }
+    }
+
+    /// Whether the side is normal to x (left/right).
+    pub fn is_x(self) -> bool {
+        matches!(self, Side::Left | Side::Right)
+    }
+
+    fn index(self) -> usize {
+        match self {
+            Side::Left => 0,
+            Side::Right => 1,
+            Side::Bottom => 2,
+            Side::Top => 3,
+        }
+    }
+}
+
+/// Velocity boundary condition on one side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum VelocityBc {
+    /// u = 0.
+    NoSlip,
+    /// u·n = 0, zero tangential stress.
+    FreeSlip,
+    /// Prescribed velocity: `normal` is the inflow speed (positive into the domain), `tangential`
+    /// the wall speed along the side (positive along +x or +y). A lid is `normal = 0`.
+    Velocity { normal: f64, tangential: f64 },
+    /// u·n = 0 and u_t = slip_length ∂u_t/∂n.
+    NavierSlip { slip_length: f64 },
+    /// Open boundary: zero normal gradient of velocity, pressure p = 0.
+    Outflow,
+    /// Coulomb friction wall for the granular phase (paper eq. 8–9): impermeable, with the
+    /// tangential stress supplied by the friction projection; behaves as free-slip in air.
+    Coulomb,
+}
+
+impl VelocityBc {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            VelocityBc::NoSlip => "no-slip",
+            VelocityBc::FreeSlip => "free-slip",
+            VelocityBc::Velocity { .. } => "velocity",
+            VelocityBc::NavierSlip { .. } => "navier",
+            VelocityBc::Outflow => "outflow",
+            VelocityBc::Coulomb => "coulomb",
+        }
+    }
+
+    /// Normal velocity on the boundary, positive into the domain (0 for walls; None for outflow,
+    /// where it is an unknown).
+    pub fn normal_inflow(&self) -> Option<f64> {
+        match self {
+            VelocityBc::Velocity { normal, .. } => Some(*normal),
+            VelocityBc::Outflow => None,
+            _ => Some(0.0),
+        }
+    }
+
+    /// Ghost-value rule for the tangential component: ghost(−1) = a·interior(0) + b, where
+    /// `h` is the cell size normal to the side.
+    pub fn tangential_ghost(&self, h: f64) -> (f64, f64) {
+        match *self {
+            VelocityBc::NoSlip => (-1.0, 0.0),
+            VelocityBc::FreeSlip | VelocityBc::Outflow | VelocityBc::Coulomb => (1.0, 0.0),
+            VelocityBc::Velocity { tangential, .. } => (-1.0, 2.0 * tangential),
+            VelocityBc::NavierSlip { slip_length } => {
+                let r = slip_length / h;
+                ((r - 0.5) / (r + 0.5), 0.0)
+            }
+        }
+    }
+}
+
+/// Pressure boundary condition implied by a velocity condition.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PressureBc {
+    /// ∂p/∂n = 0 (walls, prescribed velocity).
+    Neumann,
+    /// p = 0 on the boundary (outflow).
+    Dirichlet,
+}
+
+/// The velocity conditions on the four sides.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundaryConditions {
+    /// Conditions in the order left, right, bottom, top.
+    pub sides: [VelocityBc; 4],
+}
+
+impl BoundaryConditions {
+    /// The same condition on every side.
+    pub fn uniform(bc: VelocityBc) -> Self {
+        BoundaryConditions { sides: [bc; 4] }
+    }
+
+    /// Builder: sets one side.
+    pub fn with(mut self, side: Side, bc: VelocityBc) -> Self {
+        self.sides[side.index()] = bc;
+        self
+    }
+
+    /// The condition on `side`.
+    pub fn get(&self, side: Side) -> VelocityBc {
+        self.sides[side.index()]
+    }
+
+    /// Pressure condition on `side`.
+    pub fn pressure(&self, side: Side) -> PressureBc {
+        match self.get(side) {
+            VelocityBc::Outflow => PressureBc::Dirichlet,
+            _ => PressureBc::Neumann,
+        }
+    }
+
+    /// Pressure conditions in the order left, right, bottom, top.
+    pub fn pressure_all(&self) -> [PressureBc; 4] {
+        Side::ALL.map(|s| self.pressure(s))
+    }
+
+    /// Whether the pressure is only defined up to a constant (no Dirichlet side).
+    pub fn pressure_is_singular(&self) -> bool {
+        Side::ALL.iter().all(|&s| self.pressure(s) == PressureBc::Neumann)
+    }
+
+    /// Checks parameters and the compatibility of the four conditions on a domain of size
+    /// `lx × ly`: finite values, positive slip lengths, and, for a closed domain, zero net inflow
+    /// (otherwise div u = 0 has no solution).
+    pub fn validate(&self, lx: f64, ly: f64) -> Result<()> {
+        let mut net_inflow = 0.0;
+        for side in Side::ALL {
+            let name = |what: &str| format!("bc.{}.{}", side.name(), what);
+            match self.get(side) {
+                VelocityBc::Velocity { normal, tangential } => {
+                    if !normal.is_finite() {
+                        return Err(Error::param(&name("normal"), normal, "a finite velocity"));
+                    }
+                    if !tangential.is_finite() {
+                        return Err(Error::param(&name("tangential"), tangential, "a finite velocity"));
+                    }
+                    net_inflow += normal * if side.is_x() { ly } else { lx };
+                }
+                VelocityBc::NavierSlip { slip_length } => {
+                    if !(slip_length.is_finite() && slip_length > 0.0) {
+                        return Err(Error::param(&name("slip_length"), slip_length, "a finite length > 0"));
+                    }
+                }
+                _ => {}
+            }
+        }
+        if self.pressure_is_singular() && net_inflow.abs() > 1e-12 * (lx + ly) {
+            return Err(Error::param(
+                "bc",
+                format!("net inflow {net_inflow:.3e} m²/s through a closed domain"),
+                "zero net inflow unless one side is `outflow` (div u = 0 has no solution otherwise)",
+            ));
+        }
+        Ok(())
+    }
+}

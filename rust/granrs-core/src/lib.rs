@@ -1,0 +1,32 @@
+//! # granrs-core
+//!
+//! Pure-Rust core of granrs: a 2D MAC-grid solver for dense granular flows fluidised by pore gas
+//! pressure, after Aravena, Chupin, Dubois & Roche, *Fluidisation by pore pressure of dense
+//! granular flows: numerical simulations versus experiments*. No Python here: `cargo test` and
+//! `cargo bench` run on their own; the `granrs-py` crate binds this to Python.
+//!
+//! Rooms (one folder per concept, the paper's names):
+//! - [`grid`]: the grid, MAC locations, fields with halos, boundary conditions;
+//! - [`operators`]: staggered differences, interpolations, divergence/gradient, strain rate, viscous operator;
+//! - [`solvers`]: multigrid-preconditioned CG and faer sparse Cholesky for the pressure equation;
+//! - [`levelset`]: WENO5 + TVD-RK3 transport, redistancing, smoothed Heaviside and material laws;
+//! - [`projection`]: the variable-density pressure projection;
+//! - [`time_stepping`]: clock, CFL, and `step.rs`, the one ordered list of the stages of a step;
+//! - [`models`]: the two-phase model that owns the state and takes one step.
+
+pub mod error;
+pub mod exec;
+pub mod grid;
+pub mod levelset;
+pub mod models;
+pub mod operators;
+pub mod projection;
+pub mod solvers;
+pub mod time_stepping;
+
+pub use error::{Error, Result};
+pub use exec::Exec;
+pub use grid::{BoundaryConditions, Field, Grid, Location, PressureBc, Side, VelocityBc, HALO};
+
+/// The crate version (the Python package reports the same).
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
