@@ -1,1 +1,9 @@
-//! (in progress)
+//! Models: the state and configuration of a simulation, and what one step of it does.
+//!
+//! [`TwoPhaseModel`] is the paper's unified model (eq. 10): one velocity and pressure on the
+//! whole domain, a level set Φ separating the dense phase (Φ > 0) from the light one (Φ < 0).
+//! A single-phase flow is the same model with no light phase (the level set is not transported).
+
+mod two_phase;
+
+pub use two_phase::{Material, ModelConfig, TwoPhaseModel};

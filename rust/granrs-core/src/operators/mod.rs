@@ -1,1 +1,59 @@
-//! (in progress)
+//! Staggered-grid operators on MAC fields (Aravena et al. §3.2: second-order finite volumes).
+//!
+//! Names say where the result lives (see [`README`](https://) legend in `operators/README.md`):
+//!
+//! | operator | from → to | discrete form |
+//! |---|---|---|
+//! | [`divergence`] | (XFace u, YFace v) → Centre | (u_{i+1,j} − u_{ij})/dx + (v_{i,j+1} − v_{ij})/dy |
+//! | [`gradient`] | Centre p → (XFace, YFace) | ((p_{ij} − p_{i−1,j})/dx, (p_{ij} − p_{i,j−1})/dy) |
+//! | [`strain_rate`] | (u, v) → D_xx at Centre, D_xy at Node | D_xx = ∂u/∂x, D_yy = −D_xx in the discrete divergence-free limit is *not* assumed: D_yy = ∂v/∂y; D_xy = ½(∂u/∂y + ∂v/∂x) |
+//! | [`viscous`] | (u, v), η_c, η_n → (XFace, YFace) | div(2 η D(u)) with 2η D_xx, 2η D_yy at centres and 2η D_xy at nodes |
+//! | [`convection`] | (u, v) → (XFace, YFace) | (u·∇)u, centred second order, advective form |
+//!
+//! All kernels are allocation-free, take an [`Exec`] and work row by row. Ghost values must be
+//! filled first by [`fill_velocity_ghosts`] (velocity) or by the caller (scalars).
+
+mod ghosts;
+mod kernels;
+
+pub use ghosts::{fill_velocity_ghosts, unknown_face_range, BcMode};
+pub use kernels::{
+    cell_to_face_x, cell_to_face_y, cell_to_node, convection, divergence, divergence_max_abs, gradient, max_speed,
+    strain_rate, strain_rate_norm_centre, viscous,
+};
+
+use crate::exec::Exec;
+use crate::grid::{Field, HALO};
+
+/// Runs `f(j, row)` over the interior rows j = 0..ny of `field`, where `row` is the full storage
+/// row (ghost columns included; interior column i sits at `row[HALO + i]`).
+pub fn for_each_interior_row<F>(exec: Exec, field: &mut Field, f: F)
+where
+    F: Fn(usize, &mut [f64]) + Sync + Send,
+{
+    let stride = field.stride();
+    let ny = field.ny;
+    let data = field.slice_mut();
+    let interior = &mut data[HALO * stride..(HALO + ny) * stride];
+    exec.for_each_row(interior, stride, f);
+}
+
+/// Runs `f(j, row_a, row_b)` over interior rows of two fields of the same shape.
+pub fn for_each_interior_row2<F>(exec: Exec, a: &mut Field, b: &mut Field, f: F)
+where
+    F: Fn(usize, &mut [f64], &mut [f64]) + Sync + Send,
+{
+    use rayon::prelude::*;
+    assert_eq!(a.data.dim(), b.data.dim());
+    let stride = a.stride();
+    let ny = a.ny;
+    let ra = &mut a.slice_mut()[HALO * stride..(HALO + ny) * stride];
+    let rb = &mut b.slice_mut()[HALO * stride..(HALO + ny) * stride];
+    if exec.use_parallel(ra.len()) {
+        ra.par_chunks_mut(stride).zip(rb.par_chunks_mut(stride)).enumerate().for_each(|(j, (x, y))| f(j, x, y));
+    } else {
+        for (j, (x, y)) in ra.chunks_mut(stride).zip(rb.chunks_mut(stride)).enumerate() {
+            f(j, x, y);
+        }
+    }
+}

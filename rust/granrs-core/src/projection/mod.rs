@@ -1,1 +1,172 @@
-//! (in progress)
+//! Variable-density pressure projection (Aravena et al. §3.1, step 5).
+//!
+//! Continuous problem, with a₀ the BDF coefficient of u^{n+1} (3/2 for BDF2, 1 for BDF1):
+//!
+//!   a₀ ρ^{n+1} (u^{n+1} − ũ^{n+1}) / δt + ∇δp^{n+1} = 0,   div u^{n+1} = 0,   (u^{n+1} − ũ^{n+1})·n = 0 on ∂Ω,
+//!
+//! hence div((1/ρ) ∇δp) = (a₀/δt) div ũ, then u^{n+1} = ũ − (δt/a₀)(1/ρ)∇δp and p^{n+1} = p^n + δp
+//! (incremental projection, standard form; Guermond, Minev & Shen 2006, *CMAME* 195).
+//!
+//! Discretely: β = 1/ρ on faces, the 5-point operator of [`crate::solvers::PoissonSolver`],
+//! δp warm-started from the previous step's increment. Homogeneous Neumann on walls and
+//! prescribed-velocity sides, δp = 0 on outflow sides.
+
+use crate::error::Result;
+use crate::exec::Exec;
+use crate::grid::{BoundaryConditions, Field, Grid, PressureBc, Side, HALO};
+use crate::operators::{divergence, for_each_interior_row, unknown_face_range};
+use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
+
+/// Fills the ghost layers of a cell-centred pressure: even reflection on Neumann sides,
+/// odd reflection (p = 0 on the boundary) on Dirichlet sides.
+pub fn fill_pressure_ghosts(p: &mut Field, bc: &BoundaryConditions) {
+    let (nx, ny) = (p.nx as isize, p.ny as isize);
+    let g = HALO as isize;
+    let sign = |s: Side| if bc.pressure(s) == PressureBc::Dirichlet { -1.0 } else { 1.0 };
+    let (sl, sr, sb, st) = (sign(Side::Left), sign(Side::Right), sign(Side::Bottom), sign(Side::Top));
+    for j in 0..ny {
+        for k in 1..=g {
+            let (a, b) = (sl * p.at(k - 1, j), sr * p.at(nx - k, j));
+            let (ia, ib) = (p.idx(-k, j), p.idx(nx - 1 + k, j));
+            let s = p.slice_mut();
+            s[ia] = a;
+            s[ib] = b;
+        }
+    }
+    for i in -g..nx + g {
+        for k in 1..=g {
+            let (a, b) = (sb * p.at(i, k - 1), st * p.at(i, ny - k));
+            let (ia, ib) = (p.idx(i, -k), p.idx(i, ny - 1 + k));
+            let s = p.slice_mut();
+            s[ia] = a;
+            s[ib] = b;
+        }
+    }
+}
+
+/// The pressure projection: owns the Poisson solver, its coefficients and work arrays.
+pub struct PressureProjection {
+    solver: PoissonSolver,
+    beta_x: Vec<f64>,
+    beta_y: Vec<f64>,
+    rhs: Vec<f64>,
+    dp: Vec<f64>,
+    div: Field,
+    dp_field: Field,
+}
+
+impl PressureProjection {
+    /// A projection for `grid` with the pressure conditions implied by `bc`.
+    pub fn new(grid: &Grid, bc: &BoundaryConditions, settings: SolverSettings) -> Result<Self> {
+        let solver = PoissonSolver::new(grid.nx, grid.ny, grid.dx, grid.dy, bc.pressure_all(), settings)?;
+        let n = grid.cells();
+        Ok(PressureProjection {
+            solver,
+            beta_x: vec![1.0; grid.ny * (grid.nx + 1)],
+            beta_y: vec![1.0; (grid.ny + 1) * grid.nx],
+            rhs: vec![0.0; n],
+            dp: vec![0.0; n],
+            div: Field::zeros(grid, crate::Location::Centre),
+            dp_field: Field::zeros(grid, crate::Location::Centre),
+        })
+    }
+
+    /// Sets β = 1/ρ from the face densities ρ_u (XFace) and ρ_v (YFace).
+    pub fn set_density(&mut self, rho_u: &Field, rho_v: &Field, exec: Exec) -> Result<()> {
+        let (nxu, nxv) = (rho_u.nx, rho_v.nx);
+        for j in 0..rho_u.ny {
+            for i in 0..nxu {
+                self.beta_x[j * nxu + i] = 1.0 / rho_u.at(i as isize, j as isize);
+            }
+        }
+        for j in 0..rho_v.ny {
+            for i in 0..nxv {
+                self.beta_y[j * nxv + i] = 1.0 / rho_v.at(i as isize, j as isize);
+            }
+        }
+        self.solver.set_coefficients(&self.beta_x, &self.beta_y, exec)
+    }
+
+    /// Projects ũ (in `u`, `v`, boundary values already set) onto discretely divergence-free
+    /// fields and adds the increment to `p`. `dt_over_a0` is δt/a₀.
+    #[allow(clippy::too_many_arguments)]
+    pub fn project(
+        &mut self,
+        u: &mut Field,
+        v: &mut Field,
+        p: &mut Field,
+        rho_u: &Field,
+        rho_v: &Field,
+        dt_over_a0: f64,
+        grid: &Grid,
+        bc: &BoundaryConditions,
+        exec: Exec,
+    ) -> Result<SolveInfo> {
+        let nx = grid.nx;
+        divergence(u, v, grid, &mut self.div, exec);
+        let scale = 1.0 / dt_over_a0;
+        for j in 0..grid.ny {
+            for i in 0..nx {
+                self.rhs[j * nx + i] = scale * self.div.at(i as isize, j as isize);
+            }
+        }
+        let info = self.solver.solve(&self.rhs, &mut self.dp, exec)?;
+        // δp into a field with ghosts, then correct the unknown faces.
+        {
+            let dp = &self.dp;
+            for_each_interior_row(exec, &mut self.dp_field, |j, row| {
+                row[HALO..HALO + nx].copy_from_slice(&dp[j * nx..(j + 1) * nx]);
+            });
+        }
+        fill_pressure_ghosts(&mut self.dp_field, bc);
+        let dpf = &self.dp_field;
+        let (idx, idy) = (1.0 / grid.dx, 1.0 / grid.dy);
+        let ru = unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx);
+        let rv = unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), grid.ny);
+        let ds = dpf.slice();
+        let stride = dpf.stride();
+        {
+            let rs = rho_u.slice();
+            let ru = ru.clone();
+            for_each_interior_row(exec, u, |j, row| {
+                let b = (j + HALO) * stride + HALO;
+                let bu = (j + HALO) * rho_u.stride() + HALO;
+                for i in ru.clone() {
+                    row[HALO + i] -= dt_over_a0 / rs[bu + i] * (ds[b + i] - ds[b + i - 1]) * idx;
+                }
+            });
+        }
+        {
+            let rs = rho_v.slice();
+            let ny = grid.ny;
+            for_each_interior_row(exec, v, |j, row| {
+                if !rv.contains(&j) || j > ny {
+                    return;
+                }
+                let (b0, b1) = ((j - 1 + HALO) * stride + HALO, (j + HALO) * stride + HALO);
+                let bv = (j + HALO) * rho_v.stride() + HALO;
+                for i in 0..nx {
+                    row[HALO + i] -= dt_over_a0 / rs[bv + i] * (ds[b1 + i] - ds[b0 + i]) * idy;
+                }
+            });
+        }
+        for_each_interior_row(exec, p, |j, row| {
+            let b = (j + HALO) * stride + HALO;
+            for i in 0..nx {
+                row[HALO + i] += ds[b + i];
+            }
+        });
+        fill_pressure_ghosts(p, bc);
+        Ok(info)
+    }
+
+    /// The last pressure increment δp (row-major, nx·ny).
+    pub fn increment(&self) -> &[f64] {
+        &self.dp
+    }
+
+    /// The Poisson solver (for diagnostics and benchmarks).
+    pub fn solver(&self) -> &PoissonSolver {
+        &self.solver
+    }
+}

@@ -1,1 +1,10 @@
-//! (in progress)
+//! Time stepping: the clock (δt, BDF2 coefficients), the momentum predictor, and `step.rs`,
+//! the one ordered list of the stages of a time step.
+
+pub mod clock;
+pub mod momentum;
+pub mod step;
+
+pub use clock::{bdf_coefficients, stable_dt, TimeConfig};
+pub use momentum::{MomentumSolver, ViscousScheme};
+pub use step::StepInfo;

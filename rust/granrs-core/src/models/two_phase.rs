@@ -1,0 +1,235 @@
+//! The two-phase model: configuration, state, and the work arrays of a step.
+//!
+//! State at t_n: u^n, v^n (MAC faces), u^{n−1}, v^{n−1} and (u·∇u)^{n−1} for BDF2, p^n (cell
+//! centres), Φ^n (cell centres). The stages of a step are listed in `time_stepping/step.rs`.
+
+use crate::error::{check_finite, check_positive, Error, Result};
+use crate::exec::{build_pool, Exec};
+use crate::grid::{BoundaryConditions, Field, Grid, Location};
+use crate::projection::PressureProjection;
+use crate::solvers::{SolveInfo, SolverSettings};
+use crate::time_stepping::{MomentumSolver, StepInfo, TimeConfig, ViscousScheme};
+
+/// A Newtonian material (or the Newtonian part of a granular one).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Density ρ [kg m⁻³] (for the granular mixture: φ ρ_s).
+    pub density: f64,
+    /// Dynamic viscosity η [Pa s].
+    pub viscosity: f64,
+}
+
+impl Material {
+    /// Checks both values are finite and positive, naming them `{prefix}.density` etc.
+    pub fn validate(&self, prefix: &str) -> Result<()> {
+        check_positive(&format!("{prefix}.density"), self.density)?;
+        check_positive(&format!("{prefix}.viscosity"), self.viscosity)
+    }
+}
+
+/// Everything that defines a model (grid, boundary conditions, materials, numerics).
+#[derive(Clone, Debug)]
+pub struct ModelConfig {
+    pub grid: Grid,
+    pub bc: BoundaryConditions,
+    /// Gravity vector (g_x, g_y) [m s⁻²].
+    pub gravity: [f64; 2],
+    /// The phase where Φ > 0 (granular mixture, heavy fluid, or the only fluid).
+    pub dense: Material,
+    /// The phase where Φ < 0 (air); `None` for a single-phase flow.
+    pub light: Option<Material>,
+    /// Half-width ε of the smoothed interface, in units of h = min(dx, dy).
+    pub interface_width: f64,
+    /// Whether the level set is transported (false: a frozen interface).
+    pub transport_interface: bool,
+    /// Redistance the level set every this many steps (0: never).
+    pub redistance_every: usize,
+    pub viscous: ViscousScheme,
+    pub pressure_solver: SolverSettings,
+    pub time: TimeConfig,
+    /// Number of threads of the model's rayon pool.
+    pub threads: usize,
+}
+
+impl ModelConfig {
+    /// A single-phase configuration with the paper's defaults for the numerics.
+    pub fn single_phase(grid: Grid, bc: BoundaryConditions, fluid: Material) -> Self {
+        ModelConfig {
+            grid,
+            bc,
+            gravity: [0.0, 0.0],
+            dense: fluid,
+            light: None,
+            interface_width: 1.5,
+            transport_interface: true,
+            redistance_every: 10,
+            viscous: ViscousScheme::Implicit,
+            pressure_solver: SolverSettings::default(),
+            time: TimeConfig::default(),
+            threads: 1,
+        }
+    }
+
+    /// Checks every parameter, naming the first offending one and its allowed range.
+    pub fn validate(&self) -> Result<()> {
+        self.bc.validate(self.grid.lx, self.grid.ly)?;
+        check_finite("gravity.x", self.gravity[0])?;
+        check_finite("gravity.y", self.gravity[1])?;
+        self.dense.validate("dense")?;
+        if let Some(l) = &self.light {
+            l.validate("light")?;
+        }
+        crate::error::check_range("interface_width", self.interface_width, 0.0, 10.0)?;
+        if self.redistance_every > 1_000_000 {
+            return Err(Error::param("redistance_every", self.redistance_every, "an integer in [0, 1e6]"));
+        }
+        self.pressure_solver.validate()?;
+        self.time.validate()?;
+        if self.threads == 0 || self.threads > 1024 {
+            return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
+        }
+        Ok(())
+    }
+}
+
+/// Work arrays of a step (allocated once).
+pub(crate) struct Work {
+    pub conv_u: Field,
+    pub conv_v: Field,
+    pub rhs_u: Field,
+    pub rhs_v: Field,
+    pub gx: Field,
+    pub gy: Field,
+    pub c_u: Field,
+    pub c_v: Field,
+    pub rho_u: Field,
+    pub rho_v: Field,
+    pub eta_c: Field,
+    pub eta_n: Field,
+    pub tmp_u: Field,
+    pub tmp_v: Field,
+}
+
+/// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model.
+pub struct TwoPhaseModel {
+    pub(crate) config: ModelConfig,
+    pub(crate) pool: rayon::ThreadPool,
+    /// x-velocity u^n on XFace.
+    pub u: Field,
+    /// y-velocity v^n on YFace.
+    pub v: Field,
+    /// u^{n−1}, v^{n−1}.
+    pub u_prev: Field,
+    pub v_prev: Field,
+    /// (u·∇)u at t_{n−1}.
+    pub(crate) conv_prev_u: Field,
+    pub(crate) conv_prev_v: Field,
+    /// Pressure p^n (cell centres).
+    pub p: Field,
+    /// Level set Φ^n (cell centres; > 0 in the dense phase).
+    pub phi: Field,
+    pub(crate) work: Work,
+    pub(crate) projection: PressureProjection,
+    pub(crate) momentum: MomentumSolver,
+    /// Simulated time t_n.
+    pub time: f64,
+    /// Steps taken.
+    pub step_count: u64,
+    /// δt_{n−1} (None before the first step).
+    pub dt_prev: Option<f64>,
+    /// What the last step did.
+    pub last: StepInfo,
+    pub(crate) properties_current: bool,
+    /// The projection's coefficients 1/ρ must be rebuilt.
+    pub(crate) projection_stale: bool,
+}
+
+impl TwoPhaseModel {
+    /// Builds a model at rest (u = 0, p = 0, Φ = +1 everywhere: only the dense phase).
+    pub fn new(config: ModelConfig) -> Result<Self> {
+        config.validate()?;
+        let g = &config.grid;
+        let pool = build_pool(config.threads)?;
+        let c = || Field::zeros(g, Location::Centre);
+        let xf = || Field::zeros(g, Location::XFace);
+        let yf = || Field::zeros(g, Location::YFace);
+        let mut phi = c();
+        phi.fill(1.0);
+        let projection = PressureProjection::new(g, &config.bc, config.pressure_solver)?;
+        let momentum = MomentumSolver::new(g);
+        let work = Work {
+            conv_u: xf(),
+            conv_v: yf(),
+            rhs_u: xf(),
+            rhs_v: yf(),
+            gx: xf(),
+            gy: yf(),
+            c_u: xf(),
+            c_v: yf(),
+            rho_u: xf(),
+            rho_v: yf(),
+            eta_c: c(),
+            eta_n: Field::zeros(g, Location::Node),
+            tmp_u: xf(),
+            tmp_v: yf(),
+        };
+        Ok(TwoPhaseModel {
+            u: xf(),
+            v: yf(),
+            u_prev: xf(),
+            v_prev: yf(),
+            conv_prev_u: xf(),
+            conv_prev_v: yf(),
+            p: c(),
+            phi,
+            work,
+            projection,
+            momentum,
+            time: 0.0,
+            step_count: 0,
+            dt_prev: None,
+            last: StepInfo::default(),
+            properties_current: false,
+            projection_stale: true,
+            pool,
+            config,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ModelConfig {
+        &self.config
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> &Grid {
+        &self.config.grid
+    }
+
+    /// Execution policy of the model's kernels.
+    pub fn exec(&self) -> Exec {
+        Exec::with_threads(self.config.threads)
+    }
+
+    /// Tells the model that fields were changed from outside (initial conditions): material
+    /// properties are recomputed and the BDF2 history restarts with a first-order step.
+    pub fn fields_changed(&mut self) {
+        self.properties_current = false;
+        self.dt_prev = None;
+    }
+
+    /// Density on u and v faces as last computed.
+    pub fn face_density(&self) -> (&Field, &Field) {
+        (&self.work.rho_u, &self.work.rho_v)
+    }
+
+    /// Viscosity at centres and nodes as last computed.
+    pub fn viscosity(&self) -> (&Field, &Field) {
+        (&self.work.eta_c, &self.work.eta_n)
+    }
+
+    /// The last pressure solve.
+    pub fn last_pressure_solve(&self) -> SolveInfo {
+        self.last.pressure
+    }
+}

@@ -1,0 +1,140 @@
+//! Ghost values of the MAC velocity that impose the boundary conditions of [`BoundaryConditions`].
+//!
+//! Normal components on the boundary are set to the prescribed normal velocity (walls: 0); ghost
+//! layers beyond a wall are odd reflections about the wall value, u_n(−k) = 2u_n(0) − u_n(k);
+//! beyond an outflow boundary they are constant, u_n(−k) = u_n(0). Tangential ghosts follow
+//! `VelocityBc::tangential_ghost`: u_t(−k) = a u_t(k−1) + b.
+//!
+//! With [`BcMode::Homogeneous`] every inhomogeneous datum (b, prescribed normal velocity) is
+//! taken as zero: this is the linear part of the affine boundary map, used inside Krylov solves.
+
+use crate::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc, HALO};
+use std::ops::Range;
+
+/// Whether boundary data are applied or taken as zero.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BcMode {
+    /// The boundary conditions as given.
+    Full,
+    /// The linear part only (all prescribed values zero).
+    Homogeneous,
+}
+
+/// Indices of the normal-velocity faces that are unknowns along one direction with `n` cells:
+/// faces 1..n−1 are always unknown, face 0 (resp. n) only if that side is an outflow.
+pub fn unknown_face_range(low: VelocityBc, high: VelocityBc, n: usize) -> Range<usize> {
+    let start = if matches!(low, VelocityBc::Outflow) { 0 } else { 1 };
+    let end = if matches!(high, VelocityBc::Outflow) { n + 1 } else { n };
+    start..end
+}
+
+/// Fills boundary values and ghost layers of u (XFace) and v (YFace).
+pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryConditions, grid: &Grid, mode: BcMode) {
+    let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+    let g = HALO as isize;
+    let hom = mode == BcMode::Homogeneous;
+    let data = |b: VelocityBc, h: f64| {
+        let (a, bb) = b.tangential_ghost(h);
+        (a, if hom { 0.0 } else { bb })
+    };
+    let normal = |b: VelocityBc| if hom { 0.0 } else { b.normal_inflow().unwrap_or(0.0) };
+
+    // ---- u: normal on left/right, tangential on bottom/top ----
+    let (bl, br, bb, bt) = (bc.get(Side::Left), bc.get(Side::Right), bc.get(Side::Bottom), bc.get(Side::Top));
+    for j in 0..ny {
+        // left boundary face i = 0
+        if !matches!(bl, VelocityBc::Outflow) {
+            let w = normal(bl);
+            let k0 = u.idx(0, j);
+            u.slice_mut()[k0] = w;
+            for k in 1..=g {
+                let val = 2.0 * w - u.at(k, j);
+                let kk = u.idx(-k, j);
+                u.slice_mut()[kk] = val;
+            }
+        } else {
+            let w = u.at(0, j);
+            for k in 1..=g {
+                let kk = u.idx(-k, j);
+                u.slice_mut()[kk] = w;
+            }
+        }
+        // right boundary face i = nx (inflow into the domain is −x)
+        if !matches!(br, VelocityBc::Outflow) {
+            let w = -normal(br);
+            let k0 = u.idx(nx, j);
+            u.slice_mut()[k0] = w;
+            for k in 1..=g {
+                let val = 2.0 * w - u.at(nx - k, j);
+                let kk = u.idx(nx + k, j);
+                u.slice_mut()[kk] = val;
+            }
+        } else {
+            let w = u.at(nx, j);
+            for k in 1..=g {
+                let kk = u.idx(nx + k, j);
+                u.slice_mut()[kk] = w;
+            }
+        }
+    }
+    let (ab, cb) = data(bb, grid.dy);
+    let (at, ct) = data(bt, grid.dy);
+    for i in -g..=nx + g {
+        for k in 1..=g {
+            let lo = ab * u.at(i, k - 1) + cb;
+            let hi = at * u.at(i, ny - k) + ct;
+            let (a, b) = (u.idx(i, -k), u.idx(i, ny - 1 + k));
+            let s = u.slice_mut();
+            s[a] = lo;
+            s[b] = hi;
+        }
+    }
+
+    // ---- v: normal on bottom/top, tangential on left/right ----
+    for i in 0..nx {
+        if !matches!(bb, VelocityBc::Outflow) {
+            let w = normal(bb);
+            let k0 = v.idx(i, 0);
+            v.slice_mut()[k0] = w;
+            for k in 1..=g {
+                let val = 2.0 * w - v.at(i, k);
+                let kk = v.idx(i, -k);
+                v.slice_mut()[kk] = val;
+            }
+        } else {
+            let w = v.at(i, 0);
+            for k in 1..=g {
+                let kk = v.idx(i, -k);
+                v.slice_mut()[kk] = w;
+            }
+        }
+        if !matches!(bt, VelocityBc::Outflow) {
+            let w = -normal(bt);
+            let k0 = v.idx(i, ny);
+            v.slice_mut()[k0] = w;
+            for k in 1..=g {
+                let val = 2.0 * w - v.at(i, ny - k);
+                let kk = v.idx(i, ny + k);
+                v.slice_mut()[kk] = val;
+            }
+        } else {
+            let w = v.at(i, ny);
+            for k in 1..=g {
+                let kk = v.idx(i, ny + k);
+                v.slice_mut()[kk] = w;
+            }
+        }
+    }
+    let (al, cl) = data(bl, grid.dx);
+    let (ar, cr) = data(br, grid.dx);
+    for j in -g..=ny + g {
+        for k in 1..=g {
+            let lo = al * v.at(k - 1, j) + cl;
+            let hi = ar * v.at(nx - k, j) + cr;
+            let (a, b) = (v.idx(-k, j), v.idx(nx - 1 + k, j));
+            let s = v.slice_mut();
+            s[a] = lo;
+            s[b] = hi;
+        }
+    }
+}

@@ -1,0 +1,299 @@
+//! Momentum predictor (Aravena et al. §3.1 step 4, eq. 11, without the plastic term here):
+//!
+//!   ρ^{n+1} (a₀ ũ − a₁ u^n + a₂ u^{n−1})/δt + ρ^{n+1} N* + ∇(p^n + p_f^{n+1}) = ρ^{n+1} g + div(2η^{n+1} D(ũ)) + f_extra,
+//!
+//! N* = (1+ω) (u^n·∇)u^n − ω (u^{n−1}·∇)u^{n−1} (extrapolated convection). With the implicit
+//! viscous scheme the linear system
+//!
+//!   A ũ = c ⊙ ũ − div(2η D(ũ)) = rhs,   c = a₀ ρ/δt on each face,
+//!
+//! is symmetric positive definite (the viscous part is Dᵀ(2η)D with the boundary ghosts of
+//! `operators::fill_velocity_ghosts`) and is solved by Jacobi-preconditioned CG on the unknown
+//! faces; the affine boundary data enter through the initial residual. The explicit scheme
+//! evaluates div(2η D(u*)) at the extrapolated velocity instead (stable for
+//! δt ≲ ρh²/(4η), see `clock.rs`).
+
+use crate::error::{Error, Result};
+use crate::exec::Exec;
+use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
+use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, BcMode};
+use crate::solvers::SolveInfo;
+use std::ops::Range;
+
+/// How the viscous term div(2η D(u)) is advanced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ViscousScheme {
+    /// Backward (BDF) in time: unconditionally stable, one SPD solve per predictor.
+    Implicit,
+    /// Evaluated at the extrapolated velocity: no solve, stable for δt ≲ ρh²/(4η).
+    Explicit,
+}
+
+impl ViscousScheme {
+    /// Name used in Python and the docs.
+    pub fn name(self) -> &'static str {
+        match self {
+            ViscousScheme::Implicit => "implicit",
+            ViscousScheme::Explicit => "explicit",
+        }
+    }
+}
+
+/// The coefficients of one predictor system.
+pub struct ViscousSystem<'a> {
+    /// a₀ ρ/δt on u faces.
+    pub c_u: &'a Field,
+    /// a₀ ρ/δt on v faces.
+    pub c_v: &'a Field,
+    /// η at cell centres (ghosts filled).
+    pub eta_c: &'a Field,
+    /// η at nodes.
+    pub eta_n: &'a Field,
+    pub grid: &'a Grid,
+    pub bc: &'a BoundaryConditions,
+}
+
+/// Work arrays for the implicit viscous solve, allocated once.
+pub struct MomentumSolver {
+    ru: Field,
+    rv: Field,
+    zu: Field,
+    zv: Field,
+    du: Field,
+    dv: Field,
+    qu: Field,
+    qv: Field,
+    diag_u: Field,
+    diag_v: Field,
+    /// Relative residual tolerance ‖rhs − Aũ‖/‖rhs‖.
+    pub rtol: f64,
+    /// Iteration cap; reaching it is an error.
+    pub max_iterations: usize,
+}
+
+fn ranges(grid: &Grid, bc: &BoundaryConditions) -> (Range<usize>, Range<usize>) {
+    (
+        unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx),
+        unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), grid.ny),
+    )
+}
+
+/// Σ a·b over the unknown faces of one component (deterministic block sum).
+fn dot(a: &Field, b: &Field, ri: &Range<usize>, rj: &Range<usize>, exec: Exec) -> f64 {
+    let (sa, sb, st) = (a.slice(), b.slice(), a.stride());
+    let rj0 = rj.start;
+    exec.sum_rows(rj.len(), a.nx * a.ny, |r| {
+        let bse = (r + rj0 + HALO) * st + HALO;
+        let mut s = 0.0;
+        for i in ri.clone() {
+            s += sa[bse + i] * sb[bse + i];
+        }
+        s
+    })
+}
+
+impl MomentumSolver {
+    /// Work arrays for `grid`.
+    pub fn new(grid: &Grid) -> Self {
+        let fu = || Field::zeros(grid, Location::XFace);
+        let fv = || Field::zeros(grid, Location::YFace);
+        MomentumSolver {
+            ru: fu(),
+            rv: fv(),
+            zu: fu(),
+            zv: fv(),
+            du: fu(),
+            dv: fv(),
+            qu: fu(),
+            qv: fv(),
+            diag_u: fu(),
+            diag_v: fv(),
+            rtol: 1e-10,
+            max_iterations: 2000,
+        }
+    }
+
+    /// out = A(u) = c ⊙ u − div(2η D(u)) on every face (ghosts of u, v filled by the caller).
+    fn apply(sys: &ViscousSystem, u: &Field, v: &Field, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
+        viscous(u, v, sys.eta_c, sys.eta_n, sys.grid, out_u, out_v, exec);
+        for (out, c, w) in [(out_u, sys.c_u, u), (out_v, sys.c_v, v)] {
+            let (cs, ws) = (c.slice(), w.slice());
+            let st = c.stride();
+            let n = out.nx;
+            for_each_interior_row(exec, out, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    row[HALO + i] = cs[b + i] * ws[b + i] - row[HALO + i];
+                }
+            });
+        }
+    }
+
+    /// Diagonal of A on the unknown faces (exact, including the ghost factors of the boundary rules).
+    fn diagonal(&mut self, sys: &ViscousSystem) {
+        let g = sys.grid;
+        let (nx, ny) = (g.nx as isize, g.ny as isize);
+        let (idx2, idy2) = (1.0 / (g.dx * g.dx), 1.0 / (g.dy * g.dy));
+        let (ab, at) = (sys.bc.get(Side::Bottom).tangential_ghost(g.dy).0, sys.bc.get(Side::Top).tangential_ghost(g.dy).0);
+        let (al, ar) = (sys.bc.get(Side::Left).tangential_ghost(g.dx).0, sys.bc.get(Side::Right).tangential_ghost(g.dx).0);
+        let (ru, rv) = ranges(g, sys.bc);
+        let (ec, en) = (sys.eta_c, sys.eta_n);
+        for j in 0..ny {
+            for i in ru.clone() {
+                let i = i as isize;
+                // ∂u/∂x at the cells on each side; a neighbour beyond an outflow face is a copy (factor 1 − 1 = 0)
+                let fr = if i == nx { 0.0 } else { 1.0 };
+                let fl = if i == 0 { 0.0 } else { 1.0 };
+                let ft = if j == ny - 1 { 1.0 - at } else { 1.0 };
+                let fb = if j == 0 { 1.0 - ab } else { 1.0 };
+                let d = sys.c_u.at(i, j)
+                    + 2.0 * idx2 * (fr * ec.at(i, j) + fl * ec.at(i - 1, j))
+                    + idy2 * (ft * en.at(i, j + 1) + fb * en.at(i, j));
+                self.diag_u.set(i as usize, j as usize, d);
+            }
+        }
+        for j in rv.clone() {
+            let j = j as isize;
+            for i in 0..nx {
+                let ft = if j == ny { 0.0 } else { 1.0 };
+                let fb = if j == 0 { 0.0 } else { 1.0 };
+                let fr = if i == nx - 1 { 1.0 - ar } else { 1.0 };
+                let fl = if i == 0 { 1.0 - al } else { 1.0 };
+                let d = sys.c_v.at(i, j)
+                    + 2.0 * idy2 * (ft * ec.at(i, j) + fb * ec.at(i, j - 1))
+                    + idx2 * (fr * en.at(i + 1, j) + fl * en.at(i, j));
+                self.diag_v.set(i as usize, j as usize, d);
+            }
+        }
+    }
+
+    /// Solves A ũ = rhs on the unknown faces by Jacobi-preconditioned CG. On entry `u`, `v` hold
+    /// the initial guess; their boundary values are set from the boundary conditions.
+    pub fn solve_implicit(
+        &mut self,
+        sys: &ViscousSystem,
+        u: &mut Field,
+        v: &mut Field,
+        rhs_u: &Field,
+        rhs_v: &Field,
+        exec: Exec,
+    ) -> Result<SolveInfo> {
+        let (ru, rv) = ranges(sys.grid, sys.bc);
+        fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
+        self.diagonal(sys);
+        Self::apply(sys, u, v, &mut self.qu, &mut self.qv, exec);
+        // r = rhs − A u, z = r / diag, d = z (zero off the unknown faces)
+        let mut bnorm2 = 0.0;
+        for (r, q, rhs, z, d, diag, ri, rj) in [
+            (&mut self.ru, &self.qu, rhs_u, &mut self.zu, &mut self.du, &self.diag_u, ru.clone(), 0..sys.grid.ny),
+            (&mut self.rv, &self.qv, rhs_v, &mut self.zv, &mut self.dv, &self.diag_v, 0..sys.grid.nx, rv.clone()),
+        ] {
+            bnorm2 += dot(rhs, rhs, &ri, &rj, exec);
+            r.fill(0.0);
+            z.fill(0.0);
+            d.fill(0.0);
+            for j in rj.clone() {
+                for i in ri.clone() {
+                    let (ii, jj) = (i as isize, j as isize);
+                    let rr = rhs.at(ii, jj) - q.at(ii, jj);
+                    r.set(i, j, rr);
+                    let zz = rr / diag.at(ii, jj);
+                    z.set(i, j, zz);
+                    d.set(i, j, zz);
+                }
+            }
+        }
+        let bnorm = bnorm2.sqrt();
+        let rnorm0 = (dot(&self.ru, &self.ru, &ru, &(0..sys.grid.ny), exec)
+            + dot(&self.rv, &self.rv, &(0..sys.grid.nx), &rv, exec))
+        .sqrt();
+        if !rnorm0.is_finite() {
+            return Err(Error::SolverFailure {
+                solver: "viscous CG".into(),
+                message: "non-finite residual in the momentum predictor (NaN or inf in the velocity or forces)".into(),
+            });
+        }
+        let scale = if bnorm > 0.0 { bnorm } else { 1.0 };
+        let mut res = rnorm0 / scale;
+        let initial = res;
+        let mut rz = dot(&self.ru, &self.zu, &ru, &(0..sys.grid.ny), exec) + dot(&self.rv, &self.zv, &(0..sys.grid.nx), &rv, exec);
+        let mut it = 0;
+        while res > self.rtol && rnorm0 > 0.0 {
+            if it >= self.max_iterations {
+                return Err(Error::NotConverged {
+                    solver: "viscous CG (momentum predictor)".into(),
+                    iterations: it,
+                    residual: res,
+                    tolerance: self.rtol,
+                });
+            }
+            fill_velocity_ghosts(&mut self.du, &mut self.dv, sys.bc, sys.grid, BcMode::Homogeneous);
+            Self::apply(sys, &self.du, &self.dv, &mut self.qu, &mut self.qv, exec);
+            let dq = dot(&self.du, &self.qu, &ru, &(0..sys.grid.ny), exec) + dot(&self.dv, &self.qv, &(0..sys.grid.nx), &rv, exec);
+            let alpha = rz / dq;
+            let mut rz_new = 0.0;
+            let mut rr = 0.0;
+            for (x, r, z, d, q, diag, ri, rj) in [
+                (&mut *u, &mut self.ru, &mut self.zu, &self.du, &self.qu, &self.diag_u, ru.clone(), 0..sys.grid.ny),
+                (&mut *v, &mut self.rv, &mut self.zv, &self.dv, &self.qv, &self.diag_v, 0..sys.grid.nx, rv.clone()),
+            ] {
+                let st = x.stride();
+                let (ds, qs, dg) = (d.slice(), q.slice(), diag.slice());
+                for j in rj.clone() {
+                    let b = (j + HALO) * st + HALO;
+                    let (xs, rs, zs) = (x.slice_mut(), &mut r.slice_mut()[b..], &mut z.slice_mut()[b..]);
+                    for i in ri.clone() {
+                        xs[b + i] += alpha * ds[b + i];
+                        rs[i] -= alpha * qs[b + i];
+                        zs[i] = rs[i] / dg[b + i];
+                    }
+                }
+                rz_new += dot(r, z, &ri, &rj, exec);
+                rr += dot(r, r, &ri, &rj, exec);
+            }
+            res = rr.sqrt() / scale;
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for (d, z, ri, rj) in [(&mut self.du, &self.zu, ru.clone(), 0..sys.grid.ny), (&mut self.dv, &self.zv, 0..sys.grid.nx, rv.clone())] {
+                let st = d.stride();
+                let zs = z.slice();
+                let ds = d.slice_mut();
+                for j in rj {
+                    let b = (j + HALO) * st + HALO;
+                    for i in ri.clone() {
+                        ds[b + i] = zs[b + i] + beta * ds[b + i];
+                    }
+                }
+            }
+            it += 1;
+        }
+        fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
+        Ok(SolveInfo { iterations: it, residual: res, initial_residual: initial, rhs_mean_removed: 0.0 })
+    }
+
+    /// Explicit predictor: ũ = (rhs + div(2η D(u*)))/c on the unknown faces, with u* in `u`, `v`
+    /// on entry (ghosts are filled here).
+    pub fn solve_explicit(&mut self, sys: &ViscousSystem, u: &mut Field, v: &mut Field, rhs_u: &Field, rhs_v: &Field, exec: Exec) {
+        let (ru, rv) = ranges(sys.grid, sys.bc);
+        fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
+        viscous(u, v, sys.eta_c, sys.eta_n, sys.grid, &mut self.qu, &mut self.qv, exec);
+        for (x, q, rhs, c, ri, rj) in [
+            (&mut *u, &self.qu, rhs_u, sys.c_u, ru, 0..sys.grid.ny),
+            (&mut *v, &self.qv, rhs_v, sys.c_v, 0..sys.grid.nx, rv),
+        ] {
+            let st = x.stride();
+            let (qs, rs, cs) = (q.slice(), rhs.slice(), c.slice());
+            let rj2 = rj.clone();
+            for_each_interior_row(exec, x, |j, row| {
+                if !rj2.contains(&j) {
+                    return;
+                }
+                let b = (j + HALO) * st + HALO;
+                for i in ri.clone() {
+                    row[HALO + i] = (rs[b + i] + qs[b + i]) / cs[b + i];
+                }
+            });
+        }
+        fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
+    }
+}

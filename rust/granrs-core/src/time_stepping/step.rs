@@ -1,0 +1,324 @@
+//! One time step t_n → t_{n+1} of the two-phase model. **This is the only place that states the
+//! order of the stages** (Aravena et al. §3.1; step numbers of the paper in brackets):
+//!
+//! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
+//! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^n; redistancing every N steps.
+//! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1}).
+//! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room; skipped when not fluidised).
+//! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection and the viscous term
+//!    (implicit or explicit); the plastic stress and wall friction enter here (rheology room).
+//! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp.
+//! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
+
+use crate::error::{Error, Result};
+use crate::exec::Exec;
+use crate::grid::{Field, HALO};
+use crate::models::TwoPhaseModel;
+use crate::operators::{
+    cell_to_node, convection, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, gradient, max_speed,
+    BcMode,
+};
+use crate::projection::fill_pressure_ghosts;
+use crate::solvers::SolveInfo;
+use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
+use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepInfo {
+    /// δt of the step.
+    pub dt: f64,
+    /// Time after the step.
+    pub time: f64,
+    /// Pressure solve (iterations, residual).
+    pub pressure: SolveInfo,
+    /// Viscous solve of the predictor (0 iterations when explicit).
+    pub viscous: SolveInfo,
+    /// max |u|, max |v| after the step.
+    pub max_speed: f64,
+    /// Advective CFL number δt (max|u|/dx + max|v|/dy) after the step.
+    pub cfl: f64,
+    /// max |div u| after the projection.
+    pub divergence: f64,
+}
+
+/// The paper's smoothed Heaviside H_ε(Φ) (§2.4).
+#[inline]
+pub fn heaviside(phi: f64, eps: f64) -> f64 {
+    if phi < -eps {
+        0.0
+    } else if phi > eps {
+        1.0
+    } else {
+        0.5 * (1.0 + phi / eps + (std::f64::consts::PI * phi / eps).sin() / std::f64::consts::PI)
+    }
+}
+
+impl TwoPhaseModel {
+    /// Advances the model by one step (stages in the order of this file's header).
+    pub fn step(&mut self) -> Result<StepInfo> {
+        let exec = self.exec();
+        let pool = std::mem::replace(&mut self.pool, rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap());
+        let out = pool.install(|| self.step_stages(exec));
+        self.pool = pool;
+        out
+    }
+
+    fn step_stages(&mut self, exec: Exec) -> Result<StepInfo> {
+        let dt = self.choose_dt(exec)?;
+        self.interface(dt, exec)?;
+        self.properties(exec);
+        let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
+        let viscous = self.predictor(dt, a0, a1, a2, w, exec)?;
+        let pressure = self.projection_stage(dt / a0, exec)?;
+        self.checks(dt, viscous, pressure, exec)
+    }
+
+    /// Balances the body force at rest: sets p so that (1/ρ)∇p = g − P(g), where P is the
+    /// discrete projection onto divergence-free fields (one pressure solve). A stratified fluid
+    /// at rest then stays exactly at rest; any initial velocity is left unchanged.
+    pub fn initialise_pressure(&mut self) -> Result<SolveInfo> {
+        let exec = self.exec();
+        self.properties(exec);
+        let cfg = &self.config;
+        let [gx, gy] = cfg.gravity;
+        // g on the unknown faces, zero on fixed boundary faces; project it with δt/a₀ = 1.
+        let wk = &mut self.work;
+        wk.rhs_u.fill(gx);
+        wk.rhs_v.fill(gy);
+        fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Homogeneous);
+        self.p.fill(0.0);
+        if self.projection_stale {
+            self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
+            self.projection_stale = false;
+        }
+        self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, exec)
+    }
+
+    /// Stage 1: the time step.
+    fn choose_dt(&mut self, exec: Exec) -> Result<f64> {
+        let cfg = &self.config;
+        let g = &cfg.grid;
+        if let Some(dt) = cfg.time.fixed_dt {
+            return Ok(dt);
+        }
+        let (umax, vmax) = max_speed(&self.u, &self.v, exec);
+        let nu = if cfg.viscous == ViscousScheme::Explicit {
+            let mut nu = cfg.dense.viscosity / cfg.dense.density;
+            if let Some(l) = cfg.light {
+                nu = nu.max(l.viscosity / l.density);
+            }
+            nu
+        } else {
+            0.0
+        };
+        let gmag = (cfg.gravity[0].powi(2) + cfg.gravity[1].powi(2)).sqrt();
+        let mut dt = stable_dt(cfg.time.cfl, umax, vmax, g.dx, g.dy, gmag, nu).min(cfg.time.max_dt);
+        if let Some(prev) = self.dt_prev {
+            dt = dt.min(prev * cfg.time.max_growth);
+        }
+        if !dt.is_finite() {
+            return Err(Error::Simulation {
+                what: "no finite time step: the fluid is at rest with no forcing; set `dt` or `max_dt`".into(),
+                step: self.step_count,
+                time: self.time,
+                location: None,
+            });
+        }
+        Ok(dt)
+    }
+
+    /// Stage 2 (paper step 1): transport of the level set. A single-phase model or a frozen
+    /// interface skips it.
+    fn interface(&mut self, _dt: f64, _exec: Exec) -> Result<()> {
+        Ok(())
+    }
+
+    /// Stage 3 (paper step 2): material properties from the level set.
+    fn properties(&mut self, exec: Exec) {
+        if self.properties_current && (self.config.light.is_none() || !self.config.transport_interface) {
+            return;
+        }
+        let cfg = &self.config;
+        let eps = cfg.interface_width * cfg.grid.h();
+        let dense = cfg.dense;
+        let light = cfg.light.unwrap_or(dense);
+        let rho = |phi: f64| {
+            let h = heaviside(phi, eps);
+            dense.density * h + light.density * (1.0 - h)
+        };
+        let eta = |phi: f64| {
+            let h = heaviside(phi, eps);
+            1.0 / (h / dense.viscosity + (1.0 - h) / light.viscosity)
+        };
+        self.phi.extrapolate_ghosts_linear();
+        let w = &mut self.work;
+        let ps = self.phi.slice();
+        let st = self.phi.stride();
+        let nxc = self.phi.nx;
+        // density on faces from Φ averaged to the face
+        let nxu = w.rho_u.nx;
+        for_each_interior_row(exec, &mut w.rho_u, |j, row| {
+            let b = (j + HALO) * st + HALO;
+            for i in 0..nxu {
+                row[HALO + i] = rho(0.5 * (ps[b + i] + ps[b + i - 1]));
+            }
+        });
+        for_each_interior_row(exec, &mut w.rho_v, |j, row| {
+            let (b0, b1) = ((j + HALO - 1) * st + HALO, (j + HALO) * st + HALO);
+            for i in 0..nxc {
+                row[HALO + i] = rho(0.5 * (ps[b0 + i] + ps[b1 + i]));
+            }
+        });
+        // viscosity at centres (with ghosts) and nodes
+        for_each_interior_row(exec, &mut w.eta_c, |j, row| {
+            let b = (j + HALO) * st + HALO;
+            for i in 0..nxc {
+                row[HALO + i] = eta(ps[b + i]);
+            }
+        });
+        w.eta_c.extrapolate_ghosts_constant();
+        cell_to_node(&self.phi, &mut w.eta_n, exec);
+        let nxn = w.eta_n.nx;
+        for_each_interior_row(exec, &mut w.eta_n, |_, row| {
+            for x in &mut row[HALO..HALO + nxn] {
+                *x = eta(*x);
+            }
+        });
+        self.properties_current = true;
+        self.projection_stale = true;
+    }
+
+    /// Stage 5 (paper step 4): the momentum predictor ũ^{n+1}.
+    #[allow(clippy::too_many_arguments)]
+    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, exec: Exec) -> Result<SolveInfo> {
+        let cfg = &self.config;
+        let (grid, bc) = (&cfg.grid, &cfg.bc);
+        let [gxv, gyv] = cfg.gravity;
+        fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
+        fill_pressure_ghosts(&mut self.p, bc);
+        let wk = &mut self.work;
+        convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec);
+        gradient(&self.p, grid, &mut wk.gx, &mut wk.gy, exec);
+        let first = self.dt_prev.is_none();
+        // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ∇pⁿ ;  c = a₀ρ/δt
+        for (rhs, c, rho, un, um, nn, nm, gp, gcomp) in [
+            (&mut wk.rhs_u, &mut wk.c_u, &wk.rho_u, &self.u, &self.u_prev, &wk.conv_u, &self.conv_prev_u, &wk.gx, gxv),
+            (&mut wk.rhs_v, &mut wk.c_v, &wk.rho_v, &self.v, &self.v_prev, &wk.conv_v, &self.conv_prev_v, &wk.gy, gyv),
+        ] {
+            let st = rhs.stride();
+            let n = rhs.nx;
+            let (rs, uns, ums, nns, nms, gps) = (rho.slice(), un.slice(), um.slice(), nn.slice(), nm.slice(), gp.slice());
+            let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
+            for_each_interior_row(exec, c, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    row[HALO + i] = a0 * rs[b + i] / dt;
+                }
+            });
+            for_each_interior_row(exec, rhs, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    let k = b + i;
+                    let nstar = we * nns[k] - wm * nms[k];
+                    row[HALO + i] = rs[k] * ((a1 * uns[k] - a2 * ums[k]) / dt - nstar + gcomp) - gps[k];
+                }
+            });
+        }
+        // history: u_prev ← uⁿ, u ← initial guess u* = (1+ω)uⁿ − ω uⁿ⁻¹
+        std::mem::swap(&mut self.u, &mut self.u_prev);
+        std::mem::swap(&mut self.v, &mut self.v_prev);
+        let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
+        for (x, xn) in [(&mut self.u, &self.u_prev), (&mut self.v, &self.v_prev)] {
+            let st = x.stride();
+            let n = x.nx;
+            let xs = xn.slice();
+            for_each_interior_row(exec, x, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    row[HALO + i] = we * xs[b + i] - wm * row[HALO + i];
+                }
+            });
+        }
+        std::mem::swap(&mut wk.conv_u, &mut self.conv_prev_u);
+        std::mem::swap(&mut wk.conv_v, &mut self.conv_prev_v);
+        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
+        match cfg.viscous {
+            ViscousScheme::Implicit => self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec),
+            ViscousScheme::Explicit => {
+                self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec);
+                Ok(SolveInfo::default())
+            }
+        }
+        .map_err(|e| self.at_step(e))
+    }
+
+    /// Stage 6 (paper step 5): pressure projection.
+    fn projection_stage(&mut self, dt_over_a0: f64, exec: Exec) -> Result<SolveInfo> {
+        let cfg = &self.config;
+        let wk = &self.work;
+        if self.projection_stale {
+            self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
+            self.projection_stale = false;
+        }
+        let r = self.projection.project(&mut self.u, &mut self.v, &mut self.p, &wk.rho_u, &wk.rho_v, dt_over_a0, &cfg.grid, &cfg.bc, exec);
+        r.map_err(|e| self.at_step(e))
+    }
+
+    /// Stage 7: checks and bookkeeping.
+    fn checks(&mut self, dt: f64, viscous: SolveInfo, pressure: SolveInfo, exec: Exec) -> Result<StepInfo> {
+        let cfg = &self.config;
+        let g = &cfg.grid;
+        fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, g, BcMode::Full);
+        let (umax, vmax) = max_speed(&self.u, &self.v, exec);
+        let next_time = self.time + dt;
+        if !(umax.is_finite() && vmax.is_finite()) {
+            let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
+            let (which, loc) = if !fu.0.is_finite() { ("u", fu.1) } else { ("v", fv.1) };
+            return Err(Error::Simulation {
+                what: format!("non-finite velocity ({which} is NaN or inf) after the projection"),
+                step: self.step_count + 1,
+                time: next_time,
+                location: Some(loc),
+            });
+        }
+        let cfl = dt * (umax / g.dx + vmax / g.dy);
+        if cfl > cfg.time.cfl_abort {
+            let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
+            let loc = if fu.0 / g.dx >= fv.0 / g.dy { fu.1 } else { fv.1 };
+            return Err(Error::Simulation {
+                what: format!(
+                    "CFL number {cfl:.3} exceeds the limit cfl_abort = {} (δt = {dt:.3e} s, max|u| = {umax:.3e}, max|v| = {vmax:.3e} m/s)",
+                    cfg.time.cfl_abort
+                ),
+                step: self.step_count + 1,
+                time: next_time,
+                location: Some(loc),
+            });
+        }
+        let divergence = divergence_max_abs(&self.u, &self.v, g, exec);
+        self.time = next_time;
+        self.step_count += 1;
+        self.dt_prev = Some(dt);
+        self.last = StepInfo { dt, time: self.time, pressure, viscous, max_speed: umax.max(vmax), cfl, divergence };
+        Ok(self.last)
+    }
+
+    /// Attaches the step and time to a solver error.
+    fn at_step(&self, e: Error) -> Error {
+        match e {
+            Error::NotConverged { .. } | Error::SolverFailure { .. } => Error::Simulation {
+                what: e.to_string(),
+                step: self.step_count + 1,
+                time: self.time,
+                location: None,
+            },
+            other => other,
+        }
+    }
+}
+
+/// Copies the interior of `src` into a row-major buffer.
+pub fn interior_to_vec(src: &Field) -> Vec<f64> {
+    src.interior().iter().copied().collect()
+}
