@@ -1,3 +1,345 @@
+//! Thin Python binding of granrs-core: converts and validates arguments, maps core errors to
+//! Python exceptions, releases the GIL around Rust work, and exposes the model's fields as
+//! zero-copy NumPy arrays (the Python layer marks them read-only and strips the halos).
+
+use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
+use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
+use granrs_core::solvers::{PressureSolverKind, SolveInfo};
+use granrs_core::time_stepping::{StepInfo, ViscousScheme};
+use granrs_core::Error;
+use numpy::{PyArray2, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+create_exception!(_granrs, ParameterError, PyValueError, "A parameter is outside its allowed range, or an array has the wrong shape.");
+create_exception!(_granrs, SolverError, PyRuntimeError, "A linear solver failed or did not converge.");
+create_exception!(_granrs, SimulationError, PyRuntimeError, "A simulation stopped: what failed, where and when.");
+
+/// Maps the core's one error type to the Python exception classes.
+fn to_py(e: Error) -> PyErr {
+    match &e {
+        Error::InvalidParameter { .. } | Error::Shape { .. } => ParameterError::new_err(e.to_string()),
+        Error::NotConverged { .. } | Error::SolverFailure { .. } => SolverError::new_err(e.to_string()),
+        Error::Simulation { step, time, location, .. } => {
+            let err = SimulationError::new_err(e.to_string());
+            Python::attach(|py| {
+                let v = err.value(py);
+                let _ = v.setattr("step", *step);
+                let _ = v.setattr("time", *time);
+                let _ = v.setattr("location", *location);
+            });
+            err
+        }
+    }
+}
+
+fn param_err(name: &str, value: impl std::fmt::Display, allowed: &str) -> PyErr {
+    to_py(Error::param(name, value, allowed))
+}
+
+/// Parses one side's condition from ("kind", {params}).
+fn parse_bc(side: &str, kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<VelocityBc> {
+    let get = |key: &str| -> PyResult<f64> {
+        match params.and_then(|p| p.get_item(key).ok().flatten()) {
+            Some(v) => v.extract::<f64>().map_err(|_| param_err(&format!("bc.{side}.{key}"), v, "a number")),
+            None => Ok(0.0),
+        }
+    };
+    Ok(match kind {
+        "no-slip" => VelocityBc::NoSlip,
+        "free-slip" => VelocityBc::FreeSlip,
+        "velocity" => VelocityBc::Velocity { normal: get("normal")?, tangential: get("tangential")? },
+        "navier" => VelocityBc::NavierSlip { slip_length: get("slip_length")? },
+        "outflow" => VelocityBc::Outflow,
+        "coulomb" => VelocityBc::Coulomb,
+        other => {
+            return Err(param_err(
+                &format!("bc.{side}"),
+                other,
+                "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb'",
+            ))
+        }
+    })
+}
+
+fn info_dict<'py>(py: Python<'py>, s: &SolveInfo) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("iterations", s.iterations)?;
+    d.set_item("residual", s.residual)?;
+    d.set_item("initial_residual", s.initial_residual)?;
+    Ok(d)
+}
+
+fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("dt", s.dt)?;
+    d.set_item("time", s.time)?;
+    d.set_item("max_speed", s.max_speed)?;
+    d.set_item("cfl", s.cfl)?;
+    d.set_item("divergence", s.divergence)?;
+    d.set_item("pressure", info_dict(py, &s.pressure)?)?;
+    d.set_item("viscous", info_dict(py, &s.viscous)?)?;
+    Ok(d)
+}
+
+/// The Rust model (granrs.Model wraps it).
+#[pyclass(name = "RustModel", module = "granrs._granrs")]
+struct PyModel {
+    inner: TwoPhaseModel,
+}
+
+impl PyModel {
+    fn field_ref(&self, name: &str) -> PyResult<&Field> {
+        Ok(match name {
+            "u" => &self.inner.u,
+            "v" => &self.inner.v,
+            "p" => &self.inner.p,
+            "phi" => &self.inner.phi,
+            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi'")),
+        })
+    }
+}
+
+#[pymethods]
+impl PyModel {
+    /// Builds a model. `bc` maps 'left', 'right', 'bottom', 'top' to (kind, params) tuples.
+    #[new]
+    #[pyo3(signature = (nx, ny, lx, ly, bc, dense, light=None, gravity=(0.0, 0.0), interface_width=1.5,
+        transport_interface=true, redistance_every=10, viscous="implicit", cfl=0.5, dt=None,
+        max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
+        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        nx: i64,
+        ny: i64,
+        lx: f64,
+        ly: f64,
+        bc: &Bound<'_, PyDict>,
+        dense: (f64, f64),
+        light: Option<(f64, f64)>,
+        gravity: (f64, f64),
+        interface_width: f64,
+        transport_interface: bool,
+        redistance_every: i64,
+        viscous: &str,
+        cfl: f64,
+        dt: Option<f64>,
+        max_dt: f64,
+        max_growth: f64,
+        cfl_abort: f64,
+        pressure_solver: &str,
+        pressure_rtol: f64,
+        pressure_max_iterations: i64,
+        threads: i64,
+    ) -> PyResult<Self> {
+        let pos = |name: &str, v: i64| -> PyResult<usize> {
+            if v < 0 {
+                Err(param_err(name, v, "a non-negative integer"))
+            } else {
+                Ok(v as usize)
+            }
+        };
+        let grid = Grid::new(pos("nx", nx)?, pos("ny", ny)?, lx, ly).map_err(to_py)?;
+        let mut conds = BoundaryConditions::uniform(VelocityBc::NoSlip);
+        for key in bc.keys() {
+            let k: String = key.extract()?;
+            if !["left", "right", "bottom", "top"].contains(&k.as_str()) {
+                return Err(param_err("bc", &k, "keys 'left', 'right', 'bottom', 'top'"));
+            }
+        }
+        for side in Side::ALL {
+            if let Some(item) = bc.get_item(side.name())? {
+                let t = item.cast::<PyTuple>().map_err(|_| param_err(&format!("bc.{}", side.name()), &item, "a (kind, params) tuple"))?;
+                let kind: String = t.get_item(0)?.extract()?;
+                let params = t.get_item(1)?;
+                let params = params.cast::<PyDict>().ok();
+                conds = conds.with(side, parse_bc(side.name(), &kind, params.as_deref())?);
+            }
+        }
+        let viscous = match viscous {
+            "implicit" => ViscousScheme::Implicit,
+            "explicit" => ViscousScheme::Explicit,
+            other => return Err(param_err("viscous", other, "'implicit' or 'explicit'")),
+        };
+        let mut cfg = ModelConfig::single_phase(grid, conds, Material { density: dense.0, viscosity: dense.1 });
+        cfg.light = light.map(|(r, e)| Material { density: r, viscosity: e });
+        cfg.gravity = [gravity.0, gravity.1];
+        cfg.interface_width = interface_width;
+        cfg.transport_interface = transport_interface;
+        cfg.redistance_every = pos("redistance_every", redistance_every)?;
+        cfg.viscous = viscous;
+        cfg.time.cfl = cfl;
+        cfg.time.fixed_dt = dt;
+        cfg.time.max_dt = max_dt;
+        cfg.time.max_growth = max_growth;
+        cfg.time.cfl_abort = cfl_abort;
+        cfg.pressure_solver.kind = match pressure_solver {
+            "multigrid-cg" => PressureSolverKind::MultigridCg,
+            "direct" => PressureSolverKind::Direct,
+            other => return Err(param_err("pressure_solver", other, "'multigrid-cg' or 'direct'")),
+        };
+        cfg.pressure_solver.rtol = pressure_rtol;
+        cfg.pressure_solver.max_iterations = pos("pressure_max_iterations", pressure_max_iterations)?;
+        cfg.threads = pos("threads", threads)?;
+        let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
+        Ok(PyModel { inner })
+    }
+
+    /// Full storage (halos included) of a field as a zero-copy NumPy array; the array keeps the
+    /// model alive. The buffers are never reallocated, so the view stays valid and live.
+    fn field_storage<'py>(slf: Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let borrowed = slf.borrow();
+        let field = borrowed.field_ref(name)?;
+        let container = slf.clone().into_any();
+        // SAFETY: the array lives inside the model object, which `container` keeps alive; field
+        // buffers are allocated once and never reallocated or moved for the model's lifetime.
+        let arr = unsafe { PyArray2::borrow_from_array(&field.data, container) };
+        Ok(arr)
+    }
+
+    /// Copies `values` (interior shape) into a field, then tells the model fields changed.
+    fn set_field(&mut self, name: &str, values: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let a = values.as_array();
+        let field = match name {
+            "u" => &mut self.inner.u,
+            "v" => &mut self.inner.v,
+            "p" => &mut self.inner.p,
+            "phi" => &mut self.inner.phi,
+            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi'")),
+        };
+        let expected = (field.ny, field.nx);
+        if a.dim() != expected {
+            return Err(to_py(Error::Shape { name: name.into(), got: a.shape().to_vec(), expected: vec![expected.0, expected.1] }));
+        }
+        if let Some(bad) = a.iter().position(|x| !x.is_finite()) {
+            return Err(param_err(name, format!("non-finite value at flat index {bad}"), "finite values"));
+        }
+        field.interior_mut().assign(&a);
+        if name == "u" || name == "v" {
+            self.inner.u_prev.assign(&self.inner.u);
+            self.inner.v_prev.assign(&self.inner.v);
+        }
+        self.inner.fields_changed();
+        Ok(())
+    }
+
+    /// Sets p so that the body force is balanced at rest (one pressure solve).
+    fn initialise_pressure<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let inner = &mut self.inner;
+        let info = py.detach(|| inner.initialise_pressure()).map_err(to_py)?;
+        info_dict(py, &info)
+    }
+
+    /// Takes one step; returns its diagnostics.
+    fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let inner = &mut self.inner;
+        let info = py.detach(|| inner.step()).map_err(to_py)?;
+        step_dict(py, &info)
+    }
+
+    /// Takes steps until `t_end` (the last step is shortened to land on it) or `max_steps`
+    /// steps, with the GIL released. Returns per-step arrays: time, dt, max_speed, cfl,
+    /// pressure_iterations, viscous_iterations, divergence.
+    #[pyo3(signature = (t_end=None, max_steps=None))]
+    fn advance<'py>(&mut self, py: Python<'py>, t_end: Option<f64>, max_steps: Option<u64>) -> PyResult<Bound<'py, PyDict>> {
+        if t_end.is_none() && max_steps.is_none() {
+            return Err(param_err("t_end/max_steps", "None", "at least one of them"));
+        }
+        if let Some(t) = t_end {
+            if !t.is_finite() {
+                return Err(param_err("t_end", t, "a finite time"));
+            }
+        }
+        let inner = &mut self.inner;
+        let (log, err) = py.detach(|| {
+            let mut log: Vec<StepInfo> = Vec::new();
+            let limit = max_steps.unwrap_or(u64::MAX);
+            let mut n = 0;
+            while n < limit {
+                if let Some(t) = t_end {
+                    let remaining = t - inner.time;
+                    if remaining <= 1e-12 * t.abs().max(1e-300) {
+                        break;
+                    }
+                    // land on t_end: a fixed step is shortened; the adaptive one is capped
+                    inner.set_time_to_land(Some(remaining));
+                }
+                match inner.step() {
+                    Ok(s) => log.push(s),
+                    Err(e) => return (log, Some(e)),
+                }
+                n += 1;
+            }
+            inner.set_time_to_land(None);
+            (log, None)
+        });
+        let d = PyDict::new(py);
+        d.set_item("time", log.iter().map(|s| s.time).collect::<Vec<_>>())?;
+        d.set_item("dt", log.iter().map(|s| s.dt).collect::<Vec<_>>())?;
+        d.set_item("max_speed", log.iter().map(|s| s.max_speed).collect::<Vec<_>>())?;
+        d.set_item("cfl", log.iter().map(|s| s.cfl).collect::<Vec<_>>())?;
+        d.set_item("divergence", log.iter().map(|s| s.divergence).collect::<Vec<_>>())?;
+        d.set_item("pressure_iterations", log.iter().map(|s| s.pressure.iterations).collect::<Vec<_>>())?;
+        d.set_item("viscous_iterations", log.iter().map(|s| s.viscous.iterations).collect::<Vec<_>>())?;
+        if let Some(e) = err {
+            // the steps taken before the failure travel with the exception
+            let pyerr = to_py(e);
+            pyerr.value(py).setattr("history", d)?;
+            return Err(pyerr);
+        }
+        Ok(d)
+    }
+
+    /// Simulated time.
+    #[getter]
+    fn time(&self) -> f64 {
+        self.inner.time
+    }
+
+    /// Steps taken.
+    #[getter]
+    fn step_count(&self) -> u64 {
+        self.inner.step_count
+    }
+
+    /// Diagnostics of the last step.
+    fn last_step<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        step_dict(py, &self.inner.last)
+    }
+
+    /// (nx, ny, lx, ly, dx, dy).
+    #[getter]
+    fn grid(&self) -> (usize, usize, f64, f64, f64, f64) {
+        let g = self.inner.grid();
+        (g.nx, g.ny, g.lx, g.ly, g.dx, g.dy)
+    }
+
+    /// Number of threads of the model's pool.
+    #[getter]
+    fn threads(&self) -> usize {
+        self.inner.config().threads
+    }
+}
+
+/// Build information: version and profile (benchmarks refuse a debug build).
+#[pyfunction]
+fn build_info<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("version", granrs_core::VERSION)?;
+    d.set_item("profile", if cfg!(debug_assertions) { "debug" } else { "release" })?;
+    d.set_item("halo", granrs_core::HALO)?;
+    Ok(d)
+}
+
 #[pymodule]
-fn _granrs(_m: &Bound<'_, PyModule>) -> PyResult<()> { Ok(()) }
+fn _granrs(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyModel>()?;
+    m.add_function(wrap_pyfunction!(build_info, m)?)?;
+    m.add("__version__", granrs_core::VERSION)?;
+    m.add("ParameterError", m.py().get_type::<ParameterError>())?;
+    m.add("SolverError", m.py().get_type::<SolverError>())?;
+    m.add("SimulationError", m.py().get_type::<SimulationError>())?;
+    Ok(())
+}

@@ -106,8 +106,6 @@ pub(crate) struct Work {
     pub rho_v: Field,
     pub eta_c: Field,
     pub eta_n: Field,
-    pub tmp_u: Field,
-    pub tmp_v: Field,
 }
 
 /// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model.
@@ -142,6 +140,8 @@ pub struct TwoPhaseModel {
     pub(crate) properties_current: bool,
     /// The projection's coefficients 1/ρ must be rebuilt.
     pub(crate) projection_stale: bool,
+    /// Time left to a target time the next step must not overshoot.
+    pub(crate) time_to_land: Option<f64>,
 }
 
 impl TwoPhaseModel {
@@ -170,8 +170,6 @@ impl TwoPhaseModel {
             rho_v: yf(),
             eta_c: c(),
             eta_n: Field::zeros(g, Location::Node),
-            tmp_u: xf(),
-            tmp_v: yf(),
         };
         Ok(TwoPhaseModel {
             u: xf(),
@@ -191,9 +189,17 @@ impl TwoPhaseModel {
             last: StepInfo::default(),
             properties_current: false,
             projection_stale: true,
+            time_to_land: None,
             pool,
             config,
         })
+    }
+
+    /// Makes the next steps land exactly on a target time `remaining` ahead: a step longer than
+    /// what is left is shortened to it, and one between one and two steps short is halved (no
+    /// tiny last step, which would hold back the step growth afterwards).
+    pub fn set_time_to_land(&mut self, remaining: Option<f64>) {
+        self.time_to_land = remaining;
     }
 
     /// The configuration.

@@ -15,7 +15,7 @@ use crate::exec::Exec;
 use crate::grid::{Field, HALO};
 use crate::models::TwoPhaseModel;
 use crate::operators::{
-    cell_to_node, convection, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, gradient, max_speed,
+    cell_to_node, convection, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
     BcMode,
 };
 use crate::projection::fill_pressure_ghosts;
@@ -99,10 +99,28 @@ impl TwoPhaseModel {
     fn choose_dt(&mut self, exec: Exec) -> Result<f64> {
         let cfg = &self.config;
         let g = &cfg.grid;
+        let land = |dt: f64| match self.time_to_land {
+            Some(r) if r <= dt * (1.0 + 1e-9) => r,
+            Some(r) if r < 2.0 * dt => 0.5 * r,
+            _ => dt,
+        };
         if let Some(dt) = cfg.time.fixed_dt {
-            return Ok(dt);
+            return Ok(land(dt));
         }
-        let (umax, vmax) = max_speed(&self.u, &self.v, exec);
+        let (mut umax, mut vmax) = max_speed(&self.u, &self.v, exec);
+        // prescribed boundary speeds (a lid drives a fluid at rest)
+        for side in crate::grid::Side::ALL {
+            if let crate::grid::VelocityBc::Velocity { normal, tangential } = cfg.bc.get(side) {
+                let (un, ut) = (normal.abs(), tangential.abs());
+                if side.is_x() {
+                    umax = umax.max(un);
+                    vmax = vmax.max(ut);
+                } else {
+                    umax = umax.max(ut);
+                    vmax = vmax.max(un);
+                }
+            }
+        }
         let nu = if cfg.viscous == ViscousScheme::Explicit {
             let mut nu = cfg.dense.viscosity / cfg.dense.density;
             if let Some(l) = cfg.light {
@@ -117,6 +135,7 @@ impl TwoPhaseModel {
         if let Some(prev) = self.dt_prev {
             dt = dt.min(prev * cfg.time.max_growth);
         }
+        let dt = land(dt);
         if !dt.is_finite() {
             return Err(Error::Simulation {
                 what: "no finite time step: the fluid is at rest with no forcing; set `dt` or `max_dt`".into(),
@@ -225,20 +244,20 @@ impl TwoPhaseModel {
                 }
             });
         }
-        // history: u_prev ← uⁿ, u ← initial guess u* = (1+ω)uⁿ − ω uⁿ⁻¹
-        std::mem::swap(&mut self.u, &mut self.u_prev);
-        std::mem::swap(&mut self.v, &mut self.v_prev);
+        // history: u_prev ← uⁿ, u ← initial guess u* = (1+ω)uⁿ − ω uⁿ⁻¹ (in place: the
+        // buffers of u, v, p, Φ never move, Python holds views of them)
         let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
-        for (x, xn) in [(&mut self.u, &self.u_prev), (&mut self.v, &self.v_prev)] {
+        for (x, xm) in [(&mut self.u, &mut self.u_prev), (&mut self.v, &mut self.v_prev)] {
             let st = x.stride();
             let n = x.nx;
-            let xs = xn.slice();
-            for_each_interior_row(exec, x, |j, row| {
-                let b = (j + HALO) * st + HALO;
-                for i in 0..n {
-                    row[HALO + i] = we * xs[b + i] - wm * row[HALO + i];
+            for_each_interior_row2(exec, x, xm, |_, row, rowm| {
+                for i in HALO..HALO + n {
+                    let un = row[i];
+                    row[i] = we * un - wm * rowm[i];
+                    rowm[i] = un;
                 }
             });
+            let _ = st;
         }
         std::mem::swap(&mut wk.conv_u, &mut self.conv_prev_u);
         std::mem::swap(&mut wk.conv_v, &mut self.conv_prev_v);

@@ -1,0 +1,41 @@
+# The README's commands. A fresh machine needs only Python 3.10+, a Rust toolchain and network
+# access to PyPI and crates.io: everything else is installed here into .venv.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+OUT    ?= out
+
+.PHONY: demo test test-slow install bench lint clean
+
+$(VENV)/.deps: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q "maturin>=1.5,<2" "numpy>=1.23" "matplotlib>=3.6" "pytest>=7"
+	touch $@
+
+# Builds the Rust extension in release mode into .venv (re-run after changing Rust code).
+install: $(VENV)/.deps
+	$(VENV)/bin/maturin develop --release -q
+
+# The main job: the coarse default run, writing its plots to $(OUT)/.
+demo: install
+	$(VENV)/bin/granrs run cavity --re 100 --n 64 --out $(OUT)/cavity
+
+# The whole fast test suite: Rust tests (release) then pytest.
+test: install
+	cargo test --release --workspace --exclude granrs-py
+	$(PY) -m pytest -q
+
+# Long validations (minutes to an hour on 2 cores).
+test-slow: install
+	cargo test --release --workspace --exclude granrs-py -- --ignored
+	$(PY) -m pytest -q -m slow
+
+bench: install
+	cargo bench -p granrs-core
+
+lint:
+	cargo clippy --workspace --release -- -D warnings
+
+clean:
+	rm -rf $(VENV) target $(OUT)

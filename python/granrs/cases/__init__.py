@@ -1,0 +1,1 @@
+"""Ready-made cases with their outputs and plots (``granrs run CASE``)."""

@@ -1,0 +1,40 @@
+"""Named validation cases for ``granrs validate NAME``.
+
+Each case runs a model against an analytic solution or a published reference and returns one
+JSON-able dict ``{"case", "params", "metrics", "reference", "passed", "wall_s"}``. The acceptance
+thresholds live beside each case with the number that justifies them.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+from . import navier_stokes
+
+#: name → (function(**params) → (metrics, reference, passed), default params, help)
+CASES: dict[str, tuple[Callable, dict, str]] = {
+    "taylor-green": (navier_stokes.taylor_green, {"n": [32, 64, 128]}, "decaying Taylor–Green vortex, free-slip box"),
+    "cavity": (navier_stokes.cavity, {"re": 100.0, "n": 64}, "lid-driven cavity to steady state"),
+    "hydrostatic": (navier_stokes.hydrostatic, {"steps": 1000, "n": 32}, "heavy fluid under a light one, at rest"),
+}
+
+
+def run_case(name: str, threads: int = 1, **params) -> dict:
+    """Runs validation case ``name`` with ``params`` (defaults filled in) and returns its record."""
+    from .._granrs import ParameterError
+
+    if name not in CASES:
+        raise ParameterError(f"invalid parameter `case` = {name!r}: allowed one of {', '.join(sorted(CASES))}")
+    func, defaults, _ = CASES[name]
+    full = dict(defaults)
+    for k, v in params.items():
+        if v is None:
+            continue
+        if k not in defaults:
+            raise ParameterError(f"invalid parameter `{k}` for case {name!r}: allowed {', '.join(defaults) or 'none'}")
+        full[k] = v
+    t0 = time.perf_counter()
+    metrics, reference, passed = func(threads=threads, **full)
+    return {"case": name, "params": full | {"threads": threads}, "metrics": metrics, "reference": reference,
+            "passed": bool(passed), "wall_s": time.perf_counter() - t0}

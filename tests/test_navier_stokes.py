@@ -1,0 +1,48 @@
+"""Navier–Stokes validation through the Python API (fast sizes; the fine ones are `slow`)."""
+
+import numpy as np
+import pytest
+
+import granrs
+from granrs.validation import run_case
+
+
+def test_taylor_green_second_order():
+    rec = run_case("taylor-green", n=[16, 32, 64])
+    # 2nd order in space and time (δt ∝ h); 1.9 allows the BDF1 start-up step
+    assert min(rec["metrics"]["observed_order"]) >= 1.9, rec
+
+
+def test_hydrostatic_layer_stays_at_rest():
+    rec = run_case("hydrostatic", steps=1000, n=32)
+    assert rec["passed"] and rec["metrics"]["max_speed"] < 1e-8, rec
+
+
+def test_cavity_re100_matches_ghia_at_64():
+    rec = run_case("cavity", re=100.0, n=64)
+    m = rec["metrics"]
+    # Ghia et al. 1982 centrelines within 1 % of the lid speed
+    assert m["u_centerline_max_error"] <= 0.01 and m["v_centerline_max_error"] <= 0.01, m
+
+
+@pytest.mark.slow
+def test_cavity_re1000_botella_peyret_at_256():
+    rec = run_case("cavity", re=1000.0, n=256, threads=2)
+    m = rec["metrics"]
+    # Botella & Peyret 1998: ψ_min = −0.1189366 within 1 %, centre within 2 h
+    assert m["psi_min_rel_error"] <= 0.01 and m["centre_distance_h"] <= 2.0, m
+
+
+def _cavity_fields(threads, n=128, steps=20):
+    m = granrs.Model(granrs.Grid(n, n, 1.0, 1.0), granrs.Material(1.0, 1e-3),
+                     bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)), threads=threads)
+    m.advance(max_steps=steps)
+    return m.u.copy(), m.v.copy(), m.p.copy()
+
+
+def test_one_and_two_threads_give_the_same_fields():
+    a = _cavity_fields(1)
+    b = _cavity_fields(2)
+    for x, y in zip(a, b):
+        # deterministic block reductions: identical to round-off (1e-12 relative is the bound)
+        assert np.max(np.abs(x - y)) <= 1e-12 * np.max(np.abs(x)), np.max(np.abs(x - y))
