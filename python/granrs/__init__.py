@@ -19,7 +19,7 @@ from ._granrs import ParameterError, SimulationError, SolverError, __version__, 
 from .boundary import BoundaryConditions, Coulomb, FreeSlip, NavierSlip, NoSlip, Outflow, Velocity
 from .grid import Grid
 from .materials import AIR, WATER, Material
-from .model import Model, Numerics
+from .model import Model, Numerics, PorePressure
 from .simulation import Callback, Simulation
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "NoSlip",
     "Numerics",
     "Outflow",
+    "PorePressure",
     "ParameterError",
     "Simulation",
     "SimulationError",

@@ -23,6 +23,31 @@ ArrayOrFn = Union[np.ndarray, Callable[[np.ndarray, np.ndarray], np.ndarray], fl
 
 
 @dataclass(frozen=True)
+class PorePressure:
+    """The pore gas pressure equation ∂_t p_f + div(u p_f) = div(κ ∇p_f) (paper eq. 10f).
+
+    diffusivity: κ_f in the granular phase [m² s⁻¹] (the paper: 0.035);
+    formulation: 'granular-only' (solve where Φ > 0, p_f = 0 on the interface; default) or
+    'kappa-infinity' (the paper's whole-domain form with κ = kappa_air in the air);
+    basal_gradient: ∂p_f/∂y on the base [Pa/m] between basal_x_min and basal_x_max (the air
+    supply under the reservoir, −β φ ρ_s g in the paper); None for no supply.
+    """
+
+    diffusivity: float
+    formulation: str = "granular-only"
+    kappa_air: float = 1e16
+    basal_gradient: Optional[float] = None
+    basal_x_min: Optional[float] = None
+    basal_x_max: Optional[float] = None
+
+    def __post_init__(self):
+        if self.formulation not in ("granular-only", "kappa-infinity"):
+            raise ParameterError(f"invalid parameter `formulation` = {self.formulation!r}: allowed 'granular-only' or 'kappa-infinity'")
+        if not (isinstance(self.diffusivity, (int, float)) and math.isfinite(self.diffusivity) and self.diffusivity > 0):
+            raise ParameterError(f"invalid parameter `diffusivity` = {self.diffusivity!r}: allowed a finite number > 0 (m²/s)")
+
+
+@dataclass(frozen=True)
 class Numerics:
     """Numerical settings (defaults suit the paper's cases).
 
@@ -57,7 +82,8 @@ class Model:
 
     def __init__(self, grid: Grid, dense: Material, light: Optional[Material] = None,
                  bc: Optional[BoundaryConditions] = None, gravity=(0.0, 0.0),
-                 numerics: Optional[Numerics] = None, threads: int = 1):
+                 numerics: Optional[Numerics] = None, threads: int = 1,
+                 pore_pressure: Optional[PorePressure] = None):
         if not isinstance(grid, Grid):
             raise ParameterError(f"invalid parameter `grid` = {grid!r}: allowed a granrs.Grid")
         if not isinstance(dense, Material):
@@ -72,6 +98,9 @@ class Model:
         self.bc = bc if bc is not None else BoundaryConditions()
         self.gravity = tuple(float(g) for g in gravity)
         self.numerics = numerics if numerics is not None else Numerics()
+        if pore_pressure is not None and not isinstance(pore_pressure, PorePressure):
+            raise ParameterError(f"invalid parameter `pore_pressure` = {pore_pressure!r}: allowed a granrs.PorePressure or None")
+        self.pore_pressure = pore_pressure
         n = self.numerics
         self._rust = _granrs.RustModel(
             grid.nx, grid.ny, float(grid.lx), float(grid.ly), self.bc.spec(),
@@ -79,9 +108,11 @@ class Model:
             None if light is None else (light.density, light.viscosity),
             self.gravity, n.interface_width, n.transport_interface, n.redistance_every, n.viscous,
             n.cfl, n.dt, n.max_dt, n.max_growth, n.cfl_abort, n.pressure_solver, n.pressure_rtol,
-            n.pressure_max_iterations, threads)
+            n.pressure_max_iterations, threads,
+            None if pore_pressure is None else asdict(pore_pressure))
         self.threads = threads
-        self._views = {name: self._view(name) for name in ("u", "v", "p", "phi")}
+        names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
+        self._views = {name: self._view(name) for name in names}
 
     def _view(self, name: str) -> np.ndarray:
         full = self._rust.field_storage(name)
@@ -111,13 +142,21 @@ class Model:
         """Level set at cell centres (> 0 in the dense phase), shape (ny, nx), read-only live view."""
         return self._views["phi"]
 
+    @property
+    def pf(self) -> np.ndarray:
+        """Pore gas pressure at cell centres, shape (ny, nx), read-only live view (fluidised models only)."""
+        if "pf" not in self._views:
+            raise ParameterError("invalid parameter `pf`: allowed only for a model with pore_pressure (this one is not fluidised)")
+        return self._views["pf"]
+
     def set_initial(self, u: ArrayOrFn = None, v: ArrayOrFn = None, p: ArrayOrFn = None,
-                    phi: ArrayOrFn = None, balance_pressure: bool = True) -> None:
+                    phi: ArrayOrFn = None, pf: ArrayOrFn = None, balance_pressure: bool = True) -> None:
         """Sets initial fields from arrays, constants or functions f(x, y) evaluated at the
         field's points. With ``balance_pressure`` (and no explicit ``p``), p is set so that the
         body force is balanced (one pressure solve)."""
-        points = {"u": self.grid.xfaces, "v": self.grid.yfaces, "p": self.grid.centres, "phi": self.grid.centres}
-        for name, value in (("phi", phi), ("u", u), ("v", v), ("p", p)):
+        points = {"u": self.grid.xfaces, "v": self.grid.yfaces, "p": self.grid.centres, "phi": self.grid.centres,
+                  "pf": self.grid.centres}
+        for name, value in (("phi", phi), ("pf", pf), ("u", u), ("v", v), ("p", p)):
             if value is None:
                 continue
             x, y = points[name]()
@@ -171,6 +210,7 @@ class Model:
             "dense": asdict(self.dense), "light": None if self.light is None else asdict(self.light),
             "bc": {k: v[0] for k, v in self.bc.spec().items()}, "gravity": list(self.gravity),
             "numerics": asdict(self.numerics), "threads": self.threads,
+            "pore_pressure": None if self.pore_pressure is None else asdict(self.pore_pressure),
         }
 
     def __repr__(self) -> str:

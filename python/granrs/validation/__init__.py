@@ -10,13 +10,15 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from . import navier_stokes
+from . import navier_stokes, pore_pressure
 
 #: name → (function(**params) → (metrics, reference, passed), default params, help)
 CASES: dict[str, tuple[Callable, dict, str]] = {
     "taylor-green": (navier_stokes.taylor_green, {"n": [32, 64, 128]}, "decaying Taylor–Green vortex, free-slip box"),
     "cavity": (navier_stokes.cavity, {"re": 100.0, "n": 64}, "lid-driven cavity to steady state"),
     "hydrostatic": (navier_stokes.hydrostatic, {"steps": 1000, "n": 32}, "heavy fluid under a light one, at rest"),
+    "pore-diffusion": (pore_pressure.pore_diffusion, {"n": [16, 32, 64, 128], "dt_factor": 10.0, "formulation": "granular-only"},
+                       "pore pressure in a static layer with a basal air flux, exact 1D series"),
 }
 
 

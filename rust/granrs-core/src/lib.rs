@@ -10,6 +10,7 @@
 //! - [`operators`]: staggered differences, interpolations, divergence/gradient, strain rate, viscous operator;
 //! - [`solvers`]: multigrid-preconditioned CG and faer sparse Cholesky for the pressure equation;
 //! - [`levelset`]: WENO5 + TVD-RK3 transport, redistancing, smoothed Heaviside and material laws;
+//! - [`pore_pressure`]: advection–diffusion of the pore gas pressure p_f and its boundary conditions;
 //! - [`projection`]: the variable-density pressure projection;
 //! - [`time_stepping`]: clock, CFL, and `step.rs`, the one ordered list of the stages of a step;
 //! - [`models`]: the two-phase model that owns the state and takes one step.
@@ -20,6 +21,7 @@ pub mod grid;
 pub mod levelset;
 pub mod models;
 pub mod operators;
+pub mod pore_pressure;
 pub mod projection;
 pub mod solvers;
 pub mod time_stepping;

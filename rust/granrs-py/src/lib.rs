@@ -4,6 +4,7 @@
 
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
+use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
 use granrs_core::Error;
@@ -81,6 +82,7 @@ fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>>
     d.set_item("divergence", s.divergence)?;
     d.set_item("pressure", info_dict(py, &s.pressure)?)?;
     d.set_item("viscous", info_dict(py, &s.viscous)?)?;
+    d.set_item("pore", info_dict(py, &s.pore)?)?;
     Ok(d)
 }
 
@@ -97,9 +99,35 @@ impl PyModel {
             "v" => &self.inner.v,
             "p" => &self.inner.p,
             "phi" => &self.inner.phi,
-            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi'")),
+            "pf" => match &self.inner.pore {
+                Some(p) => &p.pf,
+                None => return Err(param_err("name", "pf", "a field of this model: it has no pore pressure (not fluidised)")),
+            },
+            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf'")),
         })
     }
+}
+
+/// Parses the pore-pressure settings dict.
+fn parse_pore(d: &Bound<'_, PyDict>) -> PyResult<PorePressureConfig> {
+    let f = |key: &str| -> PyResult<Option<f64>> {
+        match d.get_item(key)? {
+            Some(v) if !v.is_none() => Ok(Some(v.extract::<f64>().map_err(|_| param_err(&format!("pore_pressure.{key}"), &v, "a number"))?)),
+            _ => Ok(None),
+        }
+    };
+    let diffusivity = f("diffusivity")?.ok_or_else(|| param_err("pore_pressure.diffusivity", "missing", "a number > 0 (m²/s)"))?;
+    let formulation: String = d.get_item("formulation")?.map(|v| v.extract()).transpose()?.unwrap_or_else(|| "granular-only".into());
+    let formulation = match formulation.as_str() {
+        "granular-only" => PoreFormulation::GranularOnly,
+        "kappa-infinity" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16) },
+        other => return Err(param_err("pore_pressure.formulation", other, "'granular-only' or 'kappa-infinity'")),
+    };
+    let basal_flux = match f("basal_gradient")? {
+        Some(g) => Some(BasalFlux { gradient: g, x_min: f("basal_x_min")?.unwrap_or(f64::NEG_INFINITY), x_max: f("basal_x_max")?.unwrap_or(f64::INFINITY) }),
+        None => None,
+    };
+    Ok(PorePressureConfig { diffusivity, formulation, basal_flux })
 }
 
 #[pymethods]
@@ -109,7 +137,7 @@ impl PyModel {
     #[pyo3(signature = (nx, ny, lx, ly, bc, dense, light=None, gravity=(0.0, 0.0), interface_width=1.5,
         transport_interface=true, redistance_every=10, viscous="implicit", cfl=0.5, dt=None,
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
-        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1))]
+        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, pore_pressure=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -133,6 +161,7 @@ impl PyModel {
         pressure_rtol: f64,
         pressure_max_iterations: i64,
         threads: i64,
+        pore_pressure: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -183,6 +212,7 @@ impl PyModel {
         cfg.pressure_solver.rtol = pressure_rtol;
         cfg.pressure_solver.max_iterations = pos("pressure_max_iterations", pressure_max_iterations)?;
         cfg.threads = pos("threads", threads)?;
+        cfg.pore = pore_pressure.map(parse_pore).transpose()?;
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
         Ok(PyModel { inner })
     }
@@ -207,7 +237,11 @@ impl PyModel {
             "v" => &mut self.inner.v,
             "p" => &mut self.inner.p,
             "phi" => &mut self.inner.phi,
-            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi'")),
+            "pf" => match &mut self.inner.pore {
+                Some(p) => &mut p.pf,
+                None => return Err(param_err("name", "pf", "a field of this model: it has no pore pressure (not fluidised)")),
+            },
+            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf'")),
         };
         let expected = (field.ny, field.nx);
         if a.dim() != expected {
@@ -217,6 +251,11 @@ impl PyModel {
             return Err(param_err(name, format!("non-finite value at flat index {bad}"), "finite values"));
         }
         field.interior_mut().assign(&a);
+        if name == "pf" {
+            if let Some(p) = &mut self.inner.pore {
+                p.restart_history();
+            }
+        }
         if name == "u" || name == "v" {
             self.inner.u_prev.assign(&self.inner.u);
             self.inner.v_prev.assign(&self.inner.v);
@@ -283,6 +322,7 @@ impl PyModel {
         d.set_item("divergence", log.iter().map(|s| s.divergence).collect::<Vec<_>>())?;
         d.set_item("pressure_iterations", log.iter().map(|s| s.pressure.iterations).collect::<Vec<_>>())?;
         d.set_item("viscous_iterations", log.iter().map(|s| s.viscous.iterations).collect::<Vec<_>>())?;
+        d.set_item("pore_iterations", log.iter().map(|s| s.pore.iterations).collect::<Vec<_>>())?;
         if let Some(e) = err {
             // the steps taken before the failure travel with the exception
             let pyerr = to_py(e);

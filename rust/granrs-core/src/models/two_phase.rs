@@ -6,6 +6,7 @@
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
+use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureProjection;
 use crate::solvers::{SolveInfo, SolverSettings};
 use crate::time_stepping::{MomentumSolver, StepInfo, TimeConfig, ViscousScheme};
@@ -49,6 +50,8 @@ pub struct ModelConfig {
     pub time: TimeConfig,
     /// Number of threads of the model's rayon pool.
     pub threads: usize,
+    /// The pore-pressure equation (None: not fluidised, the solve is skipped entirely).
+    pub pore: Option<PorePressureConfig>,
 }
 
 impl ModelConfig {
@@ -67,6 +70,7 @@ impl ModelConfig {
             pressure_solver: SolverSettings::default(),
             time: TimeConfig::default(),
             threads: 1,
+            pore: None,
         }
     }
 
@@ -85,6 +89,9 @@ impl ModelConfig {
         }
         self.pressure_solver.validate()?;
         self.time.validate()?;
+        if let Some(pc) = &self.pore {
+            pc.validate()?;
+        }
         if self.threads == 0 || self.threads > 1024 {
             return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
         }
@@ -106,6 +113,8 @@ pub(crate) struct Work {
     pub rho_v: Field,
     pub eta_c: Field,
     pub eta_n: Field,
+    /// p + p_f, whose gradient drives the predictor.
+    pub ptot: Field,
 }
 
 /// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model.
@@ -127,6 +136,8 @@ pub struct TwoPhaseModel {
     /// Level set Φ^n (cell centres; > 0 in the dense phase).
     pub phi: Field,
     pub(crate) work: Work,
+    /// Pore gas pressure (None when not fluidised).
+    pub pore: Option<PorePressure>,
     pub(crate) projection: PressureProjection,
     pub(crate) momentum: MomentumSolver,
     /// Simulated time t_n.
@@ -170,6 +181,11 @@ impl TwoPhaseModel {
             rho_v: yf(),
             eta_c: c(),
             eta_n: Field::zeros(g, Location::Node),
+            ptot: c(),
+        };
+        let pore = match &config.pore {
+            Some(pc) => Some(PorePressure::new(g, *pc, config.pressure_solver)?),
+            None => None,
         };
         Ok(TwoPhaseModel {
             u: xf(),
@@ -181,6 +197,7 @@ impl TwoPhaseModel {
             p: c(),
             phi,
             work,
+            pore,
             projection,
             momentum,
             time: 0.0,

@@ -14,13 +14,14 @@ impl Default for SolverSettings {
     fn default() -> Self { SolverSettings { kind: PressureSolverKind::MultigridCg, rtol: 1e-8, max_iterations: 20000, pre_smooth: 2, post_smooth: 2 } }
 }
 impl SolverSettings { pub fn validate(&self) -> Result<()> { Ok(()) } }
-pub struct PoissonSolver { nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], bx: Vec<f64>, by: Vec<f64>, settings: SolverSettings, r: Vec<f64>, z: Vec<f64>, q: Vec<f64>, d: Vec<f64>, diag: Vec<f64> }
+pub struct PoissonSolver { nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], bx: Vec<f64>, by: Vec<f64>, shift: Vec<f64>, settings: SolverSettings, r: Vec<f64>, z: Vec<f64>, q: Vec<f64>, d: Vec<f64>, diag: Vec<f64> }
 impl PoissonSolver {
     pub fn new(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings) -> Result<Self> {
         let n = nx * ny;
-        Ok(PoissonSolver { nx, ny, dx, dy, bc, bx: vec![1.0; ny * (nx + 1)], by: vec![1.0; (ny + 1) * nx], settings, r: vec![0.0; n], z: vec![0.0; n], q: vec![0.0; n], d: vec![0.0; n], diag: vec![0.0; n] })
+        Ok(PoissonSolver { nx, ny, dx, dy, bc, bx: vec![1.0; ny * (nx + 1)], by: vec![1.0; (ny + 1) * nx], shift: vec![0.0; n], settings, r: vec![0.0; n], z: vec![0.0; n], q: vec![0.0; n], d: vec![0.0; n], diag: vec![0.0; n] })
     }
-    pub fn is_singular(&self) -> bool { self.bc.iter().all(|b| *b == PressureBc::Neumann) }
+    pub fn is_singular(&self) -> bool { self.bc.iter().all(|b| *b == PressureBc::Neumann) && self.shift.iter().all(|&s| s == 0.0) }
+    pub fn set_coefficients_with_shift(&mut self, beta_x: &[f64], beta_y: &[f64], shift: &[f64], exec: Exec) -> Result<()> { self.shift.copy_from_slice(shift); self.set_coefficients(beta_x, beta_y, exec) }
     pub fn set_coefficients(&mut self, beta_x: &[f64], beta_y: &[f64], _exec: Exec) -> Result<()> {
         self.bx.copy_from_slice(beta_x); self.by.copy_from_slice(beta_y);
         let (nx, ny) = (self.nx, self.ny);
@@ -31,7 +32,7 @@ impl PoissonSolver {
             s += if i + 1 < nx { self.bx[j * (nx + 1) + i + 1] } else { w(self.bc[1]) * self.bx[j * (nx + 1) + nx] } / (self.dx * self.dx);
             s += if j > 0 { self.by[j * nx + i] } else { w(self.bc[2]) * self.by[i] } / (self.dy * self.dy);
             s += if j + 1 < ny { self.by[(j + 1) * nx + i] } else { w(self.bc[3]) * self.by[ny * nx + i] } / (self.dy * self.dy);
-            self.diag[j * nx + i] = s;
+            self.diag[j * nx + i] = s + self.shift[j * nx + i];
         }}
         Ok(())
     }
@@ -46,7 +47,7 @@ impl PoissonSolver {
             if i + 1 < nx { s += self.bx[j * (nx + 1) + i + 1] * (p[j * nx + i + 1] - c) * ix2 } else if dir(self.bc[1]) { s -= 2.0 * self.bx[j * (nx + 1) + nx] * c * ix2 }
             if j > 0 { s += self.by[j * nx + i] * (p[(j - 1) * nx + i] - c) * iy2 } else if dir(self.bc[2]) { s -= 2.0 * self.by[i] * c * iy2 }
             if j + 1 < ny { s += self.by[(j + 1) * nx + i] * (p[(j + 1) * nx + i] - c) * iy2 } else if dir(self.bc[3]) { s -= 2.0 * self.by[ny * nx + i] * c * iy2 }
-            out[j * nx + i] = s;
+            out[j * nx + i] = s - self.shift[j * nx + i] * c;
         }}
     }
     pub fn solve(&mut self, f: &[f64], p: &mut [f64], exec: Exec) -> Result<SolveInfo> {

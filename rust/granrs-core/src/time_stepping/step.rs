@@ -34,6 +34,8 @@ pub struct StepInfo {
     pub pressure: SolveInfo,
     /// Viscous solve of the predictor (0 iterations when explicit).
     pub viscous: SolveInfo,
+    /// Pore-pressure solve (0 iterations when not fluidised).
+    pub pore: SolveInfo,
     /// max |u|, max |v| after the step.
     pub max_speed: f64,
     /// Advective CFL number δt (max|u|/dx + max|v|/dy) after the step.
@@ -69,6 +71,7 @@ impl TwoPhaseModel {
         self.interface(dt, exec)?;
         self.properties(exec);
         let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
+        self.pore_pressure(dt, (a0, a1, a2, w), exec)?;
         let viscous = self.predictor(dt, a0, a1, a2, w, exec)?;
         let pressure = self.projection_stage(dt / a0, exec)?;
         self.checks(dt, viscous, pressure, exec)
@@ -86,6 +89,20 @@ impl TwoPhaseModel {
         let wk = &mut self.work;
         wk.rhs_u.fill(gx);
         wk.rhs_v.fill(gy);
+        if let Some(pore) = &mut self.pore {
+            // the pore-pressure force −∇p_f/ρ is balanced as well
+            pore.pf.extrapolate_ghosts_constant();
+            gradient(&pore.pf, &cfg.grid, &mut wk.gx, &mut wk.gy, exec);
+            for (f, gr, rho) in [(&mut wk.rhs_u, &wk.gx, &wk.rho_u), (&mut wk.rhs_v, &wk.gy, &wk.rho_v)] {
+                let (gs, rs, st, n) = (gr.slice(), rho.slice(), f.stride(), f.nx);
+                for_each_interior_row(exec, f, |j, row| {
+                    let b = (j + HALO) * st;
+                    for i in HALO..HALO + n {
+                        row[i] -= gs[b + i] / rs[b + i];
+                    }
+                });
+            }
+        }
         fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Homogeneous);
         self.p.fill(0.0);
         if self.projection_stale {
@@ -208,6 +225,20 @@ impl TwoPhaseModel {
         self.projection_stale = true;
     }
 
+    /// Stage 4 (paper step 3): the pore gas pressure p_f^{n+1} (skipped when not fluidised).
+    fn pore_pressure(&mut self, dt: f64, coeffs: (f64, f64, f64, f64), exec: Exec) -> Result<()> {
+        let first = self.dt_prev.is_none();
+        let eps = self.config.interface_width * self.config.grid.h();
+        let Some(pore) = self.pore.as_mut() else { return Ok(()) };
+        fill_velocity_ghosts(&mut self.u, &mut self.v, &self.config.bc, &self.config.grid, BcMode::Full);
+        self.phi.extrapolate_ghosts_linear();
+        let r = pore.advance(&self.phi, &self.u, &self.v, &self.config.grid, dt, coeffs, first, eps, exec);
+        match r {
+            Ok(_) => Ok(()),
+            Err(e) => Err(self.at_step(Error::SolverFailure { solver: "pore-pressure solve".into(), message: e.to_string() })),
+        }
+    }
+
     /// Stage 5 (paper step 4): the momentum predictor ũ^{n+1}.
     #[allow(clippy::too_many_arguments)]
     fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, exec: Exec) -> Result<SolveInfo> {
@@ -218,7 +249,24 @@ impl TwoPhaseModel {
         fill_pressure_ghosts(&mut self.p, bc);
         let wk = &mut self.work;
         convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec);
-        gradient(&self.p, grid, &mut wk.gx, &mut wk.gy, exec);
+        // ∇(pⁿ + p_f^{n+1}): the pore pressure pushes the grains apart (eq. 10b)
+        let ptot: &Field = match &mut self.pore {
+            Some(pore) => {
+                pore.pf.extrapolate_ghosts_constant();
+                wk.ptot.assign(&self.p);
+                let (st, n, pfs) = (wk.ptot.stride(), wk.ptot.nx, pore.pf.slice());
+                for_each_interior_row(exec, &mut wk.ptot, |j, row| {
+                    let b = (j + HALO) * st;
+                    for i in HALO..HALO + n {
+                        row[i] += pfs[b + i];
+                    }
+                });
+                fill_pressure_ghosts(&mut wk.ptot, bc);
+                &wk.ptot
+            }
+            None => &self.p,
+        };
+        gradient(ptot, grid, &mut wk.gx, &mut wk.gy, exec);
         let first = self.dt_prev.is_none();
         // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ∇pⁿ ;  c = a₀ρ/δt
         for (rhs, c, rho, un, um, nn, nm, gp, gcomp) in [
@@ -319,7 +367,7 @@ impl TwoPhaseModel {
         self.time = next_time;
         self.step_count += 1;
         self.dt_prev = Some(dt);
-        self.last = StepInfo { dt, time: self.time, pressure, viscous, max_speed: umax.max(vmax), cfl, divergence };
+        self.last = StepInfo { dt, time: self.time, pressure, viscous, pore: self.pore.as_ref().map(|p| p.last).unwrap_or_default(), max_speed: umax.max(vmax), cfl, divergence };
         Ok(self.last)
     }
 

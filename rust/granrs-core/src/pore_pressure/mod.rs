@@ -1,0 +1,285 @@
+//! Pore gas pressure p_f (Aravena et al. eq. 2 third line and eq. 10f; boundary and initial
+//! conditions §2.3; time discretisation §3.1 step 3):
+//!
+//!   ∂_t p_f + div(u p_f) = div(κ(Φ) ∇p_f)            (10f, with ∇ restored: see validation-data.md §1)
+//!
+//! BDF2 with extrapolated advection and implicit diffusion (so that δt is not bounded by h²/κ):
+//!
+//!   (a₀ p^{n+1} − a₁ p^n + a₂ p^{n−1})/δt + (1+ω) div(uⁿ pⁿ) − ω div(uⁿ⁻¹ pⁿ⁻¹) − div(κ ∇p^{n+1}) = 0,
+//!
+//! second-order finite volumes: advective flux u_f (p_L + p_R)/2 on each face, diffusive flux
+//! κ (p_R − p_L)/h. The implicit system (a₀/δt − div κ∇) p = R is solved with the project's
+//! multigrid-preconditioned CG (a Poisson operator with a diagonal shift).
+//!
+//! Two formulations of what happens outside the granular phase:
+//! - [`PoreFormulation::GranularOnly`] (default): the equation is solved only where Φ > 0, with
+//!   p_f = 0 on the air interface imposed at its sub-cell position (ghost-fluid Dirichlet
+//!   condition of Gibou, Fedkiw, Cheng & Kang 2002, *J. Comput. Phys.* 176: a face crossing the
+//!   interface at the fraction θ = Φ_in/(Φ_in − Φ_out) contributes κ/(θh²) to the diagonal);
+//!   p_f = 0 in the air.
+//! - [`PoreFormulation::KappaInfinity`]: the paper's κ(Φ) = κ_f H_ε(Φ) + κ_∞ (1 − H_ε(Φ)) on the whole
+//!   domain (κ_∞ = 1e16 in the paper), with p_f = 0 on the open top of the domain so that the
+//!   extension into the air is zero.
+//!
+//! Boundary conditions: ∂p_f/∂y = `basal_flux.gradient` on the base for x in [x_min, x_max]
+//! (the paper's air supply under the reservoir, gradient −β φ ρ_s g, which keeps the initial
+//! profile β φ ρ_s g (H_c − y) stationary at rest); homogeneous Neumann elsewhere.
+
+use crate::error::{check_positive, Error, Result};
+use crate::exec::Exec;
+use crate::grid::{Field, Grid, Location, PressureBc, HALO};
+use crate::operators::for_each_interior_row;
+use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
+use crate::time_stepping::step::heaviside;
+
+/// What p_f does outside the granular phase.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PoreFormulation {
+    /// Solve only where Φ > 0, p_f = 0 on the interface (sub-cell) and in the air.
+    GranularOnly,
+    /// The paper's whole-domain formulation with diffusivity `kappa_air` in the air.
+    KappaInfinity { kappa_air: f64 },
+}
+
+impl PoreFormulation {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            PoreFormulation::GranularOnly => "granular-only",
+            PoreFormulation::KappaInfinity { .. } => "kappa-infinity",
+        }
+    }
+}
+
+/// Prescribed ∂p_f/∂y on part of the base.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BasalFlux {
+    /// ∂p_f/∂y on the base [Pa/m] (negative: air injected upwards).
+    pub gradient: f64,
+    /// Extent of the supply along the base [m].
+    pub x_min: f64,
+    pub x_max: f64,
+}
+
+/// Parameters of the pore-pressure equation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PorePressureConfig {
+    /// Diffusion coefficient κ_f [m² s⁻¹] in the granular phase.
+    pub diffusivity: f64,
+    pub formulation: PoreFormulation,
+    pub basal_flux: Option<BasalFlux>,
+}
+
+impl PorePressureConfig {
+    /// Checks the parameters, naming the offending one.
+    pub fn validate(&self) -> Result<()> {
+        check_positive("diffusivity", self.diffusivity)?;
+        if let PoreFormulation::KappaInfinity { kappa_air } = self.formulation {
+            check_positive("kappa_air", kappa_air)?;
+        }
+        if let Some(b) = self.basal_flux {
+            if !b.gradient.is_finite() {
+                return Err(Error::param("basal_flux.gradient", b.gradient, "a finite pressure gradient (Pa/m)"));
+            }
+            if b.x_min.is_nan() || b.x_max.is_nan() || b.x_max < b.x_min {
+                return Err(Error::param("basal_flux.x_max", b.x_max, &format!("a position >= basal_flux.x_min = {}", b.x_min)));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// State and solver of the pore-pressure equation.
+pub struct PorePressure {
+    pub config: PorePressureConfig,
+    /// p_f^n at cell centres.
+    pub pf: Field,
+    /// p_f^{n−1}.
+    pub pf_prev: Field,
+    /// div(u p_f) at t_{n−1}.
+    adv_prev: Field,
+    adv: Field,
+    solver: PoissonSolver,
+    beta_x: Vec<f64>,
+    beta_y: Vec<f64>,
+    shift: Vec<f64>,
+    rhs: Vec<f64>,
+    x: Vec<f64>,
+    /// The last solve.
+    pub last: SolveInfo,
+}
+
+impl PorePressure {
+    /// A pore-pressure solver on `grid` (p_f = 0 initially).
+    pub fn new(grid: &Grid, config: PorePressureConfig, settings: SolverSettings) -> Result<Self> {
+        config.validate()?;
+        let bc = match config.formulation {
+            PoreFormulation::GranularOnly => [PressureBc::Neumann; 4],
+            PoreFormulation::KappaInfinity { .. } => [PressureBc::Neumann, PressureBc::Neumann, PressureBc::Neumann, PressureBc::Dirichlet],
+        };
+        let n = grid.cells();
+        Ok(PorePressure {
+            config,
+            pf: Field::zeros(grid, Location::Centre),
+            pf_prev: Field::zeros(grid, Location::Centre),
+            adv_prev: Field::zeros(grid, Location::Centre),
+            adv: Field::zeros(grid, Location::Centre),
+            solver: PoissonSolver::new(grid.nx, grid.ny, grid.dx, grid.dy, bc, settings)?,
+            beta_x: vec![0.0; grid.ny * (grid.nx + 1)],
+            beta_y: vec![0.0; (grid.ny + 1) * grid.nx],
+            shift: vec![0.0; n],
+            rhs: vec![0.0; n],
+            x: vec![0.0; n],
+            last: SolveInfo::default(),
+        })
+    }
+
+    /// Advances p_f to t_{n+1}. `phi` is Φ^{n+1} (ghosts filled), `u`, `v` are uⁿ (ghosts
+    /// filled), (a₀, a₁, a₂, ω) the BDF2 coefficients, `first` true for the BDF1 start, `eps` the
+    /// Heaviside half-width.
+    #[allow(clippy::too_many_arguments)]
+    pub fn advance(
+        &mut self,
+        phi: &Field,
+        u: &Field,
+        v: &Field,
+        grid: &Grid,
+        dt: f64,
+        coeffs: (f64, f64, f64, f64),
+        first: bool,
+        eps: f64,
+        exec: Exec,
+    ) -> Result<SolveInfo> {
+        let (a0, a1, a2, w) = coeffs;
+        let (nx, ny) = (grid.nx, grid.ny);
+        let (dx, dy) = (grid.dx, grid.dy);
+        // advection A^n = div(uⁿ pⁿ), centred fluxes; boundary normal velocities are zero or prescribed
+        self.pf.extrapolate_ghosts_constant();
+        {
+            let (ps, us, vs) = (self.pf.slice(), u.slice(), v.slice());
+            let (sp, su, sv) = (self.pf.stride(), u.stride(), v.stride());
+            for_each_interior_row(exec, &mut self.adv, |j, row| {
+                let (bp, bpm, bpp) = ((j + HALO) * sp + HALO, (j + HALO - 1) * sp + HALO, (j + HALO + 1) * sp + HALO);
+                let bu = (j + HALO) * su + HALO;
+                let (bv0, bv1) = ((j + HALO) * sv + HALO, (j + HALO + 1) * sv + HALO);
+                for i in 0..nx {
+                    let fe = us[bu + i + 1] * 0.5 * (ps[bp + i] + ps[bp + i + 1]);
+                    let fw = us[bu + i] * 0.5 * (ps[bp + i - 1] + ps[bp + i]);
+                    let fn_ = vs[bv1 + i] * 0.5 * (ps[bp + i] + ps[bpp + i]);
+                    let fs = vs[bv0 + i] * 0.5 * (ps[bpm + i] + ps[bp + i]);
+                    row[HALO + i] = (fe - fw) / dx + (fn_ - fs) / dy;
+                }
+            });
+        }
+        let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
+        let kf = self.config.diffusivity;
+        let inside = |k: f64| k > 0.0;
+        // coefficients and right-hand side
+        match self.config.formulation {
+            PoreFormulation::GranularOnly => {
+                for j in 0..ny {
+                    for i in 0..=nx {
+                        let (a, b) = (phi.at(i as isize - 1, j as isize), phi.at(i as isize, j as isize));
+                        self.beta_x[j * (nx + 1) + i] = if inside(a) && inside(b) { kf } else { 0.0 };
+                    }
+                }
+                for j in 0..=ny {
+                    for i in 0..nx {
+                        let (a, b) = (phi.at(i as isize, j as isize - 1), phi.at(i as isize, j as isize));
+                        self.beta_y[j * nx + i] = if inside(a) && inside(b) { kf } else { 0.0 };
+                    }
+                }
+            }
+            PoreFormulation::KappaInfinity { kappa_air } => {
+                let kappa = |p: f64| {
+                    let h = heaviside(p, eps);
+                    kf * h + kappa_air * (1.0 - h)
+                };
+                for j in 0..ny {
+                    for i in 0..=nx {
+                        let p = 0.5 * (phi.at(i as isize - 1, j as isize) + phi.at(i as isize, j as isize));
+                        self.beta_x[j * (nx + 1) + i] = kappa(p);
+                    }
+                }
+                for j in 0..=ny {
+                    for i in 0..nx {
+                        let p = 0.5 * (phi.at(i as isize, j as isize - 1) + phi.at(i as isize, j as isize));
+                        self.beta_y[j * nx + i] = kappa(p);
+                    }
+                }
+            }
+        }
+        let granular_only = self.config.formulation == PoreFormulation::GranularOnly;
+        let basal = self.config.basal_flux;
+        for j in 0..ny {
+            for i in 0..nx {
+                let (ii, jj) = (i as isize, j as isize);
+                let k = j * nx + i;
+                let pc = phi.at(ii, jj);
+                if granular_only && !inside(pc) {
+                    self.shift[k] = 1.0;
+                    self.rhs[k] = 0.0;
+                    self.x[k] = 0.0;
+                    continue;
+                }
+                let mut sigma = a0 / dt;
+                if granular_only {
+                    // sub-cell Dirichlet p_f = 0 where a face crosses the interface
+                    for (pn, h, is_domain_face) in [
+                        (phi.at(ii - 1, jj), dx, i == 0),
+                        (phi.at(ii + 1, jj), dx, i + 1 == nx),
+                        (phi.at(ii, jj - 1), dy, j == 0),
+                        (phi.at(ii, jj + 1), dy, j + 1 == ny),
+                    ] {
+                        if !is_domain_face && !inside(pn) {
+                            let theta = (pc / (pc - pn)).max(1e-3);
+                            sigma += kf / (theta * h * h);
+                        }
+                    }
+                }
+                self.shift[k] = sigma;
+                let mut r = (a1 * self.pf.at(ii, jj) - a2 * self.pf_prev.at(ii, jj)) / dt
+                    - (we * self.adv.at(ii, jj) - wm * self.adv_prev.at(ii, jj));
+                if let Some(b) = basal {
+                    let xc = grid.xc(ii);
+                    if j == 0 && xc >= b.x_min && xc <= b.x_max && (!granular_only || inside(pc)) {
+                        let kb = if granular_only { kf } else { self.beta_y[i] };
+                        r -= kb * b.gradient / dy;
+                    }
+                }
+                // (L − σ) p = −R
+                self.rhs[k] = -r;
+                self.x[k] = self.pf.at(ii, jj);
+            }
+        }
+        self.solver.set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
+        let info = self.solver.solve(&self.rhs, &mut self.x, exec)?;
+        // history: p^{n−1} ← p^n, p^n ← solution, A^{n−1} ← A^n
+        self.pf_prev.assign(&self.pf);
+        std::mem::swap(&mut self.adv, &mut self.adv_prev);
+        let xs = &self.x;
+        for_each_interior_row(exec, &mut self.pf, |j, row| {
+            row[HALO..HALO + nx].copy_from_slice(&xs[j * nx..(j + 1) * nx]);
+        });
+        self.last = info;
+        Ok(info)
+    }
+
+    /// Makes the current p_f the whole history (after p_f was set from outside).
+    pub fn restart_history(&mut self) {
+        self.pf_prev.assign(&self.pf);
+        self.adv_prev.fill(0.0);
+    }
+
+    /// Sets p_f (and its history) from a function of (x, y, Φ).
+    pub fn set_initial(&mut self, grid: &Grid, phi: &Field, f: impl Fn(f64, f64, f64) -> f64) {
+        for j in 0..grid.ny {
+            for i in 0..grid.nx {
+                let (x, y) = grid.coord(Location::Centre, i as isize, j as isize);
+                self.pf.set(i, j, f(x, y, phi.at(i as isize, j as isize)));
+            }
+        }
+        self.pf_prev.assign(&self.pf);
+        self.adv_prev.fill(0.0);
+    }
+}

@@ -1,0 +1,41 @@
+"""Pore gas pressure: exact 1D diffusion, implicit time step beyond the explicit limit, API."""
+
+import numpy as np
+import pytest
+
+import granrs
+from granrs.validation import run_case
+from granrs.validation.pore_pressure import pore_diffusion_error
+
+
+def test_pore_diffusion_second_order_and_accurate():
+    rec = run_case("pore-diffusion")
+    m = rec["metrics"]
+    # second order in space (least-squares slope over 16..128 cells) and 0.5 % at n = 64
+    assert m["observed_order"] >= 1.8, m
+    assert m["l2_rel_error"][m["n"].index(64)] <= 0.005, m
+
+
+def test_pore_diffusion_time_step_ten_times_the_explicit_limit():
+    big, _, _ = pore_diffusion_error(64, dt_factor=10.0)
+    small, _, _ = pore_diffusion_error(64, dt_factor=1.0)
+    # implicit diffusion: 10 × h²/(4κ) gives the same answer as the explicit limit itself
+    # (both errors are at the 1e-4 level of the spatial discretisation)
+    assert abs(big - small) < 2e-4 and big < 5e-4, (big, small)
+
+
+def test_static_layer_with_pore_pressure_stays_at_rest():
+    # the pore-pressure force is a gradient: the projection balances it, the grains do not move
+    _, umax, model = pore_diffusion_error(32)
+    assert umax < 1e-10
+    assert model.pf.shape == (32, 4) and not model.pf.flags.writeable
+
+
+def test_pf_is_only_a_field_of_fluidised_models():
+    m = granrs.Model(granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0))
+    with pytest.raises(granrs.ParameterError, match="`pf`"):
+        m.pf
+    with pytest.raises(granrs.ParameterError, match="`diffusivity`"):
+        granrs.PorePressure(diffusivity=-1.0)
+    with pytest.raises(granrs.ParameterError, match="`formulation`"):
+        granrs.PorePressure(diffusivity=1.0, formulation="everywhere")
