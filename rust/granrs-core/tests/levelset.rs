@@ -1,0 +1,493 @@
+//! Tests of the level-set room: WENO5 order, transport convergence, Zalesak's disk, the
+//! Rider–Kothe vortex, redistancing that keeps the interface in place, exact initial shapes,
+//! the smoothed Heaviside and material laws, and serial == parallel.
+//!
+//! Heavy cases: `cargo test --release -p granrs-core --test levelset`; the T = 8 vortex table:
+//! `cargo test --release -p granrs-core --test levelset -- --ignored --nocapture`.
+
+use granrs_core::exec::build_pool;
+use granrs_core::levelset::weno5::{weno5_minus, weno5_minus_with, weno5_plus, weno5_plus_with, window};
+use granrs_core::levelset::*;
+use granrs_core::{Error, Exec, Field, Grid, Location};
+use std::f64::consts::PI;
+
+fn order(e_coarse: f64, e_fine: f64) -> f64 {
+    (e_coarse / e_fine).log2()
+}
+
+// ---------------------------------------------------------------------------------------------
+// WENO5 and transport
+// ---------------------------------------------------------------------------------------------
+
+/// Max error of the one-sided WENO5 derivatives of f(x) = exp(x) + sin(x)/2 on [0, 1]
+/// (f' > 0 and f'' > 0 throughout: no critical point where WENO-JS weights lose order).
+fn weno_error(n: usize, mapped: bool) -> f64 {
+    let h = 1.0 / n as f64;
+    let f = |x: f64| x.exp() + 0.5 * x.sin();
+    let df = |x: f64| x.exp() + 0.5 * x.cos();
+    let vals: Vec<f64> = (0..n + 7).map(|k| f((k as f64 - 3.0) * h)).collect();
+    let mut err = 0.0f64;
+    for k in 3..n + 4 {
+        let w = window(&vals, k, 1);
+        let x = (k as f64 - 3.0) * h;
+        let (m, p) = if mapped {
+            (weno5_minus_with::<true>(&w), weno5_plus_with::<true>(&w))
+        } else {
+            (weno5_minus(&w), weno5_plus(&w))
+        };
+        err = err.max((m / h - df(x)).abs()).max((p / h - df(x)).abs());
+    }
+    err
+}
+
+#[test]
+fn weno5_derivative_is_fifth_order_on_smooth_data() {
+    for mapped in [false, true] {
+        let e: Vec<f64> = [20, 40, 80, 160].iter().map(|&n| weno_error(n, mapped)).collect();
+        let orders: Vec<f64> = e.windows(2).map(|p| order(p[0], p[1])).collect();
+        println!("WENO5 (mapped: {mapped}) max errors {e:?}, orders {orders:?}");
+        // Jiang & Shu: 5th order where f' ≠ 0 (measured 5.00–5.01); 4.5 leaves room for the
+        // nonlinear weights' O(h²) departure from the optimal ones.
+        for o in &orders[1..] {
+            assert!(*o >= 4.5, "observed WENO5 order {o:.2} < 4.5 ({orders:?})");
+        }
+    }
+}
+
+#[test]
+fn weno5_of_constant_data_is_zero_not_nan() {
+    let w = [2.5; 7];
+    assert_eq!(weno5_minus(&w), 0.0);
+    assert_eq!(weno5_plus(&w), 0.0);
+    let tiny: [f64; 7] = std::array::from_fn(|k| 1e-200 * k as f64);
+    assert!((weno5_minus(&tiny) - 1e-200).abs() < 1e-213);
+}
+
+/// L1 error (over a disk of radius 0.3 around the exact final centre) of a Gaussian advected by
+/// the uniform flow (1, 0.5) for t = 0.3 on an n × n grid of [0,1]² at Courant number 0.8.
+fn uniform_transport_error(n: usize) -> f64 {
+    let grid = Grid::new(n, n, 1.0, 1.0).unwrap();
+    let (ux, vy, sigma) = (1.0, 0.5, 0.08);
+    let bump = |x: f64, y: f64| (-((x - 0.35).powi(2) + (y - 0.35).powi(2)) / (sigma * sigma)).exp();
+    let mut phi = Field::from_fn(&grid, Location::Centre, bump);
+    let u = Field::from_fn(&grid, Location::XFace, |_, _| ux);
+    let v = Field::from_fn(&grid, Location::YFace, |_, _| vy);
+    let t_end = 0.3;
+    let rate = max_transport_rate(&u, &v, &grid, Exec::SERIAL).unwrap();
+    let steps = (t_end * rate / 0.8).ceil() as usize;
+    let dt = t_end / steps as f64;
+    let mut tr = LevelSetTransport::new(&grid);
+    for _ in 0..steps {
+        tr.advect(&mut phi, &u, &v, &grid, dt, Exec::SERIAL).unwrap();
+    }
+    let (xe, ye) = (0.35 + ux * t_end, 0.35 + vy * t_end);
+    let mut err = 0.0;
+    for j in 0..n {
+        for i in 0..n {
+            let (x, y) = (grid.xc(i as isize), grid.yc(j as isize));
+            if (x - xe).hypot(y - ye) < 0.3 {
+                err += (phi.at(i as isize, j as isize) - bump(x - ux * t_end, y - vy * t_end)).abs() * grid.dx * grid.dy;
+            }
+        }
+    }
+    err
+}
+
+#[test]
+fn transport_of_smooth_profile_converges_at_third_order() {
+    let e: Vec<f64> = [50, 100, 200].iter().map(|&n| uniform_transport_error(n)).collect();
+    let orders: Vec<f64> = e.windows(2).map(|p| order(p[0], p[1])).collect();
+    println!("uniform transport L1 errors {e:?}, orders {orders:.2?}");
+    // At fixed Courant number δt ∝ h: error = O(h⁵) + O(δt³), so the combined order tends to
+    // 3 (RK3-limited); 2.8 allows for the pre-asymptotic coarse pair.
+    assert!(orders[1] >= 2.8, "transport order {:.2} < 2.8 ({e:?})", orders[1]);
+}
+
+#[test]
+fn transport_rejects_bad_inputs() {
+    let grid = Grid::new(16, 16, 1.0, 1.0).unwrap();
+    let mut phi = Field::zeros(&grid, Location::Centre);
+    let u = Field::zeros(&grid, Location::XFace);
+    let v = Field::zeros(&grid, Location::YFace);
+    let mut tr = LevelSetTransport::new(&grid);
+    // u passed where v belongs
+    assert!(matches!(tr.advect(&mut phi, &u, &u, &grid, 0.1, Exec::SERIAL), Err(Error::Shape { .. })));
+    match tr.advect(&mut phi, &u, &v, &grid, f64::NAN, Exec::SERIAL) {
+        Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "dt"),
+        other => panic!("expected a `dt` error, got {other:?}"),
+    }
+    assert_eq!(stable_dt(&u, &v, &grid, 0.5, Exec::SERIAL).unwrap(), f64::INFINITY);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Zalesak and Rider–Kothe
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn zalesak_exact_area_matches_validation_data() {
+    // validation-data.md §6: exact area 582.207.
+    let a = validation::zalesak_shape().area().unwrap();
+    assert!((a - 582.207).abs() < 5e-4, "slotted-disk area {a}");
+}
+
+#[test]
+fn zalesak_one_revolution_without_redistancing() {
+    let m = zalesak(100, None, 0.5, Exec::SERIAL).unwrap();
+    println!("Zalesak 100², no redistancing: {m:#?}");
+    // Acceptance numbers of the level-set room: 1 % area, 5 % symmetric difference.
+    assert!(m.area_rel_error.abs() <= 0.01, "area error {:.4}", m.area_rel_error);
+    assert!(m.symdiff_rel <= 0.05, "symmetric difference {:.4}", m.symdiff_rel);
+}
+
+#[test]
+fn zalesak_one_revolution_with_redistancing_every_10_steps() {
+    let m = zalesak(100, Some(10), 0.5, Exec::SERIAL).unwrap();
+    println!("Zalesak 100², redistancing every 10 steps: {m:#?}");
+    // Acceptance number: 2 % area with redistancing (the paper's frequency).
+    assert!(m.area_rel_error.abs() <= 0.02, "area error {:.4}", m.area_rel_error);
+    assert!(m.redistance_calls == m.steps / 10);
+}
+
+#[test]
+fn single_vortex_t2_conserves_area() {
+    let m = single_vortex(128, 2.0, None, 0.5, Exec::SERIAL).unwrap();
+    println!("single vortex 128², T = 2: {m:#?}");
+    // Acceptance number: 1 % area at T = 2 on 128².
+    assert!(m.area_rel_error.abs() <= 0.01, "area error {:.4}", m.area_rel_error);
+}
+
+/// Prints the T = 8 vortex errors on 64², 128², 256² (for the report).
+#[test]
+#[ignore]
+fn single_vortex_t8_table() {
+    for n in [64, 128, 256] {
+        for every in [None, Some(10)] {
+            let m = single_vortex(n, 8.0, every, 0.5, Exec::SERIAL).unwrap();
+            println!(
+                "vortex T=8 n={n:4} redistance={every:?}: steps {} area_rel_error {:+.4e} area_rel_change {:+.4e} symdiff_rel {:.4e} (initial {:.2e})",
+                m.steps, m.area_rel_error, m.area_rel_change, m.symdiff_rel, m.symdiff_initial_rel
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Redistancing
+// ---------------------------------------------------------------------------------------------
+
+/// Distance from (x, y) to the ellipse (a cos t, b sin t): dense scan, then golden-section
+/// refinement of the foot-point parameter around the best sample.
+fn ellipse_distance(x: f64, y: f64, a: f64, b: f64) -> f64 {
+    let dist = |t: f64| (x - a * t.cos()).hypot(y - b * t.sin());
+    let dt = PI / 1800.0;
+    let best = (0..3600).map(|k| k as f64 * dt).fold(0.0, |bt, t| if dist(t) < dist(bt) { t } else { bt });
+    let (mut lo, mut hi) = (best - dt, best + dt);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..100 {
+        let (t1, t2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+        if dist(t1) < dist(t2) {
+            hi = t2;
+        } else {
+            lo = t1;
+        }
+    }
+    dist(0.5 * (lo + hi))
+}
+
+#[test]
+fn redistancing_stretched_ellipse_keeps_interface_and_gives_unit_gradient() {
+    let (a, b) = (0.35, 0.1);
+    let grid = Grid::with_origin(256, 128, -0.5, -0.25, 1.0, 0.5).unwrap();
+    let h = grid.h();
+    for interface in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde] {
+        // A non-distance function with the ellipse as zero set: |∇Φ⁰| runs from 0.57 to 2.
+        let mut phi = Field::from_fn(&grid, Location::Centre, |x, y| -(x * x / (a * a) + y * y / (b * b) - 1.0) * 0.1);
+        let e0 = eikonal_error(&phi, &grid, 3.0 * h);
+        let before: Vec<f64> = interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
+        let mut r = Redistancer::new(&grid, RedistanceSettings { interface, ..Default::default() }).unwrap();
+        let info = r.redistance(&mut phi, &grid, Exec::SERIAL).unwrap();
+        let after: Vec<f64> = interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
+        let max_before = before.iter().cloned().fold(0.0, f64::max) / h;
+        let max_after = after.iter().cloned().fold(0.0, f64::max) / h;
+        let mean_after = after.iter().sum::<f64>() / after.len() as f64 / h;
+        let e3 = eikonal_error(&phi, &grid, 3.0 * h);
+        let e6 = eikonal_error(&phi, &grid, 6.0 * h);
+        println!(
+            "ellipse, {interface:?}: {info:?}\n  crossings' distance to the exact ellipse / h: before max {max_before:.4}, after max {max_after:.4} mean {mean_after:.5} ({} points)\n  eikonal error before (3h band) {e0:?}\n  after (3h) {e3:?}\n  after (6h) {e6:?}",
+            after.len()
+        );
+        assert_eq!(before.len(), after.len(), "the interface must cross the same number of grid lines");
+        // Acceptance: the zero level set moves by < 0.1 h. Before redistancing the crossings
+        // (linear interpolation of Φ⁰ between centres) are already 0.016 h off at the tips.
+        assert!(max_after < 0.1, "{interface:?}: interface moved up to {max_after:.3} h");
+        // |∇Φ| ≈ 1 near the interface: Φ⁰ has a mean error of 0.54 in the 3-cell band; both
+        // treatments bring it below 1e-3 (measured 2e-4 to 6e-4, max 5e-3 to 1e-2 in the 6-cell
+        // band, where the kinks of the distance function on the major axis begin).
+        assert!(e0.mean > 0.3, "test set-up: Φ⁰ should be far from a distance function ({e0:?})");
+        assert!(e6.mean < 0.005, "{interface:?}: eikonal error in the 6-cell band {e6:?}");
+        assert!(e3.max < 0.03, "{interface:?}: eikonal error in the 3-cell band {e3:?}");
+    }
+}
+
+#[test]
+fn repeated_redistancing_does_not_creep() {
+    // The paper redistances every 10 steps: thousands of calls in a run. A distance function
+    // redistanced 100 times must keep its area: circle of radius 6 cells and a square (corners).
+    let grid = Grid::new(64, 64, 64.0, 64.0).unwrap();
+    for (shape, tol_closest, creeps) in [
+        (Shape::Circle { xc: 31.3, yc: 32.6, radius: 6.0 }, 2e-4, true),
+        (Shape::Rectangle { x0: 20.3, x1: 40.6, y0: 22.2, y1: 41.7 }, 1e-4, false),
+    ] {
+        let mut area = [0.0; 2];
+        for (m, interface) in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde].into_iter().enumerate() {
+            let mut phi = Field::zeros(&grid, Location::Centre);
+            init_signed_distance(&shape, &grid, &mut phi).unwrap();
+            let a0 = dense_area(&phi, &grid, Exec::SERIAL);
+            let mut r = Redistancer::new(&grid, RedistanceSettings { interface, ..Default::default() }).unwrap();
+            for _ in 0..100 {
+                r.redistance(&mut phi, &grid, Exec::SERIAL).unwrap();
+            }
+            area[m] = dense_area(&phi, &grid, Exec::SERIAL) / a0 - 1.0;
+        }
+        println!("{shape:?}: relative area change after 100 calls: closest point {:+.2e}, subcell PDE {:+.2e}", area[0], area[1]);
+        // Closest point: measured +5e-5 (circle r = 6h) and −1e-5 (square); the subcell PDE
+        // shrinks the circle by 2.5e-2 (0.04 h (h/r)² per call), which this test documents.
+        assert!(area[0].abs() < tol_closest, "closest point: area change {:.2e}", area[0]);
+        if creeps {
+            assert!(area[1] < -1e-2, "subcell PDE expected to creep on a 6-cell circle ({:.2e})", area[1]);
+        }
+    }
+}
+
+#[test]
+fn redistancing_keeps_a_distance_function_almost_unchanged() {
+    let grid = Grid::new(96, 96, 1.0, 1.0).unwrap();
+    let circle = Shape::Circle { xc: 0.47, yc: 0.52, radius: 0.23 };
+    let mut phi = Field::zeros(&grid, Location::Centre);
+    init_signed_distance(&circle, &grid, &mut phi).unwrap();
+    let exact = phi.clone();
+    let mut r = Redistancer::new(&grid, RedistanceSettings::default()).unwrap();
+    r.redistance(&mut phi, &grid, Exec::SERIAL).unwrap();
+    let mut max_err = 0.0f64;
+    for j in 0..96 {
+        for i in 0..96 {
+            let e = exact.at(i, j);
+            if e.abs() < 6.0 * grid.dx {
+                max_err = max_err.max((phi.at(i, j) - e).abs());
+            }
+        }
+    }
+    println!("circle redistancing: max |Φ − d| in a 6-cell band = {:.3e} h", max_err / grid.dx);
+    // Second-order scheme, R = 22 cells: the error of the steady state is O(h²/R) ≈ 0.01 h.
+    assert!(max_err < 0.05 * grid.dx, "max |Φ − d| = {:.3} h", max_err / grid.dx);
+}
+
+#[test]
+fn redistance_settings_are_validated() {
+    let grid = Grid::new(16, 16, 1.0, 1.0).unwrap();
+    for (s, name) in [
+        (RedistanceSettings { iterations: 0, ..Default::default() }, "iterations"),
+        (RedistanceSettings { cfl: 0.8, ..Default::default() }, "cfl"),
+        (RedistanceSettings { band: Some(0.5), ..Default::default() }, "band"),
+    ] {
+        match Redistancer::new(&grid, s) {
+            Err(Error::InvalidParameter { name: n, .. }) => assert_eq!(n, name),
+            other => panic!("expected an error on `{name}`, got {other:?}"),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Shapes and diagnostics
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn paper_column_rectangle_is_subcell_exact() {
+    // validation-data.md §1: h = 0.45/256 m, column 0.2 m × 0.4 m, domain longer than 2.05 m.
+    let grid = Grid::new(1280, 256, 2.25, 0.45).unwrap();
+    let h = grid.h();
+    assert!((h - 1.7578125e-3).abs() < 1e-15);
+    let exact = 0.2 * 0.4;
+    let mut phi = Field::zeros(&grid, Location::Centre);
+    for (shape, what) in [
+        (Shape::Rectangle { x0: 0.0, x1: 0.2, y0: 0.0, y1: 0.4 }, "flush with the walls"),
+        (Shape::Rectangle { x0: -1.0, x1: 0.2, y0: -1.0, y1: 0.4 }, "extending through the walls"),
+        (Shape::Rectangle { x0: 0.7001, x1: 0.9001, y0: 0.0203, y1: 0.4203 }, "inside the domain"),
+    ] {
+        init_signed_distance(&shape, &grid, &mut phi).unwrap();
+        let area = dense_area(&phi, &grid, Exec::SERIAL);
+        println!("column {what}: area {area:.9} (relative error {:.2e})", area / exact - 1.0);
+        // Acceptance: 1e-3 relative. Straight edges are exact for the piecewise-linear
+        // reconstruction; only the O(h²) rounding at convex corners remains (h²/0.08 ≈ 4e-5).
+        assert!((area / exact - 1.0).abs() < 1e-3, "{what}: area {area}");
+    }
+    // The zero level set at the exact non-grid-aligned position x = 0.2 (113.78 cells) on a
+    // row at mid-height of the flush column, and y = 0.4 on a column at mid-width.
+    init_signed_distance(&Shape::Rectangle { x0: -1.0, x1: 0.2, y0: -1.0, y1: 0.4 }, &grid, &mut phi).unwrap();
+    let (i, j) = ((0.2 / h - 0.5) as isize, 100);
+    let (pa, pb) = (phi.at(i, j), phi.at(i + 1, j));
+    assert!(pa > 0.0 && pb < 0.0);
+    let x_cross = grid.xc(i) + pa / (pa - pb) * h;
+    assert!((x_cross - 0.2).abs() < 1e-12, "x crossing {x_cross}");
+    let (i, j) = (30, (0.4 / h - 0.5) as isize);
+    let (pa, pb) = (phi.at(i, j), phi.at(i, j + 1));
+    let y_cross = grid.yc(j) + pa / (pa - pb) * h;
+    assert!((y_cross - 0.4).abs() < 1e-12, "y crossing {y_cross}");
+}
+
+#[test]
+fn slotted_disk_distance_is_exact() {
+    let shape = validation::zalesak_shape();
+    // Brute force: the boundary sampled every 1e-3 (arc, slot sides, slot top).
+    let (xc, yc, r, hw, top) = (50.0, 75.0, 15.0, 2.5, 85.0);
+    let ycut = yc - (r * r - hw * hw as f64).sqrt();
+    let mut pts = Vec::new();
+    let n_arc = 100_000;
+    for k in 0..n_arc {
+        let t = 2.0 * PI * k as f64 / n_arc as f64;
+        let (x, y) = (xc + r * t.cos(), yc + r * t.sin());
+        if !((x - xc).abs() < hw && y < yc) {
+            pts.push((x, y));
+        }
+    }
+    for k in 0..=20_000 {
+        let s = k as f64 / 20_000.0;
+        pts.push((xc - hw, ycut + s * (top - ycut)));
+        pts.push((xc + hw, ycut + s * (top - ycut)));
+        pts.push((xc - hw + s * 2.0 * hw, top));
+    }
+    let mut seed = 12345u64;
+    let mut rnd = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..400 {
+        let (x, y) = (25.0 + 50.0 * rnd(), 50.0 + 50.0 * rnd());
+        let d = shape.signed_distance(x, y);
+        let brute = pts.iter().map(|&(px, py)| (x - px).hypot(y - py)).fold(f64::INFINITY, f64::min);
+        // Sampling spacing ≤ 2π·15/1e5 ≈ 1e-3: the brute force over-estimates by < 1e-3.
+        assert!((d.abs() - brute).abs() < 1e-3, "at ({x}, {y}): {d} vs {brute}");
+        let inside = (x - xc).hypot(y - yc) < r && !((x - xc).abs() < hw && y < top);
+        assert_eq!(d > 0.0, inside);
+    }
+}
+
+#[test]
+fn dense_area_is_second_order_for_a_circle() {
+    let circle = Shape::Circle { xc: 0.503, yc: 0.488, radius: 0.3 };
+    let exact = circle.area().unwrap();
+    let errs: Vec<f64> = [32, 64, 128]
+        .iter()
+        .map(|&n| {
+            let grid = Grid::new(n, n, 1.0, 1.0).unwrap();
+            let mut phi = Field::zeros(&grid, Location::Centre);
+            init_signed_distance(&circle, &grid, &mut phi).unwrap();
+            (dense_area(&phi, &grid, Exec::SERIAL) - exact).abs()
+        })
+        .collect();
+    let o = order(errs[1], errs[2]);
+    println!("circle area errors {errs:?}, order {o:.2}");
+    // Piecewise-linear reconstruction: second order (1.8 allows for the irregular cut pattern);
+    // the chord error of a circle of 38 cells radius is ≈ h²/(6R)·2πR/A ≈ 1.2e-4 relative.
+    assert!(o > 1.8 && errs[2] / exact < 2e-4, "area errors {errs:?}");
+}
+
+#[test]
+fn shapes_are_validated_and_combine() {
+    match (Shape::Circle { xc: 0.0, yc: 0.0, radius: -1.0 }).validate() {
+        Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "radius"),
+        other => panic!("{other:?}"),
+    }
+    let layer = Shape::HalfPlane { px: 0.0, py: 0.1, nx: 0.0, ny: 2.0 };
+    assert!((layer.signed_distance(0.3, 0.04) - 0.06).abs() < 1e-15);
+    let u = Shape::Union(vec![layer.clone(), Shape::Circle { xc: 0.5, yc: 0.3, radius: 0.1 }]);
+    assert!(u.contains(0.5, 0.35) && u.contains(0.9, 0.05) && !u.contains(0.9, 0.3));
+    let d = Shape::Difference(Box::new(layer), Box::new(Shape::Circle { xc: 0.5, yc: 0.0, radius: 0.05 }));
+    assert!(!d.contains(0.5, 0.01) && d.contains(0.7, 0.01));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Heaviside and material laws
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn heaviside_and_two_phase_laws() {
+    let eps = 0.015;
+    assert_eq!(heaviside(-eps * 1.0001, eps), 0.0);
+    assert_eq!(heaviside(eps * 1.0001, eps), 1.0);
+    assert!((heaviside(0.0, eps) - 0.5).abs() < 1e-15);
+    // continuity at ±ε and δ_ε = dH/dΦ (central difference, error O(δ²) ≈ 1e-9)
+    assert!(heaviside(eps, eps) == 1.0 && heaviside(-eps, eps).abs() < 1e-15);
+    for k in -10..=10 {
+        let p = 0.09 * k as f64 * eps;
+        let d = 1e-7;
+        let fd = (heaviside(p + d, eps) - heaviside(p - d, eps)) / (2.0 * d);
+        assert!((fd - dirac(p, eps)).abs() < 1e-5 / eps, "δ at {p}");
+    }
+    // paper's values: granular ρ_s = 2500 (here the mixture density of the model is the
+    // caller's), air 1; η 0.1 and 2e-5 Pa s.
+    let grid = Grid::new(1280, 256, 2.25, 0.45).unwrap();
+    let p = TwoPhaseProperties::new(2500.0, 1.0, 0.1, 2e-5, &grid).unwrap();
+    assert!((p.eps - 1.5 * 0.45 / 256.0).abs() < 1e-15);
+    assert_eq!(p.density(1.0), 2500.0);
+    assert_eq!(p.density(-1.0), 1.0);
+    assert!((p.density(0.0) - 1250.5).abs() < 1e-12);
+    // harmonic mean at H = ½: 2/(1/0.1 + 1/2e-5) = 3.9992e-5, far below the arithmetic 0.05
+    assert!((p.viscosity(0.0) - 2.0 / (10.0 + 5e4)).abs() < 1e-18);
+    assert!((p.viscosity(1.0) - 0.1).abs() < 1e-15 && (p.viscosity(-1.0) - 2e-5).abs() < 1e-18);
+    // κ(Φ) = κ_f H + κ_∞ (1 − H) with κ_∞ = 1e16 (paper)
+    assert_eq!(p.blend(1.0, 0.035, 1e16), 0.035);
+    let bad = TwoPhaseProperties { eta_light: 0.0, ..p };
+    match bad.validate() {
+        Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "eta_light"),
+        other => panic!("{other:?}"),
+    }
+    // field version
+    let mut phi = Field::zeros(&grid, Location::Centre);
+    init_signed_distance(&Shape::Rectangle { x0: -1.0, x1: 0.2, y0: -1.0, y1: 0.4 }, &grid, &mut phi).unwrap();
+    let mut rho = Field::zeros(&grid, Location::Centre);
+    map_centre_field(&phi, &mut rho, Exec::SERIAL, |f| p.density(f)).unwrap();
+    assert_eq!(rho.at(10, 10), 2500.0);
+    assert_eq!(rho.at(1000, 200), 1.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Serial == parallel
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn serial_and_parallel_give_identical_fields() {
+    let grid = Grid::new(160, 120, 100.0, 75.0).unwrap();
+    let run = |exec: Exec| -> (Field, f64) {
+        let mut phi = Field::zeros(&grid, Location::Centre);
+        init_signed_distance(&Shape::SlottedDisk { xc: 50.0, yc: 45.0, radius: 15.0, slot_width: 5.0, slot_top: 55.0 }, &grid, &mut phi)
+            .unwrap();
+        let w = PI / 314.0;
+        let u = Field::from_fn(&grid, Location::XFace, |_, y| w * (37.5 - y) + 0.1);
+        let v = Field::from_fn(&grid, Location::YFace, |x, _| w * (x - 50.0));
+        let mut tr = LevelSetTransport::new(&grid);
+        let mut rd = Redistancer::new(&grid, RedistanceSettings::default()).unwrap();
+        let dt = stable_dt(&u, &v, &grid, 0.5, exec).unwrap();
+        for step in 1..=20 {
+            tr.advect(&mut phi, &u, &v, &grid, dt, exec).unwrap();
+            if step % 10 == 0 {
+                rd.redistance(&mut phi, &grid, exec).unwrap();
+            }
+        }
+        let a = dense_area(&phi, &grid, exec);
+        (phi, a)
+    };
+    let (serial, a_serial) = run(Exec::SERIAL);
+    let pool = build_pool(2).unwrap();
+    let (parallel, a_parallel) = pool.install(|| run(Exec { parallel: true }));
+    let scale = serial.max_abs();
+    let mut diff = 0.0f64;
+    for (a, b) in serial.interior().iter().zip(parallel.interior().iter()) {
+        diff = diff.max((a - b).abs());
+    }
+    // Each cell's arithmetic is independent of the row split and the area sums per block in
+    // block order: identical to round-off, asserted at 1e-12 relative.
+    assert!(diff <= 1e-12 * scale, "max |serial − parallel| = {diff:e}");
+    assert!((a_serial - a_parallel).abs() <= 1e-12 * a_serial);
+}
+
