@@ -528,6 +528,69 @@ fn odd_grid_sizes_and_single_level_work() {
     println!("{s}");
 }
 
+// ---------------------------------------------------------------------------------------------
+// No allocation in solve / apply
+// ---------------------------------------------------------------------------------------------
+
+/// Global allocator that counts the allocations made by the current thread.
+struct CountingAllocator;
+
+thread_local! {
+    static ALLOCATIONS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator; the counter is a const-initialised thread-local
+// `Cell`, which never allocates.
+unsafe impl std::alloc::GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { std::alloc::System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAllocator = CountingAllocator;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(|c| c.get())
+}
+
+#[test]
+fn solve_apply_and_set_coefficients_do_not_allocate() {
+    let (nx, ny) = (128, 64);
+    let (dx, dy) = (2.0 / nx as f64, 1.0 / ny as f64);
+    let rho = column_density(nx, ny, dx * 0.5, dy * 0.4);
+    let (bx, by) = faces_from_density(nx, ny, &rho);
+    let f = random_vec(nx * ny, 5);
+    // The counter does see allocations.
+    let a0 = allocations();
+    let v = std::hint::black_box(vec![1.0; 10]);
+    assert!(allocations() > a0 && v.len() == 10);
+    for (kind, bc) in [
+        (PressureSolverKind::MultigridCg, ALL_NEUMANN),
+        (PressureSolverKind::MultigridCg, TOP_DIRICHLET),
+        (PressureSolverKind::Direct, ALL_NEUMANN),
+    ] {
+        let mut solver = PoissonSolver::new(nx, ny, dx, dy, bc, settings(kind, 1e-8)).unwrap();
+        let mut p = vec![0.0; nx * ny];
+        let mut out = vec![0.0; nx * ny];
+        let before = allocations();
+        solver.set_coefficients(&bx, &by, Exec::SERIAL).unwrap();
+        let info = solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
+        solver.apply(&p, &mut out, Exec::SERIAL);
+        let count = allocations() - before;
+        // Work arrays and factorisation workspaces are allocated once in `new`.
+        assert_eq!(count, 0, "{kind:?} {bc:?}: {count} allocations in set_coefficients/solve/apply ({info:?})");
+    }
+}
+
 #[test]
 #[ignore]
 fn explore() {

@@ -177,67 +177,122 @@ impl Level {
         });
     }
 
-    /// One Gauss–Seidel half-sweep over the cells of one colour ((i + j) mod 2 == `colour`):
-    /// x_ij = (b_ij + Σ couplings × neighbours) / d_ij. The neighbours of a cell all have the
-    /// other colour, so the cells of one colour are independent and can be updated in any order,
-    /// in parallel, with the same result. With `from_zero`, the cells of the other colour are
-    /// taken as 0 (first half-sweep from a zero initial guess; x need not be initialised).
-    pub fn smooth_colour(&self, x: &mut [f64], b: &[f64], colour: usize, from_zero: bool, exec: Exec) {
+    /// One red–black Gauss–Seidel sweep: a half-sweep over the cells of colour `first`
+    /// ((i + j) mod 2 == first), then one over the other colour. A half-sweep sets
+    /// x_ij = (b_ij + Σ couplings × neighbours) / d_ij; the neighbours of a cell all have the other
+    /// colour, so each cell's update reads the same values whatever the order of the updates:
+    /// serial and parallel sweeps give bit-identical results. With `from_zero`, the first
+    /// half-sweep starts from x = 0 (x need not be initialised).
+    ///
+    /// Both half-sweeps are fused to read the arrays once: serially as a wavefront (colour
+    /// `first` on row j, then the other colour on row j − 1); in parallel by blocks of
+    /// [`SMOOTH_BLOCK`] rows, each doing colour `first` on all its rows and the other colour on
+    /// its interior rows, then, after all blocks are done, the other colour on the first and last
+    /// row of every block (they depend on the neighbouring blocks).
+    pub fn smooth(&self, x: &mut [f64], b: &[f64], first: usize, from_zero: bool, exec: Exec) {
         let (nx, ny) = (self.nx, self.ny);
         assert!(x.len() == nx * ny && b.len() == nx * ny);
+        let second = 1 - first;
         let ptr = SharedMut(x.as_mut_ptr());
-        par::for_blocks(exec, ny, nx * ny, |rows| {
-            let base = ptr.get();
-            for j in rows {
-                let start = (colour + j) % 2;
-                let br = &b[j * nx..(j + 1) * nx];
-                let inv = &self.inv_diag[j * nx..(j + 1) * nx];
-                if from_zero {
-                    // SAFETY: cells (i, j) of colour `colour` in this block's rows are written
-                    // by this thread only; nothing else is read.
-                    unsafe {
-                        let pc = base.add(j * nx);
-                        for i in (start..nx).step_by(2) {
-                            *pc.add(i) = br[i] * inv[i];
-                        }
+        if !exec.use_parallel(nx * ny) {
+            // SAFETY: single thread; all indices are in bounds (see `half_sweep_row`).
+            unsafe {
+                for j in 0..ny {
+                    self.half_sweep_row(ptr.get(), b, j, first, from_zero);
+                    if j > 0 {
+                        self.half_sweep_row(ptr.get(), b, j - 1, second, false);
                     }
-                    continue;
                 }
-                let cxr = &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)];
-                let cys = &self.cy[j * nx..(j + 1) * nx];
-                let cyn = &self.cy[(j + 1) * nx..(j + 2) * nx];
-                // SAFETY: this thread writes the cells of colour `colour` in row j (its own row)
-                // and reads cells of the other colour in rows j−1, j, j+1, which no thread writes
-                // during this half-sweep. All indices are inside the buffer: rows j±1 are used
-                // only when they exist (otherwise the zero row stands in), and columns i±1 only
-                // when 0 ≤ i±1 < nx. No references to the shared buffer are created.
-                unsafe {
-                    let pc = base.add(j * nx);
-                    let ps: *const f64 = if j > 0 { base.add((j - 1) * nx) } else { self.zeros.as_ptr() };
-                    let pn: *const f64 = if j + 1 < ny { base.add((j + 1) * nx) } else { self.zeros.as_ptr() };
-                    let update = |i: usize, west: f64, east: f64| -> f64 {
-                        (br[i] + cxr[i] * west + cxr[i + 1] * east + cys[i] * *ps.add(i) + cyn[i] * *pn.add(i)) * inv[i]
-                    };
-                    if nx == 1 {
-                        if start == 0 {
-                            *pc = update(0, 0.0, 0.0);
-                        }
-                        continue;
-                    }
-                    let mut i = start;
-                    if i == 0 {
-                        *pc = update(0, 0.0, *pc.add(1));
-                        i = 2;
-                    }
-                    while i < nx - 1 {
-                        *pc.add(i) = update(i, *pc.add(i - 1), *pc.add(i + 1));
-                        i += 2;
-                    }
-                    if i == nx - 1 {
-                        *pc.add(i) = update(i, *pc.add(i - 1), 0.0);
-                    }
+                self.half_sweep_row(ptr.get(), b, ny - 1, second, false);
+            }
+            return;
+        }
+        // SAFETY (both phases): a block writes colour `first` in its rows and the other colour in
+        // its interior rows; cells of colour `first` are read by other blocks only in phase B, and
+        // cells of the other colour are read by other blocks only in the boundary rows, which are
+        // written in phase B only. In phase B, blocks write the other colour in their boundary
+        // rows and read only colour `first`. No location is written by one thread while another
+        // reads or writes it.
+        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| unsafe {
+            for j in rows.clone() {
+                self.half_sweep_row(ptr.get(), b, j, first, from_zero);
+                if j >= rows.start + 2 {
+                    self.half_sweep_row(ptr.get(), b, j - 1, second, false);
                 }
             }
         });
+        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| unsafe {
+            self.half_sweep_row(ptr.get(), b, rows.start, second, false);
+            if rows.end - 1 > rows.start {
+                self.half_sweep_row(ptr.get(), b, rows.end - 1, second, false);
+            }
+        });
+    }
+
+    /// Gauss–Seidel update of the cells of colour `colour` in row `j` of the buffer at `base`
+    /// (nx·ny values); with `from_zero`, x = b/d (the other colour taken as 0).
+    ///
+    /// # Safety
+    /// `base` must point to nx·ny values; no other thread may write the cells of the other colour
+    /// in rows j−1..=j+1, nor read or write the cells of colour `colour` in row j, during the
+    /// call. Indices: rows j±1 are read only when they exist (the zero row stands in otherwise),
+    /// columns i±1 only when 0 ≤ i±1 < nx. No reference to the buffer is created.
+    #[inline(always)]
+    unsafe fn half_sweep_row(&self, base: *mut f64, b: &[f64], j: usize, colour: usize, from_zero: bool) {
+        let (nx, ny) = (self.nx, self.ny);
+        let start = (colour + j) % 2;
+        let br = &b[j * nx..(j + 1) * nx];
+        let inv = &self.inv_diag[j * nx..(j + 1) * nx];
+        let pc = base.add(j * nx);
+        if from_zero {
+            for i in (start..nx).step_by(2) {
+                *pc.add(i) = br[i] * inv[i];
+            }
+            return;
+        }
+        let cxr = &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)];
+        let cys = &self.cy[j * nx..(j + 1) * nx];
+        let cyn = &self.cy[(j + 1) * nx..(j + 2) * nx];
+        let ps: *const f64 = if j > 0 { base.add((j - 1) * nx) } else { self.zeros.as_ptr() };
+        let pn: *const f64 = if j + 1 < ny { base.add((j + 1) * nx) } else { self.zeros.as_ptr() };
+        let update = |i: usize, west: f64, east: f64| -> f64 {
+            (br[i] + cxr[i] * west + cxr[i + 1] * east + cys[i] * *ps.add(i) + cyn[i] * *pn.add(i)) * inv[i]
+        };
+        if nx == 1 {
+            if start == 0 {
+                *pc = update(0, 0.0, 0.0);
+            }
+            return;
+        }
+        let mut i = start;
+        if i == 0 {
+            *pc = update(0, 0.0, *pc.add(1));
+            i = 2;
+        }
+        while i < nx - 1 {
+            *pc.add(i) = update(i, *pc.add(i - 1), *pc.add(i + 1));
+            i += 2;
+        }
+        if i == nx - 1 {
+            *pc.add(i) = update(i, *pc.add(i - 1), 0.0);
+        }
+    }
+
+    /// Residual of this level restricted by averaging the 4 children (piecewise-constant
+    /// transfers): b_c = ¼ Σ_children (b − A x), without storing the fine residual.
+    pub fn restrict_residual_constant(&self, x: &[f64], b: &[f64], coarse_b: &mut [f64], exec: Exec) {
+        let (nx, ncx) = (self.nx, self.nx / 2);
+        exec.for_each_row(coarse_b, ncx, |jc, row| {
+            row.iter_mut().for_each(|v| *v = 0.0);
+            for j in [2 * jc, 2 * jc + 1] {
+                let br = &b[j * nx..(j + 1) * nx];
+                self.stencil_row(j, x, |i, v| row[i >> 1] += br[i] - v);
+            }
+            row.iter_mut().for_each(|v| *v *= 0.25);
+        });
     }
 }
+
+/// Rows per block of the parallel red–black sweep (the smoother needs no reduction, so its block
+/// size only trades parallelism against the boundary rows of phase B).
+pub(crate) const SMOOTH_BLOCK: usize = 16;

@@ -141,7 +141,8 @@ pub(crate) struct Multigrid {
     xs: Vec<Vec<f64>>,
     /// Right-hand sides of levels 1.. (index 0 unused).
     bs: Vec<Vec<f64>>,
-    /// Residuals of levels 0..L−1; on the coarsest level, a copy of its right-hand side.
+    /// Residuals of levels 0..L−1 (bilinear transfers only: the constant restriction computes
+    /// them on the fly); on the coarsest level, a copy of its right-hand side.
     rs: Vec<Vec<f64>>,
     /// Exact solver of the coarsest level.
     coarse: DirectSolver,
@@ -152,6 +153,7 @@ pub(crate) struct Multigrid {
     post_smooth: usize,
     /// Coarse-grid cycles per level: 1 (V-cycle) or 2 (W-cycle).
     gamma: usize,
+    prolongation: Prolongation,
 }
 
 impl Multigrid {
@@ -190,7 +192,14 @@ impl Multigrid {
         let nl = levels.len();
         let xs = levels.iter().enumerate().map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }]).collect();
         let bs = levels.iter().enumerate().map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }]).collect();
-        let rs = levels.iter().map(|lv| vec![0.0; lv.cells()]).collect();
+        let rs = levels
+            .iter()
+            .enumerate()
+            .map(|(l, lv)| {
+                let needed = l + 1 == nl || settings.prolongation == Prolongation::Bilinear;
+                vec![0.0; if needed { lv.cells() } else { 0 }]
+            })
+            .collect();
         let last = &levels[nl - 1];
         let coarse = DirectSolver::new(last.nx, last.ny, singular)?;
         let partials = vec![[0.0]; par::n_blocks(last.ny)];
@@ -205,6 +214,7 @@ impl Multigrid {
             singular,
             pre_smooth: settings.pre_smooth,
             post_smooth: settings.post_smooth,
+            prolongation: settings.prolongation,
             gamma: match settings.cycle {
                 Cycle::V => 1,
                 Cycle::W => 2,
@@ -269,24 +279,30 @@ impl Multigrid {
         }
         let level = &self.levels[l];
         for s in 0..self.pre_smooth {
-            level.smooth_colour(x, b, 0, from_zero && s == 0, exec);
-            level.smooth_colour(x, b, 1, false, exec);
+            level.smooth(x, b, 0, from_zero && s == 0, exec);
         }
-        level.residual(x, b, &mut self.rs[l], exec);
         let mut bc = std::mem::take(&mut self.bs[l + 1]);
         let mut xc = std::mem::take(&mut self.xs[l + 1]);
-        restrict(&self.transfers[l], &self.levels[l + 1], &self.rs[l], level.nx, &mut bc, exec);
+        match self.prolongation {
+            Prolongation::Constant => level.restrict_residual_constant(x, b, &mut bc, exec),
+            Prolongation::Bilinear => {
+                level.residual(x, b, &mut self.rs[l], exec);
+                restrict(&self.transfers[l], &self.levels[l + 1], &self.rs[l], level.nx, &mut bc, exec);
+            }
+        }
         let gamma = if l + 2 == nl { 1 } else { self.gamma };
         for k in 0..gamma {
             self.cycle(l + 1, &bc, &mut xc, k == 0, exec);
         }
         let level = &self.levels[l];
-        prolong_add(&self.transfers[l], self.levels[l + 1].nx, &xc, level.nx, x, exec);
+        match self.prolongation {
+            Prolongation::Constant => prolong_add_constant(self.levels[l + 1].nx, &xc, level.nx, x, exec),
+            Prolongation::Bilinear => prolong_add(&self.transfers[l], self.levels[l + 1].nx, &xc, level.nx, x, exec),
+        }
         self.bs[l + 1] = bc;
         self.xs[l + 1] = xc;
         for _ in 0..self.post_smooth {
-            level.smooth_colour(x, b, 1, false, exec);
-            level.smooth_colour(x, b, 0, false, exec);
+            level.smooth(x, b, 1, false, exec);
         }
     }
 }
@@ -311,7 +327,18 @@ fn restrict(t: &Transfer, coarse: &Level, rf: &[f64], nfx: usize, bc: &mut [f64]
     });
 }
 
-/// x_f += P x_c.
+/// x_f += P x_c for piecewise-constant P: every fine cell adds its parent's value.
+fn prolong_add_constant(ncx: usize, xc: &[f64], nfx: usize, xf: &mut [f64], exec: Exec) {
+    exec.for_each_row(xf, nfx, |jf, row| {
+        let c = &xc[(jf / 2) * ncx..(jf / 2 + 1) * ncx];
+        for (pair, v) in row.chunks_exact_mut(2).zip(c) {
+            pair[0] += v;
+            pair[1] += v;
+        }
+    });
+}
+
+/// x_f += P x_c (general tensor-product weights).
 fn prolong_add(t: &Transfer, ncx: usize, xc: &[f64], nfx: usize, xf: &mut [f64], exec: Exec) {
     exec.for_each_row(xf, nfx, |jf, row| {
         let [(j0, wy0), (j1, wy1)] = t.y.prolong[jf];

@@ -16,14 +16,14 @@ pub(crate) fn n_blocks(nrows: usize) -> usize {
     nrows.div_ceil(ROW_BLOCK)
 }
 
-/// Runs `f(rows)` on every block of rows of `0..nrows`, in parallel when `exec` allows it for a
-/// grid of `cells` cells. Blocks are disjoint; `f` must only write rows of its block.
-pub(crate) fn for_blocks<F>(exec: Exec, nrows: usize, cells: usize, f: F)
+/// Runs `f(rows)` on every block of `block_rows` rows of `0..nrows`, in parallel when `exec`
+/// allows it for a grid of `cells` cells. Blocks are disjoint.
+pub(crate) fn for_blocks_of<F>(exec: Exec, nrows: usize, cells: usize, block_rows: usize, f: F)
 where
     F: Fn(std::ops::Range<usize>) + Sync + Send,
 {
-    let nb = n_blocks(nrows);
-    let block = |b: usize| b * ROW_BLOCK..((b + 1) * ROW_BLOCK).min(nrows);
+    let nb = nrows.div_ceil(block_rows);
+    let block = |b: usize| b * block_rows..((b + 1) * block_rows).min(nrows);
     if exec.use_parallel(cells) {
         (0..nb).into_par_iter().for_each(|b| f(block(b)));
     } else {
@@ -118,7 +118,7 @@ where
 }
 
 /// A raw pointer to a buffer that several threads update at disjoint locations (the cells of one
-/// colour in a red–black sweep). Only [`super::level::Level::smooth_colour`] uses it.
+/// colour in a red–black sweep). Only [`super::level::Level::smooth`] uses it.
 #[derive(Clone, Copy)]
 pub(crate) struct SharedMut(pub(crate) *mut f64);
 
