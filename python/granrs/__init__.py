@@ -17,6 +17,7 @@ The pipeline is grid → model → simulation → run::
 
 from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
 from .boundary import BoundaryConditions, Coulomb, FreeSlip, NavierSlip, NoSlip, Outflow, Velocity
+from . import shapes
 from .grid import Grid
 from .materials import AIR, WATER, Material
 from .model import Model, Numerics, PorePressure
@@ -44,4 +45,5 @@ __all__ = [
     "Velocity",
     "__version__",
     "build_info",
+    "shapes",
 ]

@@ -19,7 +19,7 @@ def _validate(args) -> int:
             print(f"{name:16s} {doc}  (defaults: {defaults})")
         return 0
     params = {}
-    for key in ("n", "re", "steps"):
+    for key in ("n", "re", "steps", "period", "redistance_every", "cfl"):
         val = getattr(args, key)
         if val is not None:
             params[key] = val if key != "n" or len(val) > 1 else val[0]
@@ -50,6 +50,9 @@ def main(argv=None) -> int:
     v.add_argument("--n", type=int, action="append", help="grid size (repeat for a convergence study)")
     v.add_argument("--re", type=float, help="Reynolds number (cavity)")
     v.add_argument("--steps", type=int, help="number of steps (hydrostatic)")
+    v.add_argument("--period", type=float, help="period T (single-vortex)")
+    v.add_argument("--redistance-every", dest="redistance_every", type=int, help="redistancing frequency (level-set cases)")
+    v.add_argument("--cfl", type=float, help="CFL number (level-set cases)")
     v.add_argument("--threads", type=int, default=1)
     v.add_argument("--json", help="write the JSON record to this file")
 

@@ -170,6 +170,20 @@ class Model:
         if p is None and balance_pressure:
             self._rust.initialise_pressure()
 
+    def set_shape(self, shape, balance_pressure: bool = True) -> None:
+        """Sets Φ to the exact signed distance of a :mod:`granrs.shapes` shape (Φ > 0 inside)."""
+        from .shapes import Shape
+
+        if not isinstance(shape, Shape):
+            raise ParameterError(f"invalid parameter `shape` = {shape!r}: allowed a granrs.shapes shape")
+        self._rust.set_shape(shape.spec())
+        if balance_pressure:
+            self._rust.initialise_pressure()
+
+    def dense_area(self) -> float:
+        """Area of the dense phase {Φ > 0} (sub-cell accurate), m²."""
+        return self._rust.dense_area()
+
     # ---- stepping -----------------------------------------------------------------------
     def step(self) -> dict:
         """Takes one step (GIL released); returns its diagnostics."""

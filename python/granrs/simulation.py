@@ -35,7 +35,8 @@ class Callback:
 class Simulation:
     """Runs a model to ``stop_time`` and/or ``stop_iteration``, or until a callback sets
     ``simulation.stop = True`` (with ``stop_reason``). Per-step diagnostics accumulate in
-    ``history`` (arrays: time, dt, max_speed, cfl, divergence, pressure_iterations, viscous_iterations)."""
+    ``history`` (lists: time, dt, max_speed, cfl, divergence, pressure_iterations, viscous_iterations,
+    pore_iterations, and those the model adds)."""
 
     def __init__(self, model: Model, stop_time: Optional[float] = None, stop_iteration: Optional[int] = None,
                  callbacks: Optional[list] = None, progress: bool = False, wall_limit: Optional[float] = None):
@@ -49,8 +50,7 @@ class Simulation:
         self.callbacks = list(callbacks or [])
         self.progress = progress
         self.wall_limit = wall_limit
-        self.history: dict[str, list] = {k: [] for k in ("time", "dt", "max_speed", "cfl", "divergence",
-                                                          "pressure_iterations", "viscous_iterations")}
+        self.history: dict[str, list] = {}
         self.stop = False
         self.stop_reason = ""
         self.wall_time = 0.0
@@ -97,12 +97,12 @@ class Simulation:
                 log = m.advance(t_end=t_next, max_steps=n_next)
             except Exception as err:  # keep the steps done before the failure
                 for k, v in getattr(err, "history", {}).items():
-                    self.history[k].extend(v)
+                    self.history.setdefault(k, []).extend(v)
                 self.wall_time = _time.perf_counter() - start
                 self.stop_reason = f"error: {err}"
                 raise
             for k, v in log.items():
-                self.history[k].extend(v)
+                self.history.setdefault(k, []).extend(v)
             for cb in self.callbacks:
                 if self._due(cb, t_before, n_before):
                     cb.func(self)

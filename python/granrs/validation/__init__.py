@@ -10,13 +10,17 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from . import navier_stokes, pore_pressure
+from . import levelset, navier_stokes, pore_pressure
 
 #: name → (function(**params) → (metrics, reference, passed), default params, help)
 CASES: dict[str, tuple[Callable, dict, str]] = {
     "taylor-green": (navier_stokes.taylor_green, {"n": [32, 64, 128]}, "decaying Taylor–Green vortex, free-slip box"),
     "cavity": (navier_stokes.cavity, {"re": 100.0, "n": 64}, "lid-driven cavity to steady state"),
     "hydrostatic": (navier_stokes.hydrostatic, {"steps": 1000, "n": 32}, "heavy fluid under a light one, at rest"),
+    "zalesak": (levelset.zalesak, {"n": 100, "redistance_every": 0, "cfl": 0.5}, "Zalesak's slotted disk, one revolution"),
+    "single-vortex": (levelset.single_vortex, {"n": 128, "period": 2.0, "redistance_every": 0, "cfl": 0.5},
+                      "Rider-Kothe single vortex, back at t = T"),
+    "dam-break": (levelset.dam_break, {"n": 32}, "water column under air against Martin & Moyce (1952)"),
     "pore-diffusion": (pore_pressure.pore_diffusion, {"n": [16, 32, 64, 128], "dt_factor": 10.0, "formulation": "granular-only"},
                        "pore pressure in a static layer with a basal air flux, exact 1D series"),
 }

@@ -2,7 +2,9 @@
 //! Python exceptions, releases the GIL around Rust work, and exposes the model's fields as
 //! zero-copy NumPy arrays (the Python layer marks them read-only and strips the halos).
 
+use granrs_core::exec::Exec;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
+use granrs_core::levelset::{self, Shape};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
@@ -106,6 +108,82 @@ impl PyModel {
             other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf'")),
         })
     }
+}
+
+/// Parses a shape spec: (kind, [numbers]) or ("union"/"difference", [specs]).
+fn parse_shape(spec: &Bound<'_, PyAny>) -> PyResult<Shape> {
+    let (kind, args): (String, Bound<'_, PyAny>) = spec.extract().map_err(|_| param_err("shape", spec, "a (kind, parameters) tuple"))?;
+    let nums = |n: usize| -> PyResult<Vec<f64>> {
+        let v: Vec<f64> = args.extract().map_err(|_| param_err(&format!("shape.{kind}"), &args, &format!("{n} numbers")))?;
+        if v.len() != n {
+            return Err(param_err(&format!("shape.{kind}"), format!("{v:?}"), &format!("{n} numbers")));
+        }
+        Ok(v)
+    };
+    let shape = match kind.as_str() {
+        "rectangle" => {
+            let v = nums(4)?;
+            Shape::Rectangle { x0: v[0], x1: v[1], y0: v[2], y1: v[3] }
+        }
+        "circle" => {
+            let v = nums(3)?;
+            Shape::Circle { xc: v[0], yc: v[1], radius: v[2] }
+        }
+        "slotted-disk" => {
+            let v = nums(5)?;
+            Shape::SlottedDisk { xc: v[0], yc: v[1], radius: v[2], slot_width: v[3], slot_top: v[4] }
+        }
+        "half-plane" => {
+            let v = nums(4)?;
+            Shape::HalfPlane { px: v[0], py: v[1], nx: v[2], ny: v[3] }
+        }
+        "union" => {
+            let parts: Vec<Bound<'_, PyAny>> = args.extract()?;
+            Shape::Union(parts.iter().map(parse_shape).collect::<PyResult<Vec<_>>>()?)
+        }
+        "difference" => {
+            let parts: Vec<Bound<'_, PyAny>> = args.extract()?;
+            if parts.len() != 2 {
+                return Err(param_err("shape.difference", parts.len(), "exactly 2 shapes"));
+            }
+            Shape::Difference(Box::new(parse_shape(&parts[0])?), Box::new(parse_shape(&parts[1])?))
+        }
+        other => return Err(param_err("shape", other, "one of 'rectangle', 'circle', 'slotted-disk', 'half-plane', 'union', 'difference'")),
+    };
+    shape.validate().map_err(to_py)?;
+    Ok(shape)
+}
+
+/// Runs a level-set benchmark ('zalesak' or 'single-vortex') in Rust; returns its metrics.
+#[pyfunction]
+#[pyo3(signature = (case, n, period, redistance_every, cfl, threads=1))]
+fn levelset_validation<'py>(py: Python<'py>, case: &str, n: usize, period: f64, redistance_every: usize, cfl: f64, threads: usize) -> PyResult<Bound<'py, PyDict>> {
+    let pool = granrs_core::exec::build_pool(threads).map_err(to_py)?;
+    let exec = Exec::with_threads(threads);
+    let every = if redistance_every == 0 { None } else { Some(redistance_every) };
+    let case_owned = case.to_string();
+    let m = py
+        .detach(|| {
+            pool.install(|| match case_owned.as_str() {
+                "zalesak" => levelset::zalesak(n, every, cfl, exec),
+                "single-vortex" => levelset::single_vortex(n, period, every, cfl, exec),
+                other => Err(Error::param("case", other, "'zalesak' or 'single-vortex'")),
+            })
+        })
+        .map_err(to_py)?;
+    let d = PyDict::new(py);
+    d.set_item("n", m.n)?;
+    d.set_item("steps", m.steps)?;
+    d.set_item("dt", m.dt)?;
+    d.set_item("final_time", m.final_time)?;
+    d.set_item("redistance_calls", m.redistance_calls)?;
+    d.set_item("area_exact", m.area_exact)?;
+    d.set_item("area_initial", m.area_initial)?;
+    d.set_item("area_final", m.area_final)?;
+    d.set_item("area_rel_error", m.area_rel_error)?;
+    d.set_item("area_rel_change", m.area_rel_change)?;
+    d.set_item("symdiff_rel", m.symdiff_rel)?;
+    Ok(d)
 }
 
 /// Parses the pore-pressure settings dict.
@@ -264,6 +342,17 @@ impl PyModel {
         Ok(())
     }
 
+    /// Initialises Φ as the exact signed distance to a shape spec.
+    fn set_shape(&mut self, spec: &Bound<'_, PyAny>) -> PyResult<()> {
+        let shape = parse_shape(spec)?;
+        self.inner.set_shape(&shape).map_err(to_py)
+    }
+
+    /// Area of the dense phase {Φ > 0}, sub-cell accurate.
+    fn dense_area(&self) -> f64 {
+        self.inner.dense_area()
+    }
+
     /// Sets p so that the body force is balanced at rest (one pressure solve).
     fn initialise_pressure<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let inner = &mut self.inner;
@@ -377,6 +466,7 @@ fn build_info<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
 fn _granrs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
     m.add_function(wrap_pyfunction!(build_info, m)?)?;
+    m.add_function(wrap_pyfunction!(levelset_validation, m)?)?;
     m.add("__version__", granrs_core::VERSION)?;
     m.add("ParameterError", m.py().get_type::<ParameterError>())?;
     m.add("SolverError", m.py().get_type::<SolverError>())?;

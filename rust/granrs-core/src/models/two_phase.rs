@@ -6,6 +6,7 @@
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
+use crate::levelset::{dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureProjection;
 use crate::solvers::{SolveInfo, SolverSettings};
@@ -45,6 +46,8 @@ pub struct ModelConfig {
     pub transport_interface: bool,
     /// Redistance the level set every this many steps (0: never).
     pub redistance_every: usize,
+    /// Settings of the redistancing.
+    pub redistance: RedistanceSettings,
     pub viscous: ViscousScheme,
     pub pressure_solver: SolverSettings,
     pub time: TimeConfig,
@@ -66,6 +69,7 @@ impl ModelConfig {
             interface_width: 1.5,
             transport_interface: true,
             redistance_every: 10,
+            redistance: RedistanceSettings::default(),
             viscous: ViscousScheme::Implicit,
             pressure_solver: SolverSettings::default(),
             time: TimeConfig::default(),
@@ -87,6 +91,7 @@ impl ModelConfig {
         if self.redistance_every > 1_000_000 {
             return Err(Error::param("redistance_every", self.redistance_every, "an integer in [0, 1e6]"));
         }
+        self.redistance.validate()?;
         self.pressure_solver.validate()?;
         self.time.validate()?;
         if let Some(pc) = &self.pore {
@@ -117,6 +122,12 @@ pub(crate) struct Work {
     pub ptot: Field,
 }
 
+/// Level-set transport and redistancing (allocated once).
+pub(crate) struct LevelSetWork {
+    pub transport: LevelSetTransport,
+    pub redistancer: Redistancer,
+}
+
 /// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model.
 pub struct TwoPhaseModel {
     pub(crate) config: ModelConfig,
@@ -136,6 +147,8 @@ pub struct TwoPhaseModel {
     /// Level set Φ^n (cell centres; > 0 in the dense phase).
     pub phi: Field,
     pub(crate) work: Work,
+    /// Level-set transport and redistancing work arrays.
+    pub(crate) levelset: LevelSetWork,
     /// Pore gas pressure (None when not fluidised).
     pub pore: Option<PorePressure>,
     pub(crate) projection: PressureProjection,
@@ -187,7 +200,12 @@ impl TwoPhaseModel {
             Some(pc) => Some(PorePressure::new(g, *pc, config.pressure_solver)?),
             None => None,
         };
+        let levelset = LevelSetWork {
+            transport: LevelSetTransport::new(g),
+            redistancer: Redistancer::new(g, config.redistance)?,
+        };
         Ok(TwoPhaseModel {
+            levelset,
             u: xf(),
             v: yf(),
             u_prev: xf(),
@@ -217,6 +235,18 @@ impl TwoPhaseModel {
     /// tiny last step, which would hold back the step growth afterwards).
     pub fn set_time_to_land(&mut self, remaining: Option<f64>) {
         self.time_to_land = remaining;
+    }
+
+    /// Initialises Φ as the exact signed distance to `shape` (Φ > 0 inside).
+    pub fn set_shape(&mut self, shape: &Shape) -> Result<()> {
+        init_signed_distance(shape, &self.config.grid, &mut self.phi)?;
+        self.fields_changed();
+        Ok(())
+    }
+
+    /// Area of the dense phase {Φ > 0} (sub-cell accurate).
+    pub fn dense_area(&self) -> f64 {
+        dense_area(&self.phi, &self.config.grid, self.exec())
     }
 
     /// The configuration.

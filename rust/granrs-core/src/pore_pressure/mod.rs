@@ -30,7 +30,7 @@ use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, PressureBc, HALO};
 use crate::operators::for_each_interior_row;
 use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
-use crate::time_stepping::step::heaviside;
+use crate::levelset::heaviside;
 
 /// What p_f does outside the granular phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -124,7 +124,7 @@ impl PorePressure {
             pf_prev: Field::zeros(grid, Location::Centre),
             adv_prev: Field::zeros(grid, Location::Centre),
             adv: Field::zeros(grid, Location::Centre),
-            solver: PoissonSolver::new(grid.nx, grid.ny, grid.dx, grid.dy, bc, settings)?,
+            solver: PoissonSolver::new_shifted(grid.nx, grid.ny, grid.dx, grid.dy, bc, settings)?,
             beta_x: vec![0.0; grid.ny * (grid.nx + 1)],
             beta_y: vec![0.0; (grid.ny + 1) * grid.nx],
             shift: vec![0.0; n],

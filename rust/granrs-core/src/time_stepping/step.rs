@@ -19,6 +19,7 @@ use crate::operators::{
     BcMode,
 };
 use crate::projection::fill_pressure_ghosts;
+use crate::levelset::{blend, blend_harmonic};
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
@@ -42,18 +43,6 @@ pub struct StepInfo {
     pub cfl: f64,
     /// max |div u| after the projection.
     pub divergence: f64,
-}
-
-/// The paper's smoothed Heaviside H_ε(Φ) (§2.4).
-#[inline]
-pub fn heaviside(phi: f64, eps: f64) -> f64 {
-    if phi < -eps {
-        0.0
-    } else if phi > eps {
-        1.0
-    } else {
-        0.5 * (1.0 + phi / eps + (std::f64::consts::PI * phi / eps).sin() / std::f64::consts::PI)
-    }
 }
 
 impl TwoPhaseModel {
@@ -109,7 +98,9 @@ impl TwoPhaseModel {
             self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
             self.projection_stale = false;
         }
-        self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, exec)
+        let info = self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, exec);
+        self.projection.reset_increment();
+        info
     }
 
     /// Stage 1: the time step.
@@ -166,7 +157,20 @@ impl TwoPhaseModel {
 
     /// Stage 2 (paper step 1): transport of the level set. A single-phase model or a frozen
     /// interface skips it.
-    fn interface(&mut self, _dt: f64, _exec: Exec) -> Result<()> {
+    fn interface(&mut self, dt: f64, exec: Exec) -> Result<()> {
+        if self.config.light.is_none() || !self.config.transport_interface {
+            return Ok(());
+        }
+        let cfg = &self.config;
+        fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, &cfg.grid, BcMode::Full);
+        let r = self.levelset.transport.advect(&mut self.phi, &self.u, &self.v, &cfg.grid, dt, exec);
+        r.map_err(|e| self.at_step(e))?;
+        let n = self.step_count + 1;
+        if cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0 {
+            let r = self.levelset.redistancer.redistance(&mut self.phi, &cfg.grid, exec);
+            r.map_err(|e| self.at_step(e))?;
+        }
+        self.properties_current = false;
         Ok(())
     }
 
@@ -179,14 +183,8 @@ impl TwoPhaseModel {
         let eps = cfg.interface_width * cfg.grid.h();
         let dense = cfg.dense;
         let light = cfg.light.unwrap_or(dense);
-        let rho = |phi: f64| {
-            let h = heaviside(phi, eps);
-            dense.density * h + light.density * (1.0 - h)
-        };
-        let eta = |phi: f64| {
-            let h = heaviside(phi, eps);
-            1.0 / (h / dense.viscosity + (1.0 - h) / light.viscosity)
-        };
+        let rho = |phi: f64| blend(phi, eps, dense.density, light.density);
+        let eta = |phi: f64| blend_harmonic(phi, eps, dense.viscosity, light.viscosity);
         self.phi.extrapolate_ghosts_linear();
         let w = &mut self.work;
         let ps = self.phi.slice();

@@ -1,0 +1,303 @@
+"""The paper's experiment: collapse of a (fluidised) column of glass beads in a channel.
+
+Aravena, Chupin, Dubois & Roche, §4 (validation-data.md §1): a column L_c = 0.20 m wide and
+H_c = 0.40 m high (aspect ratio a = H_c/L_c = 2) of glass beads (φ = 0.58, ρ_s = 2500 kg m⁻³,
+d_s = 75 µm) with internal friction angle α = 27° and wall friction α_b = 15° on the base and the
+back wall, released at t = 0 from a reservoir whose gate is at x = L_c. Fluidised: the pore
+pressure starts at p_f = β φ ρ_s g (H_c − y) (β = 0.9) and air is supplied through the reservoir
+base, ∂p_f/∂y = −β φ ρ_s g for 0 < x < L_c; κ_f = 0.035 m² s⁻¹. D-P rheology with η_s = 0.1 Pa s.
+The paper's run-out from the gate: 1.6874 m (simulation), 1.8443 m (experiment).
+
+Rest criterion (documented): the run stops when the largest velocity in the granular phase
+(cells with Φ > 0) stays below ``rest_speed`` (default 5e-3 m/s, 0.18 % of √(2 g H_c)) for
+``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from .. import __version__
+from .._granrs import ParameterError, SimulationError
+from ..boundary import BoundaryConditions, Coulomb, FreeSlip, Outflow
+from ..grid import Grid
+from ..materials import AIR, Material
+from ..model import Model, Numerics, PorePressure
+from ..shapes import Rectangle
+from ..simulation import Callback, Simulation
+
+G = 9.81
+PAPER_RUNOUT_SIM = 1.6874
+PAPER_RUNOUT_EXP = 1.8443
+
+
+@dataclass
+class ColumnCase:
+    """Parameters of the column collapse (defaults: the paper's values)."""
+
+    aspect_ratio: float = 2.0
+    width: float = 0.20
+    fluidised: bool = True
+    pore_pressure_ratio: float = 0.9
+    ny: int = 32
+    t_end: float = 3.0
+    rheology: str = "drucker-prager"
+    cfl: float = 0.5
+    threads: int = 1
+    solid_fraction: float = 0.58
+    grain_density: float = 2500.0
+    grain_diameter: float = 75e-6
+    friction_angle: float = 27.0
+    wall_friction_angle: float = 15.0
+    granular_viscosity: float = 0.1
+    diffusivity: float = 0.035
+    length: Optional[float] = None
+    height: Optional[float] = None
+    rest_speed: float = 5e-3
+    rest_duration: float = 0.05
+    profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
+
+    def validate(self) -> None:
+        checks = [("aspect_ratio", self.aspect_ratio, 0.1, 20.0), ("width", self.width, 1e-3, 10.0),
+                  ("pore_pressure_ratio", self.pore_pressure_ratio, 0.0, 1.0), ("t_end", self.t_end, 1e-6, 1e4),
+                  ("cfl", self.cfl, 1e-3, 1.0), ("friction_angle", self.friction_angle, 0.0, 89.0),
+                  ("wall_friction_angle", self.wall_friction_angle, 0.0, 89.0),
+                  ("granular_viscosity", self.granular_viscosity, 1e-8, 1e6), ("diffusivity", self.diffusivity, 1e-12, 1e6),
+                  ("solid_fraction", self.solid_fraction, 0.01, 0.74)]
+        for name, v, lo, hi in checks:
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not lo <= v <= hi:
+                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo}, {hi}]")
+        if not isinstance(self.ny, int) or not 8 <= self.ny <= 4096:
+            raise ParameterError(f"invalid parameter `ny` = {self.ny!r}: allowed an integer in [8, 4096]")
+        if self.rheology not in ("drucker-prager", "mu-i"):
+            raise ParameterError(f"invalid parameter `rheology` = {self.rheology!r}: allowed 'drucker-prager' or 'mu-i'")
+
+    @property
+    def column_height(self) -> float:
+        return self.aspect_ratio * self.width
+
+    @property
+    def mixture_density(self) -> float:
+        return self.solid_fraction * self.grain_density
+
+    def domain(self) -> tuple[float, float]:
+        """(length, height): by default the paper's 2.25 m × 0.45 m for the paper's column, scaled
+        with the column otherwise (height 1.125 H_c, length L_c + 5.125 H_c)."""
+        hc = self.column_height
+        return (self.length or self.width + 5.125 * hc, self.height or 1.125 * hc)
+
+    def grid(self) -> Grid:
+        lx, ly = self.domain()
+        h = ly / self.ny
+        nx = int(round(lx / h / 2)) * 2
+        return Grid(nx, self.ny, nx * h, ly)
+
+
+def build_model(case: ColumnCase) -> Model:
+    """The two-phase model of the column case, with its initial condition."""
+    case.validate()
+    grid = case.grid()
+    hc, lc = case.column_height, case.width
+    rho = case.mixture_density
+    pore = None
+    if case.fluidised and case.pore_pressure_ratio > 0:
+        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=-case.pore_pressure_ratio * rho * G,
+                            basal_x_min=0.0, basal_x_max=lc)
+    model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
+                  bc=BoundaryConditions(left=Coulomb(), right=FreeSlip(), bottom=Coulomb(), top=Outflow()),
+                  numerics=Numerics(cfl=case.cfl), threads=case.threads, pore_pressure=pore,
+                  **_rheology_kwargs(case))
+    model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
+    if pore is not None:
+        beta = case.pore_pressure_ratio
+        model.set_initial(pf=lambda x, y: np.where((x < lc) & (y < hc), beta * rho * G * (hc - y), 0.0),
+                          balance_pressure=False)
+    model.set_initial(balance_pressure=True)
+    return model
+
+
+def _rheology_kwargs(case: ColumnCase) -> dict:
+    """The granular rheology of the case (D-P with constant η_s, or μ(I)) and the wall friction."""
+    return {}
+
+
+def front_position(phi: np.ndarray, dx: float) -> float:
+    """Largest x where Φ > 0 on the lowest row of cells, at the linear zero crossing of Φ."""
+    row = phi[0]
+    inside = np.nonzero(row > 0)[0]
+    if inside.size == 0:
+        return 0.0
+    i = inside[-1]
+    x = (i + 0.5) * dx
+    if i + 1 < row.size:
+        x += dx * row[i] / (row[i] - row[i + 1])
+    return float(x)
+
+
+def surface_profile(phi: np.ndarray, dy: float) -> np.ndarray:
+    """Height h(x) of the granular surface in each column: the highest zero crossing of Φ."""
+    ny, nx = phi.shape
+    h = np.zeros(nx)
+    for i in range(nx):
+        col = phi[:, i]
+        inside = np.nonzero(col > 0)[0]
+        if inside.size == 0:
+            continue
+        j = inside[-1]
+        y = (j + 0.5) * dy
+        if j + 1 < ny:
+            y += dy * col[j] / (col[j] - col[j + 1])
+        h[i] = y
+    return h
+
+
+def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None) -> dict:
+    """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    model = build_model(case)
+    grid = model.grid
+    lc = case.width
+    area0 = model.dense_area()
+    rec = {"t": [], "front": [], "area": [], "max_granular_speed": []}
+    profiles = {}
+    state = {"rest_since": None}
+    pending_profiles = sorted(case.profile_times)
+
+    def granular_speed() -> float:
+        uc, vc = model.centre_velocity()
+        inside = model.phi > 0
+        return float(np.max(np.hypot(uc, vc)[inside])) if inside.any() else 0.0
+
+    def observe(sim: Simulation) -> None:
+        t = model.time
+        xf = front_position(model.phi, grid.dx)
+        if xf > grid.lx - 3 * grid.dx:
+            raise SimulationError(f"the granular front reached the far end of the domain (x = {xf:.3f} m of "
+                                  f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length")
+        speed = granular_speed()
+        rec["t"].append(t)
+        rec["front"].append(xf - lc)
+        rec["area"].append(model.dense_area())
+        rec["max_granular_speed"].append(speed)
+        while pending_profiles and t >= pending_profiles[0] - 1e-9:
+            profiles[round(pending_profiles.pop(0), 6)] = surface_profile(model.phi, grid.dy)
+        if t > 0.1 and speed < case.rest_speed:
+            state["rest_since"] = state["rest_since"] if state["rest_since"] is not None else t
+            if t - state["rest_since"] >= case.rest_duration:
+                sim.stop, sim.stop_reason = True, "rest"
+        else:
+            state["rest_since"] = None
+
+    sim = Simulation(model, stop_time=case.t_end, callbacks=[Callback(observe, every_time=0.01)], progress=progress)
+    t0 = time.perf_counter()
+    error = None
+    try:
+        sim.run()
+    except SimulationError as err:  # keep what was computed, then report
+        error = str(err)
+    wall = time.perf_counter() - t0
+    profiles["final"] = surface_profile(model.phi, grid.dy)
+    hist = sim.history_arrays()
+    front = np.array(rec["front"])
+    area = np.array(rec["area"])
+    summary = {
+        "runout_m": float(front.max()) if front.size else 0.0, "t_end_s": model.time, "steps": model.step_count,
+        "nx": grid.nx, "ny": grid.ny, "cells": grid.cells, "h_m": grid.dy, "wall_s": wall,
+        "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
+        "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
+        "threads": case.threads, "version": __version__, "stop_reason": sim.stop_reason if error is None else f"error: {error}",
+        "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,
+        "pressure_iterations_max": int(np.max(hist["pressure_iterations"])) if "time" in hist else 0,
+        "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
+        "dt_median_s": float(np.median(hist["dt"])) if "time" in hist else 0.0,
+        "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
+        "case": asdict(case),
+    }
+    for key in ("picard_iterations",):
+        if key in hist:
+            summary[key + "_median"] = float(np.median(hist[key]))
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    with open(out / "front.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["t_s", "front_m", "area_m2", "max_granular_speed_m_s"])
+        for row in zip(rec["t"], rec["front"], rec["area"], rec["max_granular_speed"]):
+            w.writerow([f"{v:.6g}" for v in row])
+    xs = (np.arange(grid.nx) + 0.5) * grid.dx - lc
+    with open(out / "profiles.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        keys = list(profiles)
+        w.writerow(["x_from_gate_m"] + [f"h_t{k}" if k != "final" else "h_final" for k in keys])
+        for i in range(grid.nx):
+            w.writerow([f"{xs[i]:.6g}"] + [f"{profiles[k][i]:.6g}" for k in keys])
+    np.savez(out / "history.npz", **hist)
+    plot_front(out, compare_with)
+    plot_profiles(out)
+    if error is not None:
+        raise SimulationError(error + f" (outputs written to {out})")
+    return summary
+
+
+def _read_front(path: Path):
+    data = np.genfromtxt(path / "front.csv", delimiter=",", names=True)
+    meta = json.loads((path / "summary.json").read_text())
+    return data["t_s"], data["front_m"], meta
+
+
+def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    runs = [out] + ([compare_with] if compare_with is not None and (compare_with / "front.csv").exists() else [])
+    for k, path in enumerate(runs):
+        t, x, meta = _read_front(path)
+        label = ("fluidised" if meta["fluidised"] else "non-fluidised") + f", ny = {meta['ny']}: run-out {meta['runout_m']:.3f} m"
+        ax.plot(t, x, f"C{k}-", lw=2, label=label)
+    ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation: {PAPER_RUNOUT_SIM} m")
+    ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"paper, experiment: {PAPER_RUNOUT_EXP} m")
+    ax.set(xlabel="t (s)", ylabel="front position from the gate (m)", title="Column collapse: front position")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(out / "front.png", dpi=120)
+    plt.close(fig)
+
+
+def plot_profiles(out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = np.genfromtxt(out / "profiles.csv", delimiter=",", names=True)
+    meta = json.loads((out / "summary.json").read_text())
+    names = [n for n in data.dtype.names if n.startswith("h_")]
+    fig, ax = plt.subplots(figsize=(9, 3.8))
+    cmap = plt.get_cmap("viridis")
+    for k, n in enumerate(names):
+        label = "final deposit" if n == "h_final" else "t = " + n[3:].replace("_", ".") + " s"
+        style = dict(color="k", lw=2) if n == "h_final" else dict(color=cmap(k / max(1, len(names) - 1)), lw=1)
+        ax.plot(data["x_from_gate_m"], data[n], label=label, **style)
+    ax.axvline(0.0, color="grey", lw=0.8)
+    ax.axvline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label="paper run-out (simulation)")
+    ax.axvline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label="paper run-out (experiment)")
+    ax.set(xlabel="x − L_c (m), gate at 0", ylabel="surface height h (m)",
+           title=("fluidised" if meta["fluidised"] else "non-fluidised") + f" column, ny = {meta['ny']}: surface profiles "
+                 "(paper: thickest near the gate, gentle decrease downstream)")
+    ax.title.set_fontsize(9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out / "profiles.png", dpi=120)
+    plt.close(fig)
