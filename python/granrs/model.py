@@ -56,7 +56,9 @@ class Numerics:
     number; viscous: 'implicit' or 'explicit'; pressure_solver: 'multigrid-cg' or 'direct';
     pressure_rtol: relative residual of the pressure solve; interface_width: ε/h of the smoothed
     Heaviside; redistance_every: level-set redistancing frequency in steps (0: never);
-    transport_interface: False freezes the interface.
+    transport_interface: False freezes the interface; mass_correction: shift Φ by a constant after
+    each interface update so that the dense-phase area keeps its initial value (off by default;
+    docs/validation.md compares both).
     """
 
     cfl: float = 0.5
@@ -71,6 +73,7 @@ class Numerics:
     interface_width: float = 1.5
     redistance_every: int = 10
     transport_interface: bool = True
+    mass_correction: bool = False
 
 
 class Model:
@@ -109,7 +112,7 @@ class Model:
             self.gravity, n.interface_width, n.transport_interface, n.redistance_every, n.viscous,
             n.cfl, n.dt, n.max_dt, n.max_growth, n.cfl_abort, n.pressure_solver, n.pressure_rtol,
             n.pressure_max_iterations, threads,
-            None if pore_pressure is None else asdict(pore_pressure))
+            None if pore_pressure is None else asdict(pore_pressure), n.mass_correction)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

@@ -215,7 +215,7 @@ impl PyModel {
     #[pyo3(signature = (nx, ny, lx, ly, bc, dense, light=None, gravity=(0.0, 0.0), interface_width=1.5,
         transport_interface=true, redistance_every=10, viscous="implicit", cfl=0.5, dt=None,
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
-        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, pore_pressure=None))]
+        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, pore_pressure=None, mass_correction=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -240,6 +240,7 @@ impl PyModel {
         pressure_max_iterations: i64,
         threads: i64,
         pore_pressure: Option<&Bound<'_, PyDict>>,
+        mass_correction: bool,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -291,6 +292,7 @@ impl PyModel {
         cfg.pressure_solver.max_iterations = pos("pressure_max_iterations", pressure_max_iterations)?;
         cfg.threads = pos("threads", threads)?;
         cfg.pore = pore_pressure.map(parse_pore).transpose()?;
+        cfg.mass_correction = mass_correction;
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
         Ok(PyModel { inner })
     }

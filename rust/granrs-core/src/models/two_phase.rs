@@ -48,6 +48,9 @@ pub struct ModelConfig {
     pub redistance_every: usize,
     /// Settings of the redistancing.
     pub redistance: RedistanceSettings,
+    /// Global mass correction of the level set (off by default): after each interface update Φ is
+    /// shifted by a constant so that the dense-phase area keeps its initial value.
+    pub mass_correction: bool,
     pub viscous: ViscousScheme,
     pub pressure_solver: SolverSettings,
     pub time: TimeConfig,
@@ -70,6 +73,7 @@ impl ModelConfig {
             transport_interface: true,
             redistance_every: 10,
             redistance: RedistanceSettings::default(),
+            mass_correction: false,
             viscous: ViscousScheme::Implicit,
             pressure_solver: SolverSettings::default(),
             time: TimeConfig::default(),
@@ -166,6 +170,8 @@ pub struct TwoPhaseModel {
     pub(crate) projection_stale: bool,
     /// Time left to a target time the next step must not overshoot.
     pub(crate) time_to_land: Option<f64>,
+    /// Dense-phase area the mass correction restores (set when Φ is set).
+    pub reference_area: f64,
 }
 
 impl TwoPhaseModel {
@@ -225,6 +231,7 @@ impl TwoPhaseModel {
             properties_current: false,
             projection_stale: true,
             time_to_land: None,
+            reference_area: 0.0,
             pool,
             config,
         })
@@ -269,6 +276,7 @@ impl TwoPhaseModel {
     pub fn fields_changed(&mut self) {
         self.properties_current = false;
         self.dt_prev = None;
+        self.reference_area = self.dense_area();
     }
 
     /// Density on u and v faces as last computed.

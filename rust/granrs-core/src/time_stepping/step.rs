@@ -170,8 +170,45 @@ impl TwoPhaseModel {
             let r = self.levelset.redistancer.redistance(&mut self.phi, &cfg.grid, exec);
             r.map_err(|e| self.at_step(e))?;
         }
+        if cfg.mass_correction {
+            self.correct_mass(exec);
+        }
         self.properties_current = false;
         Ok(())
+    }
+
+    /// Global mass correction: Φ ← Φ + δ with the constant δ that restores the reference area
+    /// (secant iterations on the sub-cell area A(δ); the first guess δ = (A_ref − A)/L uses the
+    /// interface length L ≈ ∫ δ_ε(Φ) dx). Documented and switchable: `mass_correction`.
+    fn correct_mass(&mut self, exec: Exec) {
+        let grid = &self.config.grid;
+        let target = self.reference_area;
+        let area = |phi: &Field| crate::levelset::dense_area(phi, grid, exec);
+        let a0 = area(&self.phi);
+        if target <= 0.0 || (a0 - target).abs() <= 1e-12 * target {
+            return;
+        }
+        let eps = 1.5 * grid.h();
+        let length: f64 = self.phi.interior().iter().map(|&p| crate::levelset::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
+        if length <= 0.0 {
+            return;
+        }
+        let shift = |phi: &mut Field, d: f64| {
+            let n = phi.nx;
+            for_each_interior_row(exec, phi, |_, row| row[HALO..HALO + n].iter_mut().for_each(|x| *x += d));
+        };
+        let (mut d_prev, mut a_prev) = (0.0, a0);
+        let mut d = (target - a0) / length;
+        shift(&mut self.phi, d);
+        for _ in 0..4 {
+            let a = area(&self.phi);
+            if (a - target).abs() <= 1e-10 * target || (a - a_prev).abs() < 1e-300 {
+                break;
+            }
+            let d_new = d + (target - a) * (d - d_prev) / (a - a_prev);
+            shift(&mut self.phi, d_new - d);
+            (d_prev, a_prev, d) = (d, a, d_new);
+        }
     }
 
     /// Stage 3 (paper step 2): material properties from the level set.
