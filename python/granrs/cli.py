@@ -19,7 +19,7 @@ def _validate(args) -> int:
             print(f"{name:16s} {doc}  (defaults: {defaults})")
         return 0
     params = {}
-    for key in ("n", "re", "steps", "period", "redistance_every", "cfl"):
+    for key in ("n", "re", "steps", "period", "redistance_every", "cfl", "ny", "t_end"):
         val = getattr(args, key)
         if val is not None:
             params[key] = val if key != "n" or len(val) > 1 else val[0]
@@ -53,6 +53,8 @@ def main(argv=None) -> int:
     v.add_argument("--period", type=float, help="period T (single-vortex)")
     v.add_argument("--redistance-every", dest="redistance_every", type=int, help="redistancing frequency (level-set cases)")
     v.add_argument("--cfl", type=float, help="CFL number (level-set cases)")
+    v.add_argument("--ny", type=int, help="cells across the height (column-type cases)")
+    v.add_argument("--t-end", dest="t_end", type=float, help="end time (s)")
     v.add_argument("--threads", type=int, default=1)
     v.add_argument("--json", help="write the JSON record to this file")
 

@@ -27,8 +27,10 @@ class PorePressure:
     """The pore gas pressure equation ∂_t p_f + div(u p_f) = div(κ ∇p_f) (paper eq. 10f).
 
     diffusivity: κ_f in the granular phase [m² s⁻¹] (the paper: 0.035);
-    formulation: 'granular-only' (solve where Φ > 0, p_f = 0 on the interface; default) or
-    'kappa-infinity' (the paper's whole-domain form with κ = kappa_air in the air);
+    formulation: 'granular-only' (solve where Φ > 0, p_f = 0 on the interface; default),
+    'kappa-infinity' (whole domain, κ = kappa_air in the air, sharp sub-cell interface) or
+    'kappa-infinity-smoothed' (the paper's literal κ(Φ) = κ_f H_ε + κ_∞(1 − H_ε), whose p_f = 0
+    boundary sits about ε inside the grains);
     basal_gradient: ∂p_f/∂y on the base [Pa/m] between basal_x_min and basal_x_max (the air
     supply under the reservoir, −β φ ρ_s g in the paper); None for no supply.
     """
@@ -41,8 +43,9 @@ class PorePressure:
     basal_x_max: Optional[float] = None
 
     def __post_init__(self):
-        if self.formulation not in ("granular-only", "kappa-infinity"):
-            raise ParameterError(f"invalid parameter `formulation` = {self.formulation!r}: allowed 'granular-only' or 'kappa-infinity'")
+        if self.formulation not in ("granular-only", "kappa-infinity", "kappa-infinity-smoothed"):
+            raise ParameterError(f"invalid parameter `formulation` = {self.formulation!r}: allowed 'granular-only', "
+                                 "'kappa-infinity' or 'kappa-infinity-smoothed'")
         if not (isinstance(self.diffusivity, (int, float)) and math.isfinite(self.diffusivity) and self.diffusivity > 0):
             raise ParameterError(f"invalid parameter `diffusivity` = {self.diffusivity!r}: allowed a finite number > 0 (m²/s)")
 

@@ -21,6 +21,8 @@ CASES: dict[str, tuple[Callable, dict, str]] = {
     "single-vortex": (levelset.single_vortex, {"n": 128, "period": 2.0, "redistance_every": 0, "cfl": 0.5},
                       "Rider-Kothe single vortex, back at t = T"),
     "dam-break": (levelset.dam_break, {"n": 32, "mass_correction": True}, "water column under air against Martin & Moyce (1952)"),
+    "pore-formulations": (pore_pressure.pore_formulations, {"ny": 32, "t_end": 0.15, "kappa_air": 1e16},
+                          "granular-only against kappa-infinity pore pressure on a collapsing column"),
     "pore-diffusion": (pore_pressure.pore_diffusion, {"n": [16, 32, 64, 128], "dt_factor": 10.0, "formulation": "granular-only"},
                        "pore pressure in a static layer with a basal air flux, exact 1D series"),
 }

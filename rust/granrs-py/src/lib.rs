@@ -198,8 +198,9 @@ fn parse_pore(d: &Bound<'_, PyDict>) -> PyResult<PorePressureConfig> {
     let formulation: String = d.get_item("formulation")?.map(|v| v.extract()).transpose()?.unwrap_or_else(|| "granular-only".into());
     let formulation = match formulation.as_str() {
         "granular-only" => PoreFormulation::GranularOnly,
-        "kappa-infinity" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16) },
-        other => return Err(param_err("pore_pressure.formulation", other, "'granular-only' or 'kappa-infinity'")),
+        "kappa-infinity" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16), smoothed: false },
+        "kappa-infinity-smoothed" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16), smoothed: true },
+        other => return Err(param_err("pore_pressure.formulation", other, "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")),
     };
     let basal_flux = match f("basal_gradient")? {
         Some(g) => Some(BasalFlux { gradient: g, x_min: f("basal_x_min")?.unwrap_or(f64::NEG_INFINITY), x_max: f("basal_x_max")?.unwrap_or(f64::INFINITY) }),

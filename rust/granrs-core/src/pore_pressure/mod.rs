@@ -37,8 +37,12 @@ use crate::levelset::heaviside;
 pub enum PoreFormulation {
     /// Solve only where Φ > 0, p_f = 0 on the interface (sub-cell) and in the air.
     GranularOnly,
-    /// The paper's whole-domain formulation with diffusivity `kappa_air` in the air.
-    KappaInfinity { kappa_air: f64 },
+    /// The paper's whole-domain formulation with diffusivity `kappa_air` in the air. `smoothed`:
+    /// κ(Φ) = κ_f H_ε(Φ) + κ_∞(1 − H_ε(Φ)) literally (the paper); its p_f = 0 boundary then sits
+    /// where H_ε reaches 1, about ε inside the grains. Sharp: a face crossed by the interface at
+    /// the fraction θ gets the series value 1/(θ/κ_f + (1 − θ)/κ_∞), which puts the boundary at
+    /// Φ = 0 (and tends to the granular-only solve as κ_∞ → ∞).
+    KappaInfinity { kappa_air: f64, smoothed: bool },
 }
 
 impl PoreFormulation {
@@ -46,7 +50,8 @@ impl PoreFormulation {
     pub fn name(&self) -> &'static str {
         match self {
             PoreFormulation::GranularOnly => "granular-only",
-            PoreFormulation::KappaInfinity { .. } => "kappa-infinity",
+            PoreFormulation::KappaInfinity { smoothed: false, .. } => "kappa-infinity",
+            PoreFormulation::KappaInfinity { smoothed: true, .. } => "kappa-infinity-smoothed",
         }
     }
 }
@@ -74,7 +79,7 @@ impl PorePressureConfig {
     /// Checks the parameters, naming the offending one.
     pub fn validate(&self) -> Result<()> {
         check_positive("diffusivity", self.diffusivity)?;
-        if let PoreFormulation::KappaInfinity { kappa_air } = self.formulation {
+        if let PoreFormulation::KappaInfinity { kappa_air, .. } = self.formulation {
             check_positive("kappa_air", kappa_air)?;
         }
         if let Some(b) = self.basal_flux {
@@ -190,21 +195,27 @@ impl PorePressure {
                     }
                 }
             }
-            PoreFormulation::KappaInfinity { kappa_air } => {
-                let kappa = |p: f64| {
-                    let h = heaviside(p, eps);
-                    kf * h + kappa_air * (1.0 - h)
+            PoreFormulation::KappaInfinity { kappa_air, smoothed } => {
+                let face = |a: f64, b: f64| -> f64 {
+                    if smoothed {
+                        let h = heaviside(0.5 * (a + b), eps);
+                        kf * h + kappa_air * (1.0 - h)
+                    } else if inside(a) == inside(b) {
+                        if inside(a) { kf } else { kappa_air }
+                    } else {
+                        let (pin, pout) = if inside(a) { (a, b) } else { (b, a) };
+                        let theta = pin / (pin - pout);
+                        1.0 / (theta / kf + (1.0 - theta) / kappa_air)
+                    }
                 };
                 for j in 0..ny {
                     for i in 0..=nx {
-                        let p = 0.5 * (phi.at(i as isize - 1, j as isize) + phi.at(i as isize, j as isize));
-                        self.beta_x[j * (nx + 1) + i] = kappa(p);
+                        self.beta_x[j * (nx + 1) + i] = face(phi.at(i as isize - 1, j as isize), phi.at(i as isize, j as isize));
                     }
                 }
                 for j in 0..=ny {
                     for i in 0..nx {
-                        let p = 0.5 * (phi.at(i as isize, j as isize - 1) + phi.at(i as isize, j as isize));
-                        self.beta_y[j * nx + i] = kappa(p);
+                        self.beta_y[j * nx + i] = face(phi.at(i as isize, j as isize - 1), phi.at(i as isize, j as isize));
                     }
                 }
             }
