@@ -1,5 +1,5 @@
 //! Preconditioned conjugate gradients (Saad 2003, Algorithm 9.1) for A p = b with A = −L and
-//! b = −f, preconditioned by one multigrid V-cycle (MGCG, Tatebe 1993).
+//! b = −f, preconditioned by one multigrid cycle per iteration (MGCG, Tatebe 1993).
 //!
 //! Convergence is declared when the recursively updated residual satisfies
 //! ‖r‖₂ ≤ rtol ‖b‖₂; the true residual b − A p is then recomputed, and if rounding has made it
@@ -177,7 +177,7 @@ pub(crate) fn pcg(
 /// or an error if it is not positive (M not positive definite: CG would break down).
 fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec, iteration: usize) -> Result<f64> {
     let nx = mg.levels[0].nx;
-    mg.vcycle(&w.r, &mut w.z, exec);
+    mg.precondition(&w.r, &mut w.z, exec);
     if singular {
         remove_mean(exec, &mut w.z, nx, &mut w.partials1);
     }

@@ -204,24 +204,31 @@ impl Level {
             }
             return;
         }
-        // SAFETY (both phases): a block writes colour `first` in its rows and the other colour in
-        // its interior rows; cells of colour `first` are read by other blocks only in phase B, and
-        // cells of the other colour are read by other blocks only in the boundary rows, which are
-        // written in phase B only. In phase B, blocks write the other colour in their boundary
-        // rows and read only colour `first`. No location is written by one thread while another
-        // reads or writes it.
-        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| unsafe {
-            for j in rows.clone() {
-                self.half_sweep_row(ptr.get(), b, j, first, from_zero);
-                if j >= rows.start + 2 {
-                    self.half_sweep_row(ptr.get(), b, j - 1, second, false);
+        // Phase A: colour `first` on every row of the block, the other colour on its interior rows.
+        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| {
+            // SAFETY: this block writes colour `first` in its rows and the other colour in its
+            // interior rows (start+1 ..= end−2). Other blocks read, in this phase, only the other
+            // colour of this block's first and last rows, which nobody writes in this phase; the
+            // interior updates read colour `first` in rows start ..= end−1 only, which only this
+            // block writes. Row and column indices are in bounds (see `half_sweep_row`).
+            unsafe {
+                for j in rows.clone() {
+                    self.half_sweep_row(ptr.get(), b, j, first, from_zero);
+                    if j >= rows.start + 2 {
+                        self.half_sweep_row(ptr.get(), b, j - 1, second, false);
+                    }
                 }
             }
         });
-        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| unsafe {
-            self.half_sweep_row(ptr.get(), b, rows.start, second, false);
-            if rows.end - 1 > rows.start {
-                self.half_sweep_row(ptr.get(), b, rows.end - 1, second, false);
+        // Phase B: the other colour on the first and last row of every block.
+        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| {
+            // SAFETY: blocks write the other colour in their own first and last rows and read
+            // only colour `first`, which nobody writes in this phase.
+            unsafe {
+                self.half_sweep_row(ptr.get(), b, rows.start, second, false);
+                if rows.end - 1 > rows.start {
+                    self.half_sweep_row(ptr.get(), b, rows.end - 1, second, false);
+                }
             }
         });
     }

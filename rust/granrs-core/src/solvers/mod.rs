@@ -47,7 +47,7 @@
 //!
 //! When the fine dimensions are odd (or have few factors of 2), the coarsest level is large and
 //! its Cholesky factor dominates time and memory (beyond ≈ 20 000 unknowns it becomes the main
-//! cost of `set_coefficients` and of each V-cycle); choose grid sizes with several factors of 2
+//! cost of `set_coefficients` and of each cycle); choose grid sizes with several factors of 2
 //! (1280 × 256 coarsens down to 10 × 2).
 //!
 //! # References
@@ -57,7 +57,7 @@
 //! - Y. Saad, *Iterative Methods for Sparse Linear Systems*, 2nd ed., SIAM, 2003
 //!   (preconditioned CG, Algorithm 9.1).
 //! - O. Tatebe, "The multigrid preconditioned conjugate gradient method", *Sixth Copper Mountain
-//!   Conference on Multigrid Methods*, NASA CP 3224, 1993, pp. 621–634 (symmetric V-cycle as a
+//!   Conference on Multigrid Methods*, NASA CP 3224, 1993, pp. 621–634 (symmetric multigrid cycle as a
 //!   CG preconditioner).
 
 mod cg;
@@ -78,7 +78,7 @@ use multigrid::Multigrid;
 /// What a solve did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolveInfo {
-    /// CG iterations (V-cycles) used; 1 for the direct solver; 0 when the initial guess already
+    /// CG iterations (multigrid cycles) used; 1 for the direct solver; 0 when the initial guess already
     /// satisfied the tolerance or f = 0.
     pub iterations: usize,
     /// Final relative residual ‖f − L p‖₂ / ‖f‖₂ (true residual, recomputed at the end; f after
@@ -159,7 +159,7 @@ impl SolverSettings {
             return Err(Error::param(
                 "post_smooth",
                 self.post_smooth,
-                &format!("the value of pre_smooth ({}) (the V-cycle must be symmetric)", self.pre_smooth),
+                &format!("the value of pre_smooth ({}) (the multigrid cycle must be symmetric)", self.pre_smooth),
             ));
         }
         if self.min_coarse_size == 0 {
@@ -272,7 +272,7 @@ impl PoissonSolver {
         let w = &mut self.work;
         self.mg.levels[0].residual(p, &w.rhs, &mut w.r, exec);
         let initial_residual = cg::dot(exec, &w.r, &w.r, nx, &mut w.partials1).sqrt() / bnorm;
-        self.mg.vcycle(&w.rhs, p, exec);
+        self.mg.precondition(&w.rhs, p, exec);
         if self.singular {
             cg::remove_mean(exec, p, nx, &mut w.partials1);
         }
@@ -305,7 +305,7 @@ impl PoissonSolver {
                 *v = -rv;
             }
         });
-        self.mg.vcycle(&self.work.rhs, z, exec);
+        self.mg.precondition(&self.work.rhs, z, exec);
         Ok(())
     }
 

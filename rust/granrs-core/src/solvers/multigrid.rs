@@ -5,11 +5,11 @@
 //! (see [`level_sizes`]); 1280 × 256 goes down to 10 × 2. Coarse face coefficients are the
 //! arithmetic mean of the two fine faces that make up the coarse face, rediscretised with
 //! h_c = 2h (Trottenberg et al. 2001, §5.7; Wesseling's rediscretisation for cell-centred grids).
-//! With piecewise-constant transfers this coarse operator is exactly twice the Galerkin operator
-//! R A P (R = Pᵀ/4): it has the Galerkin operator's robustness to coefficient jumps (the coupling
-//! across a coarse face is the sum of the fine couplings across it, whatever lies on either
-//! side) together with the over-correction by 2 that repairs piecewise-constant interpolation
-//! for smooth errors.
+//! With piecewise-constant transfers this coarse operator is exactly half the Galerkin operator
+//! R A P (R = Pᵀ/4), boundary terms included: it has the Galerkin operator's robustness to
+//! coefficient jumps (the coupling across a coarse face is proportional to the sum of the fine
+//! couplings across it, whatever lies on either side) together with the over-correction by 2
+//! that repairs piecewise-constant interpolation for smooth errors.
 //!
 //! Transfers: piecewise-constant prolongation (a fine cell adds its parent's correction) and
 //! restriction R = Pᵀ/4 (the average of the 4 children), so that the cycle is symmetric. The
@@ -161,7 +161,7 @@ impl Multigrid {
     }
 
     /// One multigrid cycle (V or W) from a zero initial guess: x = M b on the fine level.
-    pub fn vcycle(&mut self, b: &[f64], x: &mut [f64], exec: Exec) {
+    pub fn precondition(&mut self, b: &[f64], x: &mut [f64], exec: Exec) {
         self.cycle(0, b, x, true, exec);
     }
 
