@@ -7,7 +7,7 @@
 
 use std::f64::consts::PI;
 
-use granrs_core::solvers::{Cycle, PoissonSolver, PressureSolverKind, Prolongation, SolveInfo, SolverSettings};
+use granrs_core::solvers::{Cycle, PoissonSolver, PressureSolverKind, SolveInfo, SolverSettings};
 use granrs_core::{Error, Exec, PressureBc};
 
 const N: PressureBc = PressureBc::Neumann;
@@ -170,7 +170,12 @@ fn grad_beta_smooth(x: f64, y: f64) -> (f64, f64) {
 
 /// RMS error of the discrete solution against `exact` on the unit square with n × n cells.
 /// `exact` returns (p, ∂p/∂x, ∂p/∂y, Δp); f = β Δp + ∇β·∇p is sampled at cell centres.
-fn manufactured_error(n: usize, bc: [PressureBc; 4], kind: PressureSolverKind, exact: impl Fn(f64, f64) -> [f64; 4]) -> f64 {
+fn manufactured_error(
+    n: usize,
+    bc: [PressureBc; 4],
+    kind: PressureSolverKind,
+    exact: impl Fn(f64, f64) -> [f64; 4],
+) -> f64 {
     let h = 1.0 / n as f64;
     let (bx, by) = faces_from_fn(n, n, h, h, beta_smooth);
     let mut f = vec![0.0; n * n];
@@ -351,19 +356,16 @@ fn multigrid_cg_agrees_with_direct() {
             // in the worst case, typically far less; the check is 1e-7 relative as required.
             assert_eq!(infod.iterations, 1);
             assert!(infod.residual < 1e-10, "direct residual {}", infod.residual);
-            // Every cycle/transfer combination is a valid (symmetric) preconditioner and must
-            // reach the same solution; only the iteration counts differ.
-            for (cycle, prolongation) in
-                [(Cycle::W, Prolongation::Constant), (Cycle::V, Prolongation::Constant), (Cycle::V, Prolongation::Bilinear)]
-            {
-                let s = SolverSettings { rtol: 1e-12, cycle, prolongation, ..SolverSettings::default() };
+            // Both cycles are valid (symmetric) preconditioners and must reach the same solution.
+            for cycle in [Cycle::W, Cycle::V] {
+                let s = SolverSettings { rtol: 1e-12, cycle, ..SolverSettings::default() };
                 let (pm, infom, _) = mgcg_solve(n, n, h, h, bc, (bx, by), &f, s);
                 let d = rel_diff(&pm, &pd);
                 println!(
-                    "{name}, bc {bc:?}, {cycle:?}-cycle {prolongation:?}: ‖p_mg − p_direct‖/‖p_direct‖ = {d:.2e} ({} its)",
+                    "{name}, bc {bc:?}, {cycle:?}-cycle: ‖p_mg − p_direct‖/‖p_direct‖ = {d:.2e} ({} its)",
                     infom.iterations
                 );
-                assert!(d < 1e-7, "{name} {bc:?} {cycle:?} {prolongation:?}: MGCG and direct differ by {d:e}");
+                assert!(d < 1e-7, "{name} {bc:?} {cycle:?}: MGCG and direct differ by {d:e}");
             }
         }
     }
@@ -417,7 +419,10 @@ fn warm_start_needs_at_most_one_iteration() {
         let mut p = vec![0.0; nx * ny];
         let first = solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
         let second = solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
-        println!("{bc:?}: cold {} iterations, warm {} (initial residual {:.1e})", first.iterations, second.iterations, second.initial_residual);
+        println!(
+            "{bc:?}: cold {} iterations, warm {} (initial residual {:.1e})",
+            first.iterations, second.iterations, second.initial_residual
+        );
         assert!(first.iterations > 3);
         // The previous solution already satisfies the tolerance (residual ≤ 1e-8).
         assert!(second.iterations <= 1, "warm start took {} iterations", second.iterations);
@@ -463,7 +468,13 @@ fn invalid_inputs_are_rejected_with_the_parameter_name() {
     assert_eq!(param_name(SolverSettings { rtol: 0.0, ..s }.validate().unwrap_err()), "rtol");
     assert_eq!(param_name(SolverSettings { max_iterations: 0, ..s }.validate().unwrap_err()), "max_iterations");
     assert_eq!(param_name(SolverSettings { post_smooth: 3, ..s }.validate().unwrap_err()), "post_smooth");
-    assert_eq!(param_name(PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, SolverSettings { pre_smooth: 0, post_smooth: 0, ..s }).unwrap_err()), "pre_smooth");
+    assert_eq!(
+        param_name(
+            PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, SolverSettings { pre_smooth: 0, post_smooth: 0, ..s })
+                .unwrap_err()
+        ),
+        "pre_smooth"
+    );
 
     let mut solver = PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, s).unwrap();
     let (mut bx, by) = (vec![1.0; ny * (nx + 1)], vec![1.0; (ny + 1) * nx]);
@@ -544,13 +555,16 @@ thread_local! {
 unsafe impl std::alloc::GlobalAlloc for CountingAllocator {
     unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
         let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
         unsafe { std::alloc::System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        // SAFETY: `ptr` was allocated by `System` with `layout` (every allocation goes there).
         unsafe { std::alloc::System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
         let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: `ptr` was allocated by `System` with `layout`; same contract as the caller's.
         unsafe { std::alloc::System.realloc(ptr, layout, new_size) }
     }
 }
@@ -591,30 +605,85 @@ fn solve_apply_and_set_coefficients_do_not_allocate() {
     }
 }
 
+/// The comparison behind the default settings (W-cycle, ν = 2): iterations and serial solve
+/// time for V/W cycles and ν = 1..3 on the 1280 × 256 density-jump case and with β = 1.
+/// Slow; run with `cargo test --release -p granrs-core --test solvers -- --ignored --nocapture`.
 #[test]
 #[ignore]
-fn explore() {
-    let env = |k: &str, d: usize| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
-    let prolongation = if env("P", 0) == 0 { Prolongation::Constant } else { Prolongation::Bilinear };
-    let cycle = if env("W", 1) == 0 { Cycle::V } else { Cycle::W };
-    let nu = env("NU", 2);
-    let s = SolverSettings { prolongation, cycle, pre_smooth: nu, post_smooth: nu, min_coarse_size: env("MINC", 2), ..SolverSettings::default() };
+fn compare_cycles_and_smoothing() {
     let (nx, ny, lx, ly) = (JUMP_NX, JUMP_NY, JUMP_LX, JUMP_LY);
     let (dx, dy) = (lx / nx as f64, ly / ny as f64);
     let f = divergence_rhs(nx, ny, lx, ly);
     let rho = column_density(nx, ny, dx, dy);
     let (bx, by) = faces_from_density(nx, ny, &rho);
     let (cx, cy) = (vec![1.0; ny * (nx + 1)], vec![1.0; (ny + 1) * nx]);
-    for bc in [TOP_DIRICHLET, ALL_NEUMANN] {
-        let (_, j, mut solver) = mgcg_solve(nx, ny, dx, dy, bc, (&bx, &by), &f, s);
-        let mut best = f64::INFINITY;
-        for _ in 0..5 {
-            let mut p = vec![0.0; nx * ny];
-            let t = std::time::Instant::now();
-            solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
-            best = best.min(t.elapsed().as_secs_f64());
+    println!("{:<26} {:>14} {:>10} {:>14} {:>10}", "1280 × 256, to 1e-8", "jump, top D", "β=1", "jump, all N", "β=1");
+    for cycle in [Cycle::W, Cycle::V] {
+        for nu in 1..=3 {
+            let s = SolverSettings { cycle, pre_smooth: nu, post_smooth: nu, ..SolverSettings::default() };
+            let mut row = format!("{cycle:?}({nu},{nu})");
+            row = format!("{row:<26}");
+            for bc in [TOP_DIRICHLET, ALL_NEUMANN] {
+                let (_, j, mut solver) = mgcg_solve(nx, ny, dx, dy, bc, (&bx, &by), &f, s);
+                let mut best = f64::INFINITY;
+                for _ in 0..3 {
+                    let mut p = vec![0.0; nx * ny];
+                    let t = std::time::Instant::now();
+                    solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
+                    best = best.min(t.elapsed().as_secs_f64());
+                }
+                let (_, c, _) = mgcg_solve(nx, ny, dx, dy, bc, (&cx, &cy), &f, s);
+                row += &format!(" {:>4} ({:>5.0} ms) {:>10}", j.iterations, best * 1e3, c.iterations);
+            }
+            println!("{row}");
         }
-        let (_, c, _) = mgcg_solve(nx, ny, dx, dy, bc, (&cx, &cy), &f, s);
-        println!("{prolongation:?} {cycle:?}({nu},{nu}) minc={}: jump {} ({:.1} ms), const {}", s.min_coarse_size, j.iterations, best * 1e3, c.iterations);
+    }
+}
+
+#[test]
+fn harder_density_fields_converge() {
+    // Stress cases beyond the required ones, on 512 × 128 (same 2.25 m × 0.45 m box):
+    // ρ ratio 2500:1; a slumped column whose interface is a staircase diagonal; 60 dense
+    // droplets of 2–6 cells radius floating in air (isolated inclusions give CG near-null
+    // modes). Measured 7–8 iterations; the bound of 12 leaves room for rounding-level changes
+    // but fails on any loss of robustness (bilinear transfers needed 30–130 on such fields).
+    let (nx, ny, lx, ly) = (512, 128, JUMP_LX, JUMP_LY);
+    let (dx, dy) = (lx / nx as f64, ly / ny as f64);
+    let f = divergence_rhs(nx, ny, lx, ly);
+    let cells = |pred: &dyn Fn(f64, f64) -> bool, dense: f64| -> Vec<f64> {
+        (0..nx * ny)
+            .map(|k| {
+                let (x, y) = (((k % nx) as f64 + 0.5) * dx, ((k / nx) as f64 + 0.5) * dy);
+                if pred(x, y) {
+                    dense
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    };
+    let centres: Vec<(f64, f64, f64)> = random_vec(180, 99)
+        .chunks(3)
+        .map(|c| ((c[0] + 1.0) * 0.5 * lx, (c[1] + 1.0) * 0.5 * ly, (4.0 + 2.0 * c[2]) * dx))
+        .collect();
+    let cases: Vec<(&str, Vec<f64>)> = vec![
+        ("column, ρ ratio 2500", cells(&|x, y| (x < 0.2 && y < 0.4) || y < 0.05, 2500.0)),
+        ("slumped column (diagonal)", cells(&|x, y| y < 0.4 * (1.0 - x / 0.9) || y < 0.02, 1450.0)),
+        (
+            "60 droplets",
+            cells(&|x, y| centres.iter().any(|&(cx, cy, r)| (x - cx).powi(2) + (y - cy).powi(2) < r * r), 1450.0),
+        ),
+    ];
+    for (name, rho) in &cases {
+        let (bx, by) = faces_from_density(nx, ny, rho);
+        for bc in [TOP_DIRICHLET, ALL_NEUMANN] {
+            let mut solver = PoissonSolver::new(nx, ny, dx, dy, bc, SolverSettings::default()).unwrap();
+            solver.set_coefficients(&bx, &by, Exec::SERIAL).unwrap();
+            let mut p = vec![0.0; nx * ny];
+            let info = solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
+            println!("{name:<28} {bc:?}: {} iterations", info.iterations);
+            assert!(true_residual(&solver, &f, &p, bc == ALL_NEUMANN) < 1.5e-8);
+            assert!(info.iterations <= 12, "{name} {bc:?}: {} iterations", info.iterations);
+        }
     }
 }

@@ -1,5 +1,5 @@
 //! Preconditioned conjugate gradients (Saad 2003, Algorithm 9.1) for A p = b with A = −L and
-//! b = −f, preconditioned by one multigrid V-cycle (MGCG, Tatebe 1993).
+//! b = −f, preconditioned by one multigrid cycle per iteration (MGCG, Tatebe 1993).
 //!
 //! Convergence is declared when the recursively updated residual satisfies
 //! ‖r‖₂ ≤ rtol ‖b‖₂; the true residual b − A p is then recomputed, and if rounding has made it
@@ -95,15 +95,12 @@ pub(crate) fn pcg(
     let mut rel = dot(exec, &w.r, &w.r, nx, &mut w.partials1).sqrt() / bnorm;
     let initial_residual = rel;
     if !rel.is_finite() {
-        return Err(Error::SolverFailure {
-            solver: SOLVER.to_string(),
-            message: format!("initial residual is {rel}"),
-        });
+        return Err(Error::SolverFailure { solver: SOLVER.to_string(), message: format!("initial residual is {rel}") });
     }
     if rel <= rtol {
         return Ok(SolveInfo { iterations: 0, residual: rel, initial_residual, rhs_mean_removed: 0.0 });
     }
-    let mut rho = precondition(mg, w, singular, exec);
+    let mut rho = precondition(mg, w, singular, exec, 0)?;
     w.d.copy_from_slice(&w.z);
     let mut iterations = 0;
     while iterations < max_iterations {
@@ -158,11 +155,11 @@ pub(crate) fn pcg(
                 return Ok(SolveInfo { iterations, residual: rel, initial_residual, rhs_mean_removed: 0.0 });
             }
             // Restart from the true residual.
-            rho = precondition(mg, w, singular, exec);
+            rho = precondition(mg, w, singular, exec, iterations)?;
             w.d.copy_from_slice(&w.z);
             continue;
         }
-        let rho_new = precondition(mg, w, singular, exec);
+        let rho_new = precondition(mg, w, singular, exec, iterations)?;
         let beta = rho_new / rho;
         rho = rho_new;
         let z = &w.z;
@@ -176,14 +173,25 @@ pub(crate) fn pcg(
     Err(Error::NotConverged { solver: SOLVER.to_string(), iterations, residual: rel, tolerance: rtol })
 }
 
-/// z = M r (one V-cycle, projected onto zero mean in the singular case); returns r·z.
-fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec) -> f64 {
+/// z = M r (one multigrid cycle, projected onto zero mean in the singular case); returns r·z,
+/// or an error if it is not positive (M not positive definite: CG would break down).
+fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec, iteration: usize) -> Result<f64> {
     let nx = mg.levels[0].nx;
-    mg.vcycle(&w.r, &mut w.z, exec);
+    mg.precondition(&w.r, &mut w.z, exec);
     if singular {
         remove_mean(exec, &mut w.z, nx, &mut w.partials1);
     }
-    dot(exec, &w.r, &w.z, nx, &mut w.partials1)
+    let rho = dot(exec, &w.r, &w.z, nx, &mut w.partials1);
+    if rho > 0.0 && rho.is_finite() {
+        Ok(rho)
+    } else {
+        Err(Error::SolverFailure {
+            solver: SOLVER.to_string(),
+            message: format!(
+                "breakdown at iteration {iteration}: rᵀMr = {rho:e} (the multigrid preconditioner is not positive definite)"
+            ),
+        })
+    }
 }
 
 /// Runs `f(j, a_row, b_row)` on every row of two arrays and returns the deterministic sum of its

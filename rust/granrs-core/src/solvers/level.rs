@@ -171,10 +171,7 @@ impl Level {
         }
         emit(0, dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0]);
         for i in 1..nx - 1 {
-            emit(
-                i,
-                dg[i] * pc[i] - cxr[i] * pc[i - 1] - cxr[i + 1] * pc[i + 1] - cys[i] * ps[i] - cyn[i] * pn[i],
-            );
+            emit(i, dg[i] * pc[i] - cxr[i] * pc[i - 1] - cxr[i + 1] * pc[i + 1] - cys[i] * ps[i] - cyn[i] * pn[i]);
         }
         let i = nx - 1;
         emit(i, dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i]);
@@ -219,24 +216,31 @@ impl Level {
             }
             return;
         }
-        // SAFETY (both phases): a block writes colour `first` in its rows and the other colour in
-        // its interior rows; cells of colour `first` are read by other blocks only in phase B, and
-        // cells of the other colour are read by other blocks only in the boundary rows, which are
-        // written in phase B only. In phase B, blocks write the other colour in their boundary
-        // rows and read only colour `first`. No location is written by one thread while another
-        // reads or writes it.
-        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| unsafe {
-            for j in rows.clone() {
-                self.half_sweep_row(ptr.get(), b, j, first, from_zero);
-                if j >= rows.start + 2 {
-                    self.half_sweep_row(ptr.get(), b, j - 1, second, false);
+        // Phase A: colour `first` on every row of the block, the other colour on its interior rows.
+        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| {
+            // SAFETY: this block writes colour `first` in its rows and the other colour in its
+            // interior rows (start+1 ..= end−2). Other blocks read, in this phase, only the other
+            // colour of this block's first and last rows, which nobody writes in this phase; the
+            // interior updates read colour `first` in rows start ..= end−1 only, which only this
+            // block writes. Row and column indices are in bounds (see `half_sweep_row`).
+            unsafe {
+                for j in rows.clone() {
+                    self.half_sweep_row(ptr.get(), b, j, first, from_zero);
+                    if j >= rows.start + 2 {
+                        self.half_sweep_row(ptr.get(), b, j - 1, second, false);
+                    }
                 }
             }
         });
-        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| unsafe {
-            self.half_sweep_row(ptr.get(), b, rows.start, second, false);
-            if rows.end - 1 > rows.start {
-                self.half_sweep_row(ptr.get(), b, rows.end - 1, second, false);
+        // Phase B: the other colour on the first and last row of every block.
+        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| {
+            // SAFETY: blocks write the other colour in their own first and last rows and read
+            // only colour `first`, which nobody writes in this phase.
+            unsafe {
+                self.half_sweep_row(ptr.get(), b, rows.start, second, false);
+                if rows.end - 1 > rows.start {
+                    self.half_sweep_row(ptr.get(), b, rows.end - 1, second, false);
+                }
             }
         });
     }
@@ -262,13 +266,18 @@ impl Level {
             }
             return;
         }
-        let cxr = &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)];
-        let cys = &self.cy[j * nx..(j + 1) * nx];
-        let cyn = &self.cy[(j + 1) * nx..(j + 2) * nx];
+        // Raw pointers into the coefficient rows (lengths nx + 1 and nx, checked by the slicing).
+        let cxr = self.cx[j * (nx + 1)..(j + 1) * (nx + 1)].as_ptr();
+        let cys = self.cy[j * nx..(j + 1) * nx].as_ptr();
+        let cyn = self.cy[(j + 1) * nx..(j + 2) * nx].as_ptr();
+        let (br, inv) = (br.as_ptr(), inv.as_ptr());
         let ps: *const f64 = if j > 0 { base.add((j - 1) * nx) } else { self.zeros.as_ptr() };
         let pn: *const f64 = if j + 1 < ny { base.add((j + 1) * nx) } else { self.zeros.as_ptr() };
+        // i < nx for every call below.
         let update = |i: usize, west: f64, east: f64| -> f64 {
-            (br[i] + cxr[i] * west + cxr[i + 1] * east + cys[i] * *ps.add(i) + cyn[i] * *pn.add(i)) * inv[i]
+            let horizontal = *br.add(i) + *cxr.add(i) * west + *cxr.add(i + 1) * east;
+            let vertical = *cys.add(i) * *ps.add(i) + *cyn.add(i) * *pn.add(i);
+            (horizontal + vertical) * *inv.add(i)
         };
         if nx == 1 {
             if start == 0 {
@@ -290,9 +299,9 @@ impl Level {
         }
     }
 
-    /// Residual of this level restricted by averaging the 4 children (piecewise-constant
-    /// transfers): b_c = ¼ Σ_children (b − A x), without storing the fine residual.
-    pub fn restrict_residual_constant(&self, x: &[f64], b: &[f64], coarse_b: &mut [f64], exec: Exec) {
+    /// Residual of this level restricted by averaging the 4 children: b_c = ¼ Σ_children (b − A x),
+    /// without storing the fine residual.
+    pub fn restrict_residual(&self, x: &[f64], b: &[f64], coarse_b: &mut [f64], exec: Exec) {
         let (nx, ncx) = (self.nx, self.nx / 2);
         exec.for_each_row(coarse_b, ncx, |jc, row| {
             row.iter_mut().for_each(|v| *v = 0.0);

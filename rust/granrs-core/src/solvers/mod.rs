@@ -25,8 +25,8 @@
 //! - [`PressureSolverKind::MultigridCg`] (production): conjugate gradients preconditioned by one
 //!   cell-centred geometric multigrid cycle per iteration (MGCG). Coarse levels rediscretise the
 //!   operator with arithmetic means of fine face coefficients; piecewise-constant transfers;
-//!   red–black Gauss–Seidel smoothing in a symmetric W-cycle (V-cycle and bilinear prolongation
-//!   are options); the coarsest level is solved exactly by sparse Cholesky. The choices are
+//!   red–black Gauss–Seidel smoothing in a symmetric W-cycle (V-cycle as an option); the
+//!   coarsest level is solved exactly by sparse Cholesky. The choices are
 //!   explained, with measured iteration counts, in the header of `multigrid.rs`. Measured: 5–7
 //!   iterations to 1e-8 from 128² to 1024² with β = 1, and 7 on the 1280 × 256 column-collapse
 //!   grid with a 1450:1 density jump.
@@ -47,7 +47,7 @@
 //!
 //! When the fine dimensions are odd (or have few factors of 2), the coarsest level is large and
 //! its Cholesky factor dominates time and memory (beyond ≈ 20 000 unknowns it becomes the main
-//! cost of `set_coefficients` and of each V-cycle); choose grid sizes with several factors of 2
+//! cost of `set_coefficients` and of each cycle); choose grid sizes with several factors of 2
 //! (1280 × 256 coarsens down to 10 × 2).
 //!
 //! # References
@@ -57,7 +57,7 @@
 //! - Y. Saad, *Iterative Methods for Sparse Linear Systems*, 2nd ed., SIAM, 2003
 //!   (preconditioned CG, Algorithm 9.1).
 //! - O. Tatebe, "The multigrid preconditioned conjugate gradient method", *Sixth Copper Mountain
-//!   Conference on Multigrid Methods*, NASA CP 3224, 1993, pp. 621–634 (symmetric V-cycle as a
+//!   Conference on Multigrid Methods*, NASA CP 3224, 1993, pp. 621–634 (symmetric multigrid cycle as a
 //!   CG preconditioner).
 
 mod cg;
@@ -78,7 +78,7 @@ use multigrid::Multigrid;
 /// What a solve did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SolveInfo {
-    /// CG iterations (V-cycles) used; 1 for the direct solver; 0 when the initial guess already
+    /// CG iterations (multigrid cycles) used; 1 for the direct solver; 0 when the initial guess already
     /// satisfied the tolerance or f = 0.
     pub iterations: usize,
     /// Final relative residual ‖f − L p‖₂ / ‖f‖₂ (true residual, recomputed at the end; f after
@@ -97,17 +97,6 @@ pub enum PressureSolverKind {
     MultigridCg,
     /// Sparse Cholesky factorisation of the whole fine operator (reference).
     Direct,
-}
-
-/// Interpolation from a coarse level to the next finer one (restriction is always its
-/// transpose divided by 4, which keeps the V-cycle symmetric).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Prolongation {
-    /// Piecewise constant: a fine cell takes its parent's value; restriction = average of the
-    /// four children.
-    Constant,
-    /// Bilinear (9, 3, 3, 1)/16 weights; restriction = (1, 3, 3, 1)²/64 full weighting.
-    Bilinear,
 }
 
 /// Multigrid cycle type used as the preconditioner.
@@ -134,8 +123,6 @@ pub struct SolverSettings {
     /// Black–red Gauss–Seidel sweeps after the coarse correction; must equal `pre_smooth` (a
     /// symmetric cycle is what makes it a valid CG preconditioner).
     pub post_smooth: usize,
-    /// Coarse-to-fine interpolation (default `Constant`: robust for density jumps).
-    pub prolongation: Prolongation,
     /// Multigrid cycle (default `W`: robust for density jumps at the cost of ≈ 1.5 V-cycles).
     pub cycle: Cycle,
     /// Coarsening stops before a dimension would drop below this (≥ 1; default 2).
@@ -150,7 +137,6 @@ impl Default for SolverSettings {
             max_iterations: 200,
             pre_smooth: 2,
             post_smooth: 2,
-            prolongation: Prolongation::Constant,
             cycle: Cycle::W,
             min_coarse_size: 2,
         }
@@ -173,7 +159,7 @@ impl SolverSettings {
             return Err(Error::param(
                 "post_smooth",
                 self.post_smooth,
-                &format!("the value of pre_smooth ({}) (the V-cycle must be symmetric)", self.pre_smooth),
+                &format!("the value of pre_smooth ({}) (the multigrid cycle must be symmetric)", self.pre_smooth),
             ));
         }
         if self.min_coarse_size == 0 {
@@ -320,7 +306,9 @@ impl PoissonSolver {
             return Ok(SolveInfo { iterations: 0, residual: 0.0, initial_residual: 0.0, rhs_mean_removed });
         }
         let mut info = match self.settings.kind {
-            PressureSolverKind::MultigridCg => cg::pcg(&mut self.mg, &mut self.work, p, bnorm, &self.settings, self.singular, exec)?,
+            PressureSolverKind::MultigridCg => {
+                cg::pcg(&mut self.mg, &mut self.work, p, bnorm, &self.settings, self.singular, exec)?
+            }
             PressureSolverKind::Direct => self.solve_direct(p, bnorm, exec),
         };
         info.rhs_mean_removed = rhs_mean_removed;
@@ -333,7 +321,7 @@ impl PoissonSolver {
         let w = &mut self.work;
         self.mg.levels[0].residual(p, &w.rhs, &mut w.r, exec);
         let initial_residual = cg::dot(exec, &w.r, &w.r, nx, &mut w.partials1).sqrt() / bnorm;
-        self.mg.vcycle(&w.rhs, p, exec);
+        self.mg.precondition(&w.rhs, p, exec);
         if self.singular {
             cg::remove_mean(exec, p, nx, &mut w.partials1);
         }
@@ -366,7 +354,7 @@ impl PoissonSolver {
                 *v = -rv;
             }
         });
-        self.mg.vcycle(&self.work.rhs, z, exec);
+        self.mg.precondition(&self.work.rhs, z, exec);
         Ok(())
     }
 
@@ -399,18 +387,22 @@ impl fmt::Display for PoissonSolver {
             self.bc.iter().map(|b| if *b == PressureBc::Neumann { "Neumann" } else { "Dirichlet" }).collect();
         writeln!(f, "PoissonSolver ({})", self.solver_name())?;
         writeln!(f, "├── grid: {} × {} cells, dx = {:e}, dy = {:e}", self.nx, self.ny, self.dx, self.dy)?;
-        writeln!(f, "├── bc (left, right, bottom, top): {}{}", bc.join(", "), if self.singular { " (singular)" } else { "" })?;
+        writeln!(
+            f,
+            "├── bc (left, right, bottom, top): {}{}",
+            bc.join(", "),
+            if self.singular { " (singular)" } else { "" }
+        )?;
         let levels: Vec<String> = self.mg.levels.iter().map(|l| format!("{}×{}", l.nx, l.ny)).collect();
         writeln!(f, "├── levels: {} (coarsest solved by sparse Cholesky)", levels.join(" → "))?;
         write!(
             f,
-            "└── rtol = {:e}, max_iterations = {}, {:?}({}, {})-cycle, {:?} prolongation",
+            "└── rtol = {:e}, max_iterations = {}, {:?}({}, {})-cycle, piecewise-constant transfers",
             self.settings.rtol,
             self.settings.max_iterations,
             self.settings.cycle,
             self.settings.pre_smooth,
-            self.settings.post_smooth,
-            self.settings.prolongation
+            self.settings.post_smooth
         )
     }
 }

@@ -5,27 +5,24 @@
 //! (see [`level_sizes`]); 1280 × 256 goes down to 10 × 2. Coarse face coefficients are the
 //! arithmetic mean of the two fine faces that make up the coarse face, rediscretised with
 //! h_c = 2h (Trottenberg et al. 2001, §5.7; Wesseling's rediscretisation for cell-centred grids).
-//! With piecewise-constant transfers this coarse operator is exactly twice the Galerkin operator
-//! R A P (R = Pᵀ/4): it has the Galerkin operator's robustness to coefficient jumps (the coupling
-//! across a coarse face is the sum of the fine couplings across it, whatever lies on either
-//! side) together with the over-correction by 2 that repairs piecewise-constant interpolation
-//! for smooth errors.
+//! With piecewise-constant transfers this coarse operator is exactly half the Galerkin operator
+//! R A P (R = Pᵀ/4), boundary terms included: it has the Galerkin operator's robustness to
+//! coefficient jumps (the coupling across a coarse face is proportional to the sum of the fine
+//! couplings across it, whatever lies on either side) together with the over-correction by 2
+//! that repairs piecewise-constant interpolation for smooth errors.
 //!
-//! Transfers (tensor products of 1D weights):
-//! - `Constant` prolongation (default): a fine cell gets its parent's value.
-//! - `Bilinear` prolongation: a fine cell gets 3/4 of its parent and 1/4 of the parent's
-//!   neighbour on the fine cell's side, in each direction (weights 9, 3, 3, 1 / 16). Beyond a
-//!   boundary the missing coarse neighbour is the parent itself (Neumann: zero slope) or minus the
-//!   parent (Dirichlet: linear through 0 on the wall).
+//! Transfers: piecewise-constant prolongation (a fine cell adds its parent's correction) and
+//! restriction R = Pᵀ/4 (the average of the 4 children), so that the cycle is symmetric. The
+//! residual is restricted on the fly (never stored on the fine grid).
 //!
-//! Restriction is always R = Pᵀ/4, so that the cycle is symmetric: for `Constant` it is the
-//! average of the 4 children; for `Bilinear` it is the (1, 3, 3, 1)² / 64 full weighting over a
-//! 4 × 4 patch.
-//!
-//! Measured (tests/solvers.rs, 1280 × 256 with a 1450:1 density jump, top Dirichlet, CG to
-//! 1e-8): Bilinear V(2,2) 62 iterations (7 with β = 1): interpolating across the jump spoils the
-//! coarse correction; Constant V(2,2) 11 (8); Constant W(2,2) 7 (6), the default, which also has
-//! the lowest time per solve. Bilinear is kept for smooth-coefficient problems and comparison.
+//! Why piecewise constant: bilinear prolongation (9, 3, 3, 1)/16 with its transpose as restriction
+//! was implemented and measured (tests/solvers.rs, 1280 × 256, 1450:1 density jump, top Dirichlet,
+//! CG to 1e-8): V(2,2) took 62 iterations (7 with β = 1) and W(1,1) diverged — interpolating a
+//! correction across the jump, with a coarse operator that is not its Galerkin operator, makes
+//! the preconditioner indefinite. With piecewise-constant transfers: V(2,2) 11 iterations (8 with
+//! β = 1), W(2,2) 7 (6), W(3,3) 6 (5); W(2,2), the default, is also the fastest per solve.
+//! Scaling the coarse operators by 0.9 or 1.1–1.5 (a different over-correction) gave equal or
+//! more iterations: plain rediscretisation is the best of these.
 //!
 //! Cycle (zero initial guess): ν red–black Gauss–Seidel sweeps (red, then black), residual,
 //! restriction, γ cycles on the coarse level (γ = 1: V-cycle, γ = 2: W-cycle; the second starts
@@ -39,7 +36,7 @@
 use super::direct::DirectSolver;
 use super::level::Level;
 use super::par;
-use super::{Cycle, Prolongation, SolverSettings};
+use super::{Cycle, SolverSettings};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::PressureBc;
@@ -56,94 +53,17 @@ pub(crate) fn level_sizes(nx: usize, ny: usize, min_coarse_size: usize) -> Vec<(
     sizes
 }
 
-/// 1D transfer weights between a fine and a coarse dimension.
-#[derive(Debug)]
-struct Transfer1d {
-    /// For every fine index: two (coarse index, weight) pairs.
-    prolong: Vec<[(usize, f64); 2]>,
-    /// For every coarse index: up to four (fine index, weight) pairs (padded with weight 0);
-    /// the transpose of `prolong`.
-    restrict: Vec<[(usize, f64); 4]>,
-}
-
-impl Transfer1d {
-    /// `n_coarse` coarse cells, `kind` of interpolation, sign of the ghost value at the low and
-    /// high boundaries (+1 Neumann, −1 Dirichlet).
-    fn new(n_coarse: usize, kind: Prolongation, ghost: [f64; 2]) -> Self {
-        let n_fine = 2 * n_coarse;
-        let prolong: Vec<[(usize, f64); 2]> = (0..n_fine)
-            .map(|i| {
-                let c = i / 2;
-                match kind {
-                    Prolongation::Constant => [(c, 1.0), (c, 0.0)],
-                    Prolongation::Bilinear => {
-                        if i % 2 == 0 {
-                            if c == 0 {
-                                [(c, 0.75), (c, 0.25 * ghost[0])]
-                            } else {
-                                [(c, 0.75), (c - 1, 0.25)]
-                            }
-                        } else if c + 1 == n_coarse {
-                            [(c, 0.75), (c, 0.25 * ghost[1])]
-                        } else {
-                            [(c, 0.75), (c + 1, 0.25)]
-                        }
-                    }
-                }
-            })
-            .collect();
-        let mut restrict = vec![[(0usize, 0.0f64); 4]; n_coarse];
-        let mut count = vec![0usize; n_coarse];
-        for (i, pairs) in prolong.iter().enumerate() {
-            for &(c, w) in pairs {
-                if w == 0.0 {
-                    continue;
-                }
-                let slots = &mut restrict[c][..count[c]];
-                if let Some(slot) = slots.iter_mut().find(|s| s.0 == i) {
-                    slot.1 += w;
-                } else {
-                    restrict[c][count[c]] = (i, w);
-                    count[c] += 1;
-                }
-            }
-        }
-        for (c, r) in restrict.iter_mut().enumerate() {
-            for slot in r.iter_mut().skip(count[c]) {
-                *slot = (2 * c, 0.0);
-            }
-        }
-        Transfer1d { prolong, restrict }
-    }
-}
-
-/// Transfer operators between level l and level l + 1.
-#[derive(Debug)]
-struct Transfer {
-    x: Transfer1d,
-    y: Transfer1d,
-}
-
-fn ghost_sign(bc: PressureBc) -> f64 {
-    match bc {
-        PressureBc::Neumann => 1.0,
-        PressureBc::Dirichlet => -1.0,
-    }
-}
-
 /// The multigrid hierarchy with its work arrays (allocated once).
 #[derive(Debug)]
 pub(crate) struct Multigrid {
     /// Levels, fine first.
     pub levels: Vec<Level>,
-    transfers: Vec<Transfer>,
     /// Corrections of levels 1.. (index 0 unused: the caller provides the fine one).
     xs: Vec<Vec<f64>>,
     /// Right-hand sides of levels 1.. (index 0 unused).
     bs: Vec<Vec<f64>>,
-    /// Residuals of levels 0..L−1 (bilinear transfers only: the constant restriction computes
-    /// them on the fly); on the coarsest level, a copy of its right-hand side.
-    rs: Vec<Vec<f64>>,
+    /// Copy of the coarsest level's right-hand side (shifted to zero mean in the singular case).
+    coarse_rhs: Vec<f64>,
     /// Exact solver of the coarsest level.
     coarse: DirectSolver,
     /// Partial sums for the means of the coarsest level.
@@ -153,13 +73,12 @@ pub(crate) struct Multigrid {
     post_smooth: usize,
     /// Coarse-grid cycles per level: 1 (V-cycle) or 2 (W-cycle).
     gamma: usize,
-    prolongation: Prolongation,
 }
 
 impl Multigrid {
-    /// Builds the hierarchy (unit coefficients until [`Multigrid::set_coefficients`]), the
-    /// transfer weights, the work arrays and the symbolic factorisation of the coarsest level.
-    /// With `max_levels == 1` the "V-cycle" is an exact solve of the fine level.
+    /// Builds the hierarchy (unit coefficients until [`Multigrid::set_coefficients`]), the work
+    /// arrays and the symbolic factorisation of the coarsest level. With `max_levels == 1` the
+    /// "cycle" is an exact solve of the fine level.
     pub fn new(
         nx: usize,
         ny: usize,
@@ -180,41 +99,23 @@ impl Multigrid {
                 Level::new(lx, ly, dx * f, dy * f, bc)
             })
             .collect();
-        let gx = [ghost_sign(bc[0]), ghost_sign(bc[1])];
-        let gy = [ghost_sign(bc[2]), ghost_sign(bc[3])];
-        let transfers = sizes[1..]
-            .iter()
-            .map(|&(cx, cy)| Transfer {
-                x: Transfer1d::new(cx, settings.prolongation, gx),
-                y: Transfer1d::new(cy, settings.prolongation, gy),
-            })
-            .collect();
         let nl = levels.len();
         let xs = levels.iter().enumerate().map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }]).collect();
         let bs = levels.iter().enumerate().map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }]).collect();
-        let rs = levels
-            .iter()
-            .enumerate()
-            .map(|(l, lv)| {
-                let needed = l + 1 == nl || settings.prolongation == Prolongation::Bilinear;
-                vec![0.0; if needed { lv.cells() } else { 0 }]
-            })
-            .collect();
         let last = &levels[nl - 1];
         let coarse = DirectSolver::new(last.nx, last.ny, singular)?;
         let partials = vec![[0.0]; par::n_blocks(last.ny)];
+        let coarse_rhs = vec![0.0; last.cells()];
         Ok(Multigrid {
             levels,
-            transfers,
             xs,
             bs,
-            rs,
+            coarse_rhs,
             coarse,
             partials,
             singular,
             pre_smooth: settings.pre_smooth,
             post_smooth: settings.post_smooth,
-            prolongation: settings.prolongation,
             gamma: match settings.cycle {
                 Cycle::V => 1,
                 Cycle::W => 2,
@@ -273,7 +174,7 @@ impl Multigrid {
     }
 
     /// One multigrid cycle (V or W) from a zero initial guess: x = M b on the fine level.
-    pub fn vcycle(&mut self, b: &[f64], x: &mut [f64], exec: Exec) {
+    pub fn precondition(&mut self, b: &[f64], x: &mut [f64], exec: Exec) {
         self.cycle(0, b, x, true, exec);
     }
 
@@ -282,12 +183,11 @@ impl Multigrid {
     fn cycle(&mut self, l: usize, b: &[f64], x: &mut [f64], from_zero: bool, exec: Exec) {
         let nl = self.levels.len();
         if l + 1 == nl {
-            // Coarsest level (or the only one): exact solve; rs[l] holds a copy of b that the
-            // singular case may shift.
-            let mut bc = std::mem::take(&mut self.rs[l]);
+            // Coarsest level (or the only one): exact solve.
+            let mut bc = std::mem::take(&mut self.coarse_rhs);
             bc.copy_from_slice(b);
             self.coarse_solve(&mut bc, x);
-            self.rs[l] = bc;
+            self.coarse_rhs = bc;
             return;
         }
         let level = &self.levels[l];
@@ -296,22 +196,13 @@ impl Multigrid {
         }
         let mut bc = std::mem::take(&mut self.bs[l + 1]);
         let mut xc = std::mem::take(&mut self.xs[l + 1]);
-        match self.prolongation {
-            Prolongation::Constant => level.restrict_residual_constant(x, b, &mut bc, exec),
-            Prolongation::Bilinear => {
-                level.residual(x, b, &mut self.rs[l], exec);
-                restrict(&self.transfers[l], &self.levels[l + 1], &self.rs[l], level.nx, &mut bc, exec);
-            }
-        }
+        level.restrict_residual(x, b, &mut bc, exec);
         let gamma = if l + 2 == nl { 1 } else { self.gamma };
         for k in 0..gamma {
             self.cycle(l + 1, &bc, &mut xc, k == 0, exec);
         }
         let level = &self.levels[l];
-        match self.prolongation {
-            Prolongation::Constant => prolong_add_constant(self.levels[l + 1].nx, &xc, level.nx, x, exec),
-            Prolongation::Bilinear => prolong_add(&self.transfers[l], self.levels[l + 1].nx, &xc, level.nx, x, exec),
-        }
+        prolong_add(self.levels[l + 1].nx, &xc, level.nx, x, exec);
         self.bs[l + 1] = bc;
         self.xs[l + 1] = xc;
         for _ in 0..self.post_smooth {
@@ -320,46 +211,13 @@ impl Multigrid {
     }
 }
 
-/// b_c = R r_f = (1/4) Pᵀ r_f.
-fn restrict(t: &Transfer, coarse: &Level, rf: &[f64], nfx: usize, bc: &mut [f64], exec: Exec) {
-    exec.for_each_row(bc, coarse.nx, |jc, row| {
-        let wy = &t.y.restrict[jc];
-        for (ic, v) in row.iter_mut().enumerate() {
-            let wx = &t.x.restrict[ic];
-            let mut s = 0.0;
-            for &(jf, wyj) in wy {
-                let r = &rf[jf * nfx..(jf + 1) * nfx];
-                let mut sx = 0.0;
-                for &(i, w) in wx {
-                    sx += w * r[i];
-                }
-                s += wyj * sx;
-            }
-            *v = 0.25 * s;
-        }
-    });
-}
-
 /// x_f += P x_c for piecewise-constant P: every fine cell adds its parent's value.
-fn prolong_add_constant(ncx: usize, xc: &[f64], nfx: usize, xf: &mut [f64], exec: Exec) {
+fn prolong_add(ncx: usize, xc: &[f64], nfx: usize, xf: &mut [f64], exec: Exec) {
     exec.for_each_row(xf, nfx, |jf, row| {
         let c = &xc[(jf / 2) * ncx..(jf / 2 + 1) * ncx];
         for (pair, v) in row.chunks_exact_mut(2).zip(c) {
             pair[0] += v;
             pair[1] += v;
-        }
-    });
-}
-
-/// x_f += P x_c (general tensor-product weights).
-fn prolong_add(t: &Transfer, ncx: usize, xc: &[f64], nfx: usize, xf: &mut [f64], exec: Exec) {
-    exec.for_each_row(xf, nfx, |jf, row| {
-        let [(j0, wy0), (j1, wy1)] = t.y.prolong[jf];
-        let c0 = &xc[j0 * ncx..(j0 + 1) * ncx];
-        let c1 = &xc[j1 * ncx..(j1 + 1) * ncx];
-        for (i, v) in row.iter_mut().enumerate() {
-            let [(i0, wx0), (i1, wx1)] = t.x.prolong[i];
-            *v += wy0 * (wx0 * c0[i0] + wx1 * c0[i1]) + wy1 * (wx0 * c1[i0] + wx1 * c1[i1]);
         }
     });
 }

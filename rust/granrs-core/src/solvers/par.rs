@@ -130,8 +130,8 @@ impl SharedMut {
     }
 }
 
-// SAFETY: the pointer is only dereferenced by the red–black sweep, where each thread writes the
-// cells of one colour in its own rows and reads only cells of the other colour, which nobody
-// writes during that half-sweep.
+// SAFETY: the pointer is only dereferenced by the red–black sweep, where threads write disjoint
+// cells and never read a cell that another thread writes in the same phase.
 unsafe impl Send for SharedMut {}
+// SAFETY: as for `Send`: concurrent uses touch disjoint or read-only locations.
 unsafe impl Sync for SharedMut {}
