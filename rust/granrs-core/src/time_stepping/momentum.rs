@@ -78,17 +78,15 @@ fn ranges(grid: &Grid, bc: &BoundaryConditions) -> (Range<usize>, Range<usize>) 
     )
 }
 
-/// Σ a·b over the unknown faces of one component (deterministic block sum).
+/// Σ a·b over the unknown faces of one component (deterministic block sum; row slices so the
+/// inner loop has no bounds checks).
 fn dot(a: &Field, b: &Field, ri: &Range<usize>, rj: &Range<usize>, exec: Exec) -> f64 {
     let (sa, sb, st) = (a.slice(), b.slice(), a.stride());
-    let rj0 = rj.start;
+    let (rj0, i0, i1) = (rj.start, ri.start, ri.end);
     exec.sum_rows(rj.len(), a.nx * a.ny, |r| {
         let bse = (r + rj0 + HALO) * st + HALO;
-        let mut s = 0.0;
-        for i in ri.clone() {
-            s += sa[bse + i] * sb[bse + i];
-        }
-        s
+        let (x, y) = (&sa[bse + i0..bse + i1], &sb[bse + i0..bse + i1]);
+        x.iter().zip(y).fold(0.0, |s, (p, q)| s + p * q)
     })
 }
 
@@ -239,13 +237,16 @@ impl MomentumSolver {
             ] {
                 let st = x.stride();
                 let (ds, qs, dg) = (d.slice(), q.slice(), diag.slice());
+                let (i0, i1) = (ri.start, ri.end);
+                let (xs, rs, zs) = (x.slice_mut(), r.slice_mut(), z.slice_mut());
                 for j in rj.clone() {
-                    let b = (j + HALO) * st + HALO;
-                    let (xs, rs, zs) = (x.slice_mut(), &mut r.slice_mut()[b..], &mut z.slice_mut()[b..]);
-                    for i in ri.clone() {
-                        xs[b + i] += alpha * ds[b + i];
-                        rs[i] -= alpha * qs[b + i];
-                        zs[i] = rs[i] / dg[b + i];
+                    let (a, b) = ((j + HALO) * st + HALO + i0, (j + HALO) * st + HALO + i1);
+                    let (xr, rr_, zr) = (&mut xs[a..b], &mut rs[a..b], &mut zs[a..b]);
+                    let (dr, qr, gr) = (&ds[a..b], &qs[a..b], &dg[a..b]);
+                    for k in 0..xr.len() {
+                        xr[k] += alpha * dr[k];
+                        rr_[k] -= alpha * qr[k];
+                        zr[k] = rr_[k] / gr[k];
                     }
                 }
                 rz_new += dot(r, z, &ri, &rj, exec);
@@ -259,9 +260,9 @@ impl MomentumSolver {
                 let zs = z.slice();
                 let ds = d.slice_mut();
                 for j in rj {
-                    let b = (j + HALO) * st + HALO;
-                    for i in ri.clone() {
-                        ds[b + i] = zs[b + i] + beta * ds[b + i];
+                    let (a, b) = ((j + HALO) * st + HALO + ri.start, (j + HALO) * st + HALO + ri.end);
+                    for (dv, zv) in ds[a..b].iter_mut().zip(&zs[a..b]) {
+                        *dv = zv + beta * *dv;
                     }
                 }
             }
