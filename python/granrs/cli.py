@@ -33,6 +33,18 @@ def _validate(args) -> int:
 
 
 def _run(args) -> int:
+    if args.case == "column":
+        from .cases.column import ColumnCase, run_column
+
+        case = ColumnCase(aspect_ratio=args.aspect_ratio, width=args.width, fluidised=args.fluidised,
+                          pore_pressure_ratio=args.pore_pressure_ratio, ny=args.ny if args.ny is not None else 32,
+                          t_end=args.t_end, rheology=args.rheology, cfl=args.cfl, threads=args.threads,
+                          length=args.length)
+        summary = run_column(case, Path(args.out), progress=not args.quiet,
+                             compare_with=Path(args.compare_with) if args.compare_with else None)
+        keys = ("runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error", "fluidised", "stop_reason")
+        print(json.dumps({k: summary[k] for k in keys}, indent=2))
+        return 0
     if args.case == "cavity":
         from .cases.cavity import run_cavity_case
 
@@ -59,9 +71,22 @@ def main(argv=None) -> int:
     v.add_argument("--json", help="write the JSON record to this file")
 
     r = sub.add_parser("run", help="run a case and write its outputs and plots")
-    r.add_argument("case", choices=["cavity"])
-    r.add_argument("--re", type=float, default=100.0)
-    r.add_argument("--n", type=int, default=64)
+    r.add_argument("case", choices=["column", "cavity"])
+    r.add_argument("--re", type=float, default=100.0, help="Reynolds number (cavity)")
+    r.add_argument("--n", type=int, default=64, help="cells per side (cavity)")
+    r.add_argument("--aspect-ratio", dest="aspect_ratio", type=float, default=2.0, help="H_c / L_c (column)")
+    r.add_argument("--width", type=float, default=0.20, help="column width L_c in m")
+    fl = r.add_mutually_exclusive_group()
+    fl.add_argument("--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)")
+    fl.add_argument("--no-fluidised", dest="fluidised", action="store_false", help="no pore pressure")
+    r.add_argument("--pore-pressure-ratio", dest="pore_pressure_ratio", type=float, default=0.9, help="β (0.9 in the paper)")
+    r.add_argument("--ny", type=int, help="cells over the domain height (column; 256 is the paper's grid)")
+    r.add_argument("--t-end", dest="t_end", type=float, default=3.0, help="end time in s (column)")
+    r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], default="drucker-prager")
+    r.add_argument("--cfl", type=float, default=0.5)
+    r.add_argument("--length", type=float, help="domain length in m (default L_c + 5.125 H_c)")
+    r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--threads", type=int, default=1)
     r.add_argument("--out", required=True)
 

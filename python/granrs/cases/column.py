@@ -112,7 +112,8 @@ def build_model(case: ColumnCase) -> Model:
         pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=-case.pore_pressure_ratio * rho * G,
                             basal_x_min=0.0, basal_x_max=lc)
     model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
-                  bc=BoundaryConditions(left=Coulomb(), right=FreeSlip(), bottom=Coulomb(), top=Outflow()),
+                  bc=BoundaryConditions(left=Coulomb(case.wall_friction_angle), right=FreeSlip(),
+                                        bottom=Coulomb(case.wall_friction_angle), top=Outflow()),
                   numerics=Numerics(cfl=case.cfl), threads=case.threads, pore_pressure=pore,
                   **_rheology_kwargs(case))
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
@@ -125,8 +126,17 @@ def build_model(case: ColumnCase) -> Model:
 
 
 def _rheology_kwargs(case: ColumnCase) -> dict:
-    """The granular rheology of the case (D-P with constant η_s, or μ(I)) and the wall friction."""
-    return {}
+    """The granular rheology of the case: the paper's D-P model (constant η_s, yield stress
+    tan α p⁺) or μ(I). The paper gives no μ(I) constants for its beads; we take μ_s = tan α and
+    the Δμ = μ₂ − μ_s = 0.26, I₀ = 0.279 of Jop, Forterre & Pouliquen (2006, Nature 441) for glass
+    beads (an assumption, stated in the summary)."""
+    from ..rheology import DruckerPrager, MuI
+
+    if case.rheology == "drucker-prager":
+        return {"rheology": DruckerPrager(friction_angle=case.friction_angle)}
+    mu_s = math.tan(math.radians(case.friction_angle))
+    return {"rheology": MuI(mu_s=mu_s, mu_2=mu_s + 0.26, i0=0.279, grain_diameter=case.grain_diameter,
+                            grain_density=case.grain_density)}
 
 
 def front_position(phi: np.ndarray, dx: float) -> float:

@@ -167,7 +167,22 @@ impl TwoPhaseModel {
         }
         let cfg = &self.config;
         fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, &cfg.grid, BcMode::Full);
-        let r = self.levelset.transport.advect(&mut self.phi, &self.u, &self.v, &cfg.grid, dt, exec);
+        // transport with the time-centred velocity u^{n+½} ≈ (1 + ω/2)uⁿ − (ω/2)uⁿ⁻¹: advecting Φ
+        // with uⁿ alone lags the interface behind the flow, which feeds interfacial gravity waves
+        // (a heavy layer at rest then grows round-off exponentially)
+        let wk = &mut self.work;
+        let half = match self.dt_prev {
+            Some(prev) => 0.5 * dt / prev,
+            None => 0.0,
+        };
+        for (x, xn, xm) in [(&mut wk.rhs_u, &self.u, &self.u_prev), (&mut wk.rhs_v, &self.v, &self.v_prev)] {
+            let (ns, ms) = (xn.slice(), xm.slice());
+            for (k, o) in x.slice_mut().iter_mut().enumerate() {
+                *o = (1.0 + half) * ns[k] - half * ms[k];
+            }
+        }
+        fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Full);
+        let r = self.levelset.transport.advect(&mut self.phi, &wk.rhs_u, &wk.rhs_v, &cfg.grid, dt, exec);
         r.map_err(|e| self.at_step(e))?;
         let n = self.step_count + 1;
         if cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0 {
