@@ -26,10 +26,12 @@
 //!   cell-centred geometric multigrid cycle per iteration (MGCG). Coarse levels rediscretise the
 //!   operator with arithmetic means of fine face coefficients; piecewise-constant transfers;
 //!   red–black Gauss–Seidel smoothing in a symmetric W-cycle (V-cycle as an option); the
-//!   coarsest level is solved exactly by sparse Cholesky. The choices are
-//!   explained, with measured iteration counts, in the header of `multigrid.rs`. Measured: 5–7
-//!   iterations to 1e-8 from 128² to 1024² with β = 1, and 7 on the 1280 × 256 column-collapse
-//!   grid with a 1450:1 density jump.
+//!   coarsest level is solved exactly by sparse Cholesky. The choices are explained, with
+//!   measured iteration counts, in the header of `multigrid.rs`. Measured to 1e-8: 5–7
+//!   iterations from 128² to 1024² with β = 1; 7 on the 1280 × 256 column-collapse grid with a
+//!   1450:1 (or 2500:1) density jump; 7–8 with a diagonal interface or 60 dense droplets.
+//!   Point smoothing assumes cells that are not strongly anisotropic (dx ≈ dy, as in the
+//!   paper); dx/dy far from 1 would call for line smoothing or semi-coarsening.
 //! - [`PressureSolverKind::Direct`] (reference): faer sparse Cholesky of the full fine operator,
 //!   symbolic factorisation once in [`PoissonSolver::new`], numeric per
 //!   [`PoissonSolver::set_coefficients`]. Cost grows like N^1.5: meant for tests and grids up
