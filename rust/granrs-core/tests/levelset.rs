@@ -100,7 +100,7 @@ fn transport_of_smooth_profile_converges_at_third_order() {
     let orders: Vec<f64> = e.windows(2).map(|p| order(p[0], p[1])).collect();
     println!("uniform transport L1 errors {e:?}, orders {orders:.2?}");
     // At fixed Courant number δt ∝ h: error = O(h⁵) + O(δt³), so the combined order tends to
-    // 3 (RK3-limited); 2.8 allows for the pre-asymptotic coarse pair.
+    // 3 (RK3-limited) from above (measured 4.3 then 3.65 while the spatial error still counts).
     assert!(orders[1] >= 2.8, "transport order {:.2} < 2.8 ({e:?})", orders[1]);
 }
 
@@ -158,6 +158,28 @@ fn single_vortex_t2_conserves_area() {
     println!("single vortex 128², T = 2: {m:#?}");
     // Acceptance number: 1 % area at T = 2 on 128² (measured −0.02 %).
     assert!(m.area_rel_error.abs() <= 0.01, "area error {:.4}", m.area_rel_error);
+}
+
+/// Prints Zalesak's disk (100², one revolution) for the combinations of weights, redistancing
+/// frequency and interface treatment (for the report).
+#[test]
+#[ignore]
+fn zalesak_table() {
+    for weights in [WenoWeights::JiangShu, WenoWeights::Mapped] {
+        for (every, interface) in [
+            (None, InterfaceTreatment::ClosestPoint),
+            (Some(10), InterfaceTreatment::ClosestPoint),
+            (Some(10), InterfaceTreatment::SubcellPde),
+        ] {
+            let redistance = RedistanceSettings { interface, ..Default::default() };
+            let opts = CaseOptions { weights, redistance, ..CaseOptions::new(every, 0.5) };
+            let m = zalesak_with(100, &opts, Exec::SERIAL).unwrap();
+            println!(
+                "zalesak 100² {weights:?} redistance={every:?} {interface:?}: area_rel_error {:+.4e} symdiff_rel {:.4e}",
+                m.area_rel_error, m.symdiff_rel
+            );
+        }
+    }
 }
 
 /// Prints the T = 8 vortex errors on 64², 128², 256² (for the report): Jiang–Shu weights without
@@ -292,8 +314,9 @@ fn redistancing_keeps_a_distance_function_almost_unchanged() {
         }
     }
     println!("circle redistancing: max |Φ − d| in a 6-cell band = {:.3e} h", max_err / grid.dx);
-    // Second-order scheme, R = 22 cells: the error of the steady state is O(h²/R) ≈ 0.01 h.
-    assert!(max_err < 0.05 * grid.dx, "max |Φ − d| = {:.3} h", max_err / grid.dx);
+    // The frozen closest-point band reproduces the distance to O(h⁴) and the WENO5 PDE keeps it
+    // (measured 3e-6 h; the subcell-PDE treatment gives 5e-4 h): 1e-4 h.
+    assert!(max_err < 1e-4 * grid.dx, "max |Φ − d| = {:.3} h", max_err / grid.dx);
 }
 
 #[test]
