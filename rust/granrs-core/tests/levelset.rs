@@ -86,7 +86,8 @@ fn uniform_transport_error(n: usize) -> f64 {
         for i in 0..n {
             let (x, y) = (grid.xc(i as isize), grid.yc(j as isize));
             if (x - xe).hypot(y - ye) < 0.3 {
-                err += (phi.at(i as isize, j as isize) - bump(x - ux * t_end, y - vy * t_end)).abs() * grid.dx * grid.dy;
+                err +=
+                    (phi.at(i as isize, j as isize) - bump(x - ux * t_end, y - vy * t_end)).abs() * grid.dx * grid.dy;
             }
         }
     }
@@ -99,7 +100,7 @@ fn transport_of_smooth_profile_converges_at_third_order() {
     let orders: Vec<f64> = e.windows(2).map(|p| order(p[0], p[1])).collect();
     println!("uniform transport L1 errors {e:?}, orders {orders:.2?}");
     // At fixed Courant number δt ∝ h: error = O(h⁵) + O(δt³), so the combined order tends to
-    // 3 (RK3-limited); 2.8 allows for the pre-asymptotic coarse pair.
+    // 3 (RK3-limited) from above (measured 4.3 then 3.65 while the spatial error still counts).
     assert!(orders[1] >= 2.8, "transport order {:.2} < 2.8 ({e:?})", orders[1]);
 }
 
@@ -134,7 +135,9 @@ fn zalesak_exact_area_matches_validation_data() {
 fn zalesak_one_revolution_without_redistancing() {
     let m = zalesak(100, None, 0.5, Exec::SERIAL).unwrap();
     println!("Zalesak 100², no redistancing: {m:#?}");
-    // Acceptance numbers of the level-set room: 1 % area, 5 % symmetric difference.
+    // Acceptance numbers of the level-set room: 1 % area, 5 % symmetric difference (measured
+    // −0.90 % and 3.1 %; the area is the bicubic-refined estimate, whose own error on the initial
+    // disk is −2e-6; the second-order estimate would say −1.02 %, 0.066 % of it its own bias).
     assert!(m.area_rel_error.abs() <= 0.01, "area error {:.4}", m.area_rel_error);
     assert!(m.symdiff_rel <= 0.05, "symmetric difference {:.4}", m.symdiff_rel);
 }
@@ -143,7 +146,8 @@ fn zalesak_one_revolution_without_redistancing() {
 fn zalesak_one_revolution_with_redistancing_every_10_steps() {
     let m = zalesak(100, Some(10), 0.5, Exec::SERIAL).unwrap();
     println!("Zalesak 100², redistancing every 10 steps: {m:#?}");
-    // Acceptance number: 2 % area with redistancing (the paper's frequency).
+    // Acceptance number: 2 % area with redistancing (the paper's frequency); measured +1.43 %
+    // (the 5-cell slot narrows: its flanks are re-sharpened into kinks that WENO then erodes).
     assert!(m.area_rel_error.abs() <= 0.02, "area error {:.4}", m.area_rel_error);
     assert!(m.redistance_calls == m.steps / 10);
 }
@@ -152,20 +156,46 @@ fn zalesak_one_revolution_with_redistancing_every_10_steps() {
 fn single_vortex_t2_conserves_area() {
     let m = single_vortex(128, 2.0, None, 0.5, Exec::SERIAL).unwrap();
     println!("single vortex 128², T = 2: {m:#?}");
-    // Acceptance number: 1 % area at T = 2 on 128².
+    // Acceptance number: 1 % area at T = 2 on 128² (measured −0.02 %).
     assert!(m.area_rel_error.abs() <= 0.01, "area error {:.4}", m.area_rel_error);
 }
 
-/// Prints the T = 8 vortex errors on 64², 128², 256² (for the report).
+/// Prints Zalesak's disk (100², one revolution) for the combinations of weights, redistancing
+/// frequency and interface treatment (for the report).
+#[test]
+#[ignore]
+fn zalesak_table() {
+    for weights in [WenoWeights::JiangShu, WenoWeights::Mapped] {
+        for (every, interface) in [
+            (None, InterfaceTreatment::ClosestPoint),
+            (Some(10), InterfaceTreatment::ClosestPoint),
+            (Some(10), InterfaceTreatment::SubcellPde),
+        ] {
+            let redistance = RedistanceSettings { interface, ..Default::default() };
+            let opts = CaseOptions { weights, redistance, ..CaseOptions::new(every, 0.5) };
+            let m = zalesak_with(100, &opts, Exec::SERIAL).unwrap();
+            println!(
+                "zalesak 100² {weights:?} redistance={every:?} {interface:?}: area_rel_error {:+.4e} symdiff_rel {:.4e}",
+                m.area_rel_error, m.symdiff_rel
+            );
+        }
+    }
+}
+
+/// Prints the T = 8 vortex errors on 64², 128², 256² (for the report): Jiang–Shu weights without
+/// and with redistancing every 10 steps, and the mapped weights with redistancing.
 #[test]
 #[ignore]
 fn single_vortex_t8_table() {
     for n in [64, 128, 256] {
-        for every in [None, Some(10)] {
-            let m = single_vortex(n, 8.0, every, 0.5, Exec::SERIAL).unwrap();
+        for (every, weights) in
+            [(None, WenoWeights::JiangShu), (Some(10), WenoWeights::JiangShu), (Some(10), WenoWeights::Mapped)]
+        {
+            let opts = CaseOptions { weights, ..CaseOptions::new(every, 0.5) };
+            let m = single_vortex_with(n, 8.0, &opts, Exec::SERIAL).unwrap();
             println!(
-                "vortex T=8 n={n:4} redistance={every:?}: steps {} area_rel_error {:+.4e} area_rel_change {:+.4e} symdiff_rel {:.4e} (initial {:.2e})",
-                m.steps, m.area_rel_error, m.area_rel_change, m.symdiff_rel, m.symdiff_initial_rel
+                "vortex T=8 n={n:4} {weights:?} redistance={every:?}: steps {} area_rel_error {:+.4e} symdiff_rel {:.4e} (initial {:.2e})",
+                m.steps, m.area_rel_error, m.symdiff_rel, m.symdiff_initial_rel
             );
         }
     }
@@ -203,10 +233,12 @@ fn redistancing_stretched_ellipse_keeps_interface_and_gives_unit_gradient() {
         // A non-distance function with the ellipse as zero set: |∇Φ⁰| runs from 0.57 to 2.
         let mut phi = Field::from_fn(&grid, Location::Centre, |x, y| -(x * x / (a * a) + y * y / (b * b) - 1.0) * 0.1);
         let e0 = eikonal_error(&phi, &grid, 3.0 * h);
-        let before: Vec<f64> = interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
+        let before: Vec<f64> =
+            interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
         let mut r = Redistancer::new(&grid, RedistanceSettings { interface, ..Default::default() }).unwrap();
         let info = r.redistance(&mut phi, &grid, Exec::SERIAL).unwrap();
-        let after: Vec<f64> = interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
+        let after: Vec<f64> =
+            interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
         let max_before = before.iter().cloned().fold(0.0, f64::max) / h;
         let max_after = after.iter().cloned().fold(0.0, f64::max) / h;
         let mean_after = after.iter().sum::<f64>() / after.len() as f64 / h;
@@ -235,11 +267,12 @@ fn repeated_redistancing_does_not_creep() {
     // redistanced 100 times must keep its area: circle of radius 6 cells and a square (corners).
     let grid = Grid::new(64, 64, 64.0, 64.0).unwrap();
     for (shape, tol_closest, creeps) in [
-        (Shape::Circle { xc: 31.3, yc: 32.6, radius: 6.0 }, 2e-4, true),
+        (Shape::Circle { xc: 31.3, yc: 32.6, radius: 6.0 }, 4e-4, true),
         (Shape::Rectangle { x0: 20.3, x1: 40.6, y0: 22.2, y1: 41.7 }, 1e-4, false),
     ] {
         let mut area = [0.0; 2];
-        for (m, interface) in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde].into_iter().enumerate() {
+        for (m, interface) in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde].into_iter().enumerate()
+        {
             let mut phi = Field::zeros(&grid, Location::Centre);
             init_signed_distance(&shape, &grid, &mut phi).unwrap();
             let a0 = dense_area(&phi, &grid, Exec::SERIAL);
@@ -249,9 +282,12 @@ fn repeated_redistancing_does_not_creep() {
             }
             area[m] = dense_area(&phi, &grid, Exec::SERIAL) / a0 - 1.0;
         }
-        println!("{shape:?}: relative area change after 100 calls: closest point {:+.2e}, subcell PDE {:+.2e}", area[0], area[1]);
-        // Closest point: measured +5e-5 (circle r = 6h) and −1e-5 (square); the subcell PDE
-        // shrinks the circle by 2.5e-2 (0.04 h (h/r)² per call), which this test documents.
+        println!(
+            "{shape:?}: relative area change after 100 calls: closest point {:+.2e}, subcell PDE {:+.2e}",
+            area[0], area[1]
+        );
+        // Closest point: measured +1.5e-4 (circle r = 6h) and −1.2e-5 (square); the subcell PDE
+        // shrinks the circle by 2.6e-2 (0.04 h (h/r)² per call), which this test documents.
         assert!(area[0].abs() < tol_closest, "closest point: area change {:.2e}", area[0]);
         if creeps {
             assert!(area[1] < -1e-2, "subcell PDE expected to creep on a 6-cell circle ({:.2e})", area[1]);
@@ -278,8 +314,9 @@ fn redistancing_keeps_a_distance_function_almost_unchanged() {
         }
     }
     println!("circle redistancing: max |Φ − d| in a 6-cell band = {:.3e} h", max_err / grid.dx);
-    // Second-order scheme, R = 22 cells: the error of the steady state is O(h²/R) ≈ 0.01 h.
-    assert!(max_err < 0.05 * grid.dx, "max |Φ − d| = {:.3} h", max_err / grid.dx);
+    // The frozen closest-point band reproduces the distance to O(h⁴) and the WENO5 PDE keeps it
+    // (measured 3e-6 h; the subcell-PDE treatment gives 5e-4 h): 1e-4 h.
+    assert!(max_err < 1e-4 * grid.dx, "max |Φ − d| = {:.3} h", max_err / grid.dx);
 }
 
 #[test]
@@ -316,7 +353,13 @@ fn paper_column_rectangle_is_subcell_exact() {
     ] {
         init_signed_distance(&shape, &grid, &mut phi).unwrap();
         let area = dense_area(&phi, &grid, Exec::SERIAL);
-        println!("column {what}: area {area:.9} (relative error {:.2e})", area / exact - 1.0);
+        let refined = dense_area_refined(&phi, &grid, 8, Exec::SERIAL);
+        println!(
+            "column {what}: area {area:.9} (relative error {:.2e}), refined {:.2e}",
+            area / exact - 1.0,
+            refined / exact - 1.0
+        );
+        assert!((refined / exact - 1.0).abs() < 1e-3);
         // Acceptance: 1e-3 relative. Straight edges are exact for the piecewise-linear
         // reconstruction; only the O(h²) rounding at convex corners remains (h²/0.08 ≈ 4e-5).
         assert!((area / exact - 1.0).abs() < 1e-3, "{what}: area {area}");
@@ -339,8 +382,8 @@ fn paper_column_rectangle_is_subcell_exact() {
 fn slotted_disk_distance_is_exact() {
     let shape = validation::zalesak_shape();
     // Brute force: the boundary sampled every 1e-3 (arc, slot sides, slot top).
-    let (xc, yc, r, hw, top) = (50.0, 75.0, 15.0, 2.5, 85.0);
-    let ycut = yc - (r * r - hw * hw as f64).sqrt();
+    let (xc, yc, r, hw, top): (f64, f64, f64, f64, f64) = (50.0, 75.0, 15.0, 2.5, 85.0);
+    let ycut = yc - (r * r - hw * hw).sqrt();
     let mut pts = Vec::new();
     let n_arc = 100_000;
     for k in 0..n_arc {
@@ -376,15 +419,22 @@ fn slotted_disk_distance_is_exact() {
 fn dense_area_is_second_order_for_a_circle() {
     let circle = Shape::Circle { xc: 0.503, yc: 0.488, radius: 0.3 };
     let exact = circle.area().unwrap();
+    let mut refined = vec![];
     let errs: Vec<f64> = [32, 64, 128]
         .iter()
         .map(|&n| {
             let grid = Grid::new(n, n, 1.0, 1.0).unwrap();
             let mut phi = Field::zeros(&grid, Location::Centre);
             init_signed_distance(&circle, &grid, &mut phi).unwrap();
+            refined.push((dense_area_refined(&phi, &grid, 8, Exec::SERIAL) - exact).abs() / exact);
             (dense_area(&phi, &grid, Exec::SERIAL) - exact).abs()
         })
         .collect();
+    println!("refined relative area errors {refined:?}");
+    // Bicubic + 8 × 8 sub-cells: the second-order error divided by 64 at least.
+    for (r, e) in refined.iter().zip(&errs) {
+        assert!(*r < e / exact / 30.0, "refined {r:e} vs second order {:e}", e / exact);
+    }
     let o = order(errs[1], errs[2]);
     println!("circle area errors {errs:?}, order {o:.2}");
     // Piecewise-linear reconstruction: second order (1.8 allows for the irregular cut pattern);
@@ -460,8 +510,12 @@ fn serial_and_parallel_give_identical_fields() {
     let grid = Grid::new(160, 120, 100.0, 75.0).unwrap();
     let run = |exec: Exec| -> (Field, f64) {
         let mut phi = Field::zeros(&grid, Location::Centre);
-        init_signed_distance(&Shape::SlottedDisk { xc: 50.0, yc: 45.0, radius: 15.0, slot_width: 5.0, slot_top: 55.0 }, &grid, &mut phi)
-            .unwrap();
+        init_signed_distance(
+            &Shape::SlottedDisk { xc: 50.0, yc: 45.0, radius: 15.0, slot_width: 5.0, slot_top: 55.0 },
+            &grid,
+            &mut phi,
+        )
+        .unwrap();
         let w = PI / 314.0;
         let u = Field::from_fn(&grid, Location::XFace, |_, y| w * (37.5 - y) + 0.1);
         let v = Field::from_fn(&grid, Location::YFace, |x, _| w * (x - 50.0));
@@ -490,4 +544,3 @@ fn serial_and_parallel_give_identical_fields() {
     assert!(diff <= 1e-12 * scale, "max |serial − parallel| = {diff:e}");
     assert!((a_serial - a_parallel).abs() <= 1e-12 * a_serial);
 }
-

@@ -19,7 +19,9 @@
 //!
 //! Started from p itself and from the grid-line crossings next to p, it keeps the best converged
 //! foot point. The interpolant reproduces cubic Φ, so the zero set of a smooth Φ is located to
-//! O(h⁴) and the distance has the same accuracy.
+//! O(h⁴) and the distance has the same accuracy. Values beyond the interior are extrapolated
+//! linearly (the same rule as [`Field::extrapolate_ghosts_linear`]), so the ghost layers of Φ
+//! need not be up to date.
 
 use crate::grid::{Field, Grid};
 
@@ -45,14 +47,59 @@ impl<'a> Bicubic<'a> {
         Bicubic { phi, grid }
     }
 
+    /// Φ at centre (i, j), extrapolated linearly beyond the interior (x first, then y).
+    #[inline]
+    fn val(&self, i: isize, j: isize) -> f64 {
+        let (nx, ny) = (self.phi.nx as isize, self.phi.ny as isize);
+        let col = |j: isize| -> f64 {
+            if i < 0 {
+                let a = self.phi.at(0, j);
+                a + (-i) as f64 * (a - self.phi.at(1, j))
+            } else if i >= nx {
+                let a = self.phi.at(nx - 1, j);
+                a + (i - nx + 1) as f64 * (a - self.phi.at(nx - 2, j))
+            } else {
+                self.phi.at(i, j)
+            }
+        };
+        if j < 0 {
+            let a = col(0);
+            a + (-j) as f64 * (a - col(1))
+        } else if j >= ny {
+            let a = col(ny - 1);
+            a + (j - ny + 1) as f64 * (a - col(ny - 2))
+        } else {
+            col(j)
+        }
+    }
+
     /// Nodal data at centre (i, j), in cell units: [Φ, hΦ_x, hΦ_y, h²Φ_xy].
     #[inline]
     fn node(&self, i: isize, j: isize) -> [f64; 4] {
-        let f = |a: isize, b: isize| self.phi.at(i + a, j + b);
+        let f = |a: isize, b: isize| self.val(i + a, j + b);
         let fx = (-f(2, 0) + 8.0 * f(1, 0) - 8.0 * f(-1, 0) + f(-2, 0)) / 12.0;
         let fy = (-f(0, 2) + 8.0 * f(0, 1) - 8.0 * f(0, -1) + f(0, -2)) / 12.0;
         let fxy = (f(1, 1) - f(1, -1) - f(-1, 1) + f(-1, -1)) * 0.25;
         [f(0, 0), fx, fy, fxy]
+    }
+
+    /// The nodal data of the dual cell whose lower-left node is centre (a, b): corners in the
+    /// order (a, b), (a+1, b), (a, b+1), (a+1, b+1).
+    pub(crate) fn patch(&self, a: isize, b: isize) -> [[f64; 4]; 4] {
+        [self.node(a, b), self.node(a + 1, b), self.node(a, b + 1), self.node(a + 1, b + 1)]
+    }
+
+    /// Φ̃ at local coordinates (s, t) ∈ [0, 1]² of a dual cell with nodal data `patch`.
+    #[inline]
+    pub(crate) fn patch_value(patch: &[[f64; 4]; 4], s: f64, t: f64) -> f64 {
+        let (bs, _) = hermite(s);
+        let (bt, _) = hermite(t);
+        let mut v = 0.0;
+        for (c, &(m, n)) in [(0usize, 0usize), (1, 0), (0, 1), (1, 1)].iter().enumerate() {
+            let [f, fx, fy, fxy] = patch[c];
+            v += f * bs[m] * bt[n] + fx * bs[2 + m] * bt[n] + fy * bs[m] * bt[2 + n] + fxy * bs[2 + m] * bt[2 + n];
+        }
+        v
     }
 
     /// Φ̃ and its gradient at (x, y).
@@ -87,7 +134,7 @@ impl<'a> Bicubic<'a> {
         for _ in 0..40 {
             let (f, gx, gy) = self.eval(x, y);
             let g2 = gx * gx + gy * gy;
-            if !(g2 > 1e-24) {
+            if g2.is_nan() || g2 <= 1e-24 {
                 return None;
             }
             let (d1x, d1y) = (-f * gx / g2, -f * gy / g2);

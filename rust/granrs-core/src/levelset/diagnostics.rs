@@ -17,11 +17,20 @@
 //! approximates a smooth interface to O(h²), so the area is second-order accurate; the
 //! four-triangle split keeps it free of the diagonal bias of a two-triangle split.
 //!
+//! Refined area ([`dense_area_refined`], for validation): in the interior dual cells that the
+//! interface cuts, Φ is first interpolated by the C¹ piecewise-bicubic Hermite interpolant with
+//! fourth-order nodal slopes (the one of the redistancing, Chopp 2001) at sub × sub sub-cells,
+//! and the same four-triangle rule is applied to each sub-cell: error O(h⁴) + O(h²/sub²). On the
+//! 100² Zalesak disk the second-order estimate is 0.066 % low, the refined one (sub = 8) 0.0002 %;
+//! benchmarks report the refined one so that their area error is the transport's, not the
+//! estimator's.
+//!
 //! Symmetric difference |{Φ > 0} Δ E|: each cell is sampled at sub × sub points, Φ bilinearly
 //! interpolated on the same dual lattice, and each mismatch with `exact(x, y)` counts
 //! dx·dy/sub². Reductions are by rows in block order ([`Exec::sum_rows`]): serial and parallel
 //! give identical sums.
 
+use super::closest_point::Bicubic;
 use crate::exec::Exec;
 use crate::grid::{Field, Grid};
 
@@ -83,11 +92,23 @@ fn triangle_positive_fraction(a: f64, b: f64, c: f64) -> f64 {
         0 => 0.0,
         3 => 1.0,
         1 => {
-            let (p, n1, n2) = if a > 0.0 { (a, b, c) } else if b > 0.0 { (b, a, c) } else { (c, a, b) };
+            let (p, n1, n2) = if a > 0.0 {
+                (a, b, c)
+            } else if b > 0.0 {
+                (b, a, c)
+            } else {
+                (c, a, b)
+            };
             p * p / ((p - n1) * (p - n2))
         }
         _ => {
-            let (n, p1, p2) = if a <= 0.0 { (a, b, c) } else if b <= 0.0 { (b, a, c) } else { (c, a, b) };
+            let (n, p1, p2) = if a <= 0.0 {
+                (a, b, c)
+            } else if b <= 0.0 {
+                (b, a, c)
+            } else {
+                (c, a, b)
+            };
             1.0 - n * n / ((n - p1) * (n - p2))
         }
     }
@@ -103,21 +124,75 @@ pub fn dense_area(phi: &Field, grid: &Grid, exec: Exec) -> f64 {
         for a in 0..=nx {
             let hx = Dual::pos(a + 1, nx, grid.x0, grid.dx) - Dual::pos(a, nx, grid.x0, grid.dx);
             let (f00, f10, f01, f11) = (d.value(a, b), d.value(a + 1, b), d.value(a, b + 1), d.value(a + 1, b + 1));
-            let fraction = if f00 > 0.0 && f10 > 0.0 && f01 > 0.0 && f11 > 0.0 {
+            let fraction = quad_fraction(f00, f10, f01, f11);
+            s += fraction * hx * hy;
+        }
+        s
+    })
+}
+
+/// Area of the dense phase with the bicubic refinement of the cut dual cells (`sub` sub-cells
+/// per side, clamped to [1, 16]; see the module docs).
+pub fn dense_area_refined(phi: &Field, grid: &Grid, sub: usize, exec: Exec) -> f64 {
+    let sub = sub.clamp(1, 16);
+    let d = Dual::new(phi);
+    let bic = Bicubic::new(phi, grid);
+    let (nx, ny) = (grid.nx, grid.ny);
+    let inv = 1.0 / sub as f64;
+    exec.sum_rows(ny + 1, grid.cells(), |b| {
+        let hy = Dual::pos(b + 1, ny, grid.y0, grid.dy) - Dual::pos(b, ny, grid.y0, grid.dy);
+        let mut vals = [0.0; 17 * 17];
+        let mut s = 0.0;
+        for a in 0..=nx {
+            let hx = Dual::pos(a + 1, nx, grid.x0, grid.dx) - Dual::pos(a, nx, grid.x0, grid.dx);
+            let (f00, f10, f01, f11) = (d.value(a, b), d.value(a + 1, b), d.value(a, b + 1), d.value(a + 1, b + 1));
+            let all_pos = f00 > 0.0 && f10 > 0.0 && f01 > 0.0 && f11 > 0.0;
+            let all_neg = f00 <= 0.0 && f10 <= 0.0 && f01 <= 0.0 && f11 <= 0.0;
+            let interior = a >= 1 && a < nx && b >= 1 && b < ny;
+            let fraction = if all_pos {
                 1.0
-            } else if f00 <= 0.0 && f10 <= 0.0 && f01 <= 0.0 && f11 <= 0.0 {
+            } else if all_neg {
                 0.0
+            } else if !interior {
+                quad_fraction(f00, f10, f01, f11)
             } else {
-                let fc = 0.25 * (f00 + f10 + f01 + f11);
-                0.25 * (triangle_positive_fraction(fc, f00, f10)
-                    + triangle_positive_fraction(fc, f10, f11)
-                    + triangle_positive_fraction(fc, f11, f01)
-                    + triangle_positive_fraction(fc, f01, f00))
+                // dual cell between centres (a − 1, b − 1) and (a, b)
+                let patch = bic.patch(a as isize - 1, b as isize - 1);
+                for q in 0..=sub {
+                    for p in 0..=sub {
+                        vals[q * (sub + 1) + p] = Bicubic::patch_value(&patch, p as f64 * inv, q as f64 * inv);
+                    }
+                }
+                let mut fr = 0.0;
+                for q in 0..sub {
+                    for p in 0..sub {
+                        let v = |pp: usize, qq: usize| vals[qq * (sub + 1) + pp];
+                        fr += quad_fraction(v(p, q), v(p + 1, q), v(p, q + 1), v(p + 1, q + 1));
+                    }
+                }
+                fr * inv * inv
             };
             s += fraction * hx * hy;
         }
         s
     })
+}
+
+/// Positive fraction of a quadrilateral cell with corner values f00, f10, f01, f11, by the
+/// four-triangle rule.
+#[inline]
+fn quad_fraction(f00: f64, f10: f64, f01: f64, f11: f64) -> f64 {
+    if f00 > 0.0 && f10 > 0.0 && f01 > 0.0 && f11 > 0.0 {
+        return 1.0;
+    }
+    if f00 <= 0.0 && f10 <= 0.0 && f01 <= 0.0 && f11 <= 0.0 {
+        return 0.0;
+    }
+    let fc = 0.25 * (f00 + f10 + f01 + f11);
+    0.25 * (triangle_positive_fraction(fc, f00, f10)
+        + triangle_positive_fraction(fc, f10, f11)
+        + triangle_positive_fraction(fc, f11, f01)
+        + triangle_positive_fraction(fc, f01, f00))
 }
 
 /// Area of the symmetric difference between {Φ > 0} and the exact region {exact(x, y)}, with

@@ -46,7 +46,9 @@ pub mod transport;
 pub mod validation;
 pub mod weno5;
 
-pub use diagnostics::{dense_area, eikonal_error, interface_points, symmetric_difference_area, EikonalError};
+pub use diagnostics::{
+    dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError,
+};
 pub use heaviside::{
     blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS,
 };

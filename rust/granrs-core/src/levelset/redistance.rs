@@ -348,7 +348,9 @@ fn is_kink(p0: &[f64], k: usize, stride: usize) -> bool {
             d2max = d2max.max((at(a, b + 1) - 2.0 * c + at(a, b - 1)).abs());
         }
     }
-    !(d2max <= KINK_RATIO * g)
+    // NaN (a non-finite Φ⁰) counts as a kink.
+    let smooth = d2max <= KINK_RATIO * g;
+    !smooth
 }
 
 /// Fraction θ ∈ (0, 1] of the way from a (at t = 0) to b (at t = 1) where the quadratic ENO
@@ -429,6 +431,7 @@ impl Ctx<'_> {
             if !(HALO..ny + HALO).contains(&r) {
                 return;
             }
+            #[allow(clippy::needless_range_loop)] // c also indexes the input fields through k
             for c in HALO..nx + HALO {
                 let k = r * stride + c;
                 let f0 = p0[k];

@@ -63,7 +63,11 @@ impl LevelSetTransport {
 
     /// Same as [`new`](Self::new) with a choice of WENO weights.
     pub fn with_weights(grid: &Grid, weights: WenoWeights) -> Self {
-        LevelSetTransport { weights, phi1: Field::zeros(grid, Location::Centre), phi2: Field::zeros(grid, Location::Centre) }
+        LevelSetTransport {
+            weights,
+            phi1: Field::zeros(grid, Location::Centre),
+            phi2: Field::zeros(grid, Location::Centre),
+        }
     }
 
     /// The WENO weights in use.

@@ -14,11 +14,13 @@
 //! max(|u_c|/dx + |v_c|/dy) (the vortex's rate is largest at t = 0), so that the run ends exactly
 //! at T. For the vortex each Runge–Kutta stage sees the velocity at its own time.
 //!
-//! Metrics: the dense-phase area (second-order, [`dense_area`]) against the exact area, and the
-//! area of the symmetric difference with the exact final shape (8 × 8 bilinear samples per cell,
-//! [`symmetric_difference_area`]), both relative to the exact area.
+//! Metrics: the dense-phase area against the exact area, measured with the bicubic-refined
+//! estimate ([`dense_area_refined`], 8 × 8 sub-cells per cut cell: its own error on the initial
+//! shapes is below 10⁻⁴ relative, against 7·10⁻⁴ for the second-order [`super::dense_area`] on
+//! the 100² disk), and the area of the symmetric difference with the exact final shape (8 × 8
+//! bilinear samples per cell, [`symmetric_difference_area`]), both relative to the exact area.
 
-use super::diagnostics::{dense_area, symmetric_difference_area};
+use super::diagnostics::{dense_area_refined, symmetric_difference_area};
 use super::redistance::{RedistanceSettings, Redistancer};
 use super::shapes::{init_signed_distance, Shape};
 use super::transport::{max_transport_rate, LevelSetTransport};
@@ -30,6 +32,9 @@ use std::f64::consts::PI;
 
 /// Sub-samples per cell side used for the symmetric-difference metric.
 pub const SYMDIFF_SUB: usize = 8;
+
+/// Sub-cells per side of the refined area estimate ([`dense_area_refined`]).
+pub const AREA_SUB: usize = 8;
 
 /// The outcome of a level-set benchmark.
 #[derive(Clone, Debug, PartialEq)]
@@ -130,7 +135,7 @@ fn run_case(
     let dt = period / steps as f64;
 
     let exact = |x: f64, y: f64| shape.contains(x, y);
-    let area_initial = dense_area(&phi, grid, exec);
+    let area_initial = dense_area_refined(&phi, grid, AREA_SUB, exec);
     let symdiff_initial = symmetric_difference_area(&phi, grid, exact, SYMDIFF_SUB, exec);
 
     let mut transport = LevelSetTransport::with_weights(grid, opts.weights);
@@ -154,7 +159,7 @@ fn run_case(
             }
         }
     }
-    let area_final = dense_area(&phi, grid, exec);
+    let area_final = dense_area_refined(&phi, grid, AREA_SUB, exec);
     let symdiff_area = symmetric_difference_area(&phi, grid, exact, SYMDIFF_SUB, exec);
     Ok(LevelSetMetrics {
         n: grid.nx,
@@ -196,7 +201,13 @@ pub fn zalesak_with(n: usize, opts: &CaseOptions, exec: Exec) -> Result<LevelSet
 
 /// Rider–Kothe single vortex of period `period` (T) on an n × n grid of [0,1]², evaluated at
 /// t = T against the initial circle.
-pub fn single_vortex(n: usize, period: f64, redistance_every: Option<usize>, cfl: f64, exec: Exec) -> Result<LevelSetMetrics> {
+pub fn single_vortex(
+    n: usize,
+    period: f64,
+    redistance_every: Option<usize>,
+    cfl: f64,
+    exec: Exec,
+) -> Result<LevelSetMetrics> {
     single_vortex_with(n, period, &CaseOptions::new(redistance_every, cfl), exec)
 }
 
