@@ -202,17 +202,18 @@ impl PoissonSolver {
         check_positive("dy", dy)?;
         settings.validate()?;
         let singular = bc.iter().all(|&b| b == PressureBc::Neumann);
-        Self::build(nx, ny, dx, dy, bc, settings, singular)
+        Self::build(nx, ny, dx, dy, bc, settings, singular, false)
     }
 
     /// A solver for the shifted (Helmholtz-type) operator (L − σ) p = f, σ ≥ 0 per cell, set with
     /// [`PoissonSolver::set_coefficients_with_shift`]; σ must be positive somewhere when every
     /// side is Neumann, so the problem is never singular (implicit diffusion, pore pressure).
     pub fn new_shifted(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings) -> Result<Self> {
-        Self::build(nx, ny, dx, dy, bc, settings, false)
+        Self::build(nx, ny, dx, dy, bc, settings, false, true)
     }
 
-    fn build(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings, singular: bool) -> Result<Self> {
+    #[allow(clippy::too_many_arguments)]
+    fn build(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings, singular: bool, shifted: bool) -> Result<Self> {
         if nx == 0 {
             return Err(Error::param("nx", nx, "an integer >= 1"));
         }
@@ -227,7 +228,7 @@ impl PoissonSolver {
             PressureSolverKind::Direct => 1,
         };
         let mut mg = Multigrid::new(nx, ny, dx, dy, bc, &settings, max_levels, singular)?;
-        if !singular {
+        if shifted {
             // a shifted solver starts with σ = 1 so that the initial factorisation is regular
             mg.levels_mut_shift_fill(1.0);
         }
