@@ -9,7 +9,7 @@
 //! | [`transport`] | ∂Φ/∂t + u·∇Φ = 0 (10a), TVD-RK3 + upwind WENO5 | Shu & Osher 1988 |
 //! | [`redistance`] | ∂Φ/∂τ + S(Φ⁰)(\|∇Φ\| − 1) = 0 with a frozen subcell band | Sussman, Smereka & Osher 1994; Russo & Smereka 2000; Chopp 2001; Min 2010 |
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
-//! | [`heaviside`] | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
+//! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
 //! | [`diagnostics`] | dense-phase area, symmetric difference, eikonal error | — |
 //! | [`validation`] | Zalesak disk, Rider–Kothe vortex | validation-data.md §6 |
 //!

@@ -1,5 +1,5 @@
 //! Redistancing: brings Φ back to a signed distance function without moving its zero level set
-//! (paper §2.4 and §3.1 step 1, "the redistancing algorithm proposed in [14]", applied about
+//! (paper §2.4 and §3.1 step 1, "the redistancing algorithm proposed in \[14\]", applied about
 //! every ten time steps — the caller decides when).
 //!
 //! Equation (Sussman, Smereka & Osher 1994, J. Comput. Phys. 114): the pseudo-time PDE
@@ -29,7 +29,7 @@
 //!
 //! - [`InterfaceTreatment::ClosestPoint`] (default): a frozen subcell band. Each cell next to the
 //!   interface is set, once per call, to ±(its distance to the zero set of the C¹ bicubic
-//!   interpolant of Φ⁰), found by Chopp's (2001) closest-point iteration ([`super::closest_point`]);
+//!   interpolant of Φ⁰), found by Chopp's (2001) closest-point iteration (module `closest_point`);
 //!   these values are held fixed (Dirichlet data) while the PDE redistances the other cells. The
 //!   interface is reproduced to O(h⁴) where Φ⁰ is smooth, and redistancing a distance function
 //!   again leaves it (almost) unchanged, so frequent redistancing does not make the interface

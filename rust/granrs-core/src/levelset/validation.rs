@@ -1,12 +1,12 @@
 //! Standard level-set transport benchmarks (validation-data.md §6), run end to end with the
 //! production transport and redistancing.
 //!
-//! - Zalesak (1979, J. Comput. Phys. 31) slotted disk: [0,100]², disk centre (50, 75), radius 15,
+//! - Zalesak (1979, J. Comput. Phys. 31) slotted disk: \[0,100\]², disk centre (50, 75), radius 15,
 //!   slot width 5, slot top y = 85, solid rotation u = (π/314)(50 − y), v = (π/314)(x − 50); one
 //!   revolution at t = 628 returns the exact initial shape, of area 582.207 (closed form in
 //!   [`Shape::area`]).
 //! - Rider & Kothe (1998, J. Comput. Phys. 141) single vortex: circle of radius 0.15 at
-//!   (0.5, 0.75) in [0,1]², u = −sin²(πx) sin(2πy) cos(πt/T), v = sin²(πy) sin(2πx) cos(πt/T);
+//!   (0.5, 0.75) in \[0,1\]², u = −sin²(πx) sin(2πy) cos(πt/T), v = sin²(πy) sin(2πx) cos(πt/T);
 //!   the flow reverses, and at t = T the exact solution is the initial circle.
 //!
 //! Velocities are sampled at the MAC faces (u on x-faces, v on y-faces), as the flow solver will
@@ -183,7 +183,7 @@ pub fn zalesak_shape() -> Shape {
     Shape::SlottedDisk { xc: 50.0, yc: 75.0, radius: 15.0, slot_width: 5.0, slot_top: 85.0 }
 }
 
-/// One revolution of Zalesak's slotted disk on an n × n grid of [0,100]²; redistancing every
+/// One revolution of Zalesak's slotted disk on an n × n grid of \[0,100\]²; redistancing every
 /// `redistance_every` steps (None: never), transport Courant number `cfl`.
 pub fn zalesak(n: usize, redistance_every: Option<usize>, cfl: f64, exec: Exec) -> Result<LevelSetMetrics> {
     zalesak_with(n, &CaseOptions::new(redistance_every, cfl), exec)
@@ -199,7 +199,7 @@ pub fn zalesak_with(n: usize, opts: &CaseOptions, exec: Exec) -> Result<LevelSet
     run_case(&grid, &shape, area, |_, y| w * (50.0 - y), |x, _| w * (x - 50.0), |_| 1.0, 628.0, opts, exec)
 }
 
-/// Rider–Kothe single vortex of period `period` (T) on an n × n grid of [0,1]², evaluated at
+/// Rider–Kothe single vortex of period `period` (T) on an n × n grid of \[0,1\]², evaluated at
 /// t = T against the initial circle.
 pub fn single_vortex(
     n: usize,
