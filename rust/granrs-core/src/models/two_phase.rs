@@ -72,14 +72,7 @@ impl ModelConfig {
             interface_width: 1.5,
             transport_interface: true,
             redistance_every: 10,
-            // a 12-cell band around the interface: 10× cheaper than the whole domain on the
-            // paper's grid (0.12 s against 1.28 s per call at 1280 × 256) and far wider than the
-            // ε = 1.5 h interface and the 3-cell WENO5 stencils that use Φ
-            // a 12-cell band around the interface: 10× cheaper than the whole domain on the
-            // paper's grid (0.12 s against 1.28 s per call at 1280 × 256) and far wider than the
-            // ε = 1.5 h interface and the 3-cell WENO5 stencils that use Φ; outside it Φ is
-            // clamped to ±12 h after each redistancing (see `interface` in step.rs)
-            redistance: RedistanceSettings { band: Some(12.0), ..RedistanceSettings::default() },
+            redistance: RedistanceSettings::default(),
             mass_correction: false,
             viscous: ViscousScheme::Implicit,
             pressure_solver: SolverSettings::default(),

@@ -188,15 +188,6 @@ impl TwoPhaseModel {
         if cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0 {
             let r = self.levelset.redistancer.redistance(&mut self.phi, &cfg.grid, exec);
             r.map_err(|e| self.at_step(e))?;
-            if let Some(band) = cfg.redistance.band {
-                // narrow band: beyond it Φ is not redistanced, so clamp it to ±band·h (the tube of
-                // Peng, Merriman, Osher, Zhao & Kang 1999) lest it drift far from a distance
-                let lim = band * cfg.grid.h();
-                let n = self.phi.nx;
-                for_each_interior_row(exec, &mut self.phi, |_, row| {
-                    row[HALO..HALO + n].iter_mut().for_each(|x| *x = x.clamp(-lim, lim));
-                });
-            }
         }
         if cfg.mass_correction {
             self.correct_mass(exec);
