@@ -7,6 +7,8 @@ use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
 use crate::projection::PressureProjection;
+use crate::rheology::stage::RheologyState;
+use crate::rheology::RheologyConfig;
 use crate::solvers::{SolveInfo, SolverSettings};
 use crate::time_stepping::{MomentumSolver, StepInfo, TimeConfig, ViscousScheme};
 
@@ -49,6 +51,8 @@ pub struct ModelConfig {
     pub time: TimeConfig,
     /// Number of threads of the model's rayon pool.
     pub threads: usize,
+    /// Rheology of the dense phase (yield stress, its treatment) and Coulomb wall friction.
+    pub rheology: RheologyConfig,
 }
 
 impl ModelConfig {
@@ -67,6 +71,7 @@ impl ModelConfig {
             pressure_solver: SolverSettings::default(),
             time: TimeConfig::default(),
             threads: 1,
+            rheology: RheologyConfig::default(),
         }
     }
 
@@ -85,6 +90,7 @@ impl ModelConfig {
         }
         self.pressure_solver.validate()?;
         self.time.validate()?;
+        self.rheology.validate()?;
         if self.threads == 0 || self.threads > 1024 {
             return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
         }
@@ -129,6 +135,8 @@ pub struct TwoPhaseModel {
     pub(crate) work: Work,
     pub(crate) projection: PressureProjection,
     pub(crate) momentum: MomentumSolver,
+    /// Plastic tensor, wall friction and their work arrays (None: Newtonian without friction).
+    pub(crate) rheology: Option<RheologyState>,
     /// Simulated time t_n.
     pub time: f64,
     /// Steps taken.
@@ -157,6 +165,7 @@ impl TwoPhaseModel {
         phi.fill(1.0);
         let projection = PressureProjection::new(g, &config.bc, config.pressure_solver)?;
         let momentum = MomentumSolver::new(g);
+        let rheology = RheologyState::new(g, &config.bc, &config.rheology);
         let work = Work {
             conv_u: xf(),
             conv_v: yf(),
@@ -183,6 +192,7 @@ impl TwoPhaseModel {
             work,
             projection,
             momentum,
+            rheology,
             time: 0.0,
             step_count: 0,
             dt_prev: None,

@@ -2,7 +2,7 @@
 //!
 //! Normal components on the boundary are set to the prescribed normal velocity (walls: 0); ghost
 //! layers beyond a wall are odd reflections about the wall value, u_n(−k) = 2u_n(0) − u_n(k);
-//! beyond an outflow boundary they are constant, u_n(−k) = u_n(0). Tangential ghosts follow
+//! beyond an outflow or fully developed boundary they are constant, u_n(−k) = u_n(0). Tangential ghosts follow
 //! `VelocityBc::tangential_ghost`: u_t(−k) = a u_t(k−1) + b.
 //!
 //! With [`BcMode::Homogeneous`] every inhomogeneous datum (b, prescribed normal velocity) is
@@ -21,10 +21,11 @@ pub enum BcMode {
 }
 
 /// Indices of the normal-velocity faces that are unknowns along one direction with `n` cells:
-/// faces 1..n−1 are always unknown, face 0 (resp. n) only if that side is an outflow.
+/// faces 1..n−1 are always unknown, face 0 (resp. n) only if that side is an outflow or fully
+/// developed side.
 pub fn unknown_face_range(low: VelocityBc, high: VelocityBc, n: usize) -> Range<usize> {
-    let start = if matches!(low, VelocityBc::Outflow) { 0 } else { 1 };
-    let end = if matches!(high, VelocityBc::Outflow) { n + 1 } else { n };
+    let start = if low.normal_is_unknown() { 0 } else { 1 };
+    let end = if high.normal_is_unknown() { n + 1 } else { n };
     start..end
 }
 
@@ -43,7 +44,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
     let (bl, br, bb, bt) = (bc.get(Side::Left), bc.get(Side::Right), bc.get(Side::Bottom), bc.get(Side::Top));
     for j in 0..ny {
         // left boundary face i = 0
-        if !matches!(bl, VelocityBc::Outflow) {
+        if !bl.normal_is_unknown() {
             let w = normal(bl);
             let k0 = u.idx(0, j);
             u.slice_mut()[k0] = w;
@@ -60,7 +61,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
             }
         }
         // right boundary face i = nx (inflow into the domain is −x)
-        if !matches!(br, VelocityBc::Outflow) {
+        if !br.normal_is_unknown() {
             let w = -normal(br);
             let k0 = u.idx(nx, j);
             u.slice_mut()[k0] = w;
@@ -92,7 +93,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
 
     // ---- v: normal on bottom/top, tangential on left/right ----
     for i in 0..nx {
-        if !matches!(bb, VelocityBc::Outflow) {
+        if !bb.normal_is_unknown() {
             let w = normal(bb);
             let k0 = v.idx(i, 0);
             v.slice_mut()[k0] = w;
@@ -108,7 +109,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
                 v.slice_mut()[kk] = w;
             }
         }
-        if !matches!(bt, VelocityBc::Outflow) {
+        if !bt.normal_is_unknown() {
             let w = -normal(bt);
             let k0 = v.idx(i, ny);
             v.slice_mut()[k0] = w;
