@@ -35,7 +35,8 @@ class Callback:
 class Simulation:
     """Runs a model to ``stop_time`` and/or ``stop_iteration``, or until a callback sets
     ``simulation.stop = True`` (with ``stop_reason``). Per-step diagnostics accumulate in
-    ``history`` (arrays: time, dt, max_speed, cfl, divergence, pressure_iterations, viscous_iterations)."""
+    ``history`` (arrays: time, dt, max_speed, cfl, divergence, pressure_iterations, viscous_iterations,
+    picard_iterations, picard_increment)."""
 
     def __init__(self, model: Model, stop_time: Optional[float] = None, stop_iteration: Optional[int] = None,
                  callbacks: Optional[list] = None, progress: bool = False, wall_limit: Optional[float] = None):
@@ -50,7 +51,8 @@ class Simulation:
         self.progress = progress
         self.wall_limit = wall_limit
         self.history: dict[str, list] = {k: [] for k in ("time", "dt", "max_speed", "cfl", "divergence",
-                                                          "pressure_iterations", "viscous_iterations")}
+                                                          "pressure_iterations", "viscous_iterations",
+                                                          "picard_iterations", "picard_increment")}
         self.stop = False
         self.stop_reason = ""
         self.wall_time = 0.0

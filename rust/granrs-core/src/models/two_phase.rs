@@ -53,6 +53,10 @@ pub struct ModelConfig {
     pub threads: usize,
     /// Rheology of the dense phase (yield stress, its treatment) and Coulomb wall friction.
     pub rheology: RheologyConfig,
+    /// Whether the convective term ρ(u·∇)u is included (false: unsteady Stokes equations).
+    pub convection: bool,
+    /// Relative residual of the implicit viscous solve (tightened inside the Picard loop).
+    pub viscous_rtol: f64,
 }
 
 impl ModelConfig {
@@ -72,6 +76,8 @@ impl ModelConfig {
             time: TimeConfig::default(),
             threads: 1,
             rheology: RheologyConfig::default(),
+            convection: true,
+            viscous_rtol: 1e-10,
         }
     }
 
@@ -91,6 +97,7 @@ impl ModelConfig {
         self.pressure_solver.validate()?;
         self.time.validate()?;
         self.rheology.validate()?;
+        crate::error::check_range("viscous_rtol", self.viscous_rtol, 1e-14, 1e-2)?;
         if self.threads == 0 || self.threads > 1024 {
             return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
         }
@@ -164,7 +171,8 @@ impl TwoPhaseModel {
         let mut phi = c();
         phi.fill(1.0);
         let projection = PressureProjection::new(g, &config.bc, config.pressure_solver)?;
-        let momentum = MomentumSolver::new(g);
+        let mut momentum = MomentumSolver::new(g);
+        momentum.rtol = config.viscous_rtol;
         let rheology = RheologyState::new(g, &config.bc, &config.rheology);
         let work = Work {
             conv_u: xf(),

@@ -196,7 +196,7 @@ pub struct RheologyConfig {
     pub r_wall: Option<f64>,
     /// Pseudo-relaxation θ ∈ [0, 1) of eq. (12) (0: plain Uzawa iteration).
     pub theta: f64,
-    /// The Picard iteration stops when max |Σ^{k+1} − Σ^k| and max |s^{k+1} − s^k| are below this.
+    /// The Picard iteration stops when max |τ(Σ^{k+1} − Σ^k)|/τ_max and max |τ_b(s^{k+1} − s^k)|/max τ_b are below this.
     pub picard_tol: f64,
     /// Reaching this many iterations without convergence is an error.
     pub picard_max_iterations: usize,

@@ -13,7 +13,7 @@
 //!   solve the predictor with the explicit force div(τ Σ^k)   → ũ^{k+1},
 //!   Σ^{k+1} = P(Σ^k + r D_dev(ũ^{k+1}) + θ (Σ^n − Σ^k)),
 //!
-//! until max |Σ^{k+1} − Σ^k| ≤ tol. Its fixed point solves Σ = P(Σ + r D + θ(Σ^n − Σ)), i.e. eq. (11)
+//! until max |τ(Σ^{k+1} − Σ^k)|/τ_max ≤ tol. Its fixed point solves Σ = P(Σ + r D + θ(Σ^n − Σ)), i.e. eq. (11)
 //! up to the first-order-in-time term θ(Σ^n − Σ^{n+1}) (which vanishes at steady state).
 //!
 //! **Storage and discrete projection.** Σ_xx lives at cell centres (with D_xx, D_yy) and Σ_xy at
@@ -31,10 +31,19 @@
 //! operator A = c + Dᵀ(2η)D ≥ c + 4η DᵀD (c = a₀ρ/δt), the linearised iteration is
 //! Σ ↦ (1 − θ)Σ − r K Σ + …, K = 2 D A⁻¹ Dᵀ τ, whose eigenvalues lie in [0, τ k_max] with
 //! k_max = 2S/(c + 4ηS), S = 2(1/dx² + 1/dy²) ≥ ‖D‖². P is non-expansive, so the map contracts
-//! with ratio max(1 − θ, |1 − θ − r τ k_max|) for r τ k_max ≤ 2(1 − θ). The default takes
-//! r = (1 − θ) / max(τ k_max) over the cells: the modes seen by the velocity then converge at
-//! least as fast as the ones it does not see (ratio 1 − θ, the paper's geometric rate). Limits:
-//! Stokes (c → 0) r = 2η(1 − θ)/τ ("r ~ η/τ"); inertial (small δt) r = (1 − θ) c/(2Sτ).
+//! with ratio max(1 − θ, |1 − θ − r τ k_max|) for r τ k_max ≤ 2(1 − θ).
+//!
+//! The fixed point does not depend on r, even point by point (Σ = P(Σ + r D) says Σ = D/|D| or
+//! D = 0 whatever r > 0 is), so the default takes a *local* r(x) = (1 − θ)/(τ(x) k(x)) with k
+//! the largest over a 5 × 5 neighbourhood of the point (k evaluated with each cell's c and η): a
+//! Jacobi-like scaling of the same bound. (k of the point alone flip-flopped, increment ≈ 2, at
+//! the interface band where k jumps by ~80 over two cells.) A single
+//! r = (1 − θ)/max(τ k) satisfies the bound rigorously but crawls on layers under air: τ ∝ p
+//! varies with depth, and in the interface band the harmonic-mean viscosity collapses to the
+//! air's, so k there is ~80 times the bulk value; Uzawa (θ = 0) on a heap at rest did not
+//! converge in 20 000 iterations with it, and converges with the local r (docs/validation.md).
+//! Limits: Stokes (c → 0) r = 2η(1 − θ)/τ ("r ~ η/τ"); inertial (small δt) r = (1 − θ)c/(2Sτ).
+//! A user-given `r` is used as a constant.
 
 use crate::error::Error;
 use crate::exec::Exec;
@@ -48,7 +57,7 @@ pub struct PicardInfo {
     pub iterations: usize,
     /// max |Σ^{k+1} − Σ^k|, max |s^{k+1} − s^k| at the last iteration.
     pub increment: f64,
-    /// r used in the step.
+    /// r used in the step: the user's constant r, or the smallest local r [s].
     pub r: f64,
     /// r_b used in the step (0 without friction walls).
     pub r_wall: f64,
@@ -83,6 +92,11 @@ pub struct PlasticState {
     /// Yield stress τ at centres (ghosts filled) and nodes.
     pub tau_c: Field,
     pub tau_n: Field,
+    /// Largest yield stress of the step (the scale of the Picard increment).
+    pub tau_max: f64,
+    /// r at centres and nodes.
+    pub r_c: Field,
+    pub r_n: Field,
     trial_c: Field,
     trial_n: Field,
     new_c: Field,
@@ -108,6 +122,9 @@ impl PlasticState {
             sigma_xy_n: n(),
             tau_c: c(),
             tau_n: n(),
+            tau_max: 0.0,
+            r_c: c(),
+            r_n: n(),
             trial_c: c(),
             trial_n: n(),
             new_c: c(),
@@ -161,26 +178,30 @@ impl PlasticState {
     }
 
     /// One Picard update Σ^{k+1} = P(Σ^k + r D_dev(ũ) + θ(Σ^n − Σ^k)) from the strain rate of ũ
-    /// (D_xx, D_yy at centres, D_xy at nodes). Σ is kept at 0 where τ = 0 (outside the granular
-    /// phase) and on held boundary nodes. Returns max |Σ^{k+1} − Σ^k|.
-    #[allow(clippy::too_many_arguments)]
-    pub fn update(&mut self, dxx: &Field, dyy: &Field, dxy: &Field, r: f64, theta: f64, exec: Exec) -> f64 {
+    /// (D_xx, D_yy at centres, D_xy at nodes), with r from the fields `r_c`, `r_n`. Σ is kept at
+    /// 0 where τ = 0 (outside the granular phase) and on held boundary nodes. Returns the
+    /// increment of the plastic stress that enters the momentum equation,
+    /// max |τ (Σ^{k+1} − Σ^k)| / τ_max (= max |Σ^{k+1} − Σ^k| for a constant yield stress): Σ in
+    /// the interface band, where τ → 0, converges slowest and matters least.
+    pub fn update(&mut self, dxx: &Field, dyy: &Field, dxy: &Field, theta: f64, exec: Exec) -> f64 {
         // trial values at centres and nodes
         {
             let (sx, sxn, tc, a, b) = (self.sigma_xx.slice(), self.sigma_xx_n.slice(), self.tau_c.slice(), dxx.slice(), dyy.slice());
+            let rc = self.r_c.slice();
             let st = self.sigma_xx.stride();
             let n = self.trial_c.nx;
             for_each_interior_row(exec, &mut self.trial_c, |j, row| {
                 let bb = (j + HALO) * st + HALO;
                 for i in 0..n {
                     let k = bb + i;
-                    row[HALO + i] = if tc[k] > 0.0 { sx[k] + 0.5 * r * (a[k] - b[k]) + theta * (sxn[k] - sx[k]) } else { 0.0 };
+                    row[HALO + i] = if tc[k] > 0.0 { sx[k] + 0.5 * rc[k] * (a[k] - b[k]) + theta * (sxn[k] - sx[k]) } else { 0.0 };
                 }
             });
         }
         self.trial_c.extrapolate_ghosts_constant();
         {
             let (sy, syn, tn, c) = (self.sigma_xy.slice(), self.sigma_xy_n.slice(), self.tau_n.slice(), dxy.slice());
+            let rn = self.r_n.slice();
             let st = self.sigma_xy.stride();
             let (nxn, nyn) = (self.trial_n.nx, self.trial_n.ny);
             let z = self.zero_tangential;
@@ -189,7 +210,7 @@ impl PlasticState {
                 let bb = (j + HALO) * st + HALO;
                 for i in 0..nxn {
                     let k = bb + i;
-                    row[HALO + i] = if tn[k] > 0.0 && !held(i, j) { sy[k] + r * c[k] + theta * (syn[k] - sy[k]) } else { 0.0 };
+                    row[HALO + i] = if tn[k] > 0.0 && !held(i, j) { sy[k] + rn[k] * c[k] + theta * (syn[k] - sy[k]) } else { 0.0 };
                 }
             });
         }
@@ -219,7 +240,9 @@ impl PlasticState {
                 }
             });
         }
-        let inc = max_abs_diff(&self.new_c, &self.sigma_xx, exec).max(max_abs_diff(&self.new_n, &self.sigma_xy, exec));
+        let tau_ref = self.tau_max;
+        let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec)
+            .max(weighted_max_abs_diff(&self.new_n, &self.sigma_xy, &self.tau_n, tau_ref, exec));
         self.sigma_xx.assign(&self.new_c);
         self.sigma_xy.assign(&self.new_n);
         inc
@@ -248,42 +271,112 @@ fn node_held(z: &[bool; 4], i: usize, j: usize, nxn: usize, nyn: usize) -> bool 
     (i == 0 && z[0]) || (i + 1 == nxn && z[1]) || (j == 0 && z[2]) || (j + 1 == nyn && z[3])
 }
 
-/// max over the interior of |a − b| (deterministic; NaN propagates).
-pub fn max_abs_diff(a: &Field, b: &Field, exec: Exec) -> f64 {
-    let (sa, sb) = (a.slice(), b.slice());
+/// max over the interior of |a − b| w / w_ref (deterministic; NaN propagates).
+pub fn weighted_max_abs_diff(a: &Field, b: &Field, w: &Field, w_ref: f64, exec: Exec) -> f64 {
+    let (sa, sb, sw) = (a.slice(), b.slice(), w.slice());
+    let scale = if w_ref > 0.0 { 1.0 / w_ref } else { 0.0 };
     let (st, nx) = (a.stride(), a.nx);
     exec.max_rows(a.ny, a.nx * a.ny, |j| {
         let bb = (j + HALO) * st + HALO;
         let mut m = 0.0f64;
         for i in 0..nx {
-            let d = (sa[bb + i] - sb[bb + i]).abs();
+            let d = (sa[bb + i] - sb[bb + i]).abs() * sw[bb + i] * scale;
             m = if d.is_nan() { f64::NAN } else { m.max(d) };
         }
         m
     })
 }
 
-/// Default r = (1 − θ) / max over cells of τ k_max, k_max = 2S/(c + 4ηS), S = 2(1/dx² + 1/dy²),
-/// with c = a₀ρ/δt and η of each cell (see the module header). Returns 1 when τ = 0 everywhere
-/// (r is then irrelevant).
-pub fn default_r(theta: f64, tau_c: &Field, eta_c: &Field, rho_u: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
-    let s = 2.0 * (1.0 / (grid.dx * grid.dx) + 1.0 / (grid.dy * grid.dy));
-    let (ts, es, rs) = (tau_c.slice(), eta_c.slice(), rho_u.slice());
-    let nx = grid.nx;
-    let worst = exec.max_rows(grid.ny, grid.cells(), |j| {
-        let (bc, bu) = (base(tau_c, j as isize), base(rho_u, j as isize));
-        let mut m = 0.0f64;
-        for i in 0..nx {
-            let c = a0_over_dt * 0.5 * (rs[bu + i] + rs[bu + i + 1]);
-            let k = 2.0 * s / (c + 4.0 * es[bc + i] * s);
-            m = m.max(ts[bc + i] * k);
+/// Half-width (in cells) of the neighbourhood over which the default r takes the largest k.
+pub const R_NEIGHBOURHOOD: isize = 2;
+
+impl PlasticState {
+    /// Sets r at centres and nodes: the constant `r` if given, else the local default
+    /// r = (1 − θ)/(τ k̄), with k̄ the largest k = 2S/(c + 4ηS) (S = 2(1/dx² + 1/dy²),
+    /// c = a₀ρ/δt with ρ averaged from the u faces of the cell, η of the cell) over the
+    /// (2·[`R_NEIGHBOURHOOD`] + 1)² cells around the point (for a node: around its four cells).
+    /// Returns the smallest r where τ > 0 (the value reported per step; 0 if τ = 0 everywhere).
+    #[allow(clippy::too_many_arguments)]
+    pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
+        if let Some(r) = r {
+            self.r_c.fill(r);
+            self.r_n.fill(r);
+            return r;
         }
-        m
-    });
-    if worst > 0.0 && worst.is_finite() {
-        (1.0 - theta) / worst
-    } else {
-        1.0
+        let s = 2.0 * (1.0 / (grid.dx * grid.dx) + 1.0 / (grid.dy * grid.dy));
+        let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+        // k at centres (scratch: new_c), its neighbourhood maximum (scratch: trial_c)
+        {
+            let (rs, es) = (rho_u.slice(), eta_c.slice());
+            let n = self.new_c.nx;
+            for_each_interior_row(exec, &mut self.new_c, |j, row| {
+                let (bc, bu) = (base(eta_c, j as isize), base(rho_u, j as isize));
+                for i in 0..n {
+                    let c = a0_over_dt * 0.5 * (rs[bu + i] + rs[bu + i + 1]);
+                    row[HALO + i] = 2.0 * s / (c + 4.0 * es[bc + i] * s);
+                }
+            });
+        }
+        {
+            let k = &self.new_c;
+            let w = R_NEIGHBOURHOOD;
+            for_each_interior_row(exec, &mut self.trial_c, |j, row| {
+                let j = j as isize;
+                for i in 0..nx {
+                    let mut m = 0.0f64;
+                    for jj in (j - w).max(0)..=(j + w).min(ny - 1) {
+                        for ii in (i - w).max(0)..=(i + w).min(nx - 1) {
+                            m = m.max(k.at(ii, jj));
+                        }
+                    }
+                    row[HALO + i as usize] = m;
+                }
+            });
+        }
+        self.trial_c.extrapolate_ghosts_constant();
+        let kmax = &self.trial_c;
+        let ks = kmax.slice();
+        {
+            let ts = self.tau_c.slice();
+            let n = self.r_c.nx;
+            for_each_interior_row(exec, &mut self.r_c, |j, row| {
+                let b = base(kmax, j as isize);
+                for i in 0..n {
+                    let t = ts[b + i];
+                    row[HALO + i] = if t > 0.0 { (1.0 - theta) / (t * ks[b + i]) } else { 0.0 };
+                }
+            });
+        }
+        {
+            let ts = self.tau_n.slice();
+            let tau_n = &self.tau_n;
+            let n = self.r_n.nx;
+            for_each_interior_row(exec, &mut self.r_n, |j, row| {
+                let j = j as isize;
+                let (bn, b0, b1) = (base(tau_n, j), base(kmax, j - 1), base(kmax, j));
+                for i in 0..n {
+                    let k = ks[b0 + i].max(ks[b0 + i - 1]).max(ks[b1 + i]).max(ks[b1 + i - 1]);
+                    let t = ts[bn + i];
+                    row[HALO + i] = if t > 0.0 { (1.0 - theta) / (t * k) } else { 0.0 };
+                }
+            });
+        }
+        let (rc, tc, st, n) = (self.r_c.slice(), self.tau_c.slice(), self.r_c.stride(), self.r_c.nx);
+        let m = exec.max_rows(self.r_c.ny, n * self.r_c.ny, |j| {
+            let b = (j + HALO) * st + HALO;
+            let mut m = 0.0f64;
+            for i in 0..n {
+                if tc[b + i] > 0.0 {
+                    m = m.max(1.0 / rc[b + i]);
+                }
+            }
+            m
+        });
+        if m > 0.0 {
+            1.0 / m
+        } else {
+            0.0
+        }
     }
 }
 
@@ -292,7 +385,7 @@ pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta:
     Error::Simulation {
         what: format!(
             "Picard iteration of the plastic projection did not converge: increment {increment:.3e} after {iterations} iterations \
-             (picard_tol = {tol:.1e}, r = {r:.3e}, theta = {theta}); raise picard_max_iterations or theta, or lower r"
+             (picard_tol = {tol:.1e}, r = {r:.3e} (smallest), theta = {theta}); raise picard_max_iterations or theta, or lower r"
         ),
         step,
         time,

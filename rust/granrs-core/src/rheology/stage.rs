@@ -9,7 +9,7 @@
 //!   the single predictor solve, or the Picard loop of the bi-projection coupling the predictor
 //!   with the plastic projection of Σ and the friction projection of s.
 
-use super::plastic::{default_r, not_converged, PicardInfo, PlasticState};
+use super::plastic::{not_converged, PicardInfo, PlasticState};
 use super::{RheologyConfig, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
@@ -21,6 +21,9 @@ use crate::solvers::SolveInfo;
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
 use crate::time_stepping::step::heaviside;
 use crate::walls::{default_r_wall, CoulombWalls};
+
+/// Iteration cap of each viscous solve inside the Picard loop.
+pub const PICARD_SOLVE_MAX_ITERATIONS: usize = 500;
 
 /// State and work arrays of the rheology (allocated once, only for non-Newtonian laws or
 /// friction walls).
@@ -44,7 +47,9 @@ pub struct RheologyState {
     picard: bool,
     /// Whether Σ is iterated (a yield stress treated by projection).
     projection: bool,
-    /// r and r_b of the current step.
+    /// Increments of the Picard iterations of the last step (capacity reserved once).
+    pub history: Vec<f64>,
+    /// r of the current step (a user's constant r, or the smallest local r), and r_b.
     pub r: f64,
     pub r_wall: f64,
 }
@@ -74,6 +79,7 @@ impl RheologyState {
             ustar_u: Field::zeros(grid, Location::XFace),
             ustar_v: Field::zeros(grid, Location::YFace),
             sigma_norm: c(),
+            history: Vec::with_capacity(cfg.picard_max_iterations.min(100_000)),
             picard: cfg.needs_picard(coulomb),
             projection: cfg.law.has_yield_stress() && cfg.treatment == YieldTreatment::Projection,
             r: 0.0,
@@ -113,6 +119,7 @@ impl TwoPhaseModel {
             });
         }
         rs.plastic.tau_c.extrapolate_ghosts_constant();
+        rs.plastic.tau_max = rs.plastic.tau_c.max_abs().max(rs.plastic.tau_n.max_abs());
         // lagged viscosity of variable-viscosity laws, from D(u^n)
         if rc.variable_viscosity() {
             strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
@@ -159,7 +166,8 @@ impl TwoPhaseModel {
         }
         // parameters of the projections
         if rs.projection {
-            rs.r = rc.r.unwrap_or_else(|| default_r(rc.theta, &rs.plastic.tau_c, &self.work.eta_c, &self.work.rho_u, a0_over_dt, grid, exec));
+            let wk = &self.work;
+            rs.r = rs.plastic.set_r(rc.r, rc.theta, &wk.eta_c, &wk.rho_u, a0_over_dt, grid, exec);
         }
         if rs.walls.is_active() {
             let tan_b = rc.wall_friction_angle.unwrap_or(0.0).to_radians().tan();
@@ -189,15 +197,38 @@ impl TwoPhaseModel {
             };
             return Ok((info, PicardInfo::default()));
         };
-        let rc = cfg.rheology;
         rs.plastic.begin_step();
         rs.walls.begin_step();
         if explicit {
             rs.ustar_u.assign(&self.u);
             rs.ustar_v.assign(&self.v);
         }
+        // The inner solves must be more accurate than the fixed point sought: without θ nothing
+        // damps their error in the directions of Σ the velocity does not see, and the increment
+        // stalls at the level of the solver tolerance (seen: 5e-10 with rtol = 1e-10).
+        // Each inner solve is capped at PICARD_SOLVE_MAX_ITERATIONS: on open sides CG reaches
+        // ~1e-9 and then drifts (see below), and a warm-started solve inside the loop needs far
+        // fewer iterations than that otherwise.
+        let (rtol_outer, cap_outer) = (self.momentum.rtol, self.momentum.max_iterations);
+        self.momentum.rtol = rtol_outer.min(1e-2 * cfg.rheology.picard_tol).max(1e-12);
+        self.momentum.max_iterations = cap_outer.min(PICARD_SOLVE_MAX_ITERATIONS);
+        let result = self.picard_loop(exec);
+        self.momentum.rtol = rtol_outer;
+        self.momentum.max_iterations = cap_outer;
+        result
+    }
+
+    fn picard_loop(&mut self, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+        let cfg = &self.config;
+        let (grid, bc) = (&cfg.grid, &cfg.bc);
+        let wk = &self.work;
+        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
+        let explicit = cfg.viscous == ViscousScheme::Explicit;
+        let rc = cfg.rheology;
+        let rs = self.rheology.as_mut().expect("picard_loop runs with a rheology state");
         let mut total = SolveInfo::default();
         let mut inc = f64::INFINITY;
+        rs.history.clear();
         for k in 1..=rc.picard_max_iterations {
             // rhs + div(τΣ^k) + wall friction τ_b s^k / h
             rs.rhs_u.assign(&wk.rhs_u);
@@ -211,7 +242,18 @@ impl TwoPhaseModel {
                 self.v.assign(&rs.ustar_v);
                 self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &rs.rhs_u, &rs.rhs_v, exec);
             } else {
-                let info = self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &rs.rhs_u, &rs.rhs_v, exec)?;
+                // A solve that stalls within 1000× of the tightened tolerance (or below 1e-7) is
+                // accepted: the Picard test below judges the result. CG stalls near 1e-9 and then
+                // drifts when round-off variations along an open side meet the asymmetry of the
+                // viscous operator there (see `MomentumSolver::diagonal`).
+                let info = match self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &rs.rhs_u, &rs.rhs_v, exec) {
+                    Ok(info) => info,
+                    Err(crate::Error::NotConverged { iterations, residual, tolerance, .. }) if residual <= (1e3 * tolerance).max(1e-7) => {
+                        fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
+                        SolveInfo { iterations, residual, initial_residual: 0.0, rhs_mean_removed: 0.0 }
+                    }
+                    Err(e) => return Err(e),
+                };
                 total.iterations += info.iterations;
                 total.residual = info.residual;
                 if k == 1 {
@@ -222,11 +264,14 @@ impl TwoPhaseModel {
             inc = 0.0;
             if rs.projection {
                 strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
-                inc = rs.plastic.update(&rs.dxx, &rs.dyy, &rs.dxy, rs.r, rc.theta, exec);
+                inc = rs.plastic.update(&rs.dxx, &rs.dyy, &rs.dxy, rc.theta, exec);
             }
             if rs.walls.is_active() {
                 let d = rs.walls.update(&self.u, &self.v, rs.r_wall, rc.theta, grid);
                 inc = if d.is_nan() { d } else { inc.max(d) };
+            }
+            if rs.history.len() < rs.history.capacity() {
+                rs.history.push(inc);
             }
             if inc.is_nan() {
                 break;
@@ -247,6 +292,12 @@ impl TwoPhaseModel {
     /// |Σ| at cell centres after the last step, if the rheology has a plastic tensor.
     pub fn plastic_norm(&self) -> Option<&Field> {
         self.rheology.as_ref().map(|r| &r.sigma_norm)
+    }
+
+    /// Increments max |τ(Σ^{k+1} − Σ^k)|/τ_max (and of the wall stress) of the Picard iterations
+    /// of the last step (empty without plastic stress or wall friction).
+    pub fn picard_history(&self) -> &[f64] {
+        self.rheology.as_ref().map(|r| &r.history[..]).unwrap_or(&[])
     }
 
     /// The yield stress τ(Φ) at cell centres of the last step.

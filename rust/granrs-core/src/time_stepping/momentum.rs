@@ -131,7 +131,7 @@ impl MomentumSolver {
 
     /// Diagonal of A on the unknown faces, used as the Jacobi preconditioner: exact, including
     /// the ghost factors of the boundary rules, except on open (outflow, fully developed) boundary
-    /// faces, which get the interior value. There the viscous operator is not symmetric (the
+    /// faces and on the tangential rows beside open sides, which get the interior value. There the viscous operator is not symmetric (the
     /// tangential row beside the side sees ∂u_n/∂t at the boundary node, the normal row does not
     /// see the tangential velocity), and an exact diagonal would make the preconditioned residual
     /// of a flow that is invariant along the normal vary along it and excite that asymmetry: CG
@@ -141,8 +141,17 @@ impl MomentumSolver {
         let g = sys.grid;
         let (nx, ny) = (g.nx as isize, g.ny as isize);
         let (idx2, idy2) = (1.0 / (g.dx * g.dx), 1.0 / (g.dy * g.dy));
-        let (ab, at) = (sys.bc.get(Side::Bottom).tangential_ghost(g.dy).0, sys.bc.get(Side::Top).tangential_ghost(g.dy).0);
-        let (al, ar) = (sys.bc.get(Side::Left).tangential_ghost(g.dx).0, sys.bc.get(Side::Right).tangential_ghost(g.dx).0);
+        // tangential ghost factor a of each side; open sides get the interior value (factor 0)
+        let factor = |side: Side, h: f64| {
+            let b = sys.bc.get(side);
+            if b.normal_is_unknown() {
+                0.0
+            } else {
+                b.tangential_ghost(h).0
+            }
+        };
+        let (ab, at) = (factor(Side::Bottom, g.dy), factor(Side::Top, g.dy));
+        let (al, ar) = (factor(Side::Left, g.dx), factor(Side::Right, g.dx));
         let (ru, rv) = ranges(g, sys.bc);
         let (ec, en) = (sys.eta_c, sys.eta_n);
         for j in 0..ny {

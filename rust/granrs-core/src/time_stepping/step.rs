@@ -228,7 +228,15 @@ impl TwoPhaseModel {
         fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
         fill_pressure_ghosts(&mut self.p, bc);
         let wk = &mut self.work;
-        convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec);
+        if cfg.convection {
+            convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec);
+        } else {
+            // Stokes flow (Re = 0), or a flow whose convection vanishes identically (x-invariant
+            // layers, where an explicit convection of round-off perturbations through open
+            // sides is unstable)
+            wk.conv_u.fill(0.0);
+            wk.conv_v.fill(0.0);
+        }
         gradient(&self.p, grid, &mut wk.gx, &mut wk.gy, exec);
         let first = self.dt_prev.is_none();
         // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ∇pⁿ ;  c = a₀ρ/δt

@@ -141,9 +141,12 @@ impl CoulombWalls {
     }
 
     /// One Picard update s^{k+1} = P_b(s^k − r_b u_t + θ(s^n − s^k)) from the velocity ũ^{k+1};
-    /// returns max |s^{k+1} − s^k|. Faces with τ_b = 0 keep s = 0.
+    /// returns max |τ_b (s^{k+1} − s^k)| / max τ_b (the increment of the wall stress). Faces with
+    /// τ_b = 0 keep s = 0.
     pub fn update(&mut self, u: &Field, v: &Field, r_b: f64, theta: f64, grid: &Grid) -> f64 {
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+        let tau_ref = self.sides.iter().flat_map(|w| w.tau_b.iter()).fold(0.0f64, |a, &b| a.max(b));
+        let scale = if tau_ref > 0.0 { 1.0 / tau_ref } else { 0.0 };
         let mut inc = 0.0f64;
         for w in &mut self.sides {
             for f in w.faces.clone() {
@@ -155,7 +158,7 @@ impl CoulombWalls {
                     Side::Right => v.at(nx - 1, fi),
                 };
                 let new = if w.tau_b[f] > 0.0 { (w.s[f] - r_b * ut + theta * (w.s_n[f] - w.s[f])).clamp(-1.0, 1.0) } else { 0.0 };
-                let d = (new - w.s[f]).abs();
+                let d = (new - w.s[f]).abs() * w.tau_b[f] * scale;
                 inc = if d.is_nan() { f64::NAN } else { inc.max(d) };
                 w.s[f] = new;
             }
