@@ -16,24 +16,30 @@ The pipeline is grid → model → simulation → run::
 """
 
 from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
-from .boundary import BoundaryConditions, Coulomb, FreeSlip, NavierSlip, NoSlip, Outflow, Velocity
 from . import shapes
+from .boundary import BoundaryConditions, Coulomb, FreeSlip, FullyDeveloped, NavierSlip, NoSlip, Outflow, Velocity
 from .grid import Grid
 from .materials import AIR, WATER, Material
 from .model import Model, Numerics, PorePressure
+from .rheology import Bingham, DruckerPrager, MuI, Newtonian
 from .simulation import Callback, Simulation
 
 __all__ = [
     "AIR",
     "WATER",
+    "Bingham",
     "BoundaryConditions",
     "Callback",
     "Coulomb",
+    "DruckerPrager",
     "FreeSlip",
+    "FullyDeveloped",
     "Grid",
     "Material",
     "Model",
+    "MuI",
     "NavierSlip",
+    "Newtonian",
     "NoSlip",
     "Numerics",
     "Outflow",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Optional
 
 from ._granrs import ParameterError
 
@@ -70,13 +71,33 @@ class Outflow:
 
 @dataclass(frozen=True)
 class Coulomb:
-    """Coulomb friction wall for the granular phase (paper eq. 8–9); free-slip for air."""
+    """Coulomb friction wall for the granular phase (paper eq. 8–9): impermeable, tangential stress
+    tan(``friction_angle``) p⁺ opposing the slip (angle α_b in degrees, the paper's 15°); free-slip
+    for air, and frictionless if ``friction_angle`` is None. Every Coulomb side shares one angle."""
+
+    friction_angle: Optional[float] = None
+
+    def __post_init__(self):
+        if self.friction_angle is not None:
+            v = _finite("friction_angle", self.friction_angle)
+            if not 0 <= v < 90:
+                raise ParameterError(f"invalid parameter `friction_angle` = {v!r}: allowed an angle in degrees in [0, 90)")
 
     def spec(self):
-        return ("coulomb", {})
+        return ("coulomb", {} if self.friction_angle is None else {"friction_angle": float(self.friction_angle)})
 
 
-_KINDS = (NoSlip, FreeSlip, Velocity, NavierSlip, Outflow, Coulomb)
+@dataclass(frozen=True)
+class FullyDeveloped:
+    """Fully developed in/outflow: zero normal gradient of both velocity components and of the
+    pressure. Stands in for periodicity in flows invariant along the side's normal (channels,
+    layers on an incline), where a hydrostatic pressure varies along the side."""
+
+    def spec(self):
+        return ("fully-developed", {})
+
+
+_KINDS = (NoSlip, FreeSlip, Velocity, NavierSlip, Outflow, Coulomb, FullyDeveloped)
 
 
 @dataclass(frozen=True)
@@ -94,7 +115,7 @@ class BoundaryConditions:
             if not isinstance(v, _KINDS):
                 raise ParameterError(
                     f"invalid parameter `bc.{side}` = {v!r}: allowed one of NoSlip(), FreeSlip(), Velocity(...), "
-                    "NavierSlip(...), Outflow(), Coulomb()")
+                    "NavierSlip(...), Outflow(), Coulomb(...), FullyDeveloped()")
 
     def spec(self) -> dict:
         return {s: getattr(self, s).spec() for s in ("left", "right", "bottom", "top")}

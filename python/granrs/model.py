@@ -14,9 +14,10 @@ import numpy as np
 
 from . import _granrs
 from ._granrs import ParameterError
-from .boundary import BoundaryConditions
+from .boundary import BoundaryConditions, Coulomb
 from .grid import Grid
 from .materials import Material
+from .rheology import RHEOLOGIES, Bingham, DruckerPrager, MuI, Newtonian
 
 HALO = _granrs.build_info()["halo"]
 ArrayOrFn = Union[np.ndarray, Callable[[np.ndarray, np.ndarray], np.ndarray], float]
@@ -62,6 +63,16 @@ class Numerics:
     transport_interface: False freezes the interface; mass_correction: shift Φ by a constant after
     each interface update so that the dense-phase area keeps its initial value (off by default;
     docs/validation.md compares both).
+
+    Yield stress and Coulomb walls (see ``granrs.rheology``): plastic: 'projection' (the
+    bi-projection scheme, default), 'papanastasiou' or 'bi-viscous'; regularisation: the
+    Papanastasiou exponent m [s] or the bi-viscous viscosity below yield [Pa s]; r, r_wall: the
+    parameters of Σ = P(Σ + r D(u)) and s = P_b(s − r_b u_t) (None: the contraction bounds
+    derived in ``rheology/plastic.rs`` and ``walls/mod.rs``); theta: pseudo-relaxation θ ∈ [0, 1)
+    of the Picard iteration (geometric ratio about 1 − θ; 0 is plain Uzawa); picard_tol and
+    picard_max_iterations: its stopping test on max |Σ^{k+1} − Σ^k| (dimensionless) and cap.
+    convection: False drops ρ(u·∇)u (Stokes flow, or x-invariant layers where it vanishes);
+    viscous_rtol: relative residual of the implicit viscous solve.
     """
 
     cfl: float = 0.5
@@ -77,6 +88,15 @@ class Numerics:
     redistance_every: int = 10
     transport_interface: bool = True
     mass_correction: bool = False
+    plastic: str = "projection"
+    regularisation: Optional[float] = None
+    r: Optional[float] = None
+    r_wall: Optional[float] = None
+    theta: float = 0.5
+    picard_tol: float = 1e-9
+    picard_max_iterations: int = 1000
+    convection: bool = True
+    viscous_rtol: float = 1e-10
 
 
 class Model:
@@ -84,11 +104,13 @@ class Model:
 
     ``dense`` is the material where Φ > 0 (the only one if ``light`` is None); ``light`` where
     Φ < 0. ``gravity`` is (g_x, g_y) in m s⁻². ``threads`` sets the size of the Rust thread pool.
+    ``rheology`` is the law of the dense phase (``granrs.Bingham(...)``, ``granrs.DruckerPrager(...)``,
+    ``granrs.MuI(...)``; default Newtonian), whose viscous part is ``dense.viscosity``.
     """
 
     def __init__(self, grid: Grid, dense: Material, light: Optional[Material] = None,
                  bc: Optional[BoundaryConditions] = None, gravity=(0.0, 0.0),
-                 numerics: Optional[Numerics] = None, threads: int = 1,
+                 numerics: Optional[Numerics] = None, threads: int = 1, rheology=None,
                  pore_pressure: Optional[PorePressure] = None):
         if not isinstance(grid, Grid):
             raise ParameterError(f"invalid parameter `grid` = {grid!r}: allowed a granrs.Grid")
@@ -98,6 +120,12 @@ class Model:
             raise ParameterError(f"invalid parameter `light` = {light!r}: allowed a granrs.Material or None")
         if not isinstance(threads, int) or isinstance(threads, bool) or not 1 <= threads <= 1024:
             raise ParameterError(f"invalid parameter `threads` = {threads!r}: allowed an integer in [1, 1024]")
+        if rheology is None:
+            rheology = Newtonian()
+        if not isinstance(rheology, RHEOLOGIES):
+            raise ParameterError(f"invalid parameter `rheology` = {rheology!r}: allowed granrs.Newtonian(), Bingham(...), "
+                                 "DruckerPrager(...) or MuI(...)")
+        self.rheology = rheology
         self.grid = grid
         self.dense = dense
         self.light = light
@@ -114,11 +142,18 @@ class Model:
             None if light is None else (light.density, light.viscosity),
             self.gravity, n.interface_width, n.transport_interface, n.redistance_every, n.viscous,
             n.cfl, n.dt, n.max_dt, n.max_growth, n.cfl_abort, n.pressure_solver, n.pressure_rtol,
-            n.pressure_max_iterations, threads,
+            n.pressure_max_iterations, threads, rheology.spec(), n.plastic, n.regularisation, n.r, n.r_wall,
+            n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}
+        self._has_plastic = isinstance(rheology, (Bingham, DruckerPrager, MuI)) or any(
+            isinstance(getattr(self.bc, s), Coulomb) and getattr(self.bc, s).friction_angle is not None
+            for s in ("left", "right", "bottom", "top"))
+        if self._has_plastic:
+            for name in ("sigma_xx", "sigma_xy", "sigma_norm", "yield_stress"):
+                self._views[name] = self._view(name)
 
     def _view(self, name: str) -> np.ndarray:
         full = self._rust.field_storage(name)
@@ -154,6 +189,45 @@ class Model:
         if "pf" not in self._views:
             raise ParameterError("invalid parameter `pf`: allowed only for a model with pore_pressure (this one is not fluidised)")
         return self._views["pf"]
+
+    @property
+    def viscosity(self) -> np.ndarray:
+        """Viscosity at cell centres of the last step, shape (ny, nx) (a fresh read-only view)."""
+        return self._view("viscosity")
+
+    def _plastic(self, name: str) -> np.ndarray:
+        if name not in self._views:
+            raise ParameterError(f"invalid parameter `{name}`: the rheology {self.rheology} has no plastic tensor")
+        return self._views[name]
+
+    @property
+    def sigma_xx(self) -> np.ndarray:
+        """Σ_xx of the plastic tensor at cell centres (Σ_yy = −Σ_xx), shape (ny, nx), read-only live view."""
+        return self._plastic("sigma_xx")
+
+    @property
+    def sigma_xy(self) -> np.ndarray:
+        """Σ_xy of the plastic tensor at nodes, shape (ny + 1, nx + 1), read-only live view."""
+        return self._plastic("sigma_xy")
+
+    @property
+    def sigma_norm(self) -> np.ndarray:
+        """|Σ| at cell centres after the last step (< 1: unyielded), shape (ny, nx), read-only live view."""
+        return self._plastic("sigma_norm")
+
+    @property
+    def yield_stress(self) -> np.ndarray:
+        """Yield stress τ(Φ) at cell centres of the last step [Pa], shape (ny, nx), read-only live view."""
+        return self._plastic("yield_stress")
+
+    def picard_history(self) -> np.ndarray:
+        """Increments max |τ(Σ^{k+1} − Σ^k)|/τ_max of the Picard iterations of the last step."""
+        return np.asarray(self._rust.picard_history())
+
+    def wall_friction(self, side: str):
+        """(s, τ_b) along a Coulomb side's tangential faces (arrays), or None without friction."""
+        out = self._rust.wall_friction(side)
+        return None if out is None else (np.asarray(out[0]), np.asarray(out[1]))
 
     def set_initial(self, u: ArrayOrFn = None, v: ArrayOrFn = None, p: ArrayOrFn = None,
                     phi: ArrayOrFn = None, pf: ArrayOrFn = None, balance_pressure: bool = True) -> None:
@@ -198,7 +272,7 @@ class Model:
     def advance(self, t_end: Optional[float] = None, max_steps: Optional[int] = None) -> dict:
         """Steps until ``t_end`` (landing on it exactly) or ``max_steps``; returns per-step
         diagnostics as lists (time, dt, max_speed, cfl, divergence, pressure_iterations,
-        viscous_iterations)."""
+        viscous_iterations, picard_iterations, picard_increment)."""
         return self._rust.advance(t_end, max_steps)
 
     @property
@@ -230,7 +304,7 @@ class Model:
             "dense": asdict(self.dense), "light": None if self.light is None else asdict(self.light),
             "bc": {k: v[0] for k, v in self.bc.spec().items()}, "gravity": list(self.gravity),
             "numerics": asdict(self.numerics), "threads": self.threads,
-            "pore_pressure": None if self.pore_pressure is None else asdict(self.pore_pressure),
+            "pore_pressure": None if self.pore_pressure is None else asdict(self.pore_pressure), "rheology": self.rheology.spec(),
         }
 
     def __repr__(self) -> str:

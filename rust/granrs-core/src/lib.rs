@@ -12,6 +12,9 @@
 //! - [`levelset`]: WENO5 + TVD-RK3 transport, redistancing, smoothed Heaviside and material laws;
 //! - [`pore_pressure`]: advection–diffusion of the pore gas pressure p_f and its boundary conditions;
 //! - [`projection`]: the variable-density pressure projection;
+//! - [`rheology`]: Newtonian, Bingham, Drucker–Prager and μ(I) laws; `plastic.rs`, the plastic
+//!   projection Σ = P(Σ + r D(u)) and its Picard iteration (the bi-projection scheme);
+//! - [`walls`]: Coulomb friction walls (the friction projection s = P_b(s − r_b u_t));
 //! - [`time_stepping`]: clock, CFL, and `step.rs`, the one ordered list of the stages of a step;
 //! - [`models`]: the two-phase model that owns the state and takes one step.
 
@@ -23,8 +26,10 @@ pub mod models;
 pub mod operators;
 pub mod pore_pressure;
 pub mod projection;
+pub mod rheology;
 pub mod solvers;
 pub mod time_stepping;
+pub mod walls;
 
 pub use error::{Error, Result};
 pub use exec::Exec;

@@ -7,6 +7,7 @@ use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig};
+use granrs_core::rheology::{RheologyConfig, RheologyLaw, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
 use granrs_core::Error;
@@ -57,13 +58,37 @@ fn parse_bc(side: &str, kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyRes
         "navier" => VelocityBc::NavierSlip { slip_length: get("slip_length")? },
         "outflow" => VelocityBc::Outflow,
         "coulomb" => VelocityBc::Coulomb,
+        "fully-developed" => VelocityBc::FullyDeveloped,
         other => {
             return Err(param_err(
                 &format!("bc.{side}"),
                 other,
-                "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb'",
+                "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb', 'fully-developed'",
             ))
         }
+    })
+}
+
+/// Parses the rheology ("kind", {params}) of the dense phase.
+fn parse_rheology(kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<RheologyLaw> {
+    let get = |key: &str| -> PyResult<f64> {
+        match params.and_then(|p| p.get_item(key).ok().flatten()) {
+            Some(v) => v.extract::<f64>().map_err(|_| param_err(key, v, "a number")),
+            None => Err(param_err(key, "missing", &format!("a number (required by the '{kind}' rheology)"))),
+        }
+    };
+    Ok(match kind {
+        "newtonian" => RheologyLaw::Newtonian,
+        "bingham" => RheologyLaw::Bingham { yield_stress: get("yield_stress")? },
+        "drucker-prager" => RheologyLaw::DruckerPrager { friction_angle: get("friction_angle")? },
+        "mu-i" => RheologyLaw::MuI {
+            mu_s: get("mu_s")?,
+            mu_2: get("mu_2")?,
+            i0: get("i0")?,
+            grain_diameter: get("grain_diameter")?,
+            grain_density: get("grain_density")?,
+        },
+        other => return Err(param_err("rheology", other, "one of 'newtonian', 'bingham', 'drucker-prager', 'mu-i'")),
     })
 }
 
@@ -85,6 +110,10 @@ fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>>
     d.set_item("pressure", info_dict(py, &s.pressure)?)?;
     d.set_item("viscous", info_dict(py, &s.viscous)?)?;
     d.set_item("pore", info_dict(py, &s.pore)?)?;
+    let pic = PyDict::new(py);
+    pic.set_item("iterations", s.picard_iterations)?;
+    pic.set_item("increment", s.picard_increment)?;
+    d.set_item("picard", pic)?;
     Ok(d)
 }
 
@@ -105,7 +134,23 @@ impl PyModel {
                 Some(p) => &p.pf,
                 None => return Err(param_err("name", "pf", "a field of this model: it has no pore pressure (not fluidised)")),
             },
-            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf'")),
+            "viscosity" => self.inner.viscosity().0,
+            "sigma_xx" | "sigma_xy" | "sigma_norm" | "yield_stress" => {
+                let missing = || param_err("name", name, "a field of a model with a yield stress or friction walls (this rheology has none)");
+                match name {
+                    "sigma_xx" => self.inner.plastic_tensor().ok_or_else(missing)?.0,
+                    "sigma_xy" => self.inner.plastic_tensor().ok_or_else(missing)?.1,
+                    "sigma_norm" => self.inner.plastic_norm().ok_or_else(missing)?,
+                    _ => self.inner.yield_stress().ok_or_else(missing)?,
+                }
+            }
+            other => {
+                return Err(param_err(
+                    "name",
+                    other,
+                    "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'sigma_norm', 'yield_stress'",
+                ))
+            }
         })
     }
 }
@@ -216,7 +261,9 @@ impl PyModel {
     #[pyo3(signature = (nx, ny, lx, ly, bc, dense, light=None, gravity=(0.0, 0.0), interface_width=1.5,
         transport_interface=true, redistance_every=10, viscous="implicit", cfl=0.5, dt=None,
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
-        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, pore_pressure=None, mass_correction=false))]
+        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
+        regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -240,6 +287,16 @@ impl PyModel {
         pressure_rtol: f64,
         pressure_max_iterations: i64,
         threads: i64,
+        rheology: Option<(String, Option<Bound<'_, PyDict>>)>,
+        plastic: &str,
+        regularisation: Option<f64>,
+        r: Option<f64>,
+        r_wall: Option<f64>,
+        theta: f64,
+        picard_tol: f64,
+        picard_max_iterations: i64,
+        convection: bool,
+        viscous_rtol: f64,
         pore_pressure: Option<&Bound<'_, PyDict>>,
         mass_correction: bool,
     ) -> PyResult<Self> {
@@ -252,6 +309,7 @@ impl PyModel {
         };
         let grid = Grid::new(pos("nx", nx)?, pos("ny", ny)?, lx, ly).map_err(to_py)?;
         let mut conds = BoundaryConditions::uniform(VelocityBc::NoSlip);
+        let mut wall_friction_angle: Option<f64> = None;
         for key in bc.keys() {
             let k: String = key.extract()?;
             if !["left", "right", "bottom", "top"].contains(&k.as_str()) {
@@ -265,6 +323,18 @@ impl PyModel {
                 let params = t.get_item(1)?;
                 let params = params.cast::<PyDict>().ok();
                 conds = conds.with(side, parse_bc(side.name(), &kind, params.as_deref())?);
+                if kind == "coulomb" {
+                    if let Some(a) = params.as_ref().and_then(|p| p.get_item("friction_angle").ok().flatten()) {
+                        let name = format!("bc.{}.friction_angle", side.name());
+                        let a: f64 = a.extract().map_err(|_| param_err(&name, &a, "an angle in degrees"))?;
+                        match wall_friction_angle {
+                            Some(b) if b != a => {
+                                return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)")))
+                            }
+                            _ => wall_friction_angle = Some(a),
+                        }
+                    }
+                }
             }
         }
         let viscous = match viscous {
@@ -294,6 +364,31 @@ impl PyModel {
         cfg.threads = pos("threads", threads)?;
         cfg.pore = pore_pressure.map(parse_pore).transpose()?;
         cfg.mass_correction = mass_correction;
+        cfg.convection = convection;
+        cfg.viscous_rtol = viscous_rtol;
+        let law = match &rheology {
+            Some((kind, params)) => parse_rheology(kind, params.as_ref())?,
+            None => RheologyLaw::Newtonian,
+        };
+        let need_reg = |what: &str| -> PyResult<f64> {
+            regularisation.ok_or_else(|| param_err("regularisation", "None", &format!("a number ({what}) for plastic = '{plastic}'")))
+        };
+        let treatment = match plastic {
+            "projection" => YieldTreatment::Projection,
+            "papanastasiou" => YieldTreatment::Papanastasiou { m: need_reg("the exponent m in s")? },
+            "bi-viscous" => YieldTreatment::BiViscous { yield_viscosity: need_reg("the viscosity below yield in Pa s")? },
+            other => return Err(param_err("plastic", other, "'projection', 'papanastasiou' or 'bi-viscous'")),
+        };
+        cfg.rheology = RheologyConfig {
+            law,
+            treatment,
+            wall_friction_angle,
+            r,
+            r_wall,
+            theta,
+            picard_tol,
+            picard_max_iterations: pos("picard_max_iterations", picard_max_iterations)?,
+        };
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
         Ok(PyModel { inner })
     }
@@ -372,7 +467,7 @@ impl PyModel {
 
     /// Takes steps until `t_end` (the last step is shortened to land on it) or `max_steps`
     /// steps, with the GIL released. Returns per-step arrays: time, dt, max_speed, cfl,
-    /// pressure_iterations, viscous_iterations, divergence.
+    /// pressure_iterations, viscous_iterations, divergence, picard_iterations, picard_increment.
     #[pyo3(signature = (t_end=None, max_steps=None))]
     fn advance<'py>(&mut self, py: Python<'py>, t_end: Option<f64>, max_steps: Option<u64>) -> PyResult<Bound<'py, PyDict>> {
         if t_end.is_none() && max_steps.is_none() {
@@ -415,6 +510,8 @@ impl PyModel {
         d.set_item("pressure_iterations", log.iter().map(|s| s.pressure.iterations).collect::<Vec<_>>())?;
         d.set_item("viscous_iterations", log.iter().map(|s| s.viscous.iterations).collect::<Vec<_>>())?;
         d.set_item("pore_iterations", log.iter().map(|s| s.pore.iterations).collect::<Vec<_>>())?;
+        d.set_item("picard_iterations", log.iter().map(|s| s.picard_iterations).collect::<Vec<_>>())?;
+        d.set_item("picard_increment", log.iter().map(|s| s.picard_increment).collect::<Vec<_>>())?;
         if let Some(e) = err {
             // the steps taken before the failure travel with the exception
             let pyerr = to_py(e);
@@ -446,6 +543,23 @@ impl PyModel {
     fn grid(&self) -> (usize, usize, f64, f64, f64, f64) {
         let g = self.inner.grid();
         (g.nx, g.ny, g.lx, g.ly, g.dx, g.dy)
+    }
+
+    /// Coulomb friction on `side`: (s, τ_b) along the side's tangential faces, or None.
+    fn wall_friction(&self, side: &str) -> PyResult<Option<(Vec<f64>, Vec<f64>)>> {
+        let s = match side {
+            "left" => Side::Left,
+            "right" => Side::Right,
+            "bottom" => Side::Bottom,
+            "top" => Side::Top,
+            other => return Err(param_err("side", other, "'left', 'right', 'bottom' or 'top'")),
+        };
+        Ok(self.inner.wall_friction(s).map(|(a, b)| (a.to_vec(), b.to_vec())))
+    }
+
+    /// Increments of the Picard iterations of the last step.
+    fn picard_history(&self) -> Vec<f64> {
+        self.inner.picard_history().to_vec()
     }
 
     /// Number of threads of the model's pool.

@@ -12,6 +12,13 @@
 //! | Navier    | u_t(−1) = c u_t(0), c = (b/h − ½)/(b/h + ½) (u_t = b ∂u_t/∂n at the wall) | 0 |
 //! | outflow   | u_t(−k) = u_t(k−1) (∂u_t/∂n = 0)        | unknown, ∂u_n/∂n = 0, p = 0 |
 //! | Coulomb   | as free-slip; the friction stress σ_t = τ_b s is added as a wall flux by the rheology (eq. 8–9) | 0 |
+//! | fully developed (pairs) | periodic with the opposite side   | periodic (face n = face 0), ∂p/∂n = 0 |
+//!
+//! *Fully developed* sides come in opposite pairs and stand in for periodic ones in flows that
+//! are invariant along the normal (channels, layers on an incline): the velocity is periodic
+//! between them, the pressure has a zero normal gradient, so a hydrostatic pressure that varies
+//! along the side is allowed (an outflow side would pin it to 0) while the pressure solver keeps
+//! its Neumann form. Exact for flows invariant along the normal.
 //!
 //! The pressure (and pressure increment) sees homogeneous Neumann on every side except outflow,
 //! where it is Dirichlet p = 0 on the boundary.
@@ -73,6 +80,9 @@ pub enum VelocityBc {
     /// Coulomb friction wall for the granular phase (paper eq. 8–9): impermeable, with the
     /// tangential stress supplied by the friction projection; behaves as free-slip in air.
     Coulomb,
+    /// Fully developed in/outflow, on two opposite sides: velocity periodic between them, zero
+    /// normal gradient of the pressure (exact for flows invariant along the normal).
+    FullyDeveloped,
 }
 
 impl VelocityBc {
@@ -85,6 +95,7 @@ impl VelocityBc {
             VelocityBc::NavierSlip { .. } => "navier",
             VelocityBc::Outflow => "outflow",
             VelocityBc::Coulomb => "coulomb",
+            VelocityBc::FullyDeveloped => "fully-developed",
         }
     }
 
@@ -93,9 +104,14 @@ impl VelocityBc {
     pub fn normal_inflow(&self) -> Option<f64> {
         match self {
             VelocityBc::Velocity { normal, .. } => Some(*normal),
-            VelocityBc::Outflow => None,
+            VelocityBc::Outflow | VelocityBc::FullyDeveloped => None,
             _ => Some(0.0),
         }
+    }
+
+    /// Whether the normal velocity on the side is an unknown (outflow, fully developed).
+    pub fn normal_is_unknown(&self) -> bool {
+        matches!(self, VelocityBc::Outflow | VelocityBc::FullyDeveloped)
     }
 
     /// Ghost-value rule for the tangential component: ghost(−1) = a·interior(0) + b, where
@@ -103,7 +119,7 @@ impl VelocityBc {
     pub fn tangential_ghost(&self, h: f64) -> (f64, f64) {
         match *self {
             VelocityBc::NoSlip => (-1.0, 0.0),
-            VelocityBc::FreeSlip | VelocityBc::Outflow | VelocityBc::Coulomb => (1.0, 0.0),
+            VelocityBc::FreeSlip | VelocityBc::Outflow | VelocityBc::Coulomb | VelocityBc::FullyDeveloped => (1.0, 0.0),
             VelocityBc::Velocity { tangential, .. } => (-1.0, 2.0 * tangential),
             VelocityBc::NavierSlip { slip_length } => {
                 let r = slip_length / h;
@@ -187,6 +203,15 @@ impl BoundaryConditions {
                     }
                 }
                 _ => {}
+            }
+        }
+        for (a, b) in [(Side::Left, Side::Right), (Side::Bottom, Side::Top)] {
+            if (self.get(a) == VelocityBc::FullyDeveloped) != (self.get(b) == VelocityBc::FullyDeveloped) {
+                return Err(Error::param(
+                    &format!("bc.{}", if self.get(a) == VelocityBc::FullyDeveloped { a.name() } else { b.name() }),
+                    "fully-developed",
+                    &format!("fully-developed on both {} and {} (the velocity is periodic between them)", a.name(), b.name()),
+                ));
             }
         }
         if self.pressure_is_singular() && net_inflow.abs() > 1e-12 * (lx + ly) {

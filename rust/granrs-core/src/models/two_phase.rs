@@ -9,6 +9,8 @@ use crate::grid::{BoundaryConditions, Field, Grid, Location};
 use crate::levelset::{dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureProjection;
+use crate::rheology::stage::RheologyState;
+use crate::rheology::RheologyConfig;
 use crate::solvers::{SolveInfo, SolverSettings};
 use crate::time_stepping::{MomentumSolver, StepInfo, TimeConfig, ViscousScheme};
 
@@ -58,6 +60,12 @@ pub struct ModelConfig {
     pub threads: usize,
     /// The pore-pressure equation (None: not fluidised, the solve is skipped entirely).
     pub pore: Option<PorePressureConfig>,
+    /// Rheology of the dense phase (yield stress, its treatment) and Coulomb wall friction.
+    pub rheology: RheologyConfig,
+    /// Whether the convective term ρ(u·∇)u is included (false: unsteady Stokes equations).
+    pub convection: bool,
+    /// Relative residual of the implicit viscous solve (tightened inside the Picard loop).
+    pub viscous_rtol: f64,
 }
 
 impl ModelConfig {
@@ -79,6 +87,9 @@ impl ModelConfig {
             time: TimeConfig::default(),
             threads: 1,
             pore: None,
+            rheology: RheologyConfig::default(),
+            convection: true,
+            viscous_rtol: 1e-10,
         }
     }
 
@@ -101,6 +112,8 @@ impl ModelConfig {
         if let Some(pc) = &self.pore {
             pc.validate()?;
         }
+        self.rheology.validate()?;
+        crate::error::check_range("viscous_rtol", self.viscous_rtol, 1e-14, 1e-2)?;
         if self.threads == 0 || self.threads > 1024 {
             return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
         }
@@ -157,6 +170,8 @@ pub struct TwoPhaseModel {
     pub pore: Option<PorePressure>,
     pub(crate) projection: PressureProjection,
     pub(crate) momentum: MomentumSolver,
+    /// Plastic tensor, wall friction and their work arrays (None: Newtonian without friction).
+    pub(crate) rheology: Option<RheologyState>,
     /// Simulated time t_n.
     pub time: f64,
     /// Steps taken.
@@ -186,7 +201,9 @@ impl TwoPhaseModel {
         let mut phi = c();
         phi.fill(1.0);
         let projection = PressureProjection::new(g, &config.bc, config.pressure_solver)?;
-        let momentum = MomentumSolver::new(g);
+        let mut momentum = MomentumSolver::new(g);
+        momentum.rtol = config.viscous_rtol;
+        let rheology = RheologyState::new(g, &config.bc, &config.rheology);
         let work = Work {
             conv_u: xf(),
             conv_v: yf(),
@@ -224,6 +241,7 @@ impl TwoPhaseModel {
             pore,
             projection,
             momentum,
+            rheology,
             time: 0.0,
             step_count: 0,
             dt_prev: None,

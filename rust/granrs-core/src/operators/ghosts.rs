@@ -2,8 +2,12 @@
 //!
 //! Normal components on the boundary are set to the prescribed normal velocity (walls: 0); ghost
 //! layers beyond a wall are odd reflections about the wall value, u_n(−k) = 2u_n(0) − u_n(k);
-//! beyond an outflow boundary they are constant, u_n(−k) = u_n(0). Tangential ghosts follow
+//! beyond an outflow or fully developed boundary they are constant, u_n(−k) = u_n(0). Tangential ghosts follow
 //! `VelocityBc::tangential_ghost`: u_t(−k) = a u_t(k−1) + b.
+//!
+//! Between two fully developed sides the velocity is periodic instead (face n is a copy of face 0
+//! and the ghosts wrap around), which is exact for flows invariant along that direction and keeps
+//! the viscous operator symmetric (zero-gradient ghosts do not: CG then stalls near 1e-9).
 //!
 //! With [`BcMode::Homogeneous`] every inhomogeneous datum (b, prescribed normal velocity) is
 //! taken as zero: this is the linear part of the affine boundary map, used inside Krylov solves.
@@ -21,15 +25,85 @@ pub enum BcMode {
 }
 
 /// Indices of the normal-velocity faces that are unknowns along one direction with `n` cells:
-/// faces 1..n−1 are always unknown, face 0 (resp. n) only if that side is an outflow.
+/// faces 1..n−1 are always unknown, face 0 (resp. n) only if that side is an outflow or fully
+/// developed side; between two fully developed sides face n is the periodic copy of face 0.
 pub fn unknown_face_range(low: VelocityBc, high: VelocityBc, n: usize) -> Range<usize> {
-    let start = if matches!(low, VelocityBc::Outflow) { 0 } else { 1 };
-    let end = if matches!(high, VelocityBc::Outflow) { n + 1 } else { n };
+    let start = if low.normal_is_unknown() { 0 } else { 1 };
+    let end = if periodic_pair(low, high) {
+        n
+    } else if high.normal_is_unknown() {
+        n + 1
+    } else {
+        n
+    };
     start..end
+}
+
+/// Whether two opposite sides are both fully developed: the velocity is then periodic between
+/// them (ghosts wrap around), which keeps the viscous operator symmetric.
+#[inline]
+pub fn periodic_pair(low: VelocityBc, high: VelocityBc) -> bool {
+    low == VelocityBc::FullyDeveloped && high == VelocityBc::FullyDeveloped
 }
 
 /// Fills boundary values and ghost layers of u (XFace) and v (YFace).
 pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryConditions, grid: &Grid, mode: BcMode) {
+    let xper = periodic_pair(bc.get(Side::Left), bc.get(Side::Right));
+    let yper = periodic_pair(bc.get(Side::Bottom), bc.get(Side::Top));
+    fill_velocity_ghosts_walls(u, v, bc, grid, mode);
+    if xper {
+        wrap_x(u, grid.nx as isize, true);
+        wrap_x(v, grid.nx as isize, false);
+    }
+    if yper {
+        wrap_y(v, grid.ny as isize, true);
+        wrap_y(u, grid.ny as isize, false);
+    }
+}
+
+/// Periodic ghosts along x with period `n` cells: a face field (`faces`, n+1 points) gets
+/// f(n) = f(0), f(−k) = f(n−k), f(n+k) = f(k); a centred one f(−k) = f(n−k), f(n−1+k) = f(k−1).
+fn wrap_x(f: &mut Field, n: isize, faces: bool) {
+    let g = HALO as isize;
+    for j in -g..f.ny as isize + g {
+        let get = |f: &Field, i: isize| f.at(i, j);
+        if faces {
+            let a = get(f, 0);
+            let k0 = f.idx(n, j);
+            f.slice_mut()[k0] = a;
+        }
+        for k in 1..=g {
+            let (lo_src, hi_dst, hi_src) = if faces { (n - k, n + k, k) } else { (n - k, n - 1 + k, k - 1) };
+            let (a, b) = (get(f, lo_src), get(f, hi_src));
+            let (ia, ib) = (f.idx(-k, j), f.idx(hi_dst, j));
+            let s = f.slice_mut();
+            s[ia] = a;
+            s[ib] = b;
+        }
+    }
+}
+
+/// Periodic ghosts along y (see [`wrap_x`]).
+fn wrap_y(f: &mut Field, n: isize, faces: bool) {
+    let g = HALO as isize;
+    for i in -g..f.nx as isize + g {
+        if faces {
+            let a = f.at(i, 0);
+            let k0 = f.idx(i, n);
+            f.slice_mut()[k0] = a;
+        }
+        for k in 1..=g {
+            let (lo_src, hi_dst, hi_src) = if faces { (n - k, n + k, k) } else { (n - k, n - 1 + k, k - 1) };
+            let (a, b) = (f.at(i, lo_src), f.at(i, hi_src));
+            let (ia, ib) = (f.idx(i, -k), f.idx(i, hi_dst));
+            let s = f.slice_mut();
+            s[ia] = a;
+            s[ib] = b;
+        }
+    }
+}
+
+fn fill_velocity_ghosts_walls(u: &mut Field, v: &mut Field, bc: &BoundaryConditions, grid: &Grid, mode: BcMode) {
     let (nx, ny) = (grid.nx as isize, grid.ny as isize);
     let g = HALO as isize;
     let hom = mode == BcMode::Homogeneous;
@@ -43,7 +117,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
     let (bl, br, bb, bt) = (bc.get(Side::Left), bc.get(Side::Right), bc.get(Side::Bottom), bc.get(Side::Top));
     for j in 0..ny {
         // left boundary face i = 0
-        if !matches!(bl, VelocityBc::Outflow) {
+        if !bl.normal_is_unknown() {
             let w = normal(bl);
             let k0 = u.idx(0, j);
             u.slice_mut()[k0] = w;
@@ -60,7 +134,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
             }
         }
         // right boundary face i = nx (inflow into the domain is −x)
-        if !matches!(br, VelocityBc::Outflow) {
+        if !br.normal_is_unknown() {
             let w = -normal(br);
             let k0 = u.idx(nx, j);
             u.slice_mut()[k0] = w;
@@ -92,7 +166,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
 
     // ---- v: normal on bottom/top, tangential on left/right ----
     for i in 0..nx {
-        if !matches!(bb, VelocityBc::Outflow) {
+        if !bb.normal_is_unknown() {
             let w = normal(bb);
             let k0 = v.idx(i, 0);
             v.slice_mut()[k0] = w;
@@ -108,7 +182,7 @@ pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryCondition
                 v.slice_mut()[kk] = w;
             }
         }
-        if !matches!(bt, VelocityBc::Outflow) {
+        if !bt.normal_is_unknown() {
             let w = -normal(bt);
             let k0 = v.idx(i, ny);
             v.slice_mut()[k0] = w;

@@ -5,8 +5,13 @@
 //! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^n; redistancing every N steps.
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1}).
 //! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room; skipped when not fluidised).
+//! 4b. `rheology_stage` [step 2, continued]: τ^{n+1} = τ(p^n) H_ε(Φ^{n+1}) at centres and nodes,
+//!    τ_b^{n+1} on Coulomb walls, the lagged viscosity of μ(I) and regularised laws, r and r_b
+//!    (`rheology/stage.rs`).
 //! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection and the viscous term
-//!    (implicit or explicit); the plastic stress and wall friction enter here (rheology room).
+//!    (implicit or explicit); with a yield stress or wall friction, the Picard loop of eq. (12)
+//!    couples it with the plastic projection of Σ and the friction projection of s
+//!    (`momentum_solve` in `rheology/stage.rs`).
 //! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp.
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
 
@@ -20,9 +25,10 @@ use crate::operators::{
 };
 use crate::projection::fill_pressure_ghosts;
 use crate::levelset::{blend, blend_harmonic};
+use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
-use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
+use crate::time_stepping::momentum::ViscousScheme;
 
 /// What one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -43,6 +49,10 @@ pub struct StepInfo {
     pub cfl: f64,
     /// max |div u| after the projection.
     pub divergence: f64,
+    /// Picard iterations of the bi-projection (0 without plastic stress or wall friction).
+    pub picard_iterations: usize,
+    /// Final increment max |Σ^{k+1} − Σ^k|, max |s^{k+1} − s^k| of the Picard iteration.
+    pub picard_increment: f64,
 }
 
 impl TwoPhaseModel {
@@ -61,9 +71,10 @@ impl TwoPhaseModel {
         self.properties(exec);
         let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
         self.pore_pressure(dt, (a0, a1, a2, w), exec)?;
-        let viscous = self.predictor(dt, a0, a1, a2, w, exec)?;
+        self.rheology_stage(a0 / dt, exec)?;
+        let (viscous, picard) = self.predictor(dt, a0, a1, a2, w, exec)?;
         let pressure = self.projection_stage(dt / a0, exec)?;
-        self.checks(dt, viscous, pressure, exec)
+        self.checks(dt, viscous, pressure, picard, exec)
     }
 
     /// Balances the body force at rest: sets p so that (1/ρ)∇p = g − P(g), where P is the
@@ -295,14 +306,22 @@ impl TwoPhaseModel {
 
     /// Stage 5 (paper step 4): the momentum predictor ũ^{n+1}.
     #[allow(clippy::too_many_arguments)]
-    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, exec: Exec) -> Result<SolveInfo> {
+    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let [gxv, gyv] = cfg.gravity;
         fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
         fill_pressure_ghosts(&mut self.p, bc);
         let wk = &mut self.work;
-        convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec);
+        if cfg.convection {
+            convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec);
+        } else {
+            // Stokes flow (Re = 0), or a flow whose convection vanishes identically (x-invariant
+            // layers, where an explicit convection of round-off perturbations through open
+            // sides is unstable)
+            wk.conv_u.fill(0.0);
+            wk.conv_v.fill(0.0);
+        }
         // ∇(pⁿ + p_f^{n+1}): the pore pressure pushes the grains apart (eq. 10b)
         let ptot: &Field = match &mut self.pore {
             Some(pore) => {
@@ -363,15 +382,7 @@ impl TwoPhaseModel {
         }
         std::mem::swap(&mut wk.conv_u, &mut self.conv_prev_u);
         std::mem::swap(&mut wk.conv_v, &mut self.conv_prev_v);
-        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
-        match cfg.viscous {
-            ViscousScheme::Implicit => self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec),
-            ViscousScheme::Explicit => {
-                self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec);
-                Ok(SolveInfo::default())
-            }
-        }
-        .map_err(|e| self.at_step(e))
+        self.momentum_solve(exec).map_err(|e| self.at_step(e))
     }
 
     /// Stage 6 (paper step 5): pressure projection.
@@ -387,7 +398,7 @@ impl TwoPhaseModel {
     }
 
     /// Stage 7: checks and bookkeeping.
-    fn checks(&mut self, dt: f64, viscous: SolveInfo, pressure: SolveInfo, exec: Exec) -> Result<StepInfo> {
+    fn checks(&mut self, dt: f64, viscous: SolveInfo, pressure: SolveInfo, picard: PicardInfo, exec: Exec) -> Result<StepInfo> {
         let cfg = &self.config;
         let g = &cfg.grid;
         fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, g, BcMode::Full);
@@ -421,7 +432,18 @@ impl TwoPhaseModel {
         self.time = next_time;
         self.step_count += 1;
         self.dt_prev = Some(dt);
-        self.last = StepInfo { dt, time: self.time, pressure, viscous, pore: self.pore.as_ref().map(|p| p.last).unwrap_or_default(), max_speed: umax.max(vmax), cfl, divergence };
+        self.last = StepInfo {
+            dt,
+            time: self.time,
+            pressure,
+            viscous,
+            pore: self.pore.as_ref().map(|p| p.last).unwrap_or_default(),
+            max_speed: umax.max(vmax),
+            cfl,
+            divergence,
+            picard_iterations: picard.iterations,
+            picard_increment: picard.increment,
+        };
         Ok(self.last)
     }
 

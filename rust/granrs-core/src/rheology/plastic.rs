@@ -1,0 +1,394 @@
+//! The *plastic* projection Σ = P(Σ + r D(u)) and its Picard iteration (Aravena et al. eq. 7c,
+//! 11, 12; Chupin & Dubois 2016, *Comput. Math. Appl.* 72, 1263–1286; Chalayer, Chupin & Dubois
+//! 2018, *SIAM J. Numer. Anal.* 56; Chupin, Dubois, Phan & Roche 2021, *J. Comput. Phys.* 438).
+//! Not to be confused with the *pressure* projection of `projection/`.
+//!
+//! Continuous problem: Σ symmetric, traceless, |Σ| ≤ 1 with |Σ|² = ½ Σᵢⱼ Σᵢⱼ, and
+//! Σ = P(Σ + r D(u)) for any r > 0, P(Λ) = Λ / max(1, |Λ|). In 2D a symmetric traceless tensor is
+//! (Σ_xx, Σ_xy) with Σ_yy = −Σ_xx, so |Σ|² = Σ_xx² + Σ_xy², and only the deviatoric part of D
+//! matters: D_dev,xx = (D_xx − D_yy)/2, D_dev,xy = D_xy.
+//!
+//! Picard iteration with pseudo-relaxation θ (eq. 12), starting from Σ^{n+1,0} = Σ^n:
+//!
+//!   solve the predictor with the explicit force div(τ Σ^k)   → ũ^{k+1},
+//!   Σ^{k+1} = P(Σ^k + r D_dev(ũ^{k+1}) + θ (Σ^n − Σ^k)),
+//!
+//! until max |τ(Σ^{k+1} − Σ^k)|/τ_max ≤ tol. Its fixed point solves Σ = P(Σ + r D + θ(Σ^n − Σ)), i.e. eq. (11)
+//! up to the first-order-in-time term θ(Σ^n − Σ^{n+1}) (which vanishes at steady state).
+//!
+//! **Storage and discrete projection.** Σ_xx lives at cell centres (with D_xx, D_yy) and Σ_xy at
+//! nodes (with D_xy), so that the force div(τΣ) has exactly the compact stencil of the viscous
+//! term (τΣ_xx at centres and τΣ_xy at nodes, differenced onto the faces) and each component is
+//! updated where its strain rate is exact. The projection of the pair is done twice: at centres
+//! with Σ_xy (the trial value) averaged from the four corner nodes, and at nodes with Σ_xx
+//! averaged from the four adjacent cells. In a plane shear flow (Poiseuille, Couette, layers)
+//! Σ_xx ≡ 0, so both reduce to the exact scalar clamp of Σ_xy at the nodes where D_xy lives: the
+//! discrete plug is exactly rigid (D_xy = 0 to the Picard tolerance wherever |Σ_xy| < 1).
+//! Putting all of Σ at centres (as in the paper's collocated figure) would instead interpolate
+//! D_xy to centres and smear the yield surface over a cell.
+//!
+//! **Choice of r (contraction).** With the discrete force F(Σ) = −2 Dᵀ τ Σ and the predictor
+//! operator A = c + Dᵀ(2η)D ≥ c + 4η DᵀD (c = a₀ρ/δt), the linearised iteration is
+//! Σ ↦ (1 − θ)Σ − r K Σ + …, K = 2 D A⁻¹ Dᵀ τ, whose eigenvalues lie in [0, τ k_max] with
+//! k_max = 2S/(c + 4ηS), S = 2(1/dx² + 1/dy²) ≥ ‖D‖². P is non-expansive, so the map contracts
+//! with ratio max(1 − θ, |1 − θ − r τ k_max|) for r τ k_max ≤ 2(1 − θ).
+//!
+//! The fixed point does not depend on r, even point by point (Σ = P(Σ + r D) says Σ = D/|D| or
+//! D = 0 whatever r > 0 is), so the default takes a *local* r(x) = (1 − θ)/(τ(x) k(x)) with k
+//! the largest over a 5 × 5 neighbourhood of the point (k evaluated with each cell's c and η): a
+//! Jacobi-like scaling of the same bound. (k of the point alone flip-flopped, increment ≈ 2, at
+//! the interface band where k jumps by ~80 over two cells.) A single
+//! r = (1 − θ)/max(τ k) satisfies the bound rigorously but crawls on layers under air: τ ∝ p
+//! varies with depth, and in the interface band the harmonic-mean viscosity collapses to the
+//! air's, so k there is ~80 times the bulk value; Uzawa (θ = 0) on a heap at rest did not
+//! converge in 20 000 iterations with it, and converges with the local r (docs/validation.md).
+//! Limits: Stokes (c → 0) r = 2η(1 − θ)/τ ("r ~ η/τ"); inertial (small δt) r = (1 − θ)c/(2Sτ).
+//! A user-given `r` is used as a constant.
+
+use crate::error::Error;
+use crate::exec::Exec;
+use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
+use crate::operators::for_each_interior_row;
+
+/// What the Picard iteration of one step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PicardInfo {
+    /// Iterations (predictor solves) taken; 0 when there is no plastic stress or wall friction.
+    pub iterations: usize,
+    /// max |Σ^{k+1} − Σ^k|, max |s^{k+1} − s^k| at the last iteration.
+    pub increment: f64,
+    /// r used in the step: the user's constant r, or the smallest local r [s].
+    pub r: f64,
+    /// r_b used in the step (0 without friction walls).
+    pub r_wall: f64,
+}
+
+/// P: orthogonal projection on the unit ball of symmetric traceless 2×2 tensors, on the pair
+/// (Λ_xx, Λ_xy) with |Λ|² = Λ_xx² + Λ_xy². Returns the scale factor 1/max(1, |Λ|).
+#[inline]
+pub fn unit_ball_scale(xx: f64, xy: f64) -> f64 {
+    let n2 = xx * xx + xy * xy;
+    if n2 > 1.0 {
+        1.0 / n2.sqrt()
+    } else {
+        1.0
+    }
+}
+
+#[inline]
+fn base(f: &Field, j: isize) -> usize {
+    ((j + HALO as isize) as usize) * f.stride() + HALO
+}
+
+/// The plastic tensor Σ and the work arrays of its projection (allocated once).
+pub struct PlasticState {
+    /// Σ_xx at centres (Σ^{n+1,k} during the iteration, Σ^n between steps).
+    pub sigma_xx: Field,
+    /// Σ_xy at nodes.
+    pub sigma_xy: Field,
+    /// Σ^n.
+    pub sigma_xx_n: Field,
+    pub sigma_xy_n: Field,
+    /// Yield stress τ at centres (ghosts filled) and nodes.
+    pub tau_c: Field,
+    pub tau_n: Field,
+    /// Largest yield stress of the step (the scale of the Picard increment).
+    pub tau_max: f64,
+    /// r at centres and nodes.
+    pub r_c: Field,
+    pub r_n: Field,
+    trial_c: Field,
+    trial_n: Field,
+    new_c: Field,
+    new_n: Field,
+    stress_c: Field,
+    stress_n: Field,
+    /// Boundary nodes where Σ_xy is held at 0: sides whose tangential stress is zero or given by
+    /// friction (free-slip, Coulomb). On open sides (outflow, fully developed) Σ_xy is projected
+    /// like inside: their ghosts give ∂u_t/∂n = 0, not a zero stress. Order left, right, bottom, top.
+    zero_tangential: [bool; 4],
+}
+
+impl PlasticState {
+    /// Σ = 0 on `grid`.
+    pub fn new(grid: &Grid, bc: &BoundaryConditions) -> Self {
+        let c = || Field::zeros(grid, Location::Centre);
+        let n = || Field::zeros(grid, Location::Node);
+        let zero = |s: Side| matches!(bc.get(s), VelocityBc::FreeSlip | VelocityBc::Coulomb);
+        PlasticState {
+            sigma_xx: c(),
+            sigma_xy: n(),
+            sigma_xx_n: c(),
+            sigma_xy_n: n(),
+            tau_c: c(),
+            tau_n: n(),
+            tau_max: 0.0,
+            r_c: c(),
+            r_n: n(),
+            trial_c: c(),
+            trial_n: n(),
+            new_c: c(),
+            new_n: n(),
+            stress_c: c(),
+            stress_n: n(),
+            zero_tangential: Side::ALL.map(zero),
+        }
+    }
+
+    /// Start of a step: Σ^n ← Σ (the iteration starts from Σ^{n+1,0} = Σ^n).
+    pub fn begin_step(&mut self) {
+        self.sigma_xx_n.assign(&self.sigma_xx);
+        self.sigma_xy_n.assign(&self.sigma_xy);
+    }
+
+    /// Adds the plastic force div(τΣ) to `out_u`, `out_v` on every face (the caller uses the
+    /// unknown ones):
+    ///
+    ///   u-face (i, j): [τ_c Σ_xx]_{i−1}^{i}/dx + [τ_n Σ_xy]_{j}^{j+1}/dy,
+    ///   v-face (i, j): [τ_n Σ_xy]_{i}^{i+1}/dx − [τ_c Σ_xx]_{j−1}^{j}/dy   (Σ_yy = −Σ_xx).
+    pub fn add_force(&mut self, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
+        for (stress, tau, sigma) in [(&mut self.stress_c, &self.tau_c, &self.sigma_xx), (&mut self.stress_n, &self.tau_n, &self.sigma_xy)] {
+            let (ts, ss, st) = (tau.slice(), sigma.slice(), tau.stride());
+            let n = stress.nx;
+            for_each_interior_row(exec, stress, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    row[HALO + i] = ts[b + i] * ss[b + i];
+                }
+            });
+        }
+        self.stress_c.extrapolate_ghosts_constant();
+        let (sc, sn) = (self.stress_c.slice(), self.stress_n.slice());
+        let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
+        let (stress_c, stress_n) = (&self.stress_c, &self.stress_n);
+        for_each_interior_row(exec, out_u, |j, row| {
+            let j = j as isize;
+            let (bc, bn0, bn1) = (base(stress_c, j), base(stress_n, j), base(stress_n, j + 1));
+            for i in 0..=nx {
+                row[HALO + i] += (sc[bc + i] - sc[bc + i - 1]) * idx + (sn[bn1 + i] - sn[bn0 + i]) * idy;
+            }
+        });
+        for_each_interior_row(exec, out_v, |j, row| {
+            let j = j as isize;
+            let (bc0, bcm, bn) = (base(stress_c, j), base(stress_c, j - 1), base(stress_n, j));
+            for i in 0..nx {
+                row[HALO + i] += (sn[bn + i + 1] - sn[bn + i]) * idx - (sc[bc0 + i] - sc[bcm + i]) * idy;
+            }
+        });
+    }
+
+    /// One Picard update Σ^{k+1} = P(Σ^k + r D_dev(ũ) + θ(Σ^n − Σ^k)) from the strain rate of ũ
+    /// (D_xx, D_yy at centres, D_xy at nodes), with r from the fields `r_c`, `r_n`. Σ is kept at
+    /// 0 where τ = 0 (outside the granular phase) and on held boundary nodes. Returns the
+    /// increment of the plastic stress that enters the momentum equation,
+    /// max |τ (Σ^{k+1} − Σ^k)| / τ_max (= max |Σ^{k+1} − Σ^k| for a constant yield stress): Σ in
+    /// the interface band, where τ → 0, converges slowest and matters least.
+    pub fn update(&mut self, dxx: &Field, dyy: &Field, dxy: &Field, theta: f64, exec: Exec) -> f64 {
+        // trial values at centres and nodes
+        {
+            let (sx, sxn, tc, a, b) = (self.sigma_xx.slice(), self.sigma_xx_n.slice(), self.tau_c.slice(), dxx.slice(), dyy.slice());
+            let rc = self.r_c.slice();
+            let st = self.sigma_xx.stride();
+            let n = self.trial_c.nx;
+            for_each_interior_row(exec, &mut self.trial_c, |j, row| {
+                let bb = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    let k = bb + i;
+                    row[HALO + i] = if tc[k] > 0.0 { sx[k] + 0.5 * rc[k] * (a[k] - b[k]) + theta * (sxn[k] - sx[k]) } else { 0.0 };
+                }
+            });
+        }
+        self.trial_c.extrapolate_ghosts_constant();
+        {
+            let (sy, syn, tn, c) = (self.sigma_xy.slice(), self.sigma_xy_n.slice(), self.tau_n.slice(), dxy.slice());
+            let rn = self.r_n.slice();
+            let st = self.sigma_xy.stride();
+            let (nxn, nyn) = (self.trial_n.nx, self.trial_n.ny);
+            let z = self.zero_tangential;
+            let held = move |i: usize, j: usize| node_held(&z, i, j, nxn, nyn);
+            for_each_interior_row(exec, &mut self.trial_n, |j, row| {
+                let bb = (j + HALO) * st + HALO;
+                for i in 0..nxn {
+                    let k = bb + i;
+                    row[HALO + i] = if tn[k] > 0.0 && !held(i, j) { sy[k] + rn[k] * c[k] + theta * (syn[k] - sy[k]) } else { 0.0 };
+                }
+            });
+        }
+        // projections: at centres with Σ_xy averaged from the corners, at nodes with Σ_xx
+        // averaged from the adjacent cells
+        {
+            let (tcs, tns) = (self.trial_c.slice(), self.trial_n.slice());
+            let (trial_c, trial_n) = (&self.trial_c, &self.trial_n);
+            let n = self.new_c.nx;
+            for_each_interior_row(exec, &mut self.new_c, |j, row| {
+                let j = j as isize;
+                let (bc, bn0, bn1) = (base(trial_c, j), base(trial_n, j), base(trial_n, j + 1));
+                for i in 0..n {
+                    let xx = tcs[bc + i];
+                    let xy = 0.25 * (tns[bn0 + i] + tns[bn0 + i + 1] + tns[bn1 + i] + tns[bn1 + i + 1]);
+                    row[HALO + i] = xx * unit_ball_scale(xx, xy);
+                }
+            });
+            let n = self.new_n.nx;
+            for_each_interior_row(exec, &mut self.new_n, |j, row| {
+                let j = j as isize;
+                let (bn, bc0, bc1) = (base(trial_n, j), base(trial_c, j - 1), base(trial_c, j));
+                for i in 0..n {
+                    let xy = tns[bn + i];
+                    let xx = 0.25 * (tcs[bc0 + i] + tcs[bc0 + i - 1] + tcs[bc1 + i] + tcs[bc1 + i - 1]);
+                    row[HALO + i] = xy * unit_ball_scale(xx, xy);
+                }
+            });
+        }
+        let tau_ref = self.tau_max;
+        let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec)
+            .max(weighted_max_abs_diff(&self.new_n, &self.sigma_xy, &self.tau_n, tau_ref, exec));
+        self.sigma_xx.assign(&self.new_c);
+        self.sigma_xy.assign(&self.new_n);
+        inc
+    }
+
+    /// |Σ| at cell centres (Σ_xy averaged from the corners) into `out`.
+    pub fn norm_centre(&self, out: &mut Field, exec: Exec) {
+        let (a, b) = (self.sigma_xx.slice(), self.sigma_xy.slice());
+        let (sxx, sxy) = (&self.sigma_xx, &self.sigma_xy);
+        let n = out.nx;
+        for_each_interior_row(exec, out, |j, row| {
+            let j = j as isize;
+            let (bc, bn0, bn1) = (base(sxx, j), base(sxy, j), base(sxy, j + 1));
+            for i in 0..n {
+                let xy = 0.25 * (b[bn0 + i] + b[bn0 + i + 1] + b[bn1 + i] + b[bn1 + i + 1]);
+                row[HALO + i] = (a[bc + i] * a[bc + i] + xy * xy).sqrt();
+            }
+        });
+    }
+}
+
+/// Whether the node (i, j) of an `nxn` × `nyn` node array lies on a side whose tangential
+/// stress is not carried by Σ (flags in the order left, right, bottom, top).
+#[inline]
+fn node_held(z: &[bool; 4], i: usize, j: usize, nxn: usize, nyn: usize) -> bool {
+    (i == 0 && z[0]) || (i + 1 == nxn && z[1]) || (j == 0 && z[2]) || (j + 1 == nyn && z[3])
+}
+
+/// max over the interior of |a − b| w / w_ref (deterministic; NaN propagates).
+pub fn weighted_max_abs_diff(a: &Field, b: &Field, w: &Field, w_ref: f64, exec: Exec) -> f64 {
+    let (sa, sb, sw) = (a.slice(), b.slice(), w.slice());
+    let scale = if w_ref > 0.0 { 1.0 / w_ref } else { 0.0 };
+    let (st, nx) = (a.stride(), a.nx);
+    exec.max_rows(a.ny, a.nx * a.ny, |j| {
+        let bb = (j + HALO) * st + HALO;
+        let mut m = 0.0f64;
+        for i in 0..nx {
+            let d = (sa[bb + i] - sb[bb + i]).abs() * sw[bb + i] * scale;
+            m = if d.is_nan() { f64::NAN } else { m.max(d) };
+        }
+        m
+    })
+}
+
+/// Half-width (in cells) of the neighbourhood over which the default r takes the largest k.
+pub const R_NEIGHBOURHOOD: isize = 2;
+
+impl PlasticState {
+    /// Sets r at centres and nodes: the constant `r` if given, else the local default
+    /// r = (1 − θ)/(τ k̄), with k̄ the largest k = 2S/(c + 4ηS) (S = 2(1/dx² + 1/dy²),
+    /// c = a₀ρ/δt with ρ averaged from the u faces of the cell, η of the cell) over the
+    /// (2·[`R_NEIGHBOURHOOD`] + 1)² cells around the point (for a node: around its four cells).
+    /// Returns the smallest r where τ > 0 (the value reported per step; 0 if τ = 0 everywhere).
+    #[allow(clippy::too_many_arguments)]
+    pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
+        if let Some(r) = r {
+            self.r_c.fill(r);
+            self.r_n.fill(r);
+            return r;
+        }
+        let s = 2.0 * (1.0 / (grid.dx * grid.dx) + 1.0 / (grid.dy * grid.dy));
+        let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+        // k at centres (scratch: new_c), its neighbourhood maximum (scratch: trial_c)
+        {
+            let (rs, es) = (rho_u.slice(), eta_c.slice());
+            let n = self.new_c.nx;
+            for_each_interior_row(exec, &mut self.new_c, |j, row| {
+                let (bc, bu) = (base(eta_c, j as isize), base(rho_u, j as isize));
+                for i in 0..n {
+                    let c = a0_over_dt * 0.5 * (rs[bu + i] + rs[bu + i + 1]);
+                    row[HALO + i] = 2.0 * s / (c + 4.0 * es[bc + i] * s);
+                }
+            });
+        }
+        {
+            let k = &self.new_c;
+            let w = R_NEIGHBOURHOOD;
+            for_each_interior_row(exec, &mut self.trial_c, |j, row| {
+                let j = j as isize;
+                for i in 0..nx {
+                    let mut m = 0.0f64;
+                    for jj in (j - w).max(0)..=(j + w).min(ny - 1) {
+                        for ii in (i - w).max(0)..=(i + w).min(nx - 1) {
+                            m = m.max(k.at(ii, jj));
+                        }
+                    }
+                    row[HALO + i as usize] = m;
+                }
+            });
+        }
+        self.trial_c.extrapolate_ghosts_constant();
+        let kmax = &self.trial_c;
+        let ks = kmax.slice();
+        {
+            let ts = self.tau_c.slice();
+            let n = self.r_c.nx;
+            for_each_interior_row(exec, &mut self.r_c, |j, row| {
+                let b = base(kmax, j as isize);
+                for i in 0..n {
+                    let t = ts[b + i];
+                    row[HALO + i] = if t > 0.0 { (1.0 - theta) / (t * ks[b + i]) } else { 0.0 };
+                }
+            });
+        }
+        {
+            let ts = self.tau_n.slice();
+            let tau_n = &self.tau_n;
+            let n = self.r_n.nx;
+            for_each_interior_row(exec, &mut self.r_n, |j, row| {
+                let j = j as isize;
+                let (bn, b0, b1) = (base(tau_n, j), base(kmax, j - 1), base(kmax, j));
+                for i in 0..n {
+                    let k = ks[b0 + i].max(ks[b0 + i - 1]).max(ks[b1 + i]).max(ks[b1 + i - 1]);
+                    let t = ts[bn + i];
+                    row[HALO + i] = if t > 0.0 { (1.0 - theta) / (t * k) } else { 0.0 };
+                }
+            });
+        }
+        let (rc, tc, st, n) = (self.r_c.slice(), self.tau_c.slice(), self.r_c.stride(), self.r_c.nx);
+        let m = exec.max_rows(self.r_c.ny, n * self.r_c.ny, |j| {
+            let b = (j + HALO) * st + HALO;
+            let mut m = 0.0f64;
+            for i in 0..n {
+                if tc[b + i] > 0.0 {
+                    m = m.max(1.0 / rc[b + i]);
+                }
+            }
+            m
+        });
+        if m > 0.0 {
+            1.0 / m
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The error of a Picard iteration that reached its cap.
+pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta: f64, step: u64, time: f64) -> Error {
+    Error::Simulation {
+        what: format!(
+            "Picard iteration of the plastic projection did not converge: increment {increment:.3e} after {iterations} iterations \
+             (picard_tol = {tol:.1e}, r = {r:.3e} (smallest), theta = {theta}); raise picard_max_iterations or theta, or lower r"
+        ),
+        step,
+        time,
+        location: None,
+    }
+}

@@ -1,0 +1,317 @@
+//! The rheology's two pieces of a time step (called from `time_stepping/step.rs`, which states
+//! their place in the step):
+//!
+//! - [`TwoPhaseModel::rheology_stage`] (before the predictor): yield stress τ(Φ) = τ(p^n) H_ε(Φ)
+//!   at centres and nodes, wall friction τ_b, the lagged viscosity of variable-viscosity laws
+//!   (μ(I) eq. 5, Papanastasiou, bi-viscous) from D(u^n), blended with the light phase by the
+//!   harmonic mean as in `properties`, and the projection parameters r, r_b;
+//! - [`TwoPhaseModel::momentum_solve`] (the end of the predictor, paper step 4, eq. 12): either
+//!   the single predictor solve, or the Picard loop of the bi-projection coupling the predictor
+//!   with the plastic projection of Σ and the friction projection of s.
+
+use super::plastic::{not_converged, PicardInfo, PlasticState};
+use super::{RheologyConfig, YieldTreatment};
+use crate::error::Result;
+use crate::exec::Exec;
+use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
+use crate::models::TwoPhaseModel;
+use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate, strain_rate_norm_centre, BcMode};
+use crate::projection::fill_pressure_ghosts;
+use crate::solvers::SolveInfo;
+use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
+use crate::levelset::heaviside;
+use crate::walls::{default_r_wall, CoulombWalls};
+
+/// Iteration cap of each viscous solve inside the Picard loop.
+pub const PICARD_SOLVE_MAX_ITERATIONS: usize = 500;
+
+/// State and work arrays of the rheology (allocated once, only for non-Newtonian laws or
+/// friction walls).
+pub struct RheologyState {
+    pub plastic: PlasticState,
+    pub walls: CoulombWalls,
+    dxx: Field,
+    dyy: Field,
+    dxy: Field,
+    dnorm_c: Field,
+    dnorm_n: Field,
+    p_n: Field,
+    phi_n: Field,
+    rhs_u: Field,
+    rhs_v: Field,
+    ustar_u: Field,
+    ustar_v: Field,
+    /// |Σ| at centres (diagnostics).
+    pub sigma_norm: Field,
+    /// Whether the Picard loop runs (projection of a yield stress, or friction walls).
+    picard: bool,
+    /// Whether Σ is iterated (a yield stress treated by projection).
+    projection: bool,
+    /// Increments of the Picard iterations of the last step (capacity reserved once).
+    pub history: Vec<f64>,
+    /// r of the current step (a user's constant r, or the smallest local r), and r_b.
+    pub r: f64,
+    pub r_wall: f64,
+}
+
+impl RheologyState {
+    /// `None` for a Newtonian law without friction walls.
+    pub fn new(grid: &Grid, bc: &BoundaryConditions, cfg: &RheologyConfig) -> Option<Self> {
+        let coulomb = Side::ALL.iter().any(|&s| bc.get(s) == VelocityBc::Coulomb);
+        let walls = CoulombWalls::new(grid, bc, cfg.wall_friction_angle.is_some());
+        if !cfg.law.has_yield_stress() && !walls.is_active() && !cfg.variable_viscosity() {
+            return None;
+        }
+        let c = || Field::zeros(grid, Location::Centre);
+        let n = || Field::zeros(grid, Location::Node);
+        Some(RheologyState {
+            plastic: PlasticState::new(grid, bc),
+            walls,
+            dxx: c(),
+            dyy: c(),
+            dxy: n(),
+            dnorm_c: c(),
+            dnorm_n: n(),
+            p_n: n(),
+            phi_n: n(),
+            rhs_u: Field::zeros(grid, Location::XFace),
+            rhs_v: Field::zeros(grid, Location::YFace),
+            ustar_u: Field::zeros(grid, Location::XFace),
+            ustar_v: Field::zeros(grid, Location::YFace),
+            sigma_norm: c(),
+            history: Vec::with_capacity(cfg.picard_max_iterations.min(100_000)),
+            picard: cfg.needs_picard(coulomb),
+            projection: cfg.law.has_yield_stress() && cfg.treatment == YieldTreatment::Projection,
+            r: 0.0,
+            r_wall: 0.0,
+        })
+    }
+}
+
+impl TwoPhaseModel {
+    /// Rheology stage (before the predictor): τ, τ_b, lagged variable viscosity, r and r_b.
+    /// `a0_over_dt` is a₀/δt of the BDF step.
+    pub(crate) fn rheology_stage(&mut self, a0_over_dt: f64, exec: Exec) -> Result<()> {
+        let Some(rs) = self.rheology.as_mut() else { return Ok(()) };
+        let cfg = &self.config;
+        let rc = cfg.rheology;
+        let (grid, bc) = (&cfg.grid, &cfg.bc);
+        let eps = cfg.interface_width * grid.h();
+        let dense = cfg.dense;
+        let light = cfg.light.unwrap_or(dense);
+        let two_phase = cfg.light.is_some();
+        fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
+        fill_pressure_ghosts(&mut self.p, bc);
+        self.phi.extrapolate_ghosts_linear();
+        cell_to_node(&self.p, &mut rs.p_n, exec);
+        cell_to_node(&self.phi, &mut rs.phi_n, exec);
+        let law = rc.law;
+        let hv = |phi: f64| if two_phase { heaviside(phi, eps) } else { 1.0 };
+        // yield stress τ(Φ) = τ(p) H_ε(Φ) at centres and nodes
+        for (tau, p, phi) in [(&mut rs.plastic.tau_c, &self.p, &self.phi), (&mut rs.plastic.tau_n, &rs.p_n, &rs.phi_n)] {
+            let (ps, fs, st) = (p.slice(), phi.slice(), p.stride());
+            let n = tau.nx;
+            for_each_interior_row(exec, tau, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    row[HALO + i] = law.yield_stress(ps[b + i]) * hv(fs[b + i]);
+                }
+            });
+        }
+        rs.plastic.tau_c.extrapolate_ghosts_constant();
+        rs.plastic.tau_max = rs.plastic.tau_c.max_abs().max(rs.plastic.tau_n.max_abs());
+        // lagged viscosity of variable-viscosity laws, from D(u^n)
+        if rc.variable_viscosity() {
+            strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
+            strain_rate_norm_centre(&rs.dxx, &rs.dyy, &rs.dxy, &mut rs.dnorm_c, exec);
+            rs.dxx.extrapolate_ghosts_constant();
+            rs.dyy.extrapolate_ghosts_constant();
+            {
+                let (a, b, c) = (rs.dxx.slice(), rs.dyy.slice(), rs.dxy.slice());
+                let (dxx, dxy) = (&rs.dxx, &rs.dxy);
+                let n = rs.dnorm_n.nx;
+                for_each_interior_row(exec, &mut rs.dnorm_n, |j, row| {
+                    let j = j as isize;
+                    let (b0, b1, bn) = (base(dxx, j - 1), base(dxx, j), base(dxy, j));
+                    for i in 0..n {
+                        let avg = |s: &[f64]| 0.25 * (s[b0 + i] + s[b0 + i - 1] + s[b1 + i] + s[b1 + i - 1]);
+                        let (xx, yy, xy) = (avg(a), avg(b), c[bn + i]);
+                        row[HALO + i] = (0.5 * (xx * xx + yy * yy) + xy * xy).sqrt();
+                    }
+                });
+            }
+            let treatment = rc.treatment;
+            let eta = |d: f64, p: f64, phi: f64| {
+                let tau = law.yield_stress(p);
+                let ed = dense.viscosity + law.extra_viscosity(d, p) + treatment.regularised_viscosity(tau, d, dense.viscosity);
+                if two_phase {
+                    let h = heaviside(phi, eps);
+                    1.0 / (h / ed + (1.0 - h) / light.viscosity)
+                } else {
+                    ed
+                }
+            };
+            let wk = &mut self.work;
+            for (out, d, p, phi) in [(&mut wk.eta_c, &rs.dnorm_c, &self.p, &self.phi), (&mut wk.eta_n, &rs.dnorm_n, &rs.p_n, &rs.phi_n)] {
+                let (ds, ps, fs, st) = (d.slice(), p.slice(), phi.slice(), d.stride());
+                let n = out.nx;
+                for_each_interior_row(exec, out, |j, row| {
+                    let b = (j + HALO) * st + HALO;
+                    for i in 0..n {
+                        row[HALO + i] = eta(ds[b + i], ps[b + i], fs[b + i]);
+                    }
+                });
+            }
+            wk.eta_c.extrapolate_ghosts_constant();
+        }
+        // parameters of the projections
+        if rs.projection {
+            let wk = &self.work;
+            rs.r = rs.plastic.set_r(rc.r, rc.theta, &wk.eta_c, &wk.rho_u, a0_over_dt, grid, exec);
+        }
+        if rs.walls.is_active() {
+            let tan_b = rc.wall_friction_angle.unwrap_or(0.0).to_radians().tan();
+            rs.walls.set_friction(&self.p, &self.phi, tan_b, if two_phase { eps } else { f64::INFINITY }, grid);
+            rs.r_wall = rc.r_wall.unwrap_or_else(|| {
+                default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid))
+            });
+        }
+        Ok(())
+    }
+
+    /// The end of the predictor: solves for ũ^{n+1} (rhs and c in the work arrays, the initial
+    /// guess in u, v), with the Picard loop of eq. (12) when there is a plastic stress or wall
+    /// friction. Returns the viscous solves (iterations summed over the loop) and the loop's info.
+    pub(crate) fn momentum_solve(&mut self, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+        let cfg = &self.config;
+        let (grid, bc) = (&cfg.grid, &cfg.bc);
+        let wk = &self.work;
+        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
+        let explicit = cfg.viscous == ViscousScheme::Explicit;
+        let Some(rs) = self.rheology.as_mut().filter(|r| r.picard) else {
+            let info = if explicit {
+                self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec);
+                SolveInfo::default()
+            } else {
+                self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec)?
+            };
+            return Ok((info, PicardInfo::default()));
+        };
+        rs.plastic.begin_step();
+        rs.walls.begin_step();
+        if explicit {
+            rs.ustar_u.assign(&self.u);
+            rs.ustar_v.assign(&self.v);
+        }
+        // The inner solves must be more accurate than the fixed point sought: without θ nothing
+        // damps their error in the directions of Σ the velocity does not see, and the increment
+        // stalls at the level of the solver tolerance (seen: 5e-10 with rtol = 1e-10).
+        // Each inner solve is capped at PICARD_SOLVE_MAX_ITERATIONS: on open sides CG reaches
+        // ~1e-9 and then drifts (see below), and a warm-started solve inside the loop needs far
+        // fewer iterations than that otherwise.
+        let (rtol_outer, cap_outer) = (self.momentum.rtol, self.momentum.max_iterations);
+        self.momentum.rtol = rtol_outer.min(1e-2 * cfg.rheology.picard_tol).max(1e-12);
+        self.momentum.max_iterations = cap_outer.min(PICARD_SOLVE_MAX_ITERATIONS);
+        let result = self.picard_loop(exec);
+        self.momentum.rtol = rtol_outer;
+        self.momentum.max_iterations = cap_outer;
+        result
+    }
+
+    fn picard_loop(&mut self, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+        let cfg = &self.config;
+        let (grid, bc) = (&cfg.grid, &cfg.bc);
+        let wk = &self.work;
+        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
+        let explicit = cfg.viscous == ViscousScheme::Explicit;
+        let rc = cfg.rheology;
+        let rs = self.rheology.as_mut().expect("picard_loop runs with a rheology state");
+        let mut total = SolveInfo::default();
+        let mut inc = f64::INFINITY;
+        rs.history.clear();
+        for k in 1..=rc.picard_max_iterations {
+            // rhs + div(τΣ^k) + wall friction τ_b s^k / h
+            rs.rhs_u.assign(&wk.rhs_u);
+            rs.rhs_v.assign(&wk.rhs_v);
+            if rs.projection {
+                rs.plastic.add_force(grid, &mut rs.rhs_u, &mut rs.rhs_v, exec);
+            }
+            rs.walls.add_force(&mut rs.rhs_u, &mut rs.rhs_v, grid);
+            if explicit {
+                self.u.assign(&rs.ustar_u);
+                self.v.assign(&rs.ustar_v);
+                self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &rs.rhs_u, &rs.rhs_v, exec);
+            } else {
+                // A solve that stalls within 1000× of the tightened tolerance (or below 1e-7) is
+                // accepted: the Picard test below judges the result. CG stalls near 1e-9 and then
+                // drifts when round-off variations along an open side meet the asymmetry of the
+                // viscous operator there (see `MomentumSolver::diagonal`).
+                let info = match self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &rs.rhs_u, &rs.rhs_v, exec) {
+                    Ok(info) => info,
+                    Err(crate::Error::NotConverged { iterations, residual, tolerance, .. }) if residual <= (1e3 * tolerance).max(1e-7) => {
+                        fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
+                        SolveInfo { iterations, residual, initial_residual: 0.0, rhs_mean_removed: 0.0 }
+                    }
+                    Err(e) => return Err(e),
+                };
+                total.iterations += info.iterations;
+                total.residual = info.residual;
+                if k == 1 {
+                    total.initial_residual = info.initial_residual;
+                }
+            }
+            // Σ^{k+1}, s^{k+1} from ũ^{k+1} (ghosts filled by the solve)
+            inc = 0.0;
+            if rs.projection {
+                strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
+                inc = rs.plastic.update(&rs.dxx, &rs.dyy, &rs.dxy, rc.theta, exec);
+            }
+            if rs.walls.is_active() {
+                let d = rs.walls.update(&self.u, &self.v, rs.r_wall, rc.theta, grid);
+                inc = if d.is_nan() { d } else { inc.max(d) };
+            }
+            if rs.history.len() < rs.history.capacity() {
+                rs.history.push(inc);
+            }
+            if inc.is_nan() {
+                break;
+            }
+            if inc <= rc.picard_tol {
+                rs.plastic.norm_centre(&mut rs.sigma_norm, exec);
+                return Ok((total, PicardInfo { iterations: k, increment: inc, r: rs.r, r_wall: rs.r_wall }));
+            }
+        }
+        Err(not_converged(inc, rc.picard_max_iterations, rc.picard_tol, rs.r, rc.theta, self.step_count + 1, self.time))
+    }
+
+    /// The plastic tensor (Σ_xx at centres, Σ_xy at nodes), if the rheology has one.
+    pub fn plastic_tensor(&self) -> Option<(&Field, &Field)> {
+        self.rheology.as_ref().map(|r| (&r.plastic.sigma_xx, &r.plastic.sigma_xy))
+    }
+
+    /// |Σ| at cell centres after the last step, if the rheology has a plastic tensor.
+    pub fn plastic_norm(&self) -> Option<&Field> {
+        self.rheology.as_ref().map(|r| &r.sigma_norm)
+    }
+
+    /// Increments max |τ(Σ^{k+1} − Σ^k)|/τ_max (and of the wall stress) of the Picard iterations
+    /// of the last step (empty without plastic stress or wall friction).
+    pub fn picard_history(&self) -> &[f64] {
+        self.rheology.as_ref().map(|r| &r.history[..]).unwrap_or(&[])
+    }
+
+    /// The yield stress τ(Φ) at cell centres of the last step.
+    pub fn yield_stress(&self) -> Option<&Field> {
+        self.rheology.as_ref().map(|r| &r.plastic.tau_c)
+    }
+
+    /// Friction (s, τ_b) along a Coulomb side, if it has friction.
+    pub fn wall_friction(&self, side: Side) -> Option<(&[f64], &[f64])> {
+        self.rheology.as_ref().and_then(|r| r.walls.side(side))
+    }
+}
+
+#[inline]
+fn base(f: &Field, j: isize) -> usize {
+    ((j + HALO as isize) as usize) * f.stride() + HALO
+}
