@@ -108,3 +108,42 @@ def pore_formulations(ny: int = 32, t_end: float = 0.15, kappa_air: float = 1e16
     reference = {"acceptance": "granular-only and kappa-infinity (sharp) agree within 1 % (relative L2 of p_f over the "
                                "granular phase); the smoothed form differs by O(eps) and is reported", "kappa_air": kappa_air}
     return metrics, reference, diff <= 0.01
+
+
+def fluidised_layer_speed(beta: float, ny: int = 32, slope_deg: float = 20.0, t_end: float = 0.2, threads: int = 1):
+    """An x-invariant granular layer (thickness 0.1 m, φρ_s = 1450, D-P with α = 27°, η_s = 0.1)
+    on a rough base inclined at ``slope_deg`` < α under air, sides fully developed. β = 0: the
+    yield stress holds the layer; β near 1: the pore pressure (kept by a basal air flux) carries
+    the weight, the effective pressure and the yield stress vanish and the layer flows.
+    Returns the largest speed over the run."""
+    from ..boundary import FullyDeveloped, NoSlip
+    from ..rheology import DruckerPrager
+
+    rho, g, hl = 1450.0, 9.81, 0.1
+    th = math.radians(slope_deg)
+    gx, gy = g * math.sin(th), -g * math.cos(th)
+    ly = 0.2
+    grid = Grid(8, ny, 8 * ly / ny, ly)
+    pore = None
+    if beta > 0:
+        pore = PorePressure(diffusivity=0.035, basal_gradient=-beta * rho * g * math.cos(th))
+    model = Model(grid, Material(rho, 0.1), light=AIR, gravity=(gx, gy),
+                  bc=BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=NoSlip(), top=Outflow()),
+                  numerics=Numerics(cfl=0.4, max_dt=2e-3, picard_tol=1e-6, theta=0.8, picard_max_iterations=500),
+                  threads=threads, rheology=DruckerPrager(friction_angle=27.0), pore_pressure=pore)
+    model.set_initial(phi=lambda x, y: hl - y, balance_pressure=False)
+    if pore is not None:
+        model.set_initial(pf=lambda x, y: np.where(y < hl, beta * rho * g * math.cos(th) * (hl - y), 0.0),
+                          balance_pressure=False)
+    model.set_initial(balance_pressure=True)
+    log = model.advance(t_end=t_end)
+    return float(np.max(log["max_speed"])), model
+
+
+def fluidised_layer(ny: int = 32, slope_deg: float = 20.0, t_end: float = 0.2, threads: int = 1):
+    dry, _ = fluidised_layer_speed(0.0, ny, slope_deg, t_end, threads)
+    wet, _ = fluidised_layer_speed(0.95, ny, slope_deg, t_end, threads)
+    metrics = {"max_speed_beta_0": dry, "max_speed_beta_0.95": wet, "slope_deg": slope_deg,
+               "friction_angle_deg": 27.0}
+    reference = {"acceptance": "at rest without pore pressure (max_speed < 1e-8 m/s), flowing with it"}
+    return metrics, reference, dry < 1e-8 and wet > 1e-3
