@@ -192,28 +192,19 @@ impl PoissonSolver {
     /// (left, right, bottom, top): level hierarchy, work arrays, symbolic factorisation. The
     /// coefficients start at β = 1 everywhere (already factorised).
     pub fn new(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings) -> Result<Self> {
-        if nx == 0 {
-            return Err(Error::param("nx", nx, "an integer >= 1"));
-        }
-        if ny == 0 {
-            return Err(Error::param("ny", ny, "an integer >= 1"));
-        }
-        check_positive("dx", dx)?;
-        check_positive("dy", dy)?;
-        settings.validate()?;
-        let singular = bc.iter().all(|&b| b == PressureBc::Neumann);
-        Self::build(nx, ny, dx, dy, bc, settings, singular, false)
+        Self::build(nx, ny, dx, dy, bc, settings, false)
     }
 
     /// A solver for the shifted (Helmholtz-type) operator (L − σ) p = f, σ ≥ 0 per cell, set with
     /// [`PoissonSolver::set_coefficients_with_shift`]; σ must be positive somewhere when every
     /// side is Neumann, so the problem is never singular (implicit diffusion, pore pressure).
     pub fn new_shifted(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings) -> Result<Self> {
-        Self::build(nx, ny, dx, dy, bc, settings, false, true)
+        Self::build(nx, ny, dx, dy, bc, settings, true)
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn build(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings, singular: bool, shifted: bool) -> Result<Self> {
+    /// Shared constructor: a Poisson operator is singular when every side is Neumann; a shifted
+    /// one never is (its shift starts at σ = 1).
+    fn build(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings, shifted: bool) -> Result<Self> {
         if nx == 0 {
             return Err(Error::param("nx", nx, "an integer >= 1"));
         }
@@ -223,6 +214,7 @@ impl PoissonSolver {
         check_positive("dx", dx)?;
         check_positive("dy", dy)?;
         settings.validate()?;
+        let singular = !shifted && bc.iter().all(|&b| b == PressureBc::Neumann);
         let max_levels = match settings.kind {
             PressureSolverKind::MultigridCg => usize::MAX,
             PressureSolverKind::Direct => 1,
