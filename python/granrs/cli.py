@@ -19,10 +19,11 @@ def _validate(args) -> int:
             print(f"{name:16s} {doc}  (defaults: {defaults})")
         return 0
     params = {}
-    for key in ("n", "re", "steps", "period", "redistance_every", "cfl", "ny", "t_end"):
+    for key in ("n", "re", "steps", "period", "redistance_every", "cfl", "ny", "t_end",
+                "tau_y", "bn", "geometry", "regularised", "slope", "dt", "theta"):
         val = getattr(args, key)
         if val is not None:
-            params[key] = val if key != "n" or len(val) > 1 else val[0]
+            params[key] = val[0] if isinstance(val, list) and len(val) == 1 else val
     record = run_case(args.name, threads=args.threads, **params)
     text = json.dumps(record, indent=2)
     if args.json:
@@ -67,6 +68,13 @@ def main(argv=None) -> int:
     v.add_argument("--cfl", type=float, help="CFL number (level-set cases)")
     v.add_argument("--ny", type=int, help="cells across the height (column-type cases)")
     v.add_argument("--t-end", dest="t_end", type=float, help="end time (s)")
+    v.add_argument("--tau-y", dest="tau_y", type=float, help="yield stress (poiseuille-bingham, cessation)")
+    v.add_argument("--bn", type=float, action="append", help="Bingham number (cavity-bingham; repeat for several)")
+    v.add_argument("--geometry", choices=["couette", "poiseuille"], help="cessation geometry")
+    v.add_argument("--regularised", action="store_true", default=None, help="also run the regularised law (heap-at-rest)")
+    v.add_argument("--slope", type=float, help="slope in degrees (sliding-block, heap-at-rest)")
+    v.add_argument("--dt", type=float, action="append", help="time step (cessation; repeat for a convergence study)")
+    v.add_argument("--theta", type=float, action="append", help="pseudo-relaxation (picard-ratio; repeat)")
     v.add_argument("--threads", type=int, default=1)
     v.add_argument("--json", help="write the JSON record to this file")
 

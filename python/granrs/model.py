@@ -152,7 +152,7 @@ class Model:
             isinstance(getattr(self.bc, s), Coulomb) and getattr(self.bc, s).friction_angle is not None
             for s in ("left", "right", "bottom", "top"))
         if self._has_plastic:
-            for name in ("sigma_xx", "sigma_xy", "sigma_norm", "yield_stress"):
+            for name in ("sigma_xx", "sigma_xy", "trial_norm", "yield_stress"):
                 self._views[name] = self._view(name)
 
     def _view(self, name: str) -> np.ndarray:
@@ -211,9 +211,11 @@ class Model:
         return self._plastic("sigma_xy")
 
     @property
-    def sigma_norm(self) -> np.ndarray:
-        """|Σ| at cell centres after the last step (< 1: unyielded), shape (ny, nx), read-only live view."""
-        return self._plastic("sigma_norm")
+    def trial_norm(self) -> np.ndarray:
+        """|Σ + r D(u) + θ(Σⁿ − Σ)|, the argument of the plastic projection, at cell centres after
+        the last step: ≤ 1 exactly where the material is rigid (unyielded), shape (ny, nx),
+        read-only live view."""
+        return self._plastic("trial_norm")
 
     @property
     def yield_stress(self) -> np.ndarray:

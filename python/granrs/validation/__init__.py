@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from . import levelset, navier_stokes, pore_pressure
+from . import levelset, navier_stokes, pore_pressure, rheology
 
 #: name → (function(**params) → (metrics, reference, passed), default params, help)
 CASES: dict[str, tuple[Callable, dict, str]] = {
@@ -27,6 +27,19 @@ CASES: dict[str, tuple[Callable, dict, str]] = {
                         "granular layer on a slope below its friction angle: at rest dry, flowing when fluidised"),
     "pore-diffusion": (pore_pressure.pore_diffusion, {"n": [16, 32, 64, 128], "dt_factor": 10.0, "formulation": "granular-only"},
                        "pore pressure in a static layer with a basal air flux, exact 1D series"),
+    "poiseuille-bingham": (rheology.poiseuille_bingham, {"tau_y": 0.25, "n": [16, 32, 64]},
+                           "Bingham plane Poiseuille flow against the exact solution"),
+    "cavity-bingham": (rheology.cavity_bingham, {"bn": [0.0, 2.0, 5.0, 20.0, 50.0], "n": 32},
+                       "Bingham lid-driven cavity at Re = 0: vortex and plug against Bn"),
+    "cessation": (rheology.cessation, {"geometry": "couette", "tau_y": 0.5, "dt": [4e-3, 2e-3, 1e-3], "n": 32},
+                  "Bingham flow left without forcing: finite stopping time against the bound"),
+    "bagnold": (rheology.bagnold, {"n": 64}, "mu(I) layer on an incline against the exact Bagnold profile"),
+    "sliding-block": (rheology.sliding_block, {"slope": 30.0, "stop_slope": 10.0, "n": 32},
+                      "D-P block on a Coulomb base: acceleration, and stopping below the friction angle"),
+    "heap-at-rest": (rheology.heap_at_rest, {"slope": 20.0, "n": 32, "regularised": False},
+                     "granular layer inclined below its friction angle stays at rest"),
+    "picard-ratio": (rheology.picard_ratio, {"theta": [0.1, 0.25, 0.5, 0.75], "n": 32},
+                     "geometric convergence of the Picard iteration against 1 - theta"),
 }
 
 

@@ -135,12 +135,12 @@ impl PyModel {
                 None => return Err(param_err("name", "pf", "a field of this model: it has no pore pressure (not fluidised)")),
             },
             "viscosity" => self.inner.viscosity().0,
-            "sigma_xx" | "sigma_xy" | "sigma_norm" | "yield_stress" => {
+            "sigma_xx" | "sigma_xy" | "trial_norm" | "yield_stress" => {
                 let missing = || param_err("name", name, "a field of a model with a yield stress or friction walls (this rheology has none)");
                 match name {
                     "sigma_xx" => self.inner.plastic_tensor().ok_or_else(missing)?.0,
                     "sigma_xy" => self.inner.plastic_tensor().ok_or_else(missing)?.1,
-                    "sigma_norm" => self.inner.plastic_norm().ok_or_else(missing)?,
+                    "trial_norm" => self.inner.plastic_trial_norm().ok_or_else(missing)?,
                     _ => self.inner.yield_stress().ok_or_else(missing)?,
                 }
             }
@@ -148,7 +148,7 @@ impl PyModel {
                 return Err(param_err(
                     "name",
                     other,
-                    "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'sigma_norm', 'yield_stress'",
+                    "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'trial_norm', 'yield_stress'",
                 ))
             }
         })

@@ -248,14 +248,16 @@ impl PlasticState {
         inc
     }
 
-    /// |Σ| at cell centres (Σ_xy averaged from the corners) into `out`.
-    pub fn norm_centre(&self, out: &mut Field, exec: Exec) {
-        let (a, b) = (self.sigma_xx.slice(), self.sigma_xy.slice());
-        let (sxx, sxy) = (&self.sigma_xx, &self.sigma_xy);
+    /// |Λ| of the argument Λ = Σ + r D_dev + θ(Σ^n − Σ) of the last centre projection (Λ_xy
+    /// averaged from the corners) into `out`: at the fixed point |Λ| ≤ 1 exactly where the
+    /// material is rigid (D = 0), > 1 where it yields (there Σ = Λ/|Λ|).
+    pub fn trial_norm_centre(&self, out: &mut Field, exec: Exec) {
+        let (a, b) = (self.trial_c.slice(), self.trial_n.slice());
+        let (tc, tn) = (&self.trial_c, &self.trial_n);
         let n = out.nx;
         for_each_interior_row(exec, out, |j, row| {
             let j = j as isize;
-            let (bc, bn0, bn1) = (base(sxx, j), base(sxy, j), base(sxy, j + 1));
+            let (bc, bn0, bn1) = (base(tc, j), base(tn, j), base(tn, j + 1));
             for i in 0..n {
                 let xy = 0.25 * (b[bn0 + i] + b[bn0 + i + 1] + b[bn1 + i] + b[bn1 + i + 1]);
                 row[HALO + i] = (a[bc + i] * a[bc + i] + xy * xy).sqrt();

@@ -82,8 +82,10 @@ impl CoulombWalls {
     }
 
     /// τ_b = tan(α_b) p_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side, with p
-    /// and Φ extrapolated linearly to the wall and averaged over the two cells beside the face.
-    pub fn set_friction(&mut self, p: &Field, phi: &Field, tan_alpha_b: f64, eps: f64, grid: &Grid) {
+    /// and Φ extrapolated linearly to the wall and averaged over the two cells beside the face;
+    /// `eps` None: a single-phase model (H = 1).
+    pub fn set_friction(&mut self, p: &Field, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, grid: &Grid) {
+        let hv = |x: f64| eps.map_or(1.0, |e| heaviside(x, e));
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
         // value extrapolated to the wall from cell (i, j) inward
         let wall = |f: &Field, side: Side, k: isize| -> f64 {
@@ -99,7 +101,7 @@ impl CoulombWalls {
             for f in w.faces.clone() {
                 let (k0, k1) = ((f as isize - 1).clamp(0, ncells - 1), (f as isize).clamp(0, ncells - 1));
                 let pw = 0.5 * (wall(p, w.side, k0) + wall(p, w.side, k1));
-                let hw = 0.5 * (heaviside(wall(phi, w.side, k0), eps) + heaviside(wall(phi, w.side, k1), eps));
+                let hw = 0.5 * (hv(wall(phi, w.side, k0)) + hv(wall(phi, w.side, k1)));
                 w.tau_b[f] = tan_alpha_b * pw.max(0.0) * hw;
             }
         }
