@@ -61,6 +61,8 @@ pub struct PicardInfo {
     pub r: f64,
     /// r_b used in the step (0 without friction walls).
     pub r_wall: f64,
+    /// Times r and r_b were halved because the increment stalled (see `PICARD_STALL_WINDOW`).
+    pub r_halvings: usize,
 }
 
 /// P: orthogonal projection on the unit ball of symmetric traceless 2×2 tensors, on the pair
@@ -299,6 +301,12 @@ impl PlasticState {
     /// (2·[`R_NEIGHBOURHOOD`] + 1)² cells around the point (for a node: around its four cells).
     /// Returns the smallest r where τ > 0 (the value reported per step; 0 if τ = 0 everywhere).
     #[allow(clippy::too_many_arguments)]
+    /// Multiplies r at centres and nodes by `f` (the stall safeguard of the Picard loop).
+    pub fn scale_r(&mut self, f: f64) {
+        self.r_c.slice_mut().iter_mut().for_each(|v| *v *= f);
+        self.r_n.slice_mut().iter_mut().for_each(|v| *v *= f);
+    }
+
     pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
         if let Some(r) = r {
             self.r_c.fill(r);
