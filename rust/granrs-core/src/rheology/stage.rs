@@ -31,6 +31,11 @@ use crate::walls::{default_r_wall, CoulombWalls};
 /// t = 0.013 s) that a smaller r_b breaks (geometric again at once).
 pub const PICARD_STALL_WINDOW: usize = 40;
 
+/// At most this many halvings per step (r/64): beyond, a stall is not a cycle that a smaller r
+/// breaks (θ = 0 Uzawa iterations near their tolerance were driven to r = 1e-152 without it).
+/// Uzawa (θ = 0) is left alone: its slow geometric decay is not a cycle.
+pub const PICARD_MAX_HALVINGS: usize = 6;
+
 /// Iteration cap of each viscous solve inside the Picard loop.
 pub const PICARD_SOLVE_MAX_ITERATIONS: usize = 500;
 
@@ -317,7 +322,7 @@ impl TwoPhaseModel {
             }
             if k % PICARD_STALL_WINDOW == 0 {
                 // only the default (contraction-bound) parameters adapt; a user's r is kept
-                if inc > 0.95 * window_start && (rc.r.is_none() || rc.r_wall.is_none()) {
+                if rc.theta > 0.0 && inc > 0.95 * window_start && halvings < PICARD_MAX_HALVINGS && (rc.r.is_none() || rc.r_wall.is_none()) {
                     if rc.r.is_none() {
                         rs.plastic.scale_r(0.5);
                         rs.r *= 0.5;
