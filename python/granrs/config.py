@@ -112,11 +112,11 @@ def _check_value(key: Key, value):
         ok_type = isinstance(value, int) if key.kind == "int" else isinstance(value, (int, float))
         if isinstance(value, bool) or not ok_type:
             raise _bad(key, value)
-        value = float(value) if key.kind == "float" else value
-        too_high = value >= key.hi if key.hi_open else value > key.hi
-        if not math.isfinite(value) or value < key.lo or too_high:
+        number = float(value) if key.kind == "float" else value
+        too_high = number >= key.hi if key.hi_open else number > key.hi
+        if not math.isfinite(number) or number < key.lo or too_high:
             raise _bad(key, value)
-        return value
+        return number
     if key.kind == "bool":
         if not isinstance(value, bool):
             raise _bad(key, value)

@@ -207,7 +207,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         xf = front_position(model.phi, grid.dx)
         if xf > grid.lx - 3 * grid.dx:
             raise SimulationError(f"the granular front reached the far end of the domain (x = {xf:.3f} m of "
-                                  f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length")
+                                  f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)")
         speed = granular_speed()
         rec["t"].append(t)
         rec["front"].append(xf - lc)
@@ -280,8 +280,10 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
 
 
 def _read_front(path: Path):
-    data = np.genfromtxt(path / "front.csv", delimiter=",", skip_header=1, ndmin=2)
     meta = json.loads((path / "summary.json").read_text())
+    if len((path / "front.csv").read_text().splitlines()) < 2:  # a run that failed before its first record
+        return np.zeros(0), np.zeros(0), meta
+    data = np.genfromtxt(path / "front.csv", delimiter=",", skip_header=1, ndmin=2)
     return data[:, 0], data[:, 1], meta
 
 
