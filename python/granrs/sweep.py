@@ -238,15 +238,24 @@ def plot_runout(table: list, keys: list, path) -> Path:
         label = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in zip(rest, combo)) or "run-out"
         x = [r[first] for r in rows]
         y = [r["runout_m"] for r in rows]
-        ax.plot(x, y, f"C{n}-", lw=1, label=label)
         ok = [r["status"] == "ok" for r in rows]
-        ax.plot([a for a, o in zip(x, ok) if o], [b for b, o in zip(y, ok) if o], f"C{n}o")
-        ax.plot([a for a, o in zip(x, ok) if not o], [b for b, o in zip(y, ok) if not o], f"C{n}o", mfc="none")
+        ax.plot([a for a, o in zip(x, ok) if o], [b for b, o in zip(y, ok) if o], f"C{n}o-", label=label if any(ok) else None)
+        ax.plot([a for a, o in zip(x, ok) if not o], [b for b, o in zip(y, ok) if not o], f"C{n}o", mfc="none",
+                label=None if any(ok) else label)
+        for r, a, b, o in zip(rows, x, y, ok):
+            if not o and math.isfinite(b):
+                ax.annotate(f"t={r['t_end_s']:.2f} s", (a, b), textcoords="offset points", xytext=(4, 3), fontsize=6,
+                            color=f"C{n}")
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"experiment: {PAPER_RUNOUT_EXP} m")
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper's simulation: {PAPER_RUNOUT_SIM} m")
     failed = sum(r["status"] != "ok" for r in table)
-    ax.set(xlabel=first, ylabel="run-out from the gate (m)",
-           title=f"sweep of {len(table)} members" + (f": {failed} failed (open markers, run-out when they stopped)" if failed else ""))
+    xs = [r[first] for r in table if isinstance(r[first], (int, float))]
+    if xs and min(xs) > 0 and max(xs) / min(xs) >= 10:
+        ax.set_xscale("log")
+    ax.set(xlabel=f"{first} ({config_key(first).unit_words})" if config_key(first).unit else first,
+           ylabel="run-out from the gate (m)",
+           title=f"sweep of {len(table)} members" + (f": {failed} stopped early\n(open markers: run-out at the time "
+                                                     "they stopped, a lower bound)" if failed else ""))
     ax.title.set_fontsize(9)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
