@@ -34,7 +34,8 @@ def _data_array(name: str, data: np.ndarray, components: int = 1) -> str:
     raw = data.tobytes()
     encoded = base64.b64encode(np.array([len(raw)], dtype="<u8").tobytes() + raw).decode("ascii")
     return (f'        <DataArray type="{_VTK_TYPES[data.dtype]}" Name={quoteattr(name)} '
-            f'NumberOfComponents="{components}" format="binary">\n          {encoded}\n        </DataArray>\n')
+            f'NumberOfComponents="{components}" NumberOfTuples="{data.size // components}" format="binary">\n'
+            f'          {encoded}\n        </DataArray>\n')
 
 
 def _atomic_write(path: Path, text: str) -> None:
