@@ -59,7 +59,8 @@ def make_animation(out, path=None, fps: int = 8, dpi: int = 90) -> Optional[Path
     if data["pf"] is not None:
         panels.append(("pore pressure p_f (Pa)", np.where(phi > 0, data["pf"], np.nan), "magma"))
     lx, ly = x[-1] + x[0], y[-1] + y[0]
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 0.6 + len(panels) * 9 * ly / lx * 1.25), squeeze=False)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 0.8 + len(panels) * 9 * ly / lx * 1.1), squeeze=False,
+                             layout="constrained")
     extent = (0, lx, 0, ly)
     images, contours = [], []
     for ax, (label, values, cmap) in zip(axes[:, 0], panels):
