@@ -65,7 +65,7 @@ def _sweep(args) -> int:
 
     cfg = load_config(args.file, args.set or [])
     result = run_sweep(cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out)
-    keys = [k for k in result.table[0] if k not in ("dir", "error", "member")]
+    keys = [k for k in result.table[0] if k not in ("dir", "error", "member", "stop_reason", "wall_s", "mass_rel_error")]
     print(",".join(keys))
     for row in result.table:
         print(",".join(f"{row[k]:.6g}" if isinstance(row[k], float) else str(row[k]) for k in keys))
