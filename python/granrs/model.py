@@ -72,6 +72,8 @@ class Numerics:
     of the Picard iteration (geometric ratio about 1 − θ; 0 is plain Uzawa); picard_tol and
     picard_max_iterations: its stopping test on max |Σ^{k+1} − Σ^k| (dimensionless) and cap.
     convection: False drops ρ(u·∇)u (Stokes flow, or x-invariant layers where it vanishes);
+    convection_scheme: 'centred' (second order, non-dissipative) or 'weno5' (upwind WENO5 per
+    derivative: damps the grid-scale oscillations of an under-resolved light-phase shear layer);
     viscous_rtol: relative residual of the implicit viscous solve.
     """
 
@@ -96,6 +98,7 @@ class Numerics:
     picard_tol: float = 1e-9
     picard_max_iterations: int = 1000
     convection: bool = True
+    convection_scheme: str = "centred"
     viscous_rtol: float = 1e-10
 
 
@@ -144,7 +147,7 @@ class Model:
             n.cfl, n.dt, n.max_dt, n.max_growth, n.cfl_abort, n.pressure_solver, n.pressure_rtol,
             n.pressure_max_iterations, threads, rheology.spec(), n.plastic, n.regularisation, n.r, n.r_wall,
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
-            None if pore_pressure is None else asdict(pore_pressure), n.mass_correction)
+            None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

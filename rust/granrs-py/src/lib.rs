@@ -5,7 +5,7 @@
 use granrs_core::exec::Exec;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
-use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
+use granrs_core::models::{ConvectionScheme, Material, ModelConfig, TwoPhaseModel};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig};
 use granrs_core::rheology::{RheologyConfig, RheologyLaw, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
@@ -263,7 +263,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -299,6 +299,7 @@ impl PyModel {
         viscous_rtol: f64,
         pore_pressure: Option<&Bound<'_, PyDict>>,
         mass_correction: bool,
+        convection_scheme: &str,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -365,6 +366,11 @@ impl PyModel {
         cfg.pore = pore_pressure.map(parse_pore).transpose()?;
         cfg.mass_correction = mass_correction;
         cfg.convection = convection;
+        cfg.convection_scheme = match convection_scheme {
+            "centred" => ConvectionScheme::Centred,
+            "weno5" => ConvectionScheme::Weno5,
+            other => return Err(param_err("convection_scheme", other, "'centred' or 'weno5'")),
+        };
         cfg.viscous_rtol = viscous_rtol;
         let law = match &rheology {
             Some((kind, params)) => parse_rheology(kind, params.as_ref())?,

@@ -141,6 +141,8 @@ pub struct RedistanceInfo {
     /// iteration misbehaved (seen once, in an air pocket one cell high trapped under a granular
     /// front at ny = 32, where it produced |Φ| ≈ 1900 h).
     pub clamped_cells: usize,
+    /// Cells beyond the pseudo-time band set to the fast-sweeping distance.
+    pub far_field_cells: usize,
 }
 
 /// The redistancing operator, with its scratch fields.
@@ -218,6 +220,12 @@ impl Redistancer {
                 }
             }
         }
+        // Far field: beyond the band the pseudo time reached (τ − 2h), Φ becomes ±(first-order
+        // distance to the interface cells) by fast sweeping (Zhao 2005). Without it the light
+        // phase's recirculation carries near-zero values of Φ from beside the interface to the far
+        // field (seen under the lid of the column's channel), where transport noise flips their
+        // sign into spurious granular droplets (+6–8 % dense area at ny = 32 by t = 3 s).
+        let far = self.far_field(phi, grid, (tau - 2.0 * h).max(h));
         phi.extrapolate_ghosts_linear();
         let prev = &self.prev;
         let last_change = exec.max_rows(grid.ny, grid.cells(), |j| {
@@ -239,7 +247,79 @@ impl Redistancer {
             pseudo_time: st.iterations as f64 * st.cfl * h,
             last_change,
             clamped_cells: clamped,
+            far_field_cells: far,
         })
+    }
+
+    /// Sets Φ = sign(Φ⁰)·d where the fast-sweeping distance d to the interface cells (those next
+    /// to a sign change of Φ⁰, at their current |Φ|) exceeds `keep`; returns how many cells.
+    /// First-order Godunov update of |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice.
+    fn far_field(&mut self, phi: &mut Field, grid: &Grid, keep: f64) -> usize {
+        let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+        let (dx, dy) = (grid.dx, grid.dy);
+        let d = &mut self.phi1;
+        let sub = &self.sub;
+        let mut any = false;
+        for j in 0..ny {
+            for i in 0..nx {
+                let at_interface = sub.iter().any(|f| f.at(i, j).is_finite());
+                any |= at_interface;
+                d.set(i as usize, j as usize, if at_interface { phi.at(i, j).abs() } else { f64::INFINITY });
+            }
+        }
+        if !any {
+            return 0;
+        }
+        let update = |d: &mut Field, i: isize, j: isize| {
+            let get = |ii: isize, jj: isize| if ii < 0 || jj < 0 || ii >= nx || jj >= ny { f64::INFINITY } else { d.at(ii, jj) };
+            let a = get(i - 1, j).min(get(i + 1, j));
+            let b = get(i, j - 1).min(get(i, j + 1));
+            if !a.is_finite() && !b.is_finite() {
+                return;
+            }
+            let (lo, hi, hlo, hhi) = if a + dx <= b + dy { (a, b, dx, dy) } else { (b, a, dy, dx) };
+            let mut new = lo + hlo;
+            if new > hi {
+                // ((d − a)/dx)² + ((d − b)/dy)² = 1
+                let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
+                let (qa, qb) = (wa + wb, -2.0 * (wa * a + wb * b));
+                let qc = wa * a * a + wb * b * b - 1.0;
+                let disc = qb * qb - 4.0 * qa * qc;
+                if disc >= 0.0 {
+                    new = (-qb + disc.sqrt()) / (2.0 * qa);
+                }
+            }
+            let _ = hhi;
+            if new < d.at(i, j) {
+                d.set(i as usize, j as usize, new);
+            }
+        };
+        for _ in 0..2 {
+            for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
+                for jj in 0..ny {
+                    let j = if ry { ny - 1 - jj } else { jj };
+                    for ii in 0..nx {
+                        let i = if rx { nx - 1 - ii } else { ii };
+                        if !sub.iter().any(|f| f.at(i, j).is_finite()) {
+                            update(d, i, j);
+                        }
+                    }
+                }
+            }
+        }
+        let mut count = 0;
+        for j in 0..ny {
+            for i in 0..nx {
+                let dist = d.at(i, j);
+                if dist.is_finite() && dist > keep {
+                    let s = self.phi0.at(i, j);
+                    let s = if s != 0.0 { s.signum() } else { phi.at(i, j).signum() };
+                    phi.set(i as usize, j as usize, s * dist);
+                    count += 1;
+                }
+            }
+        }
+        count
     }
 
     /// [`InterfaceTreatment::ClosestPoint`]: fills `frozen` with ±(distance to the bicubic zero

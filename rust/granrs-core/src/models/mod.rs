@@ -6,4 +6,4 @@
 
 mod two_phase;
 
-pub use two_phase::{Material, ModelConfig, TwoPhaseModel};
+pub use two_phase::{ConvectionScheme, Material, ModelConfig, TwoPhaseModel};

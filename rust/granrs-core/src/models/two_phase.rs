@@ -31,6 +31,16 @@ impl Material {
     }
 }
 
+/// Discretisation of (u·∇)u.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConvectionScheme {
+    /// Centred second order (non-dissipative; the validated single-phase default).
+    Centred,
+    /// Upwind WENO5 per derivative (dissipative at the grid scale; for high density ratios and
+    /// under-resolved shear layers of the light phase).
+    Weno5,
+}
+
 /// Everything that defines a model (grid, boundary conditions, materials, numerics).
 #[derive(Clone, Debug)]
 pub struct ModelConfig {
@@ -64,6 +74,8 @@ pub struct ModelConfig {
     pub rheology: RheologyConfig,
     /// Whether the convective term ρ(u·∇)u is included (false: unsteady Stokes equations).
     pub convection: bool,
+    /// Discretisation of the convective term (see `operators::kernels`).
+    pub convection_scheme: ConvectionScheme,
     /// Relative residual of the implicit viscous solve (tightened inside the Picard loop).
     pub viscous_rtol: f64,
 }
@@ -89,6 +101,7 @@ impl ModelConfig {
             pore: None,
             rheology: RheologyConfig::default(),
             convection: true,
+            convection_scheme: ConvectionScheme::Centred,
             viscous_rtol: 1e-10,
         }
     }

@@ -61,6 +61,8 @@ pub struct PicardInfo {
     pub r: f64,
     /// r_b used in the step (0 without friction walls).
     pub r_wall: f64,
+    /// Times r and r_b were halved because the increment stalled (see `PICARD_STALL_WINDOW`).
+    pub r_halvings: usize,
 }
 
 /// P: orthogonal projection on the unit ball of symmetric traceless 2×2 tensors, on the pair
@@ -295,11 +297,17 @@ pub const R_NEIGHBOURHOOD: isize = 2;
 impl PlasticState {
     /// Sets r at centres and nodes: the constant `r` if given, else the local default
     /// r = (1 − θ)/(τ k̄), with k̄ the largest k = 2S/(c + 4ηS) (S = 2(1/dx² + 1/dy²),
-    /// c = a₀ρ/δt with ρ averaged from the u faces of the cell, η of the cell) over the
+    /// c = a₀ρ/δt with ρ the lightest of the cell's four faces, η of the cell) over the
     /// (2·[`R_NEIGHBOURHOOD`] + 1)² cells around the point (for a node: around its four cells).
     /// Returns the smallest r where τ > 0 (the value reported per step; 0 if τ = 0 everywhere).
     #[allow(clippy::too_many_arguments)]
-    pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
+    /// Multiplies r at centres and nodes by `f` (the stall safeguard of the Picard loop).
+    pub fn scale_r(&mut self, f: f64) {
+        self.r_c.slice_mut().iter_mut().for_each(|v| *v *= f);
+        self.r_n.slice_mut().iter_mut().for_each(|v| *v *= f);
+    }
+
+    pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
         if let Some(r) = r {
             self.r_c.fill(r);
             self.r_n.fill(r);
@@ -309,12 +317,15 @@ impl PlasticState {
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
         // k at centres (scratch: new_c), its neighbourhood maximum (scratch: trial_c)
         {
-            let (rs, es) = (rho_u.slice(), eta_c.slice());
+            let (rs, rvs, es) = (rho_u.slice(), rho_v.slice(), eta_c.slice());
             let n = self.new_c.nx;
             for_each_interior_row(exec, &mut self.new_c, |j, row| {
                 let (bc, bu) = (base(eta_c, j as isize), base(rho_u, j as isize));
+                let (bv0, bv1) = (base(rho_v, j as isize), base(rho_v, j as isize + 1));
                 for i in 0..n {
-                    let c = a0_over_dt * 0.5 * (rs[bu + i] + rs[bu + i + 1]);
+                    // the lightest of the cell's four faces (the largest velocity response)
+                    let rho = rs[bu + i].min(rs[bu + i + 1]).min(rvs[bv0 + i]).min(rvs[bv1 + i]);
+                    let c = a0_over_dt * rho;
                     row[HALO + i] = 2.0 * s / (c + 4.0 * es[bc + i] * s);
                 }
             });

@@ -18,9 +18,9 @@
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
-use crate::models::TwoPhaseModel;
+use crate::models::{ConvectionScheme, TwoPhaseModel};
 use crate::operators::{
-    cell_to_node, convection, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
+    cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
     BcMode,
 };
 use crate::projection::fill_pressure_ghosts;
@@ -314,7 +314,10 @@ impl TwoPhaseModel {
         fill_pressure_ghosts(&mut self.p, bc);
         let wk = &mut self.work;
         if cfg.convection {
-            convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec);
+            match cfg.convection_scheme {
+                ConvectionScheme::Centred => convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec),
+                ConvectionScheme::Weno5 => convection_weno5(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec),
+            }
         } else {
             // Stokes flow (Re = 0), or a flow whose convection vanishes identically (x-invariant
             // layers, where an explicit convection of round-off perturbations through open
