@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from granrs import ParameterError
+from granrs.cases.column import ColumnCase
 from granrs.config import KEYS, apply_sets, column_case, describe, dumps, load_config, parse_scalar, resolve, write_config
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -30,10 +31,10 @@ def test_round_trip_load_resolve_write_load(tmp_path, path):
 def test_defaults_are_the_papers_case_and_resolve_every_key():
     cfg = resolve({})
     assert all(cfg[k.section][k.name] is not None for k in KEYS)
-    assert cfg["grid"]["length"] == 2.25 and cfg["materials"]["diffusivity"] == 0.035
+    assert cfg["grid"]["length"] == 3.5 and cfg["materials"]["diffusivity"] == 0.035
     case = column_case(cfg)
     case.validate()
-    assert case.grid().nx == 160 and case.fluidised
+    assert case == ColumnCase(length=3.5) and case.grid().nx == ColumnCase().grid().nx
 
 
 def test_integers_are_accepted_for_float_keys_and_written_as_floats():

@@ -44,16 +44,17 @@ def test_vti_parses_with_the_grid_dimensions_and_the_initial_values(run):
     root = ET.parse(files[0]).getroot()
     assert root.get("type") == "ImageData"
     image = root.find("ImageData")
-    assert image.get("WholeExtent") == "0 80 0 16 0 0"
+    grid = column_case(run.cfg).grid()
+    assert grid.ny == 16 and image.get("WholeExtent") == f"0 {grid.nx} 0 16 0 0"
     names = {a.get("Name") for a in image.find("Piece/CellData")}
     assert names == {"phi", "p", "pf", "yielded", "velocity"}
     frame = read_vti(files[0])
-    assert frame["time"] == 0.0 and frame["shape"] == (16, 80)
-    assert frame["spacing"][:2] == pytest.approx((2.25 / 80, 0.45 / 16))
+    assert frame["time"] == 0.0 and frame["shape"] == (16, grid.nx)
+    assert frame["spacing"][:2] == pytest.approx((grid.lx / grid.nx, 0.45 / 16))
     model = build_model(column_case(run.cfg))  # the same initial state, built again
     np.testing.assert_array_equal(frame["fields"]["phi"], model.phi)
     np.testing.assert_array_equal(frame["fields"]["pf"], model.pf)
-    assert frame["fields"]["velocity"].shape == (16, 80, 3)
+    assert frame["fields"]["velocity"].shape == (16, grid.nx, 3)
     assert frame["provenance"]["command_line"] == "granrs run tiny.toml"
 
 
@@ -66,7 +67,7 @@ def test_pvd_indexes_every_snapshot_in_time_order(run):
 def test_netcdf_opens_with_xarray_with_cf_attributes_and_the_vti_values(run):
     with xr.open_dataset(run.out / "fields.nc") as ds:
         assert ds.attrs["Conventions"].startswith("CF-")
-        assert dict(ds.sizes) == {"time": 4, "y": 16, "x": 80}
+        assert dict(ds.sizes) == {"time": 4, "y": 16, "x": column_case(run.cfg).grid().nx}
         assert ds["time"].values == pytest.approx(TIMES) and ds["time"].attrs["units"] == "s"
         assert ds["x"].attrs["units"] == "m" and ds["x"].attrs["axis"] == "X" and ds["y"].attrs["axis"] == "Y"
         units = {"phi": "m", "u": "m s-1", "v": "m s-1", "p": "Pa", "pf": "Pa", "yielded": "1"}
@@ -184,7 +185,7 @@ def test_checkpoint_file_format_round_trip(tmp_path):
     model._rust = _FakeCore(model._rust)
     path = save_checkpoint(model, tmp_path / "ck.npz", provenance={"granrs_version": "x"})
     ck = load_checkpoint(path)
-    assert ck.meta["format"] == "granrs-checkpoint" and ck.meta["grid"]["nx"] == 80 and ck.meta["provenance"]
+    assert ck.meta["format"] == "granrs-checkpoint" and ck.meta["grid"]["nx"] == model.grid.nx and ck.meta["provenance"]
     np.testing.assert_array_equal(ck.state["u"], np.arange(6.0).reshape(2, 3))
     assert ck.state["history"].dtype == np.int32
     assert ck.state["dt_previous"] == 1 / 3 and type(ck.state["step_count"]) is int

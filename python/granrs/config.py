@@ -14,6 +14,7 @@ A resolved configuration is a plain ``dict[section, dict[key, value]]`` holding 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tomllib
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Iterable, Optional, Union
 
 from ._granrs import ParameterError
+from .cases.column import ColumnCase
 
 
 @dataclass(frozen=True)
@@ -68,27 +70,33 @@ def _fmt(x) -> str:
     return f"{x:g}" if isinstance(x, float) else str(x)
 
 
+# defaults come from the column case itself, so a run file and `granrs run column` agree
+_D = {f.name: f.default for f in dataclasses.fields(ColumnCase) if f.default is not dataclasses.MISSING}
+_PAPER_LENGTH = ColumnCase().domain()[0]
+
 KEYS: tuple[Key, ...] = (
     Key("case", "name", "choice", "column", "", "the case to run", choices=("column",)),
-    Key("case", "aspect_ratio", "float", 2.0, "1", "a = H_c / L_c, column height over width", 0.1, 20.0),
-    Key("case", "width", "float", 0.20, "m", "L_c, width of the reservoir (gate at x = L_c)", 1e-3, 10.0),
-    Key("case", "fluidised", "bool", True, "", "pore gas pressure on (initial p_f and basal air supply)"),
-    Key("case", "pore_pressure_ratio", "float", 0.9, "1", "β: initial and supplied pore pressure over the lithostatic one", 0.0, 1.0),
-    Key("case", "rheology", "choice", "drucker-prager", "", "granular rheology", choices=("drucker-prager", "mu-i")),
-    Key("grid", "ny", "int", 32, "cells", "cells over the domain height (256 is the paper's grid)", 8, 4096),
-    Key("grid", "length", "float", None, "m", "channel length; default L_c + 5.125 H_c (2.25 m for the paper)", 0.01, 1000.0),
-    Key("materials", "solid_fraction", "float", 0.58, "1", "φ, solid volume fraction of the column", 0.01, 0.74),
-    Key("materials", "grain_density", "float", 2500.0, "kg m-3", "ρ_s, density of the grains", 1.0, 25000.0),
-    Key("materials", "grain_diameter", "float", 75e-6, "m", "d_s, grain diameter (used by mu-i)", 1e-7, 0.1),
-    Key("materials", "friction_angle", "float", 27.0, "degree", "α, internal friction angle", 0.0, 89.0),
-    Key("materials", "wall_friction_angle", "float", 15.0, "degree", "α_b, friction angle of the base and back wall", 0.0, 89.0),
-    Key("materials", "granular_viscosity", "float", 0.1, "Pa s", "η_s, viscosity of the granular phase", 1e-8, 1e6),
-    Key("materials", "diffusivity", "float", 0.035, "m2 s-1", "κ_f, pore pressure diffusivity", 1e-12, 1e6),
-    Key("numerics", "cfl", "float", 0.5, "1", "CFL number of the adaptive time step", 1e-3, 1.0),
-    Key("numerics", "t_end", "float", 3.0, "s", "end of the simulated time (the run stops earlier at rest)", 1e-6, 1e4),
-    Key("numerics", "threads", "int", 1, "threads", "size of the Rust thread pool (results are identical for any value)", 1, 1024),
-    Key("numerics", "picard_tol", "float", 1e-4, "1", "tolerance of the Picard iteration of the plastic projection", 1e-14, 1.0),
-    Key("numerics", "theta", "float", 0.8, "1", "θ, pseudo-relaxation of the Picard iteration", 0.0, 1.0, hi_open=True),
+    Key("case", "aspect_ratio", "float", _D["aspect_ratio"], "1", "a = H_c / L_c, column height over width", 0.1, 20.0),
+    Key("case", "width", "float", _D["width"], "m", "L_c, width of the reservoir (gate at x = L_c)", 1e-3, 10.0),
+    Key("case", "fluidised", "bool", _D["fluidised"], "", "pore gas pressure on (initial p_f and basal air supply)"),
+    Key("case", "pore_pressure_ratio", "float", _D["pore_pressure_ratio"], "1", "β: initial and supplied pore pressure over the lithostatic one", 0.0, 1.0),
+    Key("case", "rheology", "choice", _D["rheology"], "", "granular rheology", choices=("drucker-prager", "mu-i")),
+    Key("grid", "ny", "int", _D["ny"], "cells", "cells over the domain height (256 is the paper's grid)", 8, 4096),
+    Key("grid", "length", "float", None, "m", f"channel length; default from the column case ({_PAPER_LENGTH:g} m for the paper's column)", 0.01, 1000.0),
+    Key("materials", "solid_fraction", "float", _D["solid_fraction"], "1", "φ, solid volume fraction of the column", 0.01, 0.74),
+    Key("materials", "grain_density", "float", _D["grain_density"], "kg m-3", "ρ_s, density of the grains", 1.0, 25000.0),
+    Key("materials", "grain_diameter", "float", _D["grain_diameter"], "m", "d_s, grain diameter (used by mu-i)", 1e-7, 0.1),
+    Key("materials", "friction_angle", "float", _D["friction_angle"], "degree", "α, internal friction angle", 0.0, 89.0),
+    Key("materials", "wall_friction_angle", "float", _D["wall_friction_angle"], "degree", "α_b, friction angle of the base and back wall", 0.0, 89.0),
+    Key("materials", "granular_viscosity", "float", _D["granular_viscosity"], "Pa s", "η_s, viscosity of the granular phase", 1e-8, 1e6),
+    Key("materials", "diffusivity", "float", _D["diffusivity"], "m2 s-1", "κ_f, pore pressure diffusivity", 1e-12, 1e6),
+    Key("numerics", "cfl", "float", _D["cfl"], "1", "CFL number of the adaptive time step", 1e-3, 1.0),
+    Key("numerics", "t_end", "float", _D["t_end"], "s", "end of the simulated time (the run stops earlier at rest)", 1e-6, 1e4),
+    Key("numerics", "threads", "int", _D["threads"], "threads", "size of the Rust thread pool (results are identical for any value)", 1, 1024),
+    Key("numerics", "picard_tol", "float", _D["picard_tol"], "1", "tolerance of the Picard iteration of the plastic projection", 1e-14, 1.0),
+    Key("numerics", "theta", "float", _D["theta"], "1", "θ, pseudo-relaxation of the Picard iteration", 0.0, 1.0, hi_open=True),
+    Key("numerics", "mass_correction", "bool", _D["mass_correction"], "",
+        "global mass correction of the level set (dense area kept at its initial value)"),
     Key("output", "dir", "str", "out/run", "path", "output folder, relative to the current directory"),
     Key("output", "fields_every_s", "float", 0.05, "s", "simulated time between field snapshots; 0: none", 0.0, 1e4),
     Key("output", "formats", "list", ["vtk"], "", "field formats: 'vtk' (.vti + .pvd), 'netcdf' (fields.nc)", choices=("vtk", "netcdf")),
@@ -164,8 +172,8 @@ def resolve(raw: dict) -> Config:
 def _derive_and_cross_check(cfg: Config) -> None:
     case, grid, out = cfg["case"], cfg["grid"], cfg["output"]
     if grid["length"] is None:
-        length = case["width"] + 5.125 * (case["aspect_ratio"] * case["width"])  # as ColumnCase.domain()
-        grid["length"] = float(f"{length:.12g}")  # 2.25, not 2.2500000000000004
+        length = ColumnCase(aspect_ratio=case["aspect_ratio"], width=case["width"]).domain()[0]
+        grid["length"] = float(f"{length:.12g}")  # 3.5, not 3.5000000000000004
     if grid["length"] <= case["width"]:
         raise ParameterError(f"invalid parameter `grid.length` = {grid['length']!r}: allowed a length (m) greater than "
                              f"case.width = {case['width']!r} m (the gate)")
@@ -285,12 +293,10 @@ def describe() -> str:
     return "\n".join(rows) + "\n"
 
 
-def column_case(cfg: Config):
+def column_case(cfg: Config) -> ColumnCase:
     """The ``ColumnCase`` of a resolved configuration."""
-    from .cases.column import ColumnCase
-
     c, g, m, n = cfg["case"], cfg["grid"], cfg["materials"], cfg["numerics"]
     return ColumnCase(aspect_ratio=c["aspect_ratio"], width=c["width"], fluidised=c["fluidised"],
                       pore_pressure_ratio=c["pore_pressure_ratio"], rheology=c["rheology"], ny=g["ny"],
                       length=g["length"], t_end=n["t_end"], cfl=n["cfl"], threads=n["threads"],
-                      picard_tol=n["picard_tol"], theta=n["theta"], **m)
+                      picard_tol=n["picard_tol"], theta=n["theta"], mass_correction=n["mass_correction"], **m)
