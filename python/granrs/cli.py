@@ -1,4 +1,5 @@
-"""Command line: ``granrs run CASE``, ``granrs validate NAME``, ``granrs info``."""
+"""Command line: ``granrs run CASE|FILE.toml``, ``granrs sweep FILE.toml``, ``granrs validate NAME``,
+``granrs keys``, ``granrs animate DIR``, ``granrs info``."""
 
 from __future__ import annotations
 
@@ -33,7 +34,55 @@ def _validate(args) -> int:
     return 0 if record["passed"] else 1
 
 
-def _run(args) -> int:
+_COLUMN_OPTIONS = ("aspect_ratio", "width", "fluidised", "pore_pressure_ratio", "ny", "t_end", "rheology", "cfl",
+                   "length", "compare_with", "threads", "re", "n")
+
+
+def _run_file(args, parser) -> int:
+    from .config import load_config, set_value
+    from .io.provenance import command_line
+    from .runner import run_config
+
+    given = [f"--{k.replace('_', '-')}" for k in _COLUMN_OPTIONS if getattr(args, k) != parser.get_default(k)]
+    if given:
+        raise ParameterError(f"invalid parameter `{given[0]}` with a run file: allowed --set section.key=value "
+                             "(e.g. --set grid.ny=64), --out, --restart, --quiet")
+    sets = list(args.set or [])
+    cfg = load_config(args.case, sets + ([f"output.dir={json.dumps(args.out)}"] if args.out else []))
+    try:
+        summary = run_config(cfg, command=command_line(), progress=not args.quiet, restart=args.restart)
+    except KeyboardInterrupt:
+        print(f"granrs: interrupted; the outputs written so far are in {cfg['output']['dir']}", file=sys.stderr)
+        return 130
+    keys = ("runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error", "fluidised", "stop_reason")
+    print(json.dumps({k: summary[k] for k in keys} | {"out": cfg["output"]["dir"]}, indent=2))
+    return 0
+
+
+def _sweep(args) -> int:
+    from .config import load_config
+    from .sweep import run_sweep
+
+    cfg = load_config(args.file, args.set or [])
+    result = run_sweep(cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out)
+    keys = [k for k in result.table[0] if k not in ("dir", "error", "member", "stop_reason", "wall_s", "mass_rel_error")]
+    print(",".join(keys))
+    for row in result.table:
+        print(",".join(f"{row[k]:.6g}" if isinstance(row[k], float) else str(row[k]) for k in keys))
+    failed = [r for r in result.table if r["status"] != "ok"]
+    for r in failed:
+        print(f"member {r['member']} failed: {r['error']}", file=sys.stderr)
+    print(f"wrote {', '.join(str(p) for p in result.files.values())}", file=sys.stderr)
+    return 0 if not failed else 1
+
+
+def _run(args, parser) -> int:
+    if args.case.endswith(".toml") or Path(args.case).is_file():
+        return _run_file(args, parser)
+    if args.set or args.restart:
+        raise ParameterError("invalid parameter `--set/--restart`: allowed only with a run file (granrs run FILE.toml)")
+    if args.out is None:
+        raise ParameterError(f"invalid parameter `--out`: required for `granrs run {args.case}`")
     if args.case == "column":
         from .cases.column import ColumnCase, run_column
 
@@ -51,7 +100,7 @@ def _run(args) -> int:
 
         run_cavity_case(re=args.re, n=args.n, out=Path(args.out), threads=args.threads)
         return 0
-    raise ParameterError(f"invalid parameter `case` = {args.case!r}: allowed 'cavity'")
+    raise ParameterError(f"invalid parameter `case` = {args.case!r}: allowed 'column', 'cavity' or a run file FILE.toml")
 
 
 def main(argv=None) -> int:
@@ -78,8 +127,11 @@ def main(argv=None) -> int:
     v.add_argument("--threads", type=int, default=1)
     v.add_argument("--json", help="write the JSON record to this file")
 
-    r = sub.add_parser("run", help="run a case and write its outputs and plots")
-    r.add_argument("case", choices=["column", "cavity"])
+    r = sub.add_parser("run", help="run a case or a run file (FILE.toml) and write its outputs and plots")
+    r.add_argument("case", help="'column', 'cavity', or a run file FILE.toml (see `granrs keys`)")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="run file: override a key, e.g. --set numerics.cfl=0.3 (TOML value; repeat)")
+    r.add_argument("--restart", metavar="CHECKPOINT", help="run file: start from a checkpoint.npz")
     r.add_argument("--re", type=float, default=100.0, help="Reynolds number (cavity)")
     r.add_argument("--n", type=int, default=64, help="cells per side (cavity)")
     r.add_argument("--aspect-ratio", dest="aspect_ratio", type=float, default=2.0, help="H_c / L_c (column)")
@@ -96,18 +148,46 @@ def main(argv=None) -> int:
     r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--threads", type=int, default=1)
-    r.add_argument("--out", required=True)
+    r.add_argument("--out", help="output folder (a run file's output.dir by default)")
 
+    s = sub.add_parser("sweep", help="run the cartesian product of swept keys of a run file on dask")
+    s.add_argument("file", help="the base run file FILE.toml")
+    s.add_argument("--param", action="append", required=True, metavar="KEY=SPEC",
+                   help="swept key: KEY=a:b:n (n values from a to b) or KEY=v1,v2,... (repeat for a product)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a key of the base file (repeat)")
+    s.add_argument("--scheduler", help="address of a running dask scheduler (default: a LocalCluster)")
+    s.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes, one thread each (2)")
+    s.add_argument("--out", help="sweep folder: member-NNN/, sweep.csv, sweep.nc, sweep_runout.png "
+                                 "(default: the file's output.dir)")
+
+    sub.add_parser("keys", help="the keys of a run file: type, range, unit, default")
+    a = sub.add_parser("animate", help="(re)make animation.gif from the fields saved in an output folder")
+    a.add_argument("dir")
     sub.add_parser("info", help="version and build profile")
     args = parser.parse_args(argv)
     try:
         if args.command == "validate":
             return _validate(args)
         if args.command == "run":
-            return _run(args)
+            return _run(args, r)
+        if args.command == "sweep":
+            return _sweep(args)
+        if args.command == "keys":
+            from .config import describe
+
+            print(describe(), end="")
+            return 0
+        if args.command == "animate":
+            from .io.animation import make_animation
+
+            path = make_animation(Path(args.dir))
+            if path is None:
+                raise ParameterError(f"invalid parameter `dir` = {args.dir!r}: allowed a folder with fields.nc or fields.pvd")
+            print(path)
+            return 0
         print(json.dumps(build_info() | {"python_package": __version__}))
         return 0
-    except (ParameterError, SimulationError, SolverError) as err:
+    except (ParameterError, SimulationError, SolverError, NotImplementedError) as err:
         print(f"granrs: {type(err).__name__}: {err}", file=sys.stderr)
         return 2
 

@@ -32,7 +32,7 @@ from typing import Optional
 import numpy as np
 
 from .. import __version__
-from .._granrs import ParameterError, SimulationError
+from .._granrs import ParameterError, SimulationError, SolverError
 from ..boundary import BoundaryConditions, Coulomb, FreeSlip
 from ..grid import Grid
 from ..materials import AIR, Material
@@ -200,10 +200,19 @@ def surface_profile(phi: np.ndarray, dy: float) -> np.ndarray:
     return h
 
 
-def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None) -> dict:
-    """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``."""
+def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
+               callbacks: Optional[list] = None, extra_summary: Optional[dict] = None, prepare=None) -> dict:
+    """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``.
+
+    ``callbacks``: more ``Callback``s for the Simulation (field output, checkpoints);
+    ``extra_summary``: entries added to summary.json; ``prepare(model)``: called once the model
+    is built (a restart restores its state there). A SimulationError, SolverError or
+    KeyboardInterrupt still writes every output from the steps done, with the ``stop_reason``,
+    then is raised again."""
     out.mkdir(parents=True, exist_ok=True)
     model = build_model(case)
+    if prepare is not None:
+        prepare(model)
     grid = model.grid
     lc = case.width
     area0 = model.dense_area()
@@ -226,7 +235,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         far_area = float(np.count_nonzero(model.phi[:, -3:] > 0)) * grid.dx * grid.dy
         if xf > grid.lx - 3 * grid.dx or far_area > 0.01 * area0:
             raise SimulationError(f"the granular material reached the far end of the domain (x = {xfar:.3f} m of "
-                                  f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length")
+                                  f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)")
         speed = granular_speed()
         rec["t"].append(t)
         rec["front"].append(xf - lc)
@@ -241,13 +250,15 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         else:
             state["rest_since"] = None
 
-    sim = Simulation(model, stop_time=case.t_end, callbacks=[Callback(observe, every_time=0.01)], progress=progress)
+    sim = Simulation(model, stop_time=case.t_end, callbacks=[Callback(observe, every_time=0.01)] + list(callbacks or []),
+                     progress=progress)
     t0 = time.perf_counter()
-    error = None
+    error = failure = None
     try:
         sim.run()
-    except SimulationError as err:  # keep what was computed, then report
-        error = str(err)
+    except (SimulationError, SolverError, KeyboardInterrupt) as err:  # keep what was computed, then report
+        failure = err
+        error = str(err) if not isinstance(err, KeyboardInterrupt) else "KeyboardInterrupt"
     wall = time.perf_counter() - t0
     profiles["final"] = surface_profile(model.phi, grid.dy)
     hist = sim.history_arrays()
@@ -259,7 +270,9 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "nx": grid.nx, "ny": grid.ny, "cells": grid.cells, "h_m": grid.dy, "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
-        "threads": case.threads, "version": __version__, "stop_reason": sim.stop_reason if error is None else f"error: {error}",
+        "threads": case.threads, "version": __version__,
+        "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
+                                                              if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,
         "pressure_iterations_max": int(np.max(hist["pressure_iterations"])) if "time" in hist else 0,
         "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
@@ -270,6 +283,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     for key in ("picard_iterations",):
         if key in hist:
             summary[key + "_median"] = float(np.median(hist[key]))
+    summary.update(extra_summary or {})
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     with open(out / "front.csv", "w", newline="") as f:
         w = csv.writer(f)
@@ -286,14 +300,19 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     np.savez(out / "history.npz", **hist)
     plot_front(out, compare_with)
     plot_profiles(out)
+    if isinstance(failure, KeyboardInterrupt):
+        raise failure
     if error is not None:
-        raise SimulationError(error + f" (outputs written to {out})")
+        kind = SolverError if isinstance(failure, SolverError) else SimulationError
+        raise kind(error + f" (outputs written to {out})") from failure
     return summary
 
 
 def _read_front(path: Path):
-    data = np.genfromtxt(path / "front.csv", delimiter=",", skip_header=1, ndmin=2)
     meta = json.loads((path / "summary.json").read_text())
+    if len((path / "front.csv").read_text().splitlines()) < 2:  # a run that failed before its first record
+        return np.zeros(0), np.zeros(0), meta
+    data = np.genfromtxt(path / "front.csv", delimiter=",", skip_header=1, ndmin=2)
     return data[:, 0], data[:, 1], meta
 
 

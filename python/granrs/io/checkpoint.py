@@ -1,0 +1,108 @@
+"""Checkpoint and restart: the whole model state in one .npz file, with metadata.
+
+The Rust core owns the state (fields, the BDF2 history, the plastic tensor, the clock), so the
+export is its job, through this interface (not yet in the core; see docs/ecosystem.md):
+
+    model._rust.checkpoint_state() -> dict[str, numpy.ndarray | float | int]
+    model._rust.restore_state(state: dict) -> None     # same keys and shapes as exported
+
+File format (``.npz``, format "granrs-checkpoint" version 1):
+  ``state/<name>``   each array of ``checkpoint_state()``, unchanged (dtype and shape);
+  ``fields/<name>``  the public cell-centred fields (``granrs.io.fields.snapshot``), for inspection;
+  ``meta``           a 0-d string array holding JSON: format, format_version, time, step_count,
+                     grid (nx, ny, lx, ly), scalars (the float/int entries of the state, exact
+                     through JSON's shortest round-trip repr) and provenance (granrs version, git
+                     revision, command line, resolved configuration).
+The file is written to ``<path>.tmp`` and renamed, so a checkpoint on disk is always complete.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from .._granrs import ParameterError
+from .fields import snapshot
+
+FORMAT, FORMAT_VERSION = "granrs-checkpoint", 1
+_MISSING = ("checkpoint/restart needs the core to export its state: RustModel.checkpoint_state() and "
+            "RustModel.restore_state(dict) are not in this build of granrs._granrs (the Python side and the "
+            "file format are ready; see docs/ecosystem.md, 'Checkpoint and restart')")
+
+
+def supported(model=None) -> bool:
+    """Whether this build (or this model) has the core's state export."""
+    from .. import _granrs
+
+    target = model._rust if model is not None else _granrs.RustModel
+    return hasattr(target, "checkpoint_state") and hasattr(target, "restore_state")
+
+
+def _require(model) -> None:
+    if not supported(model):
+        raise NotImplementedError(_MISSING)
+
+
+@dataclass
+class Checkpoint:
+    meta: dict
+    state: dict
+    fields: dict
+
+
+def save_checkpoint(model, path, provenance: Optional[dict] = None) -> Path:
+    """Writes the model's state to ``path`` (.npz); NotImplementedError without core support."""
+    _require(model)
+    path = Path(path)
+    state = model._rust.checkpoint_state()
+    arrays = {f"state/{k}": np.asarray(v) for k, v in state.items() if isinstance(v, np.ndarray)}
+    scalars = {k: v for k, v in state.items() if not isinstance(v, np.ndarray)}
+    for k, v in scalars.items():
+        if not isinstance(v, (bool, int, float)):
+            raise ParameterError(f"invalid checkpoint state entry `{k}` = {v!r}: allowed an array, float or int")
+    arrays.update({f"fields/{k}": v for k, v in snapshot(model).items()})
+    g = model.grid
+    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "time": model.time, "step_count": model.step_count,
+            "grid": {"nx": g.nx, "ny": g.ny, "lx": g.lx, "ly": g.ly}, "scalars": scalars,
+            "scalar_types": {k: type(v).__name__ for k, v in scalars.items()}, "provenance": provenance or {}}
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as f:
+        np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
+    os.replace(tmp, path)
+    return path
+
+
+def load_checkpoint(path) -> Checkpoint:
+    """Reads a checkpoint file (no model needed); ParameterError if it is not one."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"][()]))
+            arrays = {k: z[k] for k in z.files if k != "meta"}
+    except (OSError, ValueError, KeyError) as err:
+        raise ParameterError(f"invalid checkpoint `{path}`: cannot be read as a granrs checkpoint ({err})") from None
+    if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
+        raise ParameterError(f"invalid checkpoint `{path}`: allowed format {FORMAT} version {FORMAT_VERSION}, "
+                             f"found {meta.get('format')} version {meta.get('format_version')}")
+    casts = {"bool": bool, "int": int, "float": float}
+    state = {k[len("state/"):]: v for k, v in arrays.items() if k.startswith("state/")}
+    state.update({k: casts[meta["scalar_types"][k]](v) for k, v in meta["scalars"].items()})
+    fields = {k[len("fields/"):]: v for k, v in arrays.items() if k.startswith("fields/")}
+    return Checkpoint(meta, state, fields)
+
+
+def restore_checkpoint(model, checkpoint) -> Checkpoint:
+    """Restores ``model`` (built from the same configuration) from a checkpoint file or object."""
+    _require(model)
+    ck = checkpoint if isinstance(checkpoint, Checkpoint) else load_checkpoint(checkpoint)
+    g, want = model.grid, ck.meta["grid"]
+    if (g.nx, g.ny) != (want["nx"], want["ny"]) or not np.allclose((g.lx, g.ly), (want["lx"], want["ly"]), rtol=1e-12):
+        raise ParameterError(f"invalid checkpoint: its grid {want} differs from the model's "
+                             f"(nx={g.nx}, ny={g.ny}, lx={g.lx}, ly={g.ly})")
+    model._rust.restore_state(dict(ck.state))
+    return ck

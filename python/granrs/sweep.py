@@ -1,0 +1,266 @@
+"""Parameter sweeps of a run file on dask.distributed: the cartesian product of swept keys.
+
+    result = run_sweep("examples/paper_fluidised.toml",
+                       ["numerics.cfl=0.3:0.5:3", "materials.diffusivity=0.01,0.035"], workers=2)
+    result.table        # list of dicts, one per member (also sweep.csv)
+    result.dataset      # xarray.Dataset over the swept keys (also sweep.nc)
+
+A parameter is ``key=a:b:n`` (n values from a to b, linear) or ``key=v1,v2,...`` (TOML
+scalars). Every member's configuration is resolved and validated before any member runs; a
+member is a deterministic function of that configuration (its thread count is explicit in
+numerics.threads, its output folder is ``<out>/member-NNN``). A member that fails is reported
+(status "failed", the error text, what it computed before failing) and the others are kept.
+By default the members run on a LocalCluster of ``workers`` processes with one thread each;
+``scheduler`` gives the address of an existing dask scheduler instead. Needs ``granrs[io]``.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from ._granrs import ParameterError
+from .config import Config, dumps, key as config_key, load_config, parse_scalar, resolve, set_value
+from .io.provenance import provenance
+
+RECORD_KEYS = ("status", "runout_m", "t_end_s", "steps", "stop_reason", "wall_s", "mass_rel_error", "error")
+
+
+def parse_param(text: str) -> tuple[str, list]:
+    """``key=a:b:n`` (linear, n values) or ``key=v1,v2`` into (key, values); values are checked
+    against the key's type later, when the members are resolved."""
+    if "=" not in text:
+        raise ParameterError(f"invalid parameter `--param {text}`: allowed key=a:b:n or key=v1,v2,...")
+    name, spec = (s.strip() for s in text.split("=", 1))
+    k = config_key(name)
+    if spec.count(":") == 2 and "[" not in spec and '"' not in spec:
+        a, b, n = (parse_scalar(s.strip()) for s in spec.split(":"))
+        if (isinstance(n, bool) or not isinstance(n, int) or n < 1 or any(isinstance(v, bool) or not isinstance(v, (int, float))
+                                                                        for v in (a, b))):
+            raise ParameterError(f"invalid parameter `--param {name}` = {spec!r}: allowed a:b:n with numbers a, b and an "
+                                 "integer n >= 1")
+        values = [float(v) for v in np.linspace(a, b, n)]
+        if k.kind == "int":
+            if any(v != round(v) for v in values):
+                raise ParameterError(f"invalid parameter `--param {name}` = {spec!r}: {k.allowed()}, and {values} are not integers")
+            values = [int(round(v)) for v in values]
+    else:
+        values = [parse_scalar(s.strip()) for s in spec.split(",")]
+    if len({json.dumps(v) for v in values}) != len(values):
+        raise ParameterError(f"invalid parameter `--param {name}` = {spec!r}: allowed distinct values, got {values}")
+    return name, values
+
+
+def _params(params) -> dict[str, list]:
+    if isinstance(params, Mapping):
+        out = {}
+        for name, values in params.items():
+            config_key(name)
+            out[name] = list(values)
+    else:
+        out = dict(parse_param(p) for p in params)
+    if not out or any(len(v) == 0 for v in out.values()):
+        raise ParameterError("invalid parameter `params`: allowed at least one key with at least one value")
+    return out
+
+
+@dataclass
+class Member:
+    index: int
+    values: dict
+    config: Config
+
+
+def members(config: Union[str, Path, Config], params, out: Optional[Union[str, Path]] = None) -> list[Member]:
+    """The resolved configuration of every member (validated now: a bad value fails here, before
+    any run). ``out`` (default: the base output.dir) holds member-NNN folders."""
+    base = load_config(config) if isinstance(config, (str, Path)) else resolve(config)
+    params = _params(params)
+    out = Path(out) if out is not None else Path(base["output"]["dir"])
+    result = []
+    for i, combo in enumerate(itertools.product(*params.values())):
+        raw = {s: dict(t) for s, t in base.items()}
+        values = dict(zip(params, combo))
+        for name, v in values.items():
+            set_value(raw, name, v)
+        set_value(raw, "output.dir", str(out / f"member-{i:03d}"))
+        try:
+            cfg = resolve(raw)
+        except ParameterError as err:
+            raise ParameterError(f"sweep member {i} ({values}): {err}") from None
+        values = {name: cfg[name.split(".")[0]][name.split(".")[1]] for name in params}  # as resolved (ints to floats)
+        result.append(Member(i, values, cfg))
+    return result
+
+
+def run_member(cfg: Config) -> dict:
+    """Runs one member; never raises: a failure becomes status 'failed' with its error text, plus
+    what the run computed before failing (its summary.json, when written)."""
+    from .runner import run_config
+
+    t0 = time.perf_counter()
+    rec = {"status": "ok", "error": ""}
+    summary = {}
+    try:
+        summary = run_config(cfg, progress=False, command="granrs.sweep.run_member")
+    except Exception as err:  # a member's failure is data
+        rec.update(status="failed", error=f"{type(err).__name__}: {err}")
+        path = Path(cfg["output"]["dir"]) / "summary.json"
+        if path.exists():
+            summary = json.loads(path.read_text())
+    for k in ("runout_m", "t_end_s", "steps", "stop_reason", "mass_rel_error"):
+        rec[k] = summary.get(k, math.nan if k != "stop_reason" else "")
+    rec["wall_s"] = time.perf_counter() - t0
+    return rec
+
+
+@dataclass
+class SweepResult:
+    """``table``: one dict per member (member, swept keys, RECORD_KEYS, dir); ``dataset``: the
+    same as an xarray.Dataset over the swept keys; ``files``: csv, nc, png paths."""
+
+    table: list
+    dataset: object
+    files: dict
+
+
+def run_sweep(config: Union[str, Path, Config], params, scheduler: Optional[str] = None, workers: int = 2,
+              out: Optional[Union[str, Path]] = None, plot: bool = True) -> SweepResult:
+    """Runs every member on dask.distributed and gathers the results (see the module docstring).
+    Writes ``<out>/sweep.csv``, ``sweep.nc`` and ``sweep_runout.png``."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
+        raise ParameterError(f"invalid parameter `workers` = {workers!r}: allowed an integer in [1, 256]")
+    base = load_config(config) if isinstance(config, (str, Path)) else resolve(config)
+    out = Path(out) if out is not None else Path(base["output"]["dir"])
+    mems = members(base, params, out)
+    out.mkdir(parents=True, exist_ok=True)
+    records = _run_on_dask([m.config for m in mems], scheduler, workers)
+    table = []
+    for m, rec in zip(mems, records):
+        table.append({"member": m.index, **m.values, **{k: rec.get(k) for k in RECORD_KEYS}, "dir": m.config["output"]["dir"]})
+    prov = provenance(dumps(base))
+    files = {"csv": _write_csv(out / "sweep.csv", table)}
+    ds = to_dataset(table, list(mems[0].values), prov)
+    ds.to_netcdf(out / "sweep.nc")
+    files["nc"] = out / "sweep.nc"
+    if plot:
+        files["png"] = plot_runout(table, list(mems[0].values), out / "sweep_runout.png")
+    return SweepResult(table, ds, files)
+
+
+def _run_on_dask(configs: list, scheduler: Optional[str], workers: int) -> list[dict]:
+    import logging
+
+    from dask.distributed import Client, LocalCluster
+
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None,
+                               silence_logs=logging.ERROR)
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        futures = client.map(run_member, configs, pure=False)
+        records = []
+        for cfg, fut in zip(configs, futures):
+            try:
+                records.append(fut.result())
+            except Exception as err:  # the worker itself died: still a reported failure
+                records.append({"status": "failed", "error": f"{type(err).__name__}: {err}", "runout_m": math.nan,
+                                "t_end_s": math.nan, "steps": math.nan, "stop_reason": "", "wall_s": math.nan,
+                                "mass_rel_error": math.nan})
+        return records
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _write_csv(path: Path, table: list) -> Path:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(table[0]))
+        w.writeheader()
+        w.writerows(table)
+    return path
+
+
+def to_dataset(table: list, keys: list, prov: Optional[dict] = None):
+    """The table as an xarray.Dataset with one dimension per swept key (cartesian product)."""
+    import xarray as xr
+
+    coords = {k: list(dict.fromkeys(row[k] for row in table)) for k in keys}
+    shape = tuple(len(v) for v in coords.values())
+    data = {}
+    for name in ("member",) + RECORD_KEYS:
+        values = [row[name] for row in table]
+        numeric = name not in ("status", "stop_reason", "error")
+        arr = np.array([np.nan if v is None else v for v in values], dtype=float if numeric else object)
+        data[name] = (keys, arr.reshape(shape))
+    ds = xr.Dataset(data, coords=coords)
+    units = {"runout_m": "m", "t_end_s": "s", "wall_s": "s", "mass_rel_error": "1", "steps": "1"}
+    for name, unit in units.items():
+        ds[name].attrs["units"] = unit
+    ds["runout_m"].attrs["long_name"] = "run-out: largest front position from the gate"
+    ds["t_end_s"].attrs["long_name"] = "simulated time reached"
+    for k in keys:
+        ck = config_key(k)
+        ds[k].attrs.update({"long_name": ck.doc, "units": ck.unit or "1"})
+    ds.attrs.update({"title": "granrs sweep", "Conventions": "CF-1.10", **(prov or {})})
+    return ds
+
+
+def plot_runout(table: list, keys: list, path) -> Path:
+    """Run-out against the first swept key, one line per combination of the others; failed
+    members (stopped early: their run-out is a lower bound) are drawn as open markers."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM
+
+    first, rest = keys[0], keys[1:]
+    groups: dict = {}
+    for row in table:
+        groups.setdefault(tuple(row[k] for k in rest), []).append(row)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for n, (combo, rows) in enumerate(groups.items()):
+        rows = sorted(rows, key=lambda r: r[first])
+        label = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in zip(rest, combo)) or "run-out"
+        x = [r[first] for r in rows]
+        y = [r["runout_m"] for r in rows]
+        ok = [r["status"] == "ok" for r in rows]
+        ax.plot([a for a, o in zip(x, ok) if o], [b for b, o in zip(y, ok) if o], f"C{n}o-", label=label if any(ok) else None)
+        ax.plot([a for a, o in zip(x, ok) if not o], [b for b, o in zip(y, ok) if not o], f"C{n}o", mfc="none",
+                label=None if any(ok) else label)
+        for r, a, b, o in zip(rows, x, y, ok):
+            if not o and math.isfinite(b):
+                ax.annotate(f"t={r['t_end_s']:.2f} s", (a, b), textcoords="offset points", xytext=(4, 3), fontsize=6,
+                            color=f"C{n}")
+    ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"experiment: {PAPER_RUNOUT_EXP} m")
+    ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper's simulation: {PAPER_RUNOUT_SIM} m")
+    failed = sum(r["status"] != "ok" for r in table)
+    xs = [r[first] for r in table if isinstance(r[first], (int, float))]
+    if xs and min(xs) > 0 and max(xs) / min(xs) >= 10:
+        ax.set_xscale("log")
+    ax.set(xlabel=f"{first} ({config_key(first).unit_words})" if config_key(first).unit else first,
+           ylabel="run-out from the gate (m)",
+           title=f"sweep of {len(table)} members" + (f": {failed} stopped early\n(open markers: run-out at the time "
+                                                     "they stopped, a lower bound)" if failed else ""))
+    ax.title.set_fontsize(9)
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
