@@ -101,7 +101,7 @@ KEYS: tuple[Key, ...] = (
     Key("output", "fields_every_s", "float", 0.05, "s", "simulated time between field snapshots; 0: none", 0.0, 1e4),
     Key("output", "formats", "list", ["vtk"], "", "field formats: 'vtk' (.vti + .pvd), 'netcdf' (fields.nc)", choices=("vtk", "netcdf")),
     Key("output", "animation", "bool", True, "", "write animation.gif from the saved fields at the end"),
-    Key("output", "checkpoint_every_s", "float", 0.0, "s", "simulated time between checkpoints (needs core support); 0: none", 0.0, 1e4),
+    Key("output", "checkpoint_every_s", "float", 0.0, "s", "simulated time between checkpoints; 0: none", 0.0, 1e4),
 )
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(k.section for k in KEYS))
 _BY_NAME = {k.full: k for k in KEYS}

@@ -563,6 +563,33 @@ impl PyModel {
         Ok(self.inner.wall_friction(s).map(|(a, b)| (a.to_vec(), b.to_vec())))
     }
 
+    /// The whole state a step reads (fields with their ghost layers, BDF2 history, Σ, wall
+    /// directions, clock), as 1-D float64 arrays by name: `restore_state` of a model built with
+    /// the same configuration continues bit for bit.
+    fn checkpoint_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (name, data) in self.inner.checkpoint() {
+            d.set_item(name, numpy::PyArray1::from_vec(py, data))?;
+        }
+        Ok(d)
+    }
+
+    /// Restores a state from `checkpoint_state` (same configuration; every entry, right lengths).
+    fn restore_state(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
+        let mut entries = Vec::with_capacity(state.len());
+        for (k, v) in state.iter() {
+            let name: String = k.extract()?;
+            let data: Vec<f64> = match v.extract::<numpy::PyReadonlyArray1<f64>>() {
+                Ok(a) => a.as_slice()?.to_vec(),
+                Err(_) => vec![v.extract::<f64>().map_err(|_| {
+                    to_py(Error::param("state", &name, "1-D float64 arrays or numbers"))
+                })?],
+            };
+            entries.push((name, data));
+        }
+        self.inner.restore(&entries).map_err(to_py)
+    }
+
     /// Increments of the Picard iterations of the last step.
     fn picard_history(&self) -> Vec<f64> {
         self.inner.picard_history().to_vec()

@@ -4,6 +4,8 @@
 //! whole domain, a level set Φ separating the dense phase (Φ > 0) from the light one (Φ < 0).
 //! A single-phase flow is the same model with no light phase (the level set is not transported).
 
+mod checkpoint;
 mod two_phase;
 
+pub use checkpoint::StateEntry;
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, TwoPhaseModel};

@@ -102,7 +102,7 @@ pub struct PorePressure {
     /// p_f^{n−1}.
     pub pf_prev: Field,
     /// div(u p_f) at t_{n−1}.
-    adv_prev: Field,
+    pub(crate) adv_prev: Field,
     adv: Field,
     solver: PoissonSolver,
     beta_x: Vec<f64>,

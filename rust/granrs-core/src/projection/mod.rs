@@ -186,6 +186,11 @@ impl PressureProjection {
     }
 
     /// The last pressure increment δp (row-major, nx·ny).
+    /// The last pressure increment δp (the next solve's warm start), for checkpoints.
+    pub fn increment_mut(&mut self) -> &mut [f64] {
+        &mut self.dp
+    }
+
     pub fn increment(&self) -> &[f64] {
         &self.dp
     }

@@ -168,6 +168,16 @@ impl CoulombWalls {
         inc
     }
 
+    /// Copies of the friction directions s of every Coulomb side, in side order (checkpoints).
+    pub fn directions(&self) -> Vec<Vec<f64>> {
+        self.sides.iter().map(|w| w.s.clone()).collect()
+    }
+
+    /// The friction directions s of every Coulomb side, in side order (checkpoints).
+    pub fn directions_mut(&mut self) -> Vec<&mut Vec<f64>> {
+        self.sides.iter_mut().map(|w| &mut w.s).collect()
+    }
+
     /// The friction direction s and coefficient τ_b of one side along its faces (None if the side
     /// has no friction): (s, τ_b).
     pub fn side(&self, side: Side) -> Option<(&[f64], &[f64])> {

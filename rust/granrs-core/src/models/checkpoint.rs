@@ -1,0 +1,100 @@
+//! Checkpoint and restart: the whole state a step reads, so that a restored model continues
+//! bit for bit as the uninterrupted one would.
+//!
+//! The state of step n → n+1 is: u^n, v^n and the BDF2 history u^{n−1}, v^{n−1}, (u·∇u)^{n−1};
+//! p^n and the last pressure increment δp^n (the warm start of the next projection); Φ^n; the
+//! pore pressure p_f^n, p_f^{n−1} and its advection at n−1; the plastic tensor Σ^n and the
+//! Coulomb wall directions s^n (the anchors of the Picard iteration, eq. 12); the clock t_n, n,
+//! δt_{n−1}; the area the mass correction restores. Everything else (densities, viscosities,
+//! yield stresses, r, solver coefficients) is rebuilt from these by the next step.
+//! Fields are stored with their ghost layers, exactly as held.
+
+use super::two_phase::TwoPhaseModel;
+use crate::error::{Error, Result};
+
+/// One named entry of a checkpoint: a flat array of f64 (scalars as one element).
+pub type StateEntry = (String, Vec<f64>);
+
+impl TwoPhaseModel {
+    /// The model's state as named flat arrays (see the module docs).
+    pub fn checkpoint(&self) -> Vec<StateEntry> {
+        let mut out: Vec<StateEntry> = Vec::new();
+        let mut f = |name: &str, data: &[f64]| out.push((name.to_string(), data.to_vec()));
+        f("u", self.u.slice());
+        f("v", self.v.slice());
+        f("u_prev", self.u_prev.slice());
+        f("v_prev", self.v_prev.slice());
+        f("conv_prev_u", self.conv_prev_u.slice());
+        f("conv_prev_v", self.conv_prev_v.slice());
+        f("p", self.p.slice());
+        f("phi", self.phi.slice());
+        f("pressure_increment", self.projection.increment());
+        if let Some(pore) = &self.pore {
+            f("pf", pore.pf.slice());
+            f("pf_prev", pore.pf_prev.slice());
+            f("pf_advection_prev", pore.adv_prev.slice());
+        }
+        if let Some(rs) = &self.rheology {
+            f("sigma_xx", rs.plastic.sigma_xx.slice());
+            f("sigma_xy", rs.plastic.sigma_xy.slice());
+        }
+        let walls: Vec<Vec<f64>> = self.rheology.as_ref().map(|rs| rs.walls.directions()).unwrap_or_default();
+        for (k, s) in walls.iter().enumerate() {
+            f(&format!("wall_direction_{k}"), s);
+        }
+        f("time", &[self.time]);
+        f("step_count", &[self.step_count as f64]);
+        f("dt_prev", &[self.dt_prev.unwrap_or(f64::NAN)]);
+        f("reference_area", &[self.reference_area]);
+        out
+    }
+
+    /// Restores a state exported by [`TwoPhaseModel::checkpoint`] from a model built with the same
+    /// configuration. Every entry must be present with its length; nothing is changed otherwise.
+    pub fn restore(&mut self, state: &[StateEntry]) -> Result<()> {
+        let expected = self.checkpoint();
+        for (name, data) in &expected {
+            match state.iter().find(|(n, _)| n == name) {
+                None => return Err(Error::param("state", name, "a checkpoint of a model with the same configuration (entry missing)")),
+                Some((_, d)) if d.len() != data.len() => {
+                    return Err(Error::Shape { name: format!("checkpoint entry `{name}`"), got: vec![d.len()], expected: vec![data.len()] })
+                }
+                _ => {}
+            }
+        }
+        if let Some((extra, _)) = state.iter().find(|(n, _)| !expected.iter().any(|(e, _)| e == n)) {
+            return Err(Error::param("state", extra, "only entries of a model with the same configuration"));
+        }
+        let get = |name: &str| -> &[f64] { &state.iter().find(|(n, _)| n == name).expect("checked above").1 };
+        self.u.slice_mut().copy_from_slice(get("u"));
+        self.v.slice_mut().copy_from_slice(get("v"));
+        self.u_prev.slice_mut().copy_from_slice(get("u_prev"));
+        self.v_prev.slice_mut().copy_from_slice(get("v_prev"));
+        self.conv_prev_u.slice_mut().copy_from_slice(get("conv_prev_u"));
+        self.conv_prev_v.slice_mut().copy_from_slice(get("conv_prev_v"));
+        self.p.slice_mut().copy_from_slice(get("p"));
+        self.phi.slice_mut().copy_from_slice(get("phi"));
+        self.projection.increment_mut().copy_from_slice(get("pressure_increment"));
+        if let Some(pore) = &mut self.pore {
+            pore.pf.slice_mut().copy_from_slice(get("pf"));
+            pore.pf_prev.slice_mut().copy_from_slice(get("pf_prev"));
+            pore.adv_prev.slice_mut().copy_from_slice(get("pf_advection_prev"));
+        }
+        if let Some(rs) = &mut self.rheology {
+            rs.plastic.sigma_xx.slice_mut().copy_from_slice(get("sigma_xx"));
+            rs.plastic.sigma_xy.slice_mut().copy_from_slice(get("sigma_xy"));
+            for (k, s) in rs.walls.directions_mut().into_iter().enumerate() {
+                s.copy_from_slice(get(&format!("wall_direction_{k}")));
+            }
+        }
+        self.time = get("time")[0];
+        self.step_count = get("step_count")[0] as u64;
+        let dt_prev = get("dt_prev")[0];
+        self.dt_prev = if dt_prev.is_nan() { None } else { Some(dt_prev) };
+        self.reference_area = get("reference_area")[0];
+        self.properties_current = false;
+        self.projection_stale = true;
+        self.time_to_land = None;
+        Ok(())
+    }
+}
