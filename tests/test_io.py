@@ -105,6 +105,26 @@ def test_yielded_mask_is_trial_norm_above_one_inside_the_granular_phase(tmp_path
     assert not fields["yielded"][~granular].any()  # the air (no yield stress) is never marked
 
 
+def test_vti_reads_with_the_vtk_package(run):
+    # the issue asks for a VTK reader: VTK's own XML image-data reader, values compared exactly
+    vtk = pytest.importorskip("vtk")
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    path = sorted((run.out / "fields").glob("*.vti"))[-1]
+    reader = vtk.vtkXMLImageDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    image = reader.GetOutput()
+    grid = column_case(run.cfg).grid()
+    assert image.GetDimensions() == (grid.nx + 1, grid.ny + 1, 1)
+    ours = read_vti(path)["fields"]
+    for name in ("phi", "p", "pf"):
+        data = vtk_to_numpy(image.GetCellData().GetArray(name)).reshape(grid.ny, grid.nx)
+        np.testing.assert_array_equal(data, ours[name])
+    vel = vtk_to_numpy(image.GetCellData().GetArray("velocity")).reshape(grid.ny, grid.nx, 3)
+    np.testing.assert_array_equal(vel, ours["velocity"])
+
+
 def test_vti_round_trip_of_arbitrary_fields(tmp_path):
     rng = np.random.default_rng(1)
     fields = {"phi": rng.normal(size=(3, 5)), "u": rng.normal(size=(3, 5)), "v": rng.normal(size=(3, 5)),
