@@ -83,6 +83,10 @@ def main() -> None:
     ax.set(xscale="log", xlabel="cell size h (mm)", ylabel="run-out from the gate (m)",
            title="Column collapse: run-out against the grid")
     ax.grid(alpha=0.3, which="both")
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xticks(sorted(set(np.round(h, 2).tolist() + [round(0.45 / 256 * 1e3, 2)])))
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out / "runout_vs_h.png", dpi=120)
