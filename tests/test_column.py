@@ -66,7 +66,9 @@ def test_fluidisation_lengthens_the_runout(coarse_runs):
 
 
 def test_front_has_three_phases(coarse_runs):
-    # acceleration, a stretch of near-constant speed, deceleration to rest
+    # acceleration, a stretch of near-constant speed, deceleration to rest. Measured at ny = 32:
+    # peak speed 2.65 m/s at t = 0.40 s, within 80 % of it from 0.17 to 0.83 s (0.66 s), late mean
+    # |speed| 6 % of the peak (the receding tongue); the bounds leave about 2× margin each way
     base, _, wet = coarse_runs
     data = np.genfromtxt(base / "wet" / "front.csv", delimiter=",", skip_header=1)
     t, x = data[:, 0], data[:, 1]

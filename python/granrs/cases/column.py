@@ -283,6 +283,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     for key in ("picard_iterations",):
         if key in hist:
             summary[key + "_median"] = float(np.median(hist[key]))
+    if "picard_r_halvings" in hist:
+        summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
     summary.update(extra_summary or {})
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     with open(out / "front.csv", "w", newline="") as f:

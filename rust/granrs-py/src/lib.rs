@@ -113,6 +113,7 @@ fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>>
     let pic = PyDict::new(py);
     pic.set_item("iterations", s.picard_iterations)?;
     pic.set_item("increment", s.picard_increment)?;
+    pic.set_item("r_halvings", s.picard_r_halvings)?;
     d.set_item("picard", pic)?;
     Ok(d)
 }
@@ -473,7 +474,8 @@ impl PyModel {
 
     /// Takes steps until `t_end` (the last step is shortened to land on it) or `max_steps`
     /// steps, with the GIL released. Returns per-step arrays: time, dt, max_speed, cfl,
-    /// pressure_iterations, viscous_iterations, divergence, picard_iterations, picard_increment.
+    /// pressure_iterations, viscous_iterations, divergence, picard_iterations, picard_increment,
+    /// picard_r_halvings.
     #[pyo3(signature = (t_end=None, max_steps=None))]
     fn advance<'py>(&mut self, py: Python<'py>, t_end: Option<f64>, max_steps: Option<u64>) -> PyResult<Bound<'py, PyDict>> {
         if t_end.is_none() && max_steps.is_none() {
@@ -518,6 +520,7 @@ impl PyModel {
         d.set_item("pore_iterations", log.iter().map(|s| s.pore.iterations).collect::<Vec<_>>())?;
         d.set_item("picard_iterations", log.iter().map(|s| s.picard_iterations).collect::<Vec<_>>())?;
         d.set_item("picard_increment", log.iter().map(|s| s.picard_increment).collect::<Vec<_>>())?;
+        d.set_item("picard_r_halvings", log.iter().map(|s| s.picard_r_halvings as f64).collect::<Vec<_>>())?;
         if let Some(e) = err {
             // the steps taken before the failure travel with the exception
             let pyerr = to_py(e);

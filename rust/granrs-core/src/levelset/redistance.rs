@@ -277,7 +277,7 @@ impl Redistancer {
             if !a.is_finite() && !b.is_finite() {
                 return;
             }
-            let (lo, hi, hlo, hhi) = if a + dx <= b + dy { (a, b, dx, dy) } else { (b, a, dy, dx) };
+            let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
             let mut new = lo + hlo;
             if new > hi {
                 // ((d − a)/dx)² + ((d − b)/dy)² = 1
@@ -289,7 +289,6 @@ impl Redistancer {
                     new = (-qb + disc.sqrt()) / (2.0 * qa);
                 }
             }
-            let _ = hhi;
             if new < d.at(i, j) {
                 d.set(i as usize, j as usize, new);
             }
@@ -495,6 +494,30 @@ fn minmod(a: f64, b: f64) -> f64 {
     }
 }
 
+/// One-sided derivatives (backward, forward) of Φ at the centre of the window `w` along one
+/// axis: WENO5, or, on a side whose neighbour lies across the interface at distance `lm` / `lp`
+/// (finite), the subcell fix φ/l ± ½ l minmod(Φ'') (Russo & Smereka 2000; Min 2010).
+#[inline(always)]
+fn one_sided(w: &[f64; 7], phi: f64, lm: f64, lp: f64, inv_h: f64, inv_h2: f64) -> (f64, f64) {
+    if !(lm.is_finite() || lp.is_finite()) {
+        return (weno5_minus(w) * inv_h, weno5_plus(w) * inv_h);
+    }
+    let d2 = (w[4] - 2.0 * w[3] + w[2]) * inv_h2;
+    let back = if lm.is_finite() {
+        let d2m = (w[3] - 2.0 * w[2] + w[1]) * inv_h2;
+        phi / lm + 0.5 * lm * minmod(d2, d2m)
+    } else {
+        weno5_minus(w) * inv_h
+    };
+    let fwd = if lp.is_finite() {
+        let d2p = (w[5] - 2.0 * w[4] + w[3]) * inv_h2;
+        -phi / lp - 0.5 * lp * minmod(d2, d2p)
+    } else {
+        weno5_plus(w) * inv_h
+    };
+    (back, fwd)
+}
+
 #[derive(Clone, Copy)]
 enum Base<'a> {
     None,
@@ -541,46 +564,8 @@ impl Ctx<'_> {
                 let mut dphi = 0.0;
                 if f0 != 0.0 && f0.abs() <= band && !fz[k].is_finite() {
                     let (lxm, lxp, lym, lyp) = (sxm[k], sxp[k], sym[k], syp[k]);
-                    // x one-sided derivatives
-                    let wx = window(s, k, 1);
-                    let (dxa, dxb) = if lxm.is_finite() || lxp.is_finite() {
-                        let d2 = (wx[4] - 2.0 * wx[3] + wx[2]) * inv_dx2;
-                        let a = if lxm.is_finite() {
-                            let d2m = (wx[3] - 2.0 * wx[2] + wx[1]) * inv_dx2;
-                            phi / lxm + 0.5 * lxm * minmod(d2, d2m)
-                        } else {
-                            weno5_minus(&wx) * inv_dx
-                        };
-                        let bb = if lxp.is_finite() {
-                            let d2p = (wx[5] - 2.0 * wx[4] + wx[3]) * inv_dx2;
-                            -phi / lxp - 0.5 * lxp * minmod(d2, d2p)
-                        } else {
-                            weno5_plus(&wx) * inv_dx
-                        };
-                        (a, bb)
-                    } else {
-                        (weno5_minus(&wx) * inv_dx, weno5_plus(&wx) * inv_dx)
-                    };
-                    // y one-sided derivatives
-                    let wy = window(s, k, stride);
-                    let (dya, dyb) = if lym.is_finite() || lyp.is_finite() {
-                        let d2 = (wy[4] - 2.0 * wy[3] + wy[2]) * inv_dy2;
-                        let a = if lym.is_finite() {
-                            let d2m = (wy[3] - 2.0 * wy[2] + wy[1]) * inv_dy2;
-                            phi / lym + 0.5 * lym * minmod(d2, d2m)
-                        } else {
-                            weno5_minus(&wy) * inv_dy
-                        };
-                        let bb = if lyp.is_finite() {
-                            let d2p = (wy[5] - 2.0 * wy[4] + wy[3]) * inv_dy2;
-                            -phi / lyp - 0.5 * lyp * minmod(d2, d2p)
-                        } else {
-                            weno5_plus(&wy) * inv_dy
-                        };
-                        (a, bb)
-                    } else {
-                        (weno5_minus(&wy) * inv_dy, weno5_plus(&wy) * inv_dy)
-                    };
+                    let (dxa, dxb) = one_sided(&window(s, k, 1), phi, lxm, lxp, inv_dx, inv_dx2);
+                    let (dya, dyb) = one_sided(&window(s, k, stride), phi, lym, lyp, inv_dy, inv_dy2);
                     let (gx2, gy2, sign) = if f0 > 0.0 {
                         (
                             dxa.max(0.0).powi(2).max(dxb.min(0.0).powi(2)),

@@ -48,7 +48,7 @@
 use crate::error::Error;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
-use crate::operators::for_each_interior_row;
+use crate::operators::{for_each_interior_row, strain_rate_norm_centre};
 
 /// What the Picard iteration of one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -254,17 +254,9 @@ impl PlasticState {
     /// averaged from the corners) into `out`: at the fixed point |Λ| ≤ 1 exactly where the
     /// material is rigid (D = 0), > 1 where it yields (there Σ = Λ/|Λ|).
     pub fn trial_norm_centre(&self, out: &mut Field, exec: Exec) {
-        let (a, b) = (self.trial_c.slice(), self.trial_n.slice());
-        let (tc, tn) = (&self.trial_c, &self.trial_n);
-        let n = out.nx;
-        for_each_interior_row(exec, out, |j, row| {
-            let j = j as isize;
-            let (bc, bn0, bn1) = (base(tc, j), base(tn, j), base(tn, j + 1));
-            for i in 0..n {
-                let xy = 0.25 * (b[bn0 + i] + b[bn0 + i + 1] + b[bn1 + i] + b[bn1 + i + 1]);
-                row[HALO + i] = (a[bc + i] * a[bc + i] + xy * xy).sqrt();
-            }
-        });
+        // Λ is traceless (Λ_yy = −Λ_xx), so ½(Λ_xx² + Λ_yy²) + Λ_xy² = Λ_xx² + Λ_xy²: the strain-rate
+        // norm kernel with Λ_xx in both diagonal slots gives |Λ| exactly
+        strain_rate_norm_centre(&self.trial_c, &self.trial_c, &self.trial_n, out, exec);
     }
 }
 

@@ -53,6 +53,8 @@ pub struct StepInfo {
     pub picard_iterations: usize,
     /// Final increment max |Σ^{k+1} − Σ^k|, max |s^{k+1} − s^k| of the Picard iteration.
     pub picard_increment: f64,
+    /// Times the Picard stall safeguard halved r and r_b in the step.
+    pub picard_r_halvings: usize,
 }
 
 impl TwoPhaseModel {
@@ -446,6 +448,7 @@ impl TwoPhaseModel {
             divergence,
             picard_iterations: picard.iterations,
             picard_increment: picard.increment,
+            picard_r_halvings: picard.r_halvings,
         };
         Ok(self.last)
     }
