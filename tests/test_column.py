@@ -70,8 +70,11 @@ def test_front_has_three_phases(coarse_runs):
     # peak speed 2.65 m/s at t = 0.40 s, within 80 % of it from 0.17 to 0.83 s (0.66 s), late mean
     # |speed| 6 % of the peak (the receding tongue); the bounds leave about 2× margin each way
     base, _, wet = coarse_runs
+    # the running maximum of the front on 0.05 s samples: the late thin tongue breaks and joins
+    # again from one 0.01 s sample to the next (jumps of a few cells), which a pointwise
+    # derivative would take for the peak speed
     data = np.genfromtxt(base / "wet" / "front.csv", delimiter=",", skip_header=1)
-    t, x = data[:, 0], data[:, 1]
+    t, x = data[::5, 0], np.maximum.accumulate(data[:, 1])[::5]
     speed = np.gradient(x, t)
     k = np.argmax(speed)
     assert t[k] > 0.15, "the front accelerates first"

@@ -75,6 +75,11 @@ class Numerics:
     convection_scheme: 'centred' (second order, non-dissipative) or 'weno5' (upwind WENO5 per
     derivative: damps the grid-scale oscillations of an under-resolved light-phase shear layer);
     viscous_rtol: relative residual of the implicit viscous solve.
+    pressure_gauge: how the pressure's constant is fixed when no side is an ``Outflow``: 'mean'
+    (∫p = 0), 'top' (p = 0 on average over the top row of cells: a closed lid standing in for an
+    open top, so that the air is at p ≈ 0 and tan(α) p⁺ and the Coulomb walls see the weight of
+    the grains only), or 'auto' (default: 'top' when the yield stress or the wall friction depend
+    on p, 'mean' otherwise).
     """
 
     cfl: float = 0.5
@@ -100,6 +105,7 @@ class Numerics:
     convection: bool = True
     convection_scheme: str = "centred"
     viscous_rtol: float = 1e-10
+    pressure_gauge: str = "auto"
 
 
 class Model:
@@ -147,7 +153,8 @@ class Model:
             n.cfl, n.dt, n.max_dt, n.max_growth, n.cfl_abort, n.pressure_solver, n.pressure_rtol,
             n.pressure_max_iterations, threads, rheology.spec(), n.plastic, n.regularisation, n.r, n.r_wall,
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
-            None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme)
+            None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
+            n.pressure_gauge)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

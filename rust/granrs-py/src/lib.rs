@@ -5,7 +5,7 @@
 use granrs_core::exec::Exec;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
-use granrs_core::models::{ConvectionScheme, Material, ModelConfig, TwoPhaseModel};
+use granrs_core::models::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig};
 use granrs_core::rheology::{RheologyConfig, RheologyLaw, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
@@ -264,7 +264,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred"))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -301,6 +301,7 @@ impl PyModel {
         pore_pressure: Option<&Bound<'_, PyDict>>,
         mass_correction: bool,
         convection_scheme: &str,
+        pressure_gauge: &str,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -371,6 +372,12 @@ impl PyModel {
             "centred" => ConvectionScheme::Centred,
             "weno5" => ConvectionScheme::Weno5,
             other => return Err(param_err("convection_scheme", other, "'centred' or 'weno5'")),
+        };
+        cfg.pressure_gauge = match pressure_gauge {
+            "auto" => PressureGauge::Auto,
+            "mean" => PressureGauge::Mean,
+            "top" => PressureGauge::Top,
+            other => return Err(param_err("pressure_gauge", other, "'auto', 'mean' or 'top'")),
         };
         cfg.viscous_rtol = viscous_rtol;
         let law = match &rheology {

@@ -8,4 +8,4 @@ mod checkpoint;
 mod two_phase;
 
 pub use checkpoint::StateEntry;
-pub use two_phase::{ConvectionScheme, Material, ModelConfig, TwoPhaseModel};
+pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};

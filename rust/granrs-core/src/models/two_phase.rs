@@ -10,7 +10,7 @@ use crate::levelset::{dense_area, init_signed_distance, LevelSetTransport, Redis
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureProjection;
 use crate::rheology::stage::RheologyState;
-use crate::rheology::RheologyConfig;
+use crate::rheology::{RheologyConfig, RheologyLaw};
 use crate::solvers::{SolveInfo, SolverSettings};
 use crate::time_stepping::{MomentumSolver, StepInfo, TimeConfig, ViscousScheme};
 
@@ -39,6 +39,25 @@ pub enum ConvectionScheme {
     /// Upwind WENO5 per derivative (dissipative at the grid scale; for high density ratios and
     /// under-resolved shear layers of the light phase).
     Weno5,
+}
+
+/// How the constant of the pressure is fixed when no side prescribes it (no `Outflow` side: the
+/// pressure problem has a null space and the projection returns a zero-mean increment).
+///
+/// Only ∇p enters the momentum balance, but a pressure-dependent yield stress tan(α) p⁺ and the
+/// Coulomb walls' τ_b = tan(α_b) p⁺ use p itself: its level must mean "atmospheric = 0", as with
+/// the paper's open top (p = 0 there). With a zero-mean gauge the air sits at −⟨p⟩ (about
+/// −145 Pa at the start of the paper's column, rising as it collapses), which leaves every layer
+/// thinner than ⟨p⟩/(ρ g) ≈ 1 cm without friction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PressureGauge {
+    /// `Top` when the rheology's yield stress or the walls' friction depend on p (Drucker–Prager,
+    /// μ(I), Coulomb sides), `Mean` otherwise.
+    Auto,
+    /// ∫ p = 0 over the domain (the projection's own gauge).
+    Mean,
+    /// The mean of p over the top row of cells is 0 (a closed lid standing in for an open top).
+    Top,
 }
 
 /// Everything that defines a model (grid, boundary conditions, materials, numerics).
@@ -78,6 +97,8 @@ pub struct ModelConfig {
     pub convection_scheme: ConvectionScheme,
     /// Relative residual of the implicit viscous solve (tightened inside the Picard loop).
     pub viscous_rtol: f64,
+    /// How the pressure's constant is fixed when no side is an outflow (see [`PressureGauge`]).
+    pub pressure_gauge: PressureGauge,
 }
 
 impl ModelConfig {
@@ -103,7 +124,30 @@ impl ModelConfig {
             convection: true,
             convection_scheme: ConvectionScheme::Centred,
             viscous_rtol: 1e-10,
+            pressure_gauge: PressureGauge::Auto,
         }
+    }
+
+    /// The gauge in force: `None` when a side fixes p (an outflow), else `Mean` or `Top` with
+    /// `Auto` resolved (see [`PressureGauge::Auto`]).
+    pub fn resolved_pressure_gauge(&self) -> Option<PressureGauge> {
+        use crate::grid::{PressureBc, Side};
+        if [Side::Left, Side::Right, Side::Bottom, Side::Top].iter().any(|&s| self.bc.pressure(s) == PressureBc::Dirichlet) {
+            return None;
+        }
+        Some(match self.pressure_gauge {
+            PressureGauge::Auto => {
+                let pressure_law = matches!(self.rheology.law, RheologyLaw::DruckerPrager { .. } | RheologyLaw::MuI { .. });
+                let coulomb = self.rheology.wall_friction_angle.is_some()
+                    && [Side::Left, Side::Right, Side::Bottom, Side::Top].iter().any(|&s| self.bc.get(s) == crate::grid::VelocityBc::Coulomb);
+                if pressure_law || coulomb {
+                    PressureGauge::Top
+                } else {
+                    PressureGauge::Mean
+                }
+            }
+            g => g,
+        })
     }
 
     /// Checks every parameter, naming the first offending one and its allowed range.

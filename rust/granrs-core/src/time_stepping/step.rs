@@ -12,7 +12,8 @@
 //!    (implicit or explicit); with a yield stress or wall friction, the Picard loop of eq. (12)
 //!    couples it with the plastic projection of Σ and the friction projection of s
 //!    (`momentum_solve` in `rheology/stage.rs`).
-//! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp.
+//! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp, then the pressure gauge (p = 0 under
+//!    the lid when no side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
 
 use crate::error::{Error, Result};
@@ -113,7 +114,26 @@ impl TwoPhaseModel {
         }
         let info = self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, exec);
         self.projection.reset_increment();
+        self.gauge_pressure();
         info
+    }
+
+    /// Fixes the pressure's constant by the configured gauge (see
+    /// [`crate::models::PressureGauge`]): with `Top`, p ← p − ⟨p⟩_top row, so that the air under
+    /// a closed lid sits at p ≈ 0 as under the paper's open top. Velocities are unaffected.
+    pub(crate) fn gauge_pressure(&mut self) {
+        if self.config.resolved_pressure_gauge() != Some(crate::models::PressureGauge::Top) {
+            return;
+        }
+        let (nx, ny) = (self.p.nx as isize, self.p.ny as isize);
+        let mean = (0..nx).map(|i| self.p.at(i, ny - 1)).sum::<f64>() / nx as f64;
+        if mean == 0.0 || !mean.is_finite() {
+            return;
+        }
+        // ghosts included (a constant shift keeps the even reflections of Neumann sides)
+        for x in self.p.slice_mut() {
+            *x -= mean;
+        }
     }
 
     /// Stage 1: the time step.
@@ -399,6 +419,7 @@ impl TwoPhaseModel {
             self.projection_stale = false;
         }
         let r = self.projection.project(&mut self.u, &mut self.v, &mut self.p, &wk.rho_u, &wk.rho_v, dt_over_a0, &cfg.grid, &cfg.bc, exec);
+        self.gauge_pressure();
         r.map_err(|e| self.at_step(e))
     }
 
