@@ -2,6 +2,13 @@
 column collapse, with 1 and 2 threads (median of repeats). Refuses a debug build.
 
     .venv/bin/python benchmarks/whole_runs.py [--quick] [--out benchmarks/results.json]
+    .venv/bin/python benchmarks/whole_runs.py --column [--threads 1 2] [--out benchmarks/column_scaling.json]
+
+``--column``: the two-phase column step of the main job (D-P bi-projection, Coulomb walls, pore
+pressure, WENO5 level set and redistancing: everything a step does) from ny = 23 (4.5 k cells,
+about 64²) to ny = 362 (1.0 M cells, about 1024²); cost per step over steps 11–30 of the collapse
+(after the BDF1 start and the growth of δt from a tenth of the stable step), the log-log slope of
+cost per step against cells, and cost per Picard iteration.
 
 The figures quoted in docs/benchmarks.md come from this script (and `cargo bench`).
 """
@@ -34,14 +41,64 @@ def cavity_cost(n: int, threads: int, steps: int, repeats: int) -> dict:
             "viscous_iterations_median": statistics.median(log["viscous_iterations"])}
 
 
+def column_cost(ny: int, threads: int, steps: int, repeats: int) -> dict:
+    from granrs.cases.column import ColumnCase, build_model
+
+    times, its = [], []
+    for _ in range(repeats):
+        m = build_model(ColumnCase(ny=ny, threads=threads))
+        m.advance(max_steps=10)
+        t0 = time.perf_counter()
+        log = m.advance(max_steps=steps)
+        times.append((time.perf_counter() - t0) / steps)
+        its.append(statistics.mean(log["picard_iterations"]))
+    med = statistics.median(times)
+    cells = m.grid.nx * m.grid.ny
+    return {"case": "column-fluidised", "ny": ny, "nx": m.grid.nx, "cells": cells, "threads": threads, "s_per_step": med,
+            "cell_steps_per_s": cells / med, "picard_iterations_mean": statistics.mean(its),
+            "s_per_picard_iteration": med / max(statistics.mean(its), 1.0),
+            "pressure_iterations_median": statistics.median(log["pressure_iterations"]),
+            "viscous_iterations_median": statistics.median(log["viscous_iterations"])}
+
+
+def slope(rows: list, key: str) -> float:
+    import math
+
+    x = [math.log(r["cells"]) for r in rows]
+    y = [math.log(r[key]) for r in rows]
+    mx, my = sum(x) / len(x), sum(y) / len(y)
+    return sum((a - mx) * (b - my) for a, b in zip(x, y)) / sum((a - mx) ** 2 for a in x)
+
+
 def main() -> None:
     info = granrs.build_info()
     if info["profile"] != "release":
         raise SystemExit("benchmarks need a release build (make install builds one)")
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--out", default="benchmarks/results.json")
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--column", action="store_true")
+    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--ny", type=int, nargs="+", default=[23, 32, 45, 64, 90, 128, 181, 256, 362])
     args = ap.parse_args()
+    if args.column:
+        rows = []
+        for threads in args.threads:
+            for ny in args.ny:
+                rows.append(column_cost(ny, threads, steps=20, repeats=3 if ny <= 128 else 1))
+                print(json.dumps(rows[-1]), flush=True)
+        fits = {}
+        for threads in args.threads:
+            sel = [r for r in rows if r["threads"] == threads]
+            if len(sel) > 1:
+                fits[f"slope_s_per_step_{threads}t"] = slope(sel, "s_per_step")
+                fits[f"slope_s_per_picard_iteration_{threads}t"] = slope(sel, "s_per_picard_iteration")
+        print(json.dumps(fits))
+        out = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()}, "version": info["version"],
+               "rows": rows, "fits": fits}
+        Path(args.out or "benchmarks/column_scaling.json").write_text(json.dumps(out, indent=2) + "\n")
+        return
+    args.out = args.out or "benchmarks/results.json"
     sizes = [64, 128] if args.quick else [64, 128, 256, 512]
     rows = []
     for n in sizes:

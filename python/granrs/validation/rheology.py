@@ -125,6 +125,48 @@ def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_
     return m, change
 
 
+# Bleyer, Maillard, de Buhan & Coussot (2015), "Efficient numerical computations of yield stress
+# fluid flows using second-order cone programming", Comput. Methods Appl. Mech. Engrg. 283,
+# 599–614: creeping Bingham cavity, Bi = τ_y L/(μ U) with the standard Bingham law (the same
+# definition as granrs's Bn: their plastic dissipation is √2 τ_y √(D:D) = τ_y γ̇). Their horizontal
+# velocity on the vertical centreline x = L/2, tabulated every 0.01 L, is published with the
+# dolfinx_optim viscoplasticity demo (J. Bleyer, github.com/bleyerj/dolfinx_optim,
+# demos/viscoplasticity/viscoplastic_data.csv). Two numbers per Bi are used here: the
+# smallest tabulated u/U with its height, and the height where u changes sign (linear between
+# the two bracketing tabulated points; for this symmetric creeping flow it is the height of the
+# vortex centre).
+BLEYER2015_CENTRELINE = {
+    # Bi: (min u/U, y/L of the min, y/L of u = 0 between the bracketing rows)
+    0.0: (-0.2007, 0.53, 0.76 + 0.01 * 0.0024 / (0.0024 + 0.0202)),
+    2.0: (-0.1955, 0.57, 0.81 + 0.01 * 0.0050 / (0.0050 + 0.0211)),
+    5.0: (-0.1714, 0.57, 0.84 + 0.01 * 0.0103 / (0.0103 + 0.0170)),
+    20.0: (-0.1131, 0.57, 0.89 + 0.01 * 0.0094 / (0.0094 + 0.0187)),
+}
+
+
+def centreline_u(m) -> tuple[float, float, float]:
+    """On the vertical centreline x = L/2 (the u faces of column nx/2): the smallest u (parabolic
+    refinement through the three cell centres around the discrete minimum), its height, and the
+    height of the sign change of u above it (linear)."""
+    nx = m.grid.nx
+    u = np.asarray(m.u)[:, nx // 2]
+    y = (np.arange(m.grid.ny) + 0.5) * m.grid.dy
+    k = int(np.argmin(u))
+    umin, ymin = float(u[k]), float(y[k])
+    if 0 < k < len(u) - 1:
+        a, b, c = u[k - 1], u[k], u[k + 1]
+        den = a - 2 * b + c
+        if den > 0:
+            d = 0.5 * (a - c) / den
+            umin, ymin = float(b - 0.25 * (a - c) * d), float(y[k] + d * m.grid.dy)
+    up = np.nonzero(u[k:] > 0)[0]
+    y0 = float("nan")
+    if up.size:
+        j = k + int(up[0])
+        y0 = float(y[j - 1] + m.grid.dy * (-u[j - 1]) / (u[j] - u[j - 1]))
+    return umin, ymin, y0
+
+
 def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0):
     bns = [float(b) for b in (bn if isinstance(bn, (list, tuple)) else [bn])]
     n = int(n)
@@ -134,8 +176,16 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0):
         psi = m.streamfunction()
         val, x, y = _refine_min(psi, m.grid.dx, m.grid.dy)
         unyielded = float(np.mean(m.trial_norm <= 1.0)) if b > 0 else 0.0
-        rows.append({"bn": b, "psi_max_abs": abs(val), "vortex_x": x, "vortex_y": y, "unyielded_fraction": unyielded,
-                     "steady_change_per_unit_time": change, "t_final": m.time})
+        umin, ymin, y0 = centreline_u(m)
+        row = {"bn": b, "psi_max_abs": abs(val), "vortex_x": x, "vortex_y": y, "unyielded_fraction": unyielded,
+               "centreline_u_min": umin, "centreline_u_min_y": ymin, "centreline_u_zero_y": y0,
+               "steady_change_per_unit_time": change, "t_final": m.time}
+        if b in BLEYER2015_CENTRELINE:
+            pu, py, p0 = BLEYER2015_CENTRELINE[b]
+            row["bleyer2015_u_min"], row["bleyer2015_u_zero_y"] = pu, p0
+            row["u_min_rel_diff"] = abs(umin / pu - 1)
+            row["u_zero_y_rel_diff"] = abs(y0 / p0 - 1)
+        rows.append(row)
     metrics = {"n": n, "rows": rows}
     psis = [r["psi_max_abs"] for r in rows]
     ys = [r["vortex_y"] for r in rows]
@@ -144,9 +194,15 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0):
     passed = monotone
     reference = {"stokes_psi_max_abs": 0.1000, "stokes_vortex_y": 0.765,
                  "source": "validation-data.md §2 (Stokes cavity, Bn = 0)",
-                 "published_bingham": "not compared: no published table (Mitsoulis & Zisis 2001, Vola et al. 2003, "
-                                      "Syrakos et al. 2013) could be retrieved with the tools of this project",
-                 "acceptance": "|ψ| decreases and the vortex centre rises with Bn; Bn = 0 within 1 % of 0.1000"}
+                 "published_bingham": "Bleyer et al. 2015 (CMAME 283) centreline velocity, Bi = 0, 2, 5, 20: "
+                                      "min u/U and the height of u = 0 (BLEYER2015_CENTRELINE)",
+                 "acceptance": "|ψ| decreases and the vortex centre rises with Bn; Bn = 0 within 1 % of 0.1000; "
+                               "at n >= 128 the centreline min u and zero height within 2 % of Bleyer et al. 2015"}
+    compared = [r for r in rows if "u_min_rel_diff" in r]
+    if compared:
+        metrics["bleyer2015_max_rel_diff"] = max(max(r["u_min_rel_diff"], r["u_zero_y_rel_diff"]) for r in compared)
+        if n >= 128:
+            passed = passed and metrics["bleyer2015_max_rel_diff"] <= 0.02
     if 0.0 in bns:
         r0 = rows[bns.index(0.0)]
         metrics["stokes_psi_rel_error"] = abs(r0["psi_max_abs"] - 0.1) / 0.1

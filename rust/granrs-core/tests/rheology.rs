@@ -263,3 +263,51 @@ fn restart_from_a_checkpoint_is_bit_identical() {
         other => panic!("accepted a foreign checkpoint: {other:?}"),
     }
 }
+
+/// The pressure gauge (`ModelConfig::pressure_gauge`): in a closed box with a pressure-dependent
+/// yield stress, `Auto` resolves to `Top` and the air under the lid sits at p = 0 (to round-off),
+/// so that a heavy layer's pressure at depth d is its weight ρ g d, not ρ g d − ⟨p⟩; with `Mean`
+/// the domain mean is 0 and the air is at −⟨p⟩ < 0. Velocities do not depend on the gauge.
+#[test]
+fn pressure_gauge_puts_the_air_at_zero_under_a_closed_lid() {
+    use granrs_core::levelset::Shape;
+    use granrs_core::models::PressureGauge;
+    let build = |gauge: PressureGauge| {
+        let grid = Grid::new(32, 16, 1.0, 0.5).unwrap();
+        let bc = BoundaryConditions::uniform(VelocityBc::FreeSlip);
+        let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1450.0, viscosity: 0.1 });
+        cfg.light = Some(Material { density: 1.2, viscosity: 1.8e-5 });
+        cfg.gravity = [0.0, -9.81];
+        cfg.time.fixed_dt = Some(1e-3);
+        cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager { friction_angle: 27.0 });
+        cfg.rheology.picard_tol = 1e-6;
+        cfg.pressure_gauge = gauge;
+        let mut m = TwoPhaseModel::new(cfg).unwrap();
+        // a flat layer 0.2 m deep with its surface in mid-cell
+        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 2.0, y0: -1.0, y1: 0.2 + 1.0 / 64.0 }).unwrap();
+        m.initialise_pressure().unwrap();
+        for _ in 0..3 {
+            m.step().unwrap();
+        }
+        m
+    };
+    let top_mean = |m: &TwoPhaseModel| (0..32).map(|i| m.p.at(i, 15)).sum::<f64>() / 32.0;
+    let all_mean = |m: &TwoPhaseModel| (0..16).flat_map(|j| (0..32).map(move |i| (i, j))).map(|(i, j)| m.p.at(i, j)).sum::<f64>() / 512.0;
+    let top = build(PressureGauge::Auto);
+    let mean = build(PressureGauge::Mean);
+    assert_eq!(top.config().resolved_pressure_gauge(), Some(PressureGauge::Top));
+    assert!(top_mean(&top).abs() < 1e-9, "top-row mean {}", top_mean(&top));
+    // bottom cell centre at depth 0.2156 − 0.0156: ρ g d ≈ 2845 Pa (+ the air column, 3 Pa)
+    let expect = 1450.0 * 9.81 * (0.2 + 1.0 / 64.0 - 1.0 / 64.0) + 1.2 * 9.81 * 0.3;
+    assert!((top.p.at(16, 0) / expect - 1.0).abs() < 0.02, "bottom p {} vs {}", top.p.at(16, 0), expect);
+    assert!(all_mean(&mean).abs() < 1e-9 * expect);
+    assert!(mean.p.at(16, 15) < -500.0, "zero-mean gauge: air at {}", mean.p.at(16, 15));
+    // a layer at rest stays at rest either way: the pressures differ by a constant
+    let shift = top.p.at(0, 0) - mean.p.at(0, 0);
+    for j in 0..16 {
+        for i in 0..32 {
+            assert!((top.p.at(i, j) - mean.p.at(i, j) - shift).abs() < 1e-9 * expect);
+            assert!((top.u.at(i, j) - mean.u.at(i, j)).abs() < 1e-8);
+        }
+    }
+}
