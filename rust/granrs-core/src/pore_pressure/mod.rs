@@ -424,7 +424,7 @@ impl PorePressure {
                 let excess = new.abs() - bound * (1.0 + 1e-10);
                 if excess > 0.0 {
                     let ratio = new.abs() / bound.max(f64::MIN_POSITIVE);
-                    if worst.map_or(true, |w| ratio > w.0) {
+                    if worst.is_none_or(|w| ratio > w.0) {
                         worst = Some((ratio, new, bound, (i, j)));
                     }
                 }
