@@ -1,15 +1,29 @@
-"""A run that blows up stops with a message saying what failed, where and when, and keeps its history."""
+"""A run that fails stops with a message saying what failed, where and when, and keeps its history:
+each failure mode of the stability map (docs/stability.md) is detected by granrs itself, never a
+silent NaN. Small grids: seconds each."""
 
+import json
+
+import numpy as np
 import pytest
 
 import granrs
 from granrs import Simulation, SimulationError
+from granrs.cases.column import ColumnCase, run_column
+from granrs.validation import run_case
+from granrs.validation.pore_pressure import pore_diffusion_error
+from granrs.validation.rheology import REST_SPEED, creep_verdict, run_heap
 
 
+def _cavity(n=32, **numerics):
+    return granrs.Model(granrs.Grid(n, n, 1.0, 1.0), granrs.Material(1.0, numerics.pop("viscosity", 1e-3)),
+                        bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
+                        rheology=numerics.pop("rheology", None), numerics=granrs.Numerics(**numerics))
+
+
+# ---- blow-up and CFL ------------------------------------------------------------------------
 def test_cfl_violation_is_detected_with_location_and_time():
-    m = granrs.Model(granrs.Grid(32, 32, 1.0, 1.0), granrs.Material(1.0, 1e-3),
-                     bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
-                     numerics=granrs.Numerics(dt=0.2))
+    m = _cavity(dt=0.2)
     sim = Simulation(m, stop_time=5.0)
     with pytest.raises(SimulationError, match="CFL number") as info:
         sim.run()
@@ -20,9 +34,103 @@ def test_cfl_violation_is_detected_with_location_and_time():
     assert "error" in sim.stop_reason
 
 
-def test_solver_non_convergence_is_reported():
-    m = granrs.Model(granrs.Grid(64, 64, 1.0, 1.0), granrs.Material(1.0, 1e-3),
-                     bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
-                     numerics=granrs.Numerics(pressure_max_iterations=1, pressure_rtol=1e-14))
+def test_blow_up_is_a_non_finite_velocity_error_not_a_silent_nan():
+    # explicit viscous term at ν δt/h² = 1e200 · 1e-3 · 256, 1e202 times its limit 1/4: the
+    # predictor overflows to inf/NaN in the first step. It is reported as a blow-up of the velocity
+    # with its cell, not as an invalid right-hand side of the pressure solve (as it was before)
+    m = _cavity(n=16, viscosity=1e200, dt=1e-3, viscous="explicit", cfl_abort=100.0)
+    with pytest.raises(SimulationError, match=r"non-finite velocity \([uv] is NaN or inf\) after the momentum predictor") as info:
+        m.advance(max_steps=5)
+    err = info.value
+    assert err.step == 1 and err.location is not None
+    assert abs(err.time - 1e-3) < 1e-15
+
+
+def test_explicit_viscous_instability_is_caught_by_the_cfl_guard_before_any_nan():
+    # a milder explicit instability (ν δt/h² = 2.6, ten times the limit) grows over a few steps:
+    # the CFL guard stops it while the velocity is still finite
+    m = _cavity(n=16, viscosity=1.0, dt=1e-2, viscous="explicit", cfl_abort=100.0)
+    with pytest.raises(SimulationError, match="CFL number .* exceeds the limit cfl_abort = 100") as info:
+        m.advance(max_steps=50)
+    assert np.all(np.isfinite(m.u)) and info.value.location is not None
+
+
+# ---- iterations that do not converge --------------------------------------------------------
+def test_pressure_solver_non_convergence_is_reported():
+    m = _cavity(n=64, pressure_max_iterations=1, pressure_rtol=1e-14)
     with pytest.raises(SimulationError, match="did not converge"):
         m.advance(max_steps=3)
+
+
+def test_viscous_solver_non_convergence_is_reported():
+    # ν δt/h² = 1 · 0.1 · 1024 ≈ 100: Jacobi-CG needs tens of iterations, the cap is one
+    m = _cavity(viscosity=1.0, dt=0.1, viscous_max_iterations=1, viscous_rtol=1e-14)
+    with pytest.raises(SimulationError, match=r"viscous CG \(momentum predictor\) did not converge: .* after 1 iterations") as info:
+        m.advance(max_steps=2)
+    assert info.value.step == 1
+    with pytest.raises(granrs.ParameterError, match="`viscous_max_iterations`"):
+        _cavity(viscous_max_iterations=0)
+
+
+def test_picard_non_convergence_is_reported_with_its_cap():
+    m = _cavity(viscosity=1.0, rheology=granrs.Bingham(5.0), dt=0.05, convection=False, picard_max_iterations=2,
+                picard_tol=1e-12)
+    with pytest.raises(SimulationError, match="Picard iteration of the plastic projection did not converge: .* after 2 iterations") as info:
+        m.advance(max_steps=2)
+    assert info.value.step == 1
+
+
+# ---- explicit pore-pressure diffusion -------------------------------------------------------
+def test_explicit_pore_pressure_past_its_limit_is_detected_and_names_the_limit():
+    # 2 × h²/(4κ): the checkerboard grows by |1 − 4| = 3 per step; the 1e-9 seed excites it at once
+    with pytest.raises(SimulationError, match=r"pore pressure p_f grows .* explicit diffusion limit h²/\(4κ\)") as info:
+        pore_diffusion_error(32, dt_factor=2.0, time_scheme="explicit", seed=1e-9)
+    err = info.value
+    assert err.step == 1 and err.location is not None and "δt/limit = 2.0" in str(err)
+
+
+def test_explicit_pore_pressure_below_its_limit_is_accurate():
+    err, _, model = pore_diffusion_error(32, dt_factor=0.9, time_scheme="explicit", seed=1e-9)
+    # same exact series as the implicit scheme (2.5e-4 at 10 × the limit); measured 6.1e-4: the
+    # first-order time error δt·κ·|∂²p/∂t²| stays below the spatial error scale 1e-3
+    assert err < 1e-3, err
+    assert np.all(np.isfinite(model.pf))
+
+
+def test_pore_time_scheme_is_validated():
+    with pytest.raises(granrs.ParameterError, match="`time_scheme`"):
+        granrs.PorePressure(diffusivity=1.0, time_scheme="crank-nicolson")
+    with pytest.raises(granrs.ParameterError, match="`time_scheme`.*granular-only"):
+        granrs.PorePressure(diffusivity=1.0, formulation="kappa-infinity", time_scheme="explicit")
+
+
+# ---- creep of a heap that should rest -------------------------------------------------------
+def test_regularised_heap_creep_is_flagged_by_the_metric():
+    _, log = run_heap(20.0, 16, plastic="papanastasiou", regularisation=1000.0)
+    v = creep_verdict(log)
+    # Papanastasiou m = 1000 s creeps at ~2.4e-4 m/s whatever δt (docs/stability.md): 4 orders
+    # above the rest criterion
+    assert v["verdict"] == "creeps" and v["creep_speed"] > 1e3 * REST_SPEED, v
+    assert "exceeds the rest criterion 1e-08 m/s" in v["message"]
+    _, log = run_heap(20.0, 16, theta=0.0)
+    assert creep_verdict(log)["verdict"] == "at rest"
+
+
+def test_heap_at_rest_case_reports_both_verdicts():
+    rec = run_case("heap-at-rest", slope=20.0, n=16, regularised=True)
+    m = rec["metrics"]
+    assert m["verdict"] == "at rest" and m["regularised_verdict"] == "creeps", m
+    assert "creeps" in m["regularised_message"] and rec["passed"]
+
+
+# ---- a column run that fails keeps its outputs ----------------------------------------------
+def test_failed_column_run_keeps_summary_and_front(tmp_path):
+    # plain Uzawa (θ = 0) with a 1e-8 Picard tolerance: the iteration does not converge within the
+    # case's 1000 iterations at the third step of the collapse (increment 2.1e-8, t = 5.9 ms)
+    with pytest.raises(SimulationError, match="Picard iteration .* did not converge.*outputs written to"):
+        run_column(ColumnCase(ny=16, t_end=0.3, theta=0.0, picard_tol=1e-8), tmp_path, progress=False)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["stop_reason"].startswith("error:") and "Picard" in summary["stop_reason"], summary
+    assert summary["steps"] >= 1 and summary["t_end_s"] > 0
+    rows = (tmp_path / "front.csv").read_text().splitlines()
+    assert rows[0].startswith("t_s,") and len(rows) >= 2, rows

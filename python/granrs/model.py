@@ -33,7 +33,11 @@ class PorePressure:
     'kappa-infinity-smoothed' (the paper's literal κ(Φ) = κ_f H_ε + κ_∞(1 − H_ε), whose p_f = 0
     boundary sits about ε inside the grains);
     basal_gradient: ∂p_f/∂y on the base [Pa/m] between basal_x_min and basal_x_max (the air
-    supply under the reservoir, −β φ ρ_s g in the paper); None for no supply.
+    supply under the reservoir, −β φ ρ_s g in the paper); None for no supply;
+    time_scheme: 'implicit' (BDF2 with implicit diffusion, second order, no step limit from the
+    diffusion; default) or 'explicit' (forward Euler, first order, stable only for
+    δt ≤ h²/(4κ) = 1/(2κ(1/dx² + 1/dy²)); 'granular-only' only). An explicit run past its limit
+    stops with a SimulationError naming the pore pressure, the cell and the limit.
     """
 
     diffusivity: float
@@ -42,8 +46,15 @@ class PorePressure:
     basal_gradient: Optional[float] = None
     basal_x_min: Optional[float] = None
     basal_x_max: Optional[float] = None
+    time_scheme: str = "implicit"
 
     def __post_init__(self):
+        if self.time_scheme not in ("implicit", "explicit"):
+            raise ParameterError(f"invalid parameter `time_scheme` = {self.time_scheme!r}: allowed 'implicit' or 'explicit'")
+        if self.time_scheme == "explicit" and self.formulation != "granular-only":
+            raise ParameterError(f"invalid parameter `time_scheme` = 'explicit' with formulation {self.formulation!r}: "
+                                 "allowed only with 'granular-only' (kappa_air in the air makes the explicit limit "
+                                 "h²/(4κ) vanish)")
         if self.formulation not in ("granular-only", "kappa-infinity", "kappa-infinity-smoothed"):
             raise ParameterError(f"invalid parameter `formulation` = {self.formulation!r}: allowed 'granular-only', "
                                  "'kappa-infinity' or 'kappa-infinity-smoothed'")
@@ -74,7 +85,9 @@ class Numerics:
     convection: False drops ρ(u·∇)u (Stokes flow, or x-invariant layers where it vanishes);
     convection_scheme: 'centred' (second order, non-dissipative) or 'weno5' (upwind WENO5 per
     derivative: damps the grid-scale oscillations of an under-resolved light-phase shear layer);
-    viscous_rtol: relative residual of the implicit viscous solve.
+    viscous_rtol: relative residual of the implicit viscous solve; viscous_max_iterations: its
+    iteration cap (reaching it stops the run with a SimulationError, like pressure_max_iterations
+    for the pressure solve and picard_max_iterations for the Picard iteration).
     pressure_gauge: how the pressure's constant is fixed when no side is an ``Outflow``: 'mean'
     (∫p = 0), 'top' (p = 0 on average over the top row of cells: a closed lid standing in for an
     open top, so that the air is at p ≈ 0 and tan(α) p⁺ and the Coulomb walls see the weight of
@@ -105,6 +118,7 @@ class Numerics:
     convection: bool = True
     convection_scheme: str = "centred"
     viscous_rtol: float = 1e-10
+    viscous_max_iterations: int = 2000
     pressure_gauge: str = "auto"
 
 
@@ -154,7 +168,7 @@ class Model:
             n.pressure_max_iterations, threads, rheology.spec(), n.plastic, n.regularisation, n.r, n.r_wall,
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
-            n.pressure_gauge)
+            n.pressure_gauge, n.viscous_max_iterations)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

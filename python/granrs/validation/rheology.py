@@ -418,20 +418,45 @@ def sliding_block(slope, stop_slope, n, threads: int = 1, wall_friction_angle: f
 # ---------------------------------------------------------------------------------------------
 # Granular layer at rest on a slope below the friction angle
 # ---------------------------------------------------------------------------------------------
+#: A heap below its friction angle must rest: its largest speed after 1 s must stay below this
+#: (5.2e-10 m/s measured with Uzawa at n = 32, 20°; the regularised law creeps at 2.5e-4 m/s).
+REST_SPEED = 1e-8
+
+
+def creep_verdict(log: dict, rest_speed: float = REST_SPEED) -> dict:
+    """The creep detector of a heap that should rest, from an ``advance`` log: the largest speed
+    at the end of the run against ``rest_speed``, with a verdict ('at rest' or 'creeps') and a
+    message that says which and by how much."""
+    t = float(log["time"][-1]) if len(log["time"]) else 0.0
+    speed = float(log["max_speed"][-1]) if len(log["max_speed"]) else 0.0
+    if not math.isfinite(speed):
+        verdict, message = "blow-up", f"blow-up: the max speed is {speed} at t = {t:.3g} s"
+    elif speed < rest_speed:
+        verdict = "at rest"
+        message = f"at rest: max speed {speed:.3e} m/s after {t:.3g} s, below the rest criterion {rest_speed:.0e} m/s"
+    else:
+        verdict = "creeps"
+        message = (f"creeps: max speed {speed:.3e} m/s after {t:.3g} s exceeds the rest criterion {rest_speed:.0e} m/s "
+                   f"({speed / rest_speed:.3g} x) although the heap is below its friction angle and should rest")
+    return {"creep_speed": speed, "rest_speed": rest_speed, "t": t, "verdict": verdict, "message": message}
+
+
 def run_heap(slope: float = 20.0, n: int = 32, dt: float = 0.05, t_end: float = 1.0, plastic: str = "projection",
-             regularisation=None, viscosity: float = 10.0, threads: int = 1):
+             regularisation=None, viscosity: float = 10.0, threads: int = 1, theta: float = 0.0,
+             picard_max_iterations: int = 20000):
     """An x-invariant D-P layer (H = 0.1 m, ρ = 1450, α = 27°) whose free surface is inclined at
     `slope` degrees to the horizontal (gravity tilted; fully developed sides, no-slip base, outflow
-    top), from rest with the hydrostatic pressure; θ = 0 (exact bi-projection fixed point)."""
+    top), from rest with the hydrostatic pressure; θ = 0 by default (exact bi-projection fixed
+    point; θ > 0 rests at the relaxed fixed point of eq. (12), a soft elastic solid)."""
     H = 0.1
     grid = Grid(4, n, 4 * H / n, H)
     bc = BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=NoSlip(), top=Outflow())
     b = math.radians(slope)
     m = Model(grid, Material(1450.0, viscosity), bc=bc, gravity=(9.81 * math.sin(b), -9.81 * math.cos(b)),
               rheology=DruckerPrager(27.0), threads=threads,
-              numerics=Numerics(dt=dt, cfl_abort=100.0, theta=0.0, picard_tol=1e-9, plastic=plastic, regularisation=regularisation,
+              numerics=Numerics(dt=dt, cfl_abort=100.0, theta=theta, picard_tol=1e-9, plastic=plastic, regularisation=regularisation,
                                 convection=False, pressure_rtol=1e-12, pressure_max_iterations=100000,
-                                picard_max_iterations=20000, viscous_rtol=1e-10))
+                                picard_max_iterations=picard_max_iterations, viscous_rtol=1e-10))
     m.set_initial(u=0.0)
     log = m.advance(t_end=t_end)
     return m, log
@@ -440,16 +465,24 @@ def run_heap(slope: float = 20.0, n: int = 32, dt: float = 0.05, t_end: float = 
 def heap_at_rest(slope, n, regularised, threads: int = 1, regularisation: float = 1000.0):
     slope, n = float(slope), int(n)
     m, log = run_heap(slope, n, threads=threads)
-    metrics = {"max_speed": float(log["max_speed"][-1]), "max_speed_over_run": float(np.max(log["max_speed"])),
-               "picard_iterations_first_step": int(log["picard_iterations"][0])}
-    passed = metrics["max_speed"] < 1e-8
+    creep = creep_verdict(log)
+    metrics = {"max_speed": creep["creep_speed"], "max_speed_over_run": float(np.max(log["max_speed"])),
+               "picard_iterations_first_step": int(log["picard_iterations"][0]),
+               "rest_speed": REST_SPEED, "verdict": creep["verdict"], "message": creep["message"]}
+    passed = creep["verdict"] == "at rest"
     if regularised:
         m2, log2 = run_heap(slope, n, plastic="papanastasiou", regularisation=regularisation, threads=threads)
+        creep2 = creep_verdict(log2)
         metrics["regularised_m"] = regularisation
-        metrics["regularised_max_speed"] = float(log2["max_speed"][-1])
-        passed = passed and metrics["regularised_max_speed"] > 1e-6
-    reference = {"max_speed": 0.0, "acceptance": "max_speed < 1e-8 m/s after 1 s with the projection (tan 20° < tan 27°); "
-                                                 "with --regularised the Papanastasiou law creeps (> 1e-6 m/s, reported)",
+        metrics["regularised_max_speed"] = creep2["creep_speed"]
+        metrics["regularised_verdict"] = creep2["verdict"]
+        metrics["regularised_message"] = creep2["message"]
+        # the regularised law cannot hold a rigid heap: its creep is the expected, reported result
+        passed = passed and creep2["verdict"] == "creeps" and creep2["creep_speed"] > 1e-6
+    reference = {"max_speed": 0.0, "rest_speed": REST_SPEED,
+                 "acceptance": "max_speed < 1e-8 m/s after 1 s with the projection (tan 20° < tan 27°): verdict 'at rest'; "
+                               "with --regularised the Papanastasiou law creeps (> 1e-6 m/s): regularised_verdict 'creeps', "
+                               "reported",
                  "note": "plastic viscosity 10 Pa s (not the paper's 0.1): the rest state does not depend on it, and it "
                          "makes Uzawa (θ = 0) converge in ~200 iterations instead of ~13 000"}
     return metrics, reference, passed

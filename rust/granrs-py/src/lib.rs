@@ -6,7 +6,7 @@ use granrs_core::exec::Exec;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
 use granrs_core::models::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};
-use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig};
+use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
 use granrs_core::rheology::{RheologyConfig, RheologyLaw, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
@@ -252,7 +252,15 @@ fn parse_pore(d: &Bound<'_, PyDict>) -> PyResult<PorePressureConfig> {
         Some(g) => Some(BasalFlux { gradient: g, x_min: f("basal_x_min")?.unwrap_or(f64::NEG_INFINITY), x_max: f("basal_x_max")?.unwrap_or(f64::INFINITY) }),
         None => None,
     };
-    Ok(PorePressureConfig { diffusivity, formulation, basal_flux })
+    let time_scheme: String = d.get_item("time_scheme")?.filter(|v| !v.is_none()).map(|v| v.extract()).transpose()?.unwrap_or_else(|| "implicit".into());
+    let time_scheme = match time_scheme.as_str() {
+        "implicit" => PoreTimeScheme::Implicit,
+        "explicit" => PoreTimeScheme::Explicit,
+        other => return Err(param_err("pore_pressure.time_scheme", other, "'implicit' or 'explicit'")),
+    };
+    let cfg = PorePressureConfig { diffusivity, formulation, basal_flux, time_scheme };
+    cfg.validate().map_err(to_py)?;
+    Ok(cfg)
 }
 
 #[pymethods]
@@ -264,7 +272,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto"))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -302,6 +310,7 @@ impl PyModel {
         mass_correction: bool,
         convection_scheme: &str,
         pressure_gauge: &str,
+        viscous_max_iterations: i64,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -380,6 +389,7 @@ impl PyModel {
             other => return Err(param_err("pressure_gauge", other, "'auto', 'mean' or 'top'")),
         };
         cfg.viscous_rtol = viscous_rtol;
+        cfg.viscous_max_iterations = pos("viscous_max_iterations", viscous_max_iterations)?;
         let law = match &rheology {
             Some((kind, params)) => parse_rheology(kind, params.as_ref())?,
             None => RheologyLaw::Newtonian,

@@ -97,6 +97,8 @@ pub struct ModelConfig {
     pub convection_scheme: ConvectionScheme,
     /// Relative residual of the implicit viscous solve (tightened inside the Picard loop).
     pub viscous_rtol: f64,
+    /// Iteration cap of the implicit viscous CG (reaching it is an error; default 2000).
+    pub viscous_max_iterations: usize,
     /// How the pressure's constant is fixed when no side is an outflow (see [`PressureGauge`]).
     pub pressure_gauge: PressureGauge,
 }
@@ -124,6 +126,7 @@ impl ModelConfig {
             convection: true,
             convection_scheme: ConvectionScheme::Centred,
             viscous_rtol: 1e-10,
+            viscous_max_iterations: 2000,
             pressure_gauge: PressureGauge::Auto,
         }
     }
@@ -171,6 +174,9 @@ impl ModelConfig {
         }
         self.rheology.validate()?;
         crate::error::check_range("viscous_rtol", self.viscous_rtol, 1e-14, 1e-2)?;
+        if self.viscous_max_iterations == 0 || self.viscous_max_iterations > 100_000_000 {
+            return Err(Error::param("viscous_max_iterations", self.viscous_max_iterations, "an integer in [1, 1e8]"));
+        }
         if self.threads == 0 || self.threads > 1024 {
             return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
         }
@@ -260,6 +266,7 @@ impl TwoPhaseModel {
         let projection = PressureProjection::new(g, &config.bc, config.pressure_solver)?;
         let mut momentum = MomentumSolver::new(g);
         momentum.rtol = config.viscous_rtol;
+        momentum.max_iterations = config.viscous_max_iterations;
         let rheology = RheologyState::new(g, &config.bc, &config.rheology);
         let work = Work {
             conv_u: xf(),

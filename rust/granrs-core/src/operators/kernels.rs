@@ -266,7 +266,8 @@ pub fn max_speed(u: &Field, v: &Field, exec: Exec) -> (f64, f64) {
         let mut m = 0.0f64;
         for i in 0..f.nx {
             let a = s[b + i];
-            m = if a.is_nan() { f64::NAN } else { m.max(a.abs()) };
+            // NaN is sticky (f64::max would drop it when a finite value follows)
+            m = if a.is_nan() || m.is_nan() { f64::NAN } else { m.max(a.abs()) };
         }
         m
     };

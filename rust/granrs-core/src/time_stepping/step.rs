@@ -4,7 +4,8 @@
 //! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
 //! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^n; redistancing every N steps.
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1}).
-//! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room; skipped when not fluidised).
+//! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room, implicit BDF2 or explicit forward
+//!    Euler; an explicit step past h²/(4κ) stops here, naming the cell; skipped when not fluidised).
 //! 4b. `rheology_stage` [step 2, continued]: τ^{n+1} = τ(p^n) H_ε(Φ^{n+1}) at centres and nodes,
 //!    τ_b^{n+1} on Coulomb walls, the lagged viscosity of μ(I) and regularised laws, r and r_b
 //!    (`rheology/stage.rs`).
@@ -12,6 +13,7 @@
 //!    (implicit or explicit); with a yield stress or wall friction, the Picard loop of eq. (12)
 //!    couples it with the plastic projection of Σ and the friction projection of s
 //!    (`momentum_solve` in `rheology/stage.rs`).
+//!    `check_predictor`: a non-finite ũ (blow-up) stops the step here, naming the cell.
 //! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp, then the pressure gauge (p = 0 under
 //!    the lid when no side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
@@ -76,6 +78,7 @@ impl TwoPhaseModel {
         self.pore_pressure(dt, (a0, a1, a2, w), exec)?;
         self.rheology_stage(a0 / dt, exec)?;
         let (viscous, picard) = self.predictor(dt, a0, a1, a2, w, exec)?;
+        self.check_predictor(dt, exec)?;
         let pressure = self.projection_stage(dt / a0, exec)?;
         self.checks(dt, viscous, pressure, picard, exec)
     }
@@ -322,6 +325,10 @@ impl TwoPhaseModel {
         let r = pore.advance(&self.phi, &self.u, &self.v, &self.config.grid, dt, coeffs, first, eps, exec);
         match r {
             Ok(_) => Ok(()),
+            // an unstable or non-finite p_f: the room names the cell, the step and time are added here
+            Err(Error::Simulation { what, location, .. }) => {
+                Err(Error::Simulation { what, step: self.step_count + 1, time: self.time + dt, location })
+            }
             Err(e) => Err(self.at_step(Error::SolverFailure { solver: "pore-pressure solve".into(), message: e.to_string() })),
         }
     }
@@ -408,6 +415,23 @@ impl TwoPhaseModel {
         std::mem::swap(&mut wk.conv_u, &mut self.conv_prev_u);
         std::mem::swap(&mut wk.conv_v, &mut self.conv_prev_v);
         self.momentum_solve(exec).map_err(|e| self.at_step(e))
+    }
+
+    /// After stage 5: a predictor that blew up (NaN or inf) is reported as such, with its cell,
+    /// rather than as an invalid right-hand side of the pressure solve.
+    fn check_predictor(&self, dt: f64, exec: Exec) -> Result<()> {
+        let (umax, vmax) = max_speed(&self.u, &self.v, exec);
+        if umax.is_finite() && vmax.is_finite() {
+            return Ok(());
+        }
+        let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
+        let (which, loc) = if !fu.0.is_finite() { ("u", fu.1) } else { ("v", fv.1) };
+        Err(Error::Simulation {
+            what: format!("non-finite velocity ({which} is NaN or inf) after the momentum predictor (blow-up)"),
+            step: self.step_count + 1,
+            time: self.time + dt,
+            location: Some(loc),
+        })
     }
 
     /// Stage 6 (paper step 5): pressure projection.
