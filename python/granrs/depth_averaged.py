@@ -7,7 +7,10 @@ on a horizontal channel 0 < x < L with reflective walls at both ends::
     (h u)_t + (h u² + ½ k g h²)_x = − k g h b_x − g h tan(α_b) (1 − β)⁺ sign(u)
     (h β)_t + (h β u)_x = − h β / t_d,   t_d = 4 h² / (π² κ),   β ≥ β_s under the air supply
 
-β = p_b/(ρ g h) is the basal pore-pressure ratio. Numerics (MUSCL–minmod, hydrostatic
+β = p_b/(ρ g h) is the basal pore-pressure ratio. k is a constant (``earth_pressure``, 1 by
+default) or, with ``internal_friction_angle`` = φ, Savage & Hutter's active coefficient
+k_act = 2 sec²φ_e (1 − √(1 − cos²φ_e sec²δ_e)) − 1 per cell, tan φ_e = (1 − β) tan φ,
+tan δ_e = (1 − β) tan α_b. Numerics (MUSCL–minmod, hydrostatic
 reconstruction, HLL, SSP-RK2, friction as a projection that can stop a cell but never reverse it)
 and the model's limits are in ``rust/granrs-core/src/models/depth_averaged.rs`` and
 ``docs/models.md``. The time loop runs in Rust with the GIL released.
@@ -44,11 +47,12 @@ class DepthAveragedModel:
 
     def __init__(self, cells: int, length: float, gravity: float = 9.81, earth_pressure: float = 1.0,
                  basal_friction_angle: float = 0.0, cfl: float = 0.4, dry_depth: float = 1e-6,
-                 max_dt: float = 1e-2, pore: Optional[DepthAveragedPore] = None) -> None:
+                 max_dt: float = 1e-2, pore: Optional[DepthAveragedPore] = None,
+                 internal_friction_angle: Optional[float] = None) -> None:
         pore_dict = None if pore is None else {"diffusivity": pore.diffusivity, "supply_ratio": pore.supply_ratio,
                                                "supply_x_max": pore.supply_x_max}
         self._rust = RustDepthAveraged(cells, length, gravity, earth_pressure, basal_friction_angle, cfl,
-                                       dry_depth, max_dt, pore_dict)
+                                       dry_depth, max_dt, pore_dict, internal_friction_angle)
         self.pore = pore
         n, _, dx, ghosts = self._rust.grid
         self.cells, self.length, self.dx = n, length, dx
@@ -106,6 +110,10 @@ class DepthAveragedModel:
     def mass(self) -> float:
         """Σ h Δx (m², per unit width)."""
         return self._rust.mass()
+
+    def earth_pressure(self) -> np.ndarray:
+        """Earth-pressure coefficient k of each cell (a copy)."""
+        return self._rust.earth_pressure()
 
     def max_speed(self) -> float:
         return self._rust.max_speed()

@@ -9,7 +9,8 @@
 //!   a threshold ε lies 3t√(gε) behind x_f: the tests compare the numerical threshold crossing
 //!   with that analytic position.
 
-use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore};
+use granrs_core::models::depth_averaged::active_earth_pressure;
+use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 use granrs_core::Error;
 
 const G: f64 = 1.0;
@@ -222,7 +223,8 @@ fn parameters_are_validated_by_name() {
     bad(&|c| c.cfl = 0.7, "cfl");
     bad(&|c| c.cells = 2, "cells");
     bad(&|c| c.length = -1.0, "length");
-    bad(&|c| c.earth_pressure = 0.0, "earth_pressure");
+    bad(&|c| c.earth_pressure = EarthPressure::Constant(0.0), "earth_pressure");
+    bad(&|c| c.earth_pressure = EarthPressure::SavageHutterActive { internal_friction_angle: -3.0 }, "internal_friction_angle");
     bad(&|c| c.basal_friction_angle = 95.0, "basal_friction_angle");
     bad(&|c| c.dry_depth = f64::NAN, "dry_depth");
     bad(&|c| c.pore = Some(DepthAveragedPore { diffusivity: 0.035, supply_ratio: 1.5, supply_x_max: 0.2 }), "supply_ratio");
@@ -251,3 +253,26 @@ fn a_blow_up_is_reported_with_step_time_and_cell() {
     }
 }
 
+
+#[test]
+fn savage_hutter_active_coefficient_limits() {
+    // δ = 0: Rankine's active coefficient (1 − sin φ)/(1 + sin φ) (1/3 at φ = 30°); β = 1 (no
+    // effective stress): hydrostatic, k = 1; the paper's angles φ = 27°, δ = 15°: 0.5464
+    let t = |deg: f64| deg.to_radians().tan();
+    assert!((active_earth_pressure(t(30.0), 0.0, 0.0) - 1.0 / 3.0).abs() < 1e-14);
+    assert!((active_earth_pressure(t(27.0), t(15.0), 1.0) - 1.0).abs() < 1e-14);
+    let k = active_earth_pressure(t(27.0), t(15.0), 0.0);
+    let (c2p, c2d) = (27.0_f64.to_radians().cos().powi(2), 15.0_f64.to_radians().cos().powi(2));
+    assert!((k - (2.0 / c2p * (1.0 - (1.0 - c2p / c2d).sqrt()) - 1.0)).abs() < 1e-14 && (k - 0.5464).abs() < 1e-4);
+    // in a model, k follows β cell by cell
+    let mut cfg = DepthAveragedConfig::new(10, 1.0);
+    cfg.basal_friction_angle = 15.0;
+    cfg.earth_pressure = EarthPressure::SavageHutterActive { internal_friction_angle: 27.0 };
+    cfg.pore = Some(DepthAveragedPore { diffusivity: 0.035, supply_ratio: 0.9, supply_x_max: 0.0 });
+    let mut m = DepthAveragedModel::new(cfg).unwrap();
+    let beta: Vec<f64> = (0..10).map(|i| i as f64 / 10.0).collect();
+    m.set_state(&[0.1; 10], &[0.0; 10], &beta).unwrap();
+    for (kc, b) in m.earth_pressure().zip(&beta) {
+        assert!((kc - active_earth_pressure(t(27.0), t(15.0), *b)).abs() < 1e-14);
+    }
+}

@@ -2,7 +2,7 @@
 //! Equations and numerics: granrs-core `models/depth_averaged.rs`.
 
 use granrs_core::models::depth_averaged::GHOSTS;
-use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore};
+use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -21,13 +21,15 @@ fn slice1<'a>(name: &str, a: &'a PyReadonlyArray1<'_, f64>) -> PyResult<&'a [f64
 
 #[pymethods]
 impl PyDepthAveraged {
-    /// pore: None (not fluidised) or {"diffusivity", "supply_ratio", "supply_x_max"}.
+    /// pore: None (not fluidised) or {"diffusivity", "supply_ratio", "supply_x_max"};
+    /// internal_friction_angle: None (constant k = earth_pressure) or φ in degrees (Savage–Hutter's
+    /// active coefficient per cell, earth_pressure ignored).
     #[new]
     #[pyo3(signature = (cells, length, gravity=9.81, earth_pressure=1.0, basal_friction_angle=0.0, cfl=0.4,
-                        dry_depth=1e-6, max_dt=1e-2, pore=None))]
+                        dry_depth=1e-6, max_dt=1e-2, pore=None, internal_friction_angle=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(cells: usize, length: f64, gravity: f64, earth_pressure: f64, basal_friction_angle: f64, cfl: f64,
-           dry_depth: f64, max_dt: f64, pore: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+           dry_depth: f64, max_dt: f64, pore: Option<&Bound<'_, PyDict>>, internal_friction_angle: Option<f64>) -> PyResult<Self> {
         let pore = match pore {
             None => None,
             Some(d) => {
@@ -43,6 +45,10 @@ impl PyDepthAveraged {
                     supply_x_max: get("supply_x_max")?,
                 })
             }
+        };
+        let earth_pressure = match internal_friction_angle {
+            None => EarthPressure::Constant(earth_pressure),
+            Some(phi) => EarthPressure::SavageHutterActive { internal_friction_angle: phi },
         };
         let cfg = DepthAveragedConfig { cells, length, gravity, earth_pressure, basal_friction_angle, cfl, dry_depth, max_dt, pore };
         Ok(PyDepthAveraged { inner: DepthAveragedModel::new(cfg).map_err(to_py)? })
@@ -95,6 +101,11 @@ impl PyDepthAveraged {
     /// Σ h Δx [m²].
     fn mass(&self) -> f64 {
         self.inner.mass()
+    }
+
+    /// Earth-pressure coefficient k per cell (a copy).
+    fn earth_pressure<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_vec(py, self.inner.earth_pressure().collect())
     }
 
     /// Largest |u| [m/s].

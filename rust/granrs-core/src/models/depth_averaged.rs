@@ -14,8 +14,13 @@
 //! ```
 //!
 //! - Mass and momentum: Savage & Hutter (1989, J. Fluid Mech. 199, 177–215), on a horizontal
-//!   channel (no cos θ / sin θ factors); k is the earth-pressure coefficient (1 by default: an
-//!   isotropic, hydrostatic pressure). The basal friction is Coulomb with angle α_b, its normal
+//!   channel (no cos θ / sin θ factors); k is the earth-pressure coefficient: 1 by default (an
+//!   isotropic, hydrostatic pressure), a constant, or Savage & Hutter's *active* coefficient
+//!   k_act = 2 sec²φ (1 − √(1 − cos²φ sec²δ)) − 1 of a spreading layer with internal friction φ
+//!   and basal friction δ (their eq. 3.14; δ > φ is clipped to δ = φ), evaluated per cell with the
+//!   angles reduced by the pore pressure, tan φ_e = tan φ (1 − β), tan δ_e = tan δ (1 − β)
+//!   (friction acts on the effective stress). We use the active value everywhere (a collapsing
+//!   column spreads, ∂u/∂x > 0); the passive one belongs to compressing zones and is not used. The basal friction is Coulomb with angle α_b, its normal
 //!   stress reduced by the basal pore pressure: τ_b = tan α_b (ρ g h − p_b)⁺ = ρ g h tan α_b (1 − β)⁺
 //!   (Iverson 1997, Rev. Geophys. 35; Gueugneau, Kelfoun, Roche & Chupin 2017, GRL 44).
 //!   When u = 0 the friction is a threshold: |τ_b| ≤ ρ g h tan α_b (1 − β)⁺ (the layer stays at
@@ -84,6 +89,29 @@ pub struct DepthAveragedPore {
     pub supply_x_max: f64,
 }
 
+/// The earth-pressure coefficient k of the pressure term ½ k g h².
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EarthPressure {
+    /// A constant k (1: hydrostatic).
+    Constant(f64),
+    /// Savage & Hutter's active coefficient from the internal friction angle φ (degrees) and the
+    /// basal friction angle, both reduced by the pore pressure, per cell.
+    SavageHutterActive {
+        /// Internal friction angle φ in degrees.
+        internal_friction_angle: f64,
+    },
+}
+
+/// Savage & Hutter's (1989) active earth-pressure coefficient for tan φ_e = (1 − β) tan φ,
+/// tan δ_e = (1 − β) tan δ (δ_e > φ_e clipped to φ_e).
+pub fn active_earth_pressure(tan_phi: f64, tan_delta: f64, beta: f64) -> f64 {
+    let r = (1.0 - beta).clamp(0.0, 1.0);
+    let (tp, td) = (r * tan_phi, (r * tan_delta).min(r * tan_phi));
+    let cos2_phi = 1.0 / (1.0 + tp * tp);
+    let sec2_delta = 1.0 + td * td;
+    2.0 / cos2_phi * (1.0 - (1.0 - cos2_phi * sec2_delta).max(0.0).sqrt()) - 1.0
+}
+
 /// Configuration of [`DepthAveragedModel`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DepthAveragedConfig {
@@ -93,8 +121,8 @@ pub struct DepthAveragedConfig {
     pub length: f64,
     /// Gravity g [m s⁻²].
     pub gravity: f64,
-    /// Earth-pressure coefficient k (1: hydrostatic).
-    pub earth_pressure: f64,
+    /// Earth-pressure coefficient k (`Constant(1.0)`: hydrostatic).
+    pub earth_pressure: EarthPressure,
     /// Basal friction angle α_b in degrees.
     pub basal_friction_angle: f64,
     /// CFL number (≤ 0.5 for positivity).
@@ -115,7 +143,7 @@ impl DepthAveragedConfig {
             cells,
             length,
             gravity: 9.81,
-            earth_pressure: 1.0,
+            earth_pressure: EarthPressure::Constant(1.0),
             basal_friction_angle: 0.0,
             cfl: 0.4,
             dry_depth: 1e-6,
@@ -131,7 +159,12 @@ impl DepthAveragedConfig {
         }
         check_positive("length", self.length)?;
         check_positive("gravity", self.gravity)?;
-        check_positive("earth_pressure", self.earth_pressure)?;
+        match self.earth_pressure {
+            EarthPressure::Constant(k) => check_positive("earth_pressure", k)?,
+            EarthPressure::SavageHutterActive { internal_friction_angle } => {
+                check_range("internal_friction_angle", internal_friction_angle, 0.0, 89.0)?
+            }
+        }
         check_range("basal_friction_angle", self.basal_friction_angle, 0.0, 89.0)?;
         if !(self.cfl.is_finite() && self.cfl > 0.0 && self.cfl <= 0.5) {
             return Err(Error::param("cfl", self.cfl, "a number in (0, 0.5] (positivity of the depth)"));
@@ -163,8 +196,9 @@ fn minmod(a: f64, b: f64) -> f64 {
 pub struct DepthAveragedModel {
     cfg: DepthAveragedConfig,
     dx: f64,
-    kg: f64,
     tan_b: f64,
+    /// k g per cell (padded; constant unless the Savage–Hutter coefficient is used).
+    kg: Vec<f64>,
     /// Depth h, n + 4 entries (2 ghosts each end).
     pub h: Array1<f64>,
     /// Discharge q = h u.
@@ -208,7 +242,13 @@ impl DepthAveragedModel {
         let z = || Array1::<f64>::zeros(p);
         Ok(DepthAveragedModel {
             dx: cfg.length / n as f64,
-            kg: cfg.earth_pressure * cfg.gravity,
+            kg: vec![
+                match cfg.earth_pressure {
+                    EarthPressure::Constant(k) => k * cfg.gravity,
+                    EarthPressure::SavageHutterActive { .. } => 0.0, // set by refresh_primitive
+                };
+                p
+            ],
             tan_b: cfg.basal_friction_angle.to_radians().tan(),
             h: z(),
             q: z(),
@@ -372,7 +412,8 @@ impl DepthAveragedModel {
         }
     }
 
-    /// u and β from (h, q, hβ) everywhere (ghosts included).
+    /// u, β (and k g with the Savage–Hutter coefficient) from (h, q, hβ) everywhere (ghosts
+    /// included).
     fn refresh_primitive(&mut self) {
         let hd = self.cfg.dry_depth;
         for k in 0..self.h.len() {
@@ -385,6 +426,17 @@ impl DepthAveragedModel {
                 self.beta[k] = 0.0;
             }
         }
+        if let EarthPressure::SavageHutterActive { internal_friction_angle } = self.cfg.earth_pressure {
+            let tan_phi = internal_friction_angle.to_radians().tan();
+            for k in 0..self.h.len() {
+                self.kg[k] = self.cfg.gravity * active_earth_pressure(tan_phi, self.tan_b, self.beta[k]);
+            }
+        }
+    }
+
+    /// Earth-pressure coefficient k of the cells (n values).
+    pub fn earth_pressure(&self) -> impl Iterator<Item = f64> + '_ {
+        self.kg[GHOSTS..GHOSTS + self.cfg.cells].iter().map(move |v| v / self.cfg.gravity)
     }
 
     /// Reconstructs and computes the face fluxes of the current state; returns the largest
@@ -393,7 +445,6 @@ impl DepthAveragedModel {
         self.fill_ghosts();
         self.refresh_primitive();
         let n = self.cfg.cells;
-        let kg = self.kg;
         // slopes of padded cells 1 ..= n + 2 (those adjacent to a face)
         for k in 1..n + 2 * GHOSTS - 1 {
             let (a, b, c) = (k - 1, k, k + 1);
@@ -416,17 +467,18 @@ impl DepthAveragedModel {
             let b_face = b_l.max(b_r);
             let hs_l = (h_l + b_l - b_face).max(0.0);
             let hs_r = (h_r + b_r - b_face).max(0.0);
-            let (fh, fq, s) = hll(hs_l, u_l, hs_r, u_r, kg);
+            let (kg_l, kg_r) = (self.kg[l], self.kg[r]);
+            let (fh, fq, s) = hll(hs_l, u_l, kg_l, hs_r, u_r, kg_r);
             smax = smax.max(s);
             let fh = if u_l == 0.0 && u_r == 0.0 { 0.0 } else { fh };
             self.f_h[f] = fh;
             self.f_m[f] = fh * if fh > 0.0 { be_l } else { be_r };
-            self.f_q_left[f] = fq + 0.5 * kg * (h_l * h_l - hs_l * hs_l);
-            self.f_q_right[f] = fq + 0.5 * kg * (h_r * h_r - hs_r * hs_r);
+            self.f_q_left[f] = fq + 0.5 * kg_l * (h_l * h_l - hs_l * hs_l);
+            self.f_q_right[f] = fq + 0.5 * kg_r * (h_r * h_r - hs_r * hs_r);
         }
         for i in 0..n {
             let k = i + GHOSTS;
-            self.bed_src[i] = -kg * self.h[k] * (self.s_eta[k] - self.s_h[k]);
+            self.bed_src[i] = -self.kg[k] * self.h[k] * (self.s_eta[k] - self.s_h[k]);
         }
         smax
     }
@@ -581,14 +633,14 @@ impl DepthAveragedModel {
     }
 }
 
-/// HLL flux of (h, h u) between two hydrostatically reconstructed states; returns (F_h, F_q,
-/// max |S|). Dry sides use the dry-bed speeds u ± 2c.
+/// HLL flux of (h, h u) between two hydrostatically reconstructed states, each with its own
+/// k g (c = √(k g h)); returns (F_h, F_q, max |S|). Dry sides use the dry-bed speeds u ± 2c.
 #[inline]
-fn hll(h_l: f64, u_l: f64, h_r: f64, u_r: f64, kg: f64) -> (f64, f64, f64) {
+fn hll(h_l: f64, u_l: f64, kg_l: f64, h_r: f64, u_r: f64, kg_r: f64) -> (f64, f64, f64) {
     if h_l <= 0.0 && h_r <= 0.0 {
         return (0.0, 0.0, 0.0);
     }
-    let (c_l, c_r) = ((kg * h_l).sqrt(), (kg * h_r).sqrt());
+    let (c_l, c_r) = ((kg_l * h_l).sqrt(), (kg_r * h_r).sqrt());
     let (s_l, s_r) = if h_l <= 0.0 {
         (u_r - 2.0 * c_r, u_r + c_r)
     } else if h_r <= 0.0 {
@@ -597,8 +649,8 @@ fn hll(h_l: f64, u_l: f64, h_r: f64, u_r: f64, kg: f64) -> (f64, f64, f64) {
         ((u_l - c_l).min(u_r - c_r), (u_l + c_l).max(u_r + c_r))
     };
     let (q_l, q_r) = (h_l * u_l, h_r * u_r);
-    let (fh_l, fq_l) = (q_l, q_l * u_l + 0.5 * kg * h_l * h_l);
-    let (fh_r, fq_r) = (q_r, q_r * u_r + 0.5 * kg * h_r * h_r);
+    let (fh_l, fq_l) = (q_l, q_l * u_l + 0.5 * kg_l * h_l * h_l);
+    let (fh_r, fq_r) = (q_r, q_r * u_r + 0.5 * kg_r * h_r * h_r);
     let s = s_l.abs().max(s_r.abs());
     if s_l >= 0.0 {
         (fh_l, fq_l, s)
