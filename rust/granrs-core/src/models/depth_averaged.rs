@@ -351,8 +351,8 @@ impl DepthAveragedModel {
         if let Some(i) = b.iter().position(|v| !v.is_finite()) {
             return Err(Error::param("bed", format!("non-finite value at index {i}"), "finite values"));
         }
-        for i in 0..n {
-            self.bed[i + GHOSTS] = b[i];
+        for (dst, &v) in self.bed.iter_mut().skip(GHOSTS).zip(b) {
+            *dst = v;
         }
         for g in 0..GHOSTS {
             self.bed[GHOSTS - 1 - g] = self.bed[GHOSTS + g];
