@@ -17,6 +17,7 @@ The pipeline is grid → model → simulation → run::
 
 from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
 from . import shapes
+from .depth_averaged import DepthAveragedModel, DepthAveragedPore
 from .boundary import BoundaryConditions, Coulomb, FreeSlip, FullyDeveloped, NavierSlip, NoSlip, Outflow, Velocity
 from .grid import Grid
 from .materials import AIR, WATER, Material
@@ -31,6 +32,8 @@ __all__ = [
     "BoundaryConditions",
     "Callback",
     "Coulomb",
+    "DepthAveragedModel",
+    "DepthAveragedPore",
     "DruckerPrager",
     "FreeSlip",
     "FullyDeveloped",

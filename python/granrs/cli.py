@@ -35,7 +35,7 @@ def _validate(args) -> int:
 
 
 _COLUMN_OPTIONS = ("aspect_ratio", "width", "fluidised", "pore_pressure_ratio", "ny", "t_end", "rheology", "cfl",
-                   "length", "compare_with", "threads", "re", "n")
+                   "length", "compare_with", "threads", "re", "n", "model")
 
 
 def _run_file(args, parser) -> int:
@@ -89,10 +89,11 @@ def _run(args, parser) -> int:
         case = ColumnCase(aspect_ratio=args.aspect_ratio, width=args.width, fluidised=args.fluidised,
                           pore_pressure_ratio=args.pore_pressure_ratio, ny=args.ny if args.ny is not None else 32,
                           t_end=args.t_end, rheology=args.rheology, cfl=args.cfl, threads=args.threads,
-                          length=args.length)
+                          length=args.length, model=args.model)
         summary = run_column(case, Path(args.out), progress=not args.quiet,
                              compare_with=Path(args.compare_with) if args.compare_with else None)
-        keys = ("runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error", "fluidised", "stop_reason")
+        keys = ("model", "model_reason", "runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error",
+                "fluidised", "stop_reason")
         print(json.dumps({k: summary[k] for k in keys}, indent=2))
         return 0
     if args.case == "cavity":
@@ -143,6 +144,9 @@ def main(argv=None) -> int:
     r.add_argument("--ny", type=int, help="cells over the domain height (column; 256 is the paper's grid)")
     r.add_argument("--t-end", dest="t_end", type=float, default=3.0, help="end time in s (column)")
     r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], default="drucker-prager")
+    r.add_argument("--model", default="two-phase", metavar="auto|two-phase|depth-averaged",
+                   help="column: the two-phase model (default), the depth-averaged one, or auto: the depth-averaged "
+                        "model only where it was measured within 5%% of the two-phase run-out (docs/models.md)")
     r.add_argument("--cfl", type=float, default=0.5)
     r.add_argument("--length", type=float, help="domain length in m (default L_c + 5.125 H_c)")
     r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")

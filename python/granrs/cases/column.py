@@ -17,6 +17,12 @@ stall near 1e-3 relative and floor the Picard increment above its tolerance).
 Rest criterion (documented): the run stops when the largest velocity in the granular phase
 (cells with Φ > 0) stays below ``rest_speed`` (default 5e-3 m/s, 0.18 % of √(2 g H_c)) for
 ``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
+
+Models (``ColumnCase.model``, ``granrs run column --model``): ``two-phase`` (the paper's model,
+the default), ``depth-averaged`` (Savage–Hutter shallow layer with a depth-averaged pore pressure,
+``granrs.depth_averaged``; seconds instead of minutes) and ``auto``, which takes the depth-averaged
+model only where its measured run-out is within 5 % of the two-phase one (docs/models.md,
+:func:`choose_model`). ``granular`` is reserved. Both models write the same outputs.
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ from ..simulation import Callback, Simulation
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
 PAPER_RUNOUT_EXP = 1.8443
+MODELS = ("auto", "two-phase", "depth-averaged")
 
 
 @dataclass
@@ -80,6 +87,13 @@ class ColumnCase:
     rest_speed: float = 5e-3
     rest_duration: float = 0.05
     profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
+    # which model: "two-phase" (default), "depth-averaged", "auto" (see choose_model); "granular" is reserved
+    model: str = "two-phase"
+    # depth-averaged model only: earth-pressure coefficient k ("savage-hutter": the active
+    # coefficient from friction_angle and wall_friction_angle, reduced by the pore pressure; or a
+    # number; docs/models.md) and cells across min(L_c, H_c)
+    earth_pressure: object = "savage-hutter"
+    da_resolution: int = 64
 
     def validate(self) -> None:
         checks = [("aspect_ratio", self.aspect_ratio, 0.1, 20.0), ("width", self.width, 1e-3, 10.0),
@@ -93,6 +107,18 @@ class ColumnCase:
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo}, {hi}]")
         if not isinstance(self.ny, int) or not 8 <= self.ny <= 4096:
             raise ParameterError(f"invalid parameter `ny` = {self.ny!r}: allowed an integer in [8, 4096]")
+        if self.model == "granular":
+            raise ParameterError("invalid parameter `model` = 'granular': not available yet (reserved for the "
+                                 "granular-only model); allowed 'auto', 'two-phase' or 'depth-averaged'")
+        if self.model not in MODELS:
+            raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase' or 'depth-averaged'")
+        if self.earth_pressure != "savage-hutter" and (not isinstance(self.earth_pressure, (int, float))
+                                                        or isinstance(self.earth_pressure, bool)
+                                                        or not 0.01 <= self.earth_pressure <= 100.0):
+            raise ParameterError(f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
+                                 "or a number in [0.01, 100]")
+        if not isinstance(self.da_resolution, int) or not 4 <= self.da_resolution <= 4096:
+            raise ParameterError(f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]")
         if self.rheology not in ("drucker-prager", "mu-i"):
             raise ParameterError(f"invalid parameter `rheology` = {self.rheology!r}: allowed 'drucker-prager' or 'mu-i'")
 
@@ -217,6 +243,14 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     is built (a restart restores its state there). A SimulationError, SolverError or
     KeyboardInterrupt still writes every output from the steps done, with the ``stop_reason``,
     then is raised again."""
+    case.validate()
+    model_name, model_reason = choose_model(case)
+    if model_name == "depth-averaged":
+        if callbacks or prepare is not None:
+            raise ParameterError("invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
+                                 "restart: allowed only with the two-phase model")
+        return run_column_depth_averaged(case, out, progress=progress, compare_with=compare_with,
+                                         extra_summary=extra_summary, reason=model_reason)
     out.mkdir(parents=True, exist_ok=True)
     model = build_model(case)
     if prepare is not None:
@@ -286,6 +320,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
         "dt_median_s": float(np.median(hist["dt"])) if "time" in hist else 0.0,
         "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
+        "model": "two-phase", "model_reason": model_reason,
         "case": asdict(case),
     }
     for key in ("picard_iterations",):
@@ -294,19 +329,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     if "picard_r_halvings" in hist:
         summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
     summary.update(extra_summary or {})
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    with open(out / "front.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["t_s", "front_m", "area_m2", "max_granular_speed_m_s"])
-        for row in zip(rec["t"], rec["front"], rec["area"], rec["max_granular_speed"]):
-            w.writerow([f"{v:.6g}" for v in row])
     xs = (np.arange(grid.nx) + 0.5) * grid.dx - lc
-    with open(out / "profiles.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        keys = list(profiles)
-        w.writerow(["x_from_gate_m"] + [f"h_{k}" if k != "final" else "h_final" for k in keys])
-        for i in range(grid.nx):
-            w.writerow([f"{xs[i]:.6g}"] + [f"{profiles[k][i]:.6g}" for k in keys])
+    write_outputs(out, summary, rec, profiles, xs)
     np.savez(out / "history.npz", **hist)
     plot_front(out, compare_with)
     plot_profiles(out)
@@ -316,6 +340,168 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         kind = SolverError if isinstance(failure, SolverError) else SimulationError
         raise kind(error + f" (outputs written to {out})") from failure
     return summary
+
+
+def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.ndarray) -> None:
+    """summary.json, front.csv (t, front from the gate, area, largest speed) and profiles.csv
+    (surface height at the recorded times against x − L_c): the same files for every model."""
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    with open(out / "front.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["t_s", "front_m", "area_m2", "max_granular_speed_m_s"])
+        for row in zip(rec["t"], rec["front"], rec["area"], rec["max_granular_speed"]):
+            w.writerow([f"{v:.6g}" for v in row])
+    with open(out / "profiles.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        keys = list(profiles)
+        w.writerow(["x_from_gate_m"] + [f"h_{k}" if k != "final" else "h_final" for k in keys])
+        for i in range(len(xs)):
+            w.writerow([f"{xs[i]:.6g}"] + [f"{profiles[k][i]:.6g}" for k in keys])
+
+
+# ---- model choice -----------------------------------------------------------------------------
+# Largest aspect ratio a = H_c/L_c at which the depth-averaged run-out was measured within 5 % of
+# the two-phase one at ny = 32 (examples/model_ladder.py → docs/img/model_ladder.csv,
+# docs/models.md), per fluidisation state; None: at no measured aspect ratio. Measured points:
+# a = 0.5, 1, 2, 4. auto takes the depth-averaged model only at or below the largest aspect
+# ratio of an unbroken run of measured agreements starting from the smallest one.
+# Measured (k: Savage–Hutter active): fluidised −7.0, −7.4, −3.6, +17.8 %; non-fluidised +0.1, +7.8,
+# +25.0, +26.0 % at a = 0.5, 1, 2, 4. The fluidised agreement at a = 2 alone is a crossing of two
+# trends (too short at a ≤ 1, too long at a = 4), not a regime: auto does not use it.
+DEPTH_AVERAGED_MAX_ASPECT = {True: None, False: 0.5}
+RUNOUT_TOLERANCE = 0.05
+
+
+def choose_model(case: ColumnCase) -> tuple[str, str]:
+    """(model, reason): the requested model, or for ``auto`` the cheapest one whose documented
+    criterion the scene meets (depth-averaged: a ≤ DEPTH_AVERAGED_MAX_ASPECT[fluidised]; otherwise
+    the two-phase model)."""
+    if case.model != "auto":
+        return case.model, "requested"
+    fluidised = bool(case.fluidised and case.pore_pressure_ratio > 0)
+    state = "fluidised" if fluidised else "non-fluidised"
+    a_max = DEPTH_AVERAGED_MAX_ASPECT[fluidised]
+    if a_max is not None and case.aspect_ratio <= a_max + 1e-12:
+        return "depth-averaged", (f"auto: {state} column with aspect ratio {case.aspect_ratio:g} <= {a_max:g}, where the "
+                                  f"depth-averaged run-out was measured within {RUNOUT_TOLERANCE:.0%} of the two-phase "
+                                  "model (docs/models.md)")
+    limit = "at no measured aspect ratio" if a_max is None else f"only up to aspect ratio {a_max:g}"
+    return "two-phase", (f"auto: {state} column with aspect ratio {case.aspect_ratio:g}: the depth-averaged run-out "
+                         f"is within {RUNOUT_TOLERANCE:.0%} of the two-phase model {limit} (docs/models.md); "
+                         "two-phase model used")
+
+
+def depth_averaged_front_depth(case: ColumnCase) -> float:
+    """Depth at which the depth-averaged front is read: half a cell of the two-phase grid of the
+    same case (ny). The two-phase front is the zero of Φ on the lowest row of cells, which sees a
+    layer only once it is thicker than dy/2; reading the depth-averaged front at the same depth
+    compares like with like (the front at a vanishing depth is reported as runout_thin_m)."""
+    return 0.5 * case.domain()[1] / case.ny
+
+
+def build_depth_averaged(case: ColumnCase):
+    """The depth-averaged model of the column (same channel length as the two-phase domain,
+    Δx = min(L_c, H_c)/da_resolution, basal friction α_b, supply β_s under the reservoir when
+    fluidised; k: Savage & Hutter's active coefficient from α and α_b reduced by the pore
+    pressure, or the constant ``earth_pressure``) with its initial condition: h = H_c, β = β_s for
+    x < L_c."""
+    from ..depth_averaged import DepthAveragedModel, DepthAveragedPore
+
+    case.validate()
+    hc, lc = case.column_height, case.width
+    length = case.domain()[0]
+    cells = int(math.ceil(length / (min(lc, hc) / case.da_resolution)))
+    fluidised = bool(case.fluidised and case.pore_pressure_ratio > 0)
+    pore = DepthAveragedPore(case.diffusivity, case.pore_pressure_ratio, lc) if fluidised else None
+    sh = case.earth_pressure == "savage-hutter"
+    m = DepthAveragedModel(cells, length, gravity=G, earth_pressure=1.0 if sh else float(case.earth_pressure),
+                           basal_friction_angle=case.wall_friction_angle, cfl=0.4, dry_depth=1e-6 * hc, pore=pore,
+                           internal_friction_angle=case.friction_angle if sh else None)
+    inside = m.x < lc
+    m.set_state(h=np.where(inside, hc, 0.0), beta=np.where(inside, case.pore_pressure_ratio if fluidised else 0.0, 0.0))
+    return m
+
+
+def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
+                              extra_summary: Optional[dict] = None, reason: str = "requested") -> dict:
+    """The column with the depth-averaged model: same records, rest criterion, outputs and plots
+    as :func:`run_column` (front read at :func:`depth_averaged_front_depth`)."""
+    out.mkdir(parents=True, exist_ok=True)
+    m = build_depth_averaged(case)
+    lc, hc = case.width, case.column_height
+    threshold = depth_averaged_front_depth(case)
+    mass0 = m.mass()
+    rec = {"t": [], "front": [], "area": [], "max_granular_speed": []}
+    profiles = {}
+    pending = sorted(case.profile_times)
+    rest_since = None
+    stop_reason = "t_end"
+    error = None
+    t0 = time.perf_counter()
+    try:
+        k = 0
+        while True:
+            t = m.time
+            xf = m.front(threshold)
+            if xf > m.length - 3 * m.dx or float(np.sum(m.h[-3:])) * m.dx > 0.01 * mass0:
+                raise SimulationError(f"the granular material reached the far end of the domain (x = {xf:.3f} m of "
+                                      f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)")
+            speed = m.max_speed()
+            rec["t"].append(t)
+            rec["front"].append(xf - lc)
+            rec["area"].append(m.mass())
+            rec["max_granular_speed"].append(speed)
+            while pending and t >= pending[0] - 1e-9:
+                profiles[round(pending.pop(0), 6)] = m.h.copy()
+            if t > 0.1 and speed < case.rest_speed:
+                rest_since = rest_since if rest_since is not None else t
+                if t - rest_since >= case.rest_duration:
+                    stop_reason = "rest"
+                    break
+            else:
+                rest_since = None
+            if t >= case.t_end - 1e-12:
+                break
+            k += 1
+            m.advance(min(case.t_end, 0.01 * k))
+            if progress:
+                print(f"\rdepth-averaged: t = {m.time:.2f} s, front {xf - lc:.3f} m", end="", flush=True)
+    except (SimulationError, KeyboardInterrupt) as err:
+        error = err
+        stop_reason = "interrupted: KeyboardInterrupt" if isinstance(err, KeyboardInterrupt) else f"error: {err}"
+    if progress:
+        print()
+    wall = time.perf_counter() - t0
+    profiles["final"] = m.h.copy()
+    front = np.array(rec["front"])
+    area = np.array(rec["area"])
+    summary = {
+        "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
+        "runout_thin_m": m.front(1e-3 * hc) - lc, "farthest_material_m": m.front(1e-6 * hc) - lc,
+        "front_depth_m": threshold, "t_end_s": m.time, "steps": m.step_count,
+        "nx": m.cells, "ny": case.ny, "cells": m.cells, "h_m": m.dx, "wall_s": wall,
+        "mass_rel_error": float(np.max(np.abs(area - mass0)) / mass0) if area.size else 0.0,
+        "fluidised": m.pore is not None, "rheology": "Coulomb basal friction (depth-averaged)",
+        "threads": 1, "version": __version__, "stop_reason": stop_reason,
+        "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
+        "model": "depth-averaged", "model_reason": reason, "case": asdict(case),
+    }
+    summary.update(extra_summary or {})
+    write_outputs(out, summary, rec, profiles, m.x - lc)
+    plot_front(out, compare_with)
+    plot_profiles(out)
+    if isinstance(error, KeyboardInterrupt):
+        raise error
+    if error is not None:
+        raise SimulationError(f"{error} (outputs written to {out})") from error
+    return summary
+
+
+def _label(meta: dict) -> str:
+    state = "fluidised" if meta["fluidised"] else "non-fluidised"
+    if meta.get("model") == "depth-averaged":
+        return f"{state}, depth-averaged ({meta['cells']} cells)"
+    return f"{state}, ny = {meta['ny']}"
 
 
 def _read_front(path: Path):
@@ -336,7 +522,7 @@ def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
     runs = [out] + ([compare_with] if compare_with is not None and (compare_with / "front.csv").exists() else [])
     for k, path in enumerate(runs):
         t, x, meta = _read_front(path)
-        label = ("fluidised" if meta["fluidised"] else "non-fluidised") + f", ny = {meta['ny']}: run-out {meta['runout_m']:.3f} m"
+        label = _label(meta) + f": run-out {meta['runout_m']:.3f} m"
         ax.plot(t, x, f"C{k}-", lw=2, label=label)
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation: {PAPER_RUNOUT_SIM} m")
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"paper, experiment: {PAPER_RUNOUT_EXP} m")
@@ -369,7 +555,7 @@ def plot_profiles(out: Path) -> None:
     ax.axvline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label="paper run-out (simulation)")
     ax.axvline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label="paper run-out (experiment)")
     ax.set(xlabel="x − L_c (m), gate at 0", ylabel="surface height h (m)",
-           title=("fluidised" if meta["fluidised"] else "non-fluidised") + f" column, ny = {meta['ny']}: surface profiles "
+           title=_label(meta) + " column: surface profiles "
                  "(paper: thickest near the gate, gentle decrease downstream)")
     ax.title.set_fontsize(9)
     ax.grid(alpha=0.3)

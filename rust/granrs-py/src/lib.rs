@@ -17,6 +17,8 @@ use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
+mod depth_averaged;
+
 create_exception!(_granrs, ParameterError, PyValueError, "A parameter is outside its allowed range, or an array has the wrong shape.");
 create_exception!(_granrs, SolverError, PyRuntimeError, "A linear solver failed or did not converge.");
 create_exception!(_granrs, SimulationError, PyRuntimeError, "A simulation stopped: what failed, where and when.");
@@ -635,6 +637,7 @@ fn build_info<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
 #[pymodule]
 fn _granrs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
+    m.add_class::<depth_averaged::PyDepthAveraged>()?;
     m.add_function(wrap_pyfunction!(build_info, m)?)?;
     m.add_function(wrap_pyfunction!(levelset_validation, m)?)?;
     m.add("__version__", granrs_core::VERSION)?;
