@@ -39,6 +39,11 @@ VARIANTS = {
     "D-P (default)": {},
     "mu(I)": {"rheology": "mu-i"},
     "D-P, CFL 0.25": {"cfl": 0.25},
+    "D-P, p_f kappa-infinity": {"pore_formulation": "kappa-infinity"},
+    # the depth-averaged rung of the model ladder (docs/models.md); "ny" sets its cells per column
+    # width in proportion (ColumnCase.da_resolution is left at its default: its run-out changes by
+    # < 1 % with Δx/2)
+    "depth-averaged": {"model": "depth-averaged"},
 }
 BASELINE = "D-P (default)"
 
@@ -54,6 +59,8 @@ def run_or_load(variant: str, kwargs: dict, ny: int, fluidised: bool, out: Path,
         if not allow_run:
             return None
         print(f"running {variant}, ny = {ny}, {'fluidised' if fluidised else 'dry'} ...", flush=True)
+        if kwargs.get("model") == "depth-averaged":  # its resolution: ny cells per column width
+            kwargs = {**kwargs, "da_resolution": ny}
         try:
             run_column(ColumnCase(ny=ny, fluidised=fluidised, **kwargs), folder, progress=False)
         except Exception as e:  # a failed run is a point of the chart too: reported, not plotted
@@ -142,6 +149,8 @@ def main() -> None:
     for v in [BASELINE] + [v for v in args.variants if v != BASELINE]:
         for ny in sorted(args.ny):
             for fl in (True, False):
+                if not fl and "pore_formulation" in VARIANTS[v]:
+                    continue  # a pore-pressure variant is the baseline when not fluidised
                 r = run_or_load(v, VARIANTS[v], ny, fl, out, allow_run=True)
                 if r is not None:
                     runs[(v, ny, fl)] = r

@@ -72,6 +72,10 @@ class ColumnCase:
     wall_friction_angle: float = 15.0
     granular_viscosity: float = 0.1
     diffusivity: float = 0.035
+    # the pore-pressure formulation of the two-phase model (granrs.PorePressure): 'granular-only'
+    # (solve where Φ > 0 with p_f = 0 on the interface: the default, docs/validation.md) or the
+    # paper's 'kappa-infinity' extension by zero through the air
+    pore_formulation: str = "granular-only"
     length: Optional[float] = None
     height: Optional[float] = None
     # Picard iteration of the plastic projection: stress-weighted increment tolerance and
@@ -107,6 +111,9 @@ class ColumnCase:
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo}, {hi}]")
         if not isinstance(self.ny, int) or not 8 <= self.ny <= 4096:
             raise ParameterError(f"invalid parameter `ny` = {self.ny!r}: allowed an integer in [8, 4096]")
+        if self.pore_formulation not in ("granular-only", "kappa-infinity", "kappa-infinity-smoothed"):
+            raise ParameterError(f"invalid parameter `pore_formulation` = {self.pore_formulation!r}: allowed "
+                                 "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")
         if self.model == "granular":
             raise ParameterError("invalid parameter `model` = 'granular': not available yet (reserved for the "
                                  "granular-only model); allowed 'auto', 'two-phase' or 'depth-averaged'")
@@ -132,7 +139,7 @@ class ColumnCase:
 
     def domain(self) -> tuple[float, float]:
         """(length, height): height 1.125 H_c (the paper's 0.45 m), length L_c + 8.25 H_c (3.5 m
-        for the paper's column). The paper's channel needs only 2.05 m for its 1.6874 m run-out,
+        for the paper's column; the grid rounds it up by at most 3 %, to 3.6 m at ny = 2^k). The paper's channel needs only 2.05 m for its 1.6874 m run-out,
         but coarse grids run further (1.98 m at ny = 32, docs/validation.md), and reaching the
         far end stops the run with an error."""
         hc = self.column_height
@@ -145,10 +152,13 @@ class ColumnCase:
         # multigrid then coarsens both directions down to ny/m ≥ 2 rows. The plain rounding gave
         # nx = 498, 996, 1992 = 249·2^k at ny = 64, 128, 256, a 249 × 32 coarsest level whose
         # Cholesky refactorisation (every step: the density moves) cost 5–9 % of a step.
+        # The domain grows by at most 3 % (else m is halved, down to 2): a user's length is kept.
         m = 1
         while self.ny % (2 * m) == 0 and 2 * m <= self.ny // 2:
             m *= 2
         m = max(m, 2)
+        while m > 2 and math.ceil(lx / h / m - 1e-9) * m * h > 1.03 * lx:
+            m //= 2
         nx = int(math.ceil(lx / h / m - 1e-9)) * m
         return Grid(nx, self.ny, nx * h, ly)
 
@@ -162,6 +172,7 @@ def build_model(case: ColumnCase) -> Model:
     pore = None
     if case.fluidised and case.pore_pressure_ratio > 0:
         pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=-case.pore_pressure_ratio * rho * G,
+                            formulation=case.pore_formulation,
                             basal_x_min=0.0, basal_x_max=lc)
     model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
                   bc=BoundaryConditions(left=Coulomb(case.wall_friction_angle), right=FreeSlip(),
