@@ -89,7 +89,7 @@ def plot(rows: list[dict], png: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(16, 5.2))
+    fig, axes = plt.subplots(1, 3, figsize=(16, 6.0))
     panels = [("runout_err_ref", "run-out error vs finest D-P run"),
               ("runout_err_exp", f"run-out error vs experiment ({PAPER_RUNOUT_EXP} m)"),
               ("front_err_ref", "front-curve error (RMS) vs finest D-P run")]
@@ -106,7 +106,7 @@ def plot(rows: list[dict], png: Path) -> None:
                 ax.loglog(w, e, ls, marker=mk, color=colours[v],
                           label=f"{v}, {'fluidised' if fl else 'dry'}", mfc="white" if not fl else colours[v])
                 for wi, ei, ni in pts:
-                    ax.annotate(f"{ni}", (wi, ei), textcoords="offset points", xytext=(4, 4), fontsize=7, color=colours[v])
+                    ax.annotate(f"{int(ni)}", (wi, ei), textcoords="offset points", xytext=(4, 4), fontsize=7, color=colours[v])
         if key == "runout_err_exp":
             ax.axhline(0.085, color="grey", lw=0.8, ls=":")
             ax.text(ax.get_xlim()[0] if ax.has_data() else 1, 0.085, " paper's simulation (8.5 %)", fontsize=8, va="bottom", color="grey")
@@ -114,9 +114,11 @@ def plot(rows: list[dict], png: Path) -> None:
         ax.set_ylabel("relative error")
         ax.set_title(title, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7, loc="best")
-    fig.suptitle("Column collapse (a = 2) to t = 3 s: work-precision (numbers at the points: ny)")
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8, frameon=False)
+    fig.suptitle("Column collapse (a = 2) to t = 3 s: work-precision (numbers at the points: ny; "
+                 "depth-averaged: cells per column width)")
+    fig.tight_layout(rect=(0, 0.1, 1, 0.97))
     fig.savefig(png, dpi=110)
     plt.close(fig)
 
