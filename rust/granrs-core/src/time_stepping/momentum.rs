@@ -252,17 +252,15 @@ impl MomentumSolver {
                 let st = x.stride();
                 let (ds, qs, dg) = (d.slice(), q.slice(), diag.slice());
                 let (i0, i1) = (ri.start, ri.end);
-                let (xs, rs, zs) = (x.slice_mut(), r.slice_mut(), z.slice_mut());
-                for j in rj.clone() {
-                    let (a, b) = ((j + HALO) * st + HALO + i0, (j + HALO) * st + HALO + i1);
-                    let (xr, rr_, zr) = (&mut xs[a..b], &mut rs[a..b], &mut zs[a..b]);
-                    let (dr, qr, gr) = (&ds[a..b], &qs[a..b], &dg[a..b]);
-                    for k in 0..xr.len() {
-                        xr[k] += alpha * dr[k];
-                        rr_[k] -= alpha * qr[k];
-                        zr[k] = rr_[k] / gr[k];
+                // x += α d, r −= α q, z = r / diag, row by row (elementwise: serial == parallel)
+                rows3(exec, st, rj.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), |j, xr, rr_, zr| {
+                    let base = (j + HALO) * st;
+                    for c in HALO + i0..HALO + i1 {
+                        xr[c] += alpha * ds[base + c];
+                        rr_[c] -= alpha * qs[base + c];
+                        zr[c] = rr_[c] / dg[base + c];
                     }
-                }
+                });
                 rz_new += dot(r, z, &ri, &rj, exec);
                 rr += dot(r, r, &ri, &rj, exec);
             }
@@ -272,12 +270,18 @@ impl MomentumSolver {
             for (d, z, ri, rj) in [(&mut self.du, &self.zu, ru.clone(), 0..sys.grid.ny), (&mut self.dv, &self.zv, 0..sys.grid.nx, rv.clone())] {
                 let st = d.stride();
                 let zs = z.slice();
-                let ds = d.slice_mut();
-                for j in rj {
-                    let (a, b) = ((j + HALO) * st + HALO + ri.start, (j + HALO) * st + HALO + ri.end);
-                    for (dv, zv) in ds[a..b].iter_mut().zip(&zs[a..b]) {
-                        *dv = zv + beta * *dv;
+                let rows = &mut d.slice_mut()[(rj.start + HALO) * st..(rj.end + HALO) * st];
+                let update = |k: usize, row: &mut [f64]| {
+                    let base = (rj.start + k + HALO) * st;
+                    for c in HALO + ri.start..HALO + ri.end {
+                        row[c] = zs[base + c] + beta * row[c];
                     }
+                };
+                if exec.use_parallel(rows.len()) {
+                    use rayon::prelude::*;
+                    rows.par_chunks_mut(st).enumerate().for_each(|(k, row)| update(k, row));
+                } else {
+                    rows.chunks_mut(st).enumerate().for_each(|(k, row)| update(k, row));
                 }
             }
             it += 1;
@@ -310,5 +314,27 @@ impl MomentumSolver {
             });
         }
         fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
+    }
+}
+
+/// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
+/// with the same stride, in parallel when `exec` says so; rows are whole (ghosts included).
+fn rows3<F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], f: F)
+where
+    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
+{
+    let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
+    let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
+    if exec.use_parallel(x.len()) {
+        use rayon::prelude::*;
+        x.par_chunks_mut(st)
+            .zip(r.par_chunks_mut(st))
+            .zip(z.par_chunks_mut(st))
+            .enumerate()
+            .for_each(|(k, ((a, b), c))| f(rows.start + k, a, b, c));
+    } else {
+        for (k, ((a, b), c)) in x.chunks_mut(st).zip(r.chunks_mut(st)).zip(z.chunks_mut(st)).enumerate() {
+            f(rows.start + k, a, b, c);
+        }
     }
 }
