@@ -292,16 +292,8 @@ impl PorePressure {
                 let mut sigma = a0 / dt;
                 if granular_only {
                     // sub-cell Dirichlet p_f = 0 where a face crosses the interface
-                    for (pn, h, is_domain_face) in [
-                        (phi.at(ii - 1, jj), dx, i == 0),
-                        (phi.at(ii + 1, jj), dx, i + 1 == nx),
-                        (phi.at(ii, jj - 1), dy, j == 0),
-                        (phi.at(ii, jj + 1), dy, j + 1 == ny),
-                    ] {
-                        if !is_domain_face && !inside(pn) {
-                            let theta = (pc / (pc - pn)).max(1e-3);
-                            sigma += kf / (theta * h * h);
-                        }
+                    for (theta, h) in interface_faces(phi, i, j, dx, dy).into_iter().flatten() {
+                        sigma += kf / (theta * h * h);
                     }
                 }
                 self.shift[k] = sigma;
@@ -395,16 +387,8 @@ impl PorePressure {
                 }
                 // sub-cell Dirichlet p_f = 0 on the interface, taken at n+1 (diagonal)
                 let mut dd = 0.0;
-                for (pn, h2inv, is_domain_face) in [
-                    (phi.at(ii - 1, jj), idx2, i == 0),
-                    (phi.at(ii + 1, jj), idx2, i + 1 == nx),
-                    (phi.at(ii, jj - 1), idy2, j == 0),
-                    (phi.at(ii, jj + 1), idy2, j + 1 == ny),
-                ] {
-                    if !is_domain_face && !inside(pn) {
-                        let theta = (pc / (pc - pn)).max(1e-3);
-                        dd += kf * h2inv / theta;
-                    }
+                for (theta, h) in interface_faces(phi, i, j, grid.dx, grid.dy).into_iter().flatten() {
+                    dd += kf / (theta * h * h);
                 }
                 let mut src = -self.adv.at(ii, jj);
                 if let Some(b) = basal {
@@ -484,4 +468,22 @@ impl PorePressure {
         self.pf_prev.assign(&self.pf);
         self.adv_prev.fill(0.0);
     }
+}
+
+/// The faces of granular cell (i, j) (Φ > 0) that cross the interface, for the sub-cell
+/// Dirichlet condition p_f = 0 there (Gibou, Fedkiw, Cheng & Kang 2002, *J. Comput. Phys.* 176):
+/// (θ, h) with θ = Φ_c/(Φ_c − Φ_n) ≥ 1e-3 the fraction of the centre-to-centre distance h at which
+/// the interface lies; the diagonal gains κ/(θ h²) per face. Domain sides are not interface faces.
+fn interface_faces(phi: &Field, i: usize, j: usize, dx: f64, dy: f64) -> [Option<(f64, f64)>; 4] {
+    let (ii, jj) = (i as isize, j as isize);
+    let pc = phi.at(ii, jj);
+    let face = |pn: f64, h: f64, is_domain_face: bool| {
+        (!is_domain_face && !(pn > 0.0)).then(|| ((pc / (pc - pn)).max(1e-3), h))
+    };
+    [
+        face(phi.at(ii - 1, jj), dx, i == 0),
+        face(phi.at(ii + 1, jj), dx, i + 1 == phi.nx),
+        face(phi.at(ii, jj - 1), dy, j == 0),
+        face(phi.at(ii, jj + 1), dy, j + 1 == phi.ny),
+    ]
 }

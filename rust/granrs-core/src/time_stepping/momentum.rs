@@ -271,18 +271,12 @@ impl MomentumSolver {
                 let st = d.stride();
                 let zs = z.slice();
                 let rows = &mut d.slice_mut()[(rj.start + HALO) * st..(rj.end + HALO) * st];
-                let update = |k: usize, row: &mut [f64]| {
+                exec.for_each_row(rows, st, |k, row| {
                     let base = (rj.start + k + HALO) * st;
                     for c in HALO + ri.start..HALO + ri.end {
                         row[c] = zs[base + c] + beta * row[c];
                     }
-                };
-                if exec.use_parallel(rows.len()) {
-                    use rayon::prelude::*;
-                    rows.par_chunks_mut(st).enumerate().for_each(|(k, row)| update(k, row));
-                } else {
-                    rows.chunks_mut(st).enumerate().for_each(|(k, row)| update(k, row));
-                }
+                });
             }
             it += 1;
         }
