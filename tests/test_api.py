@@ -37,6 +37,12 @@ def test_material_and_numerics_errors_name_the_parameter():
         cavity(numerics=Numerics(viscous="semi"))
     with pytest.raises(ParameterError, match="`slip_length`"):
         granrs.NavierSlip(slip_length=0.0)
+    # raised by the Rust binding, with the allowed values
+    with pytest.raises(ParameterError, match="`interface_yield`.*'paper' or 'granular-side'"):
+        cavity(numerics=Numerics(interface_yield="sharp"))
+    from granrs.cases.column import ColumnCase
+    with pytest.raises(ParameterError, match="`interface_yield`"):
+        ColumnCase(interface_yield="sharp").validate()
 
 
 def test_impossible_boundary_combination_is_rejected():

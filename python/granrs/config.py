@@ -95,6 +95,9 @@ KEYS: tuple[Key, ...] = (
     Key("numerics", "threads", "int", _D["threads"], "threads", "size of the Rust thread pool (results are identical for any value)", 1, 1024),
     Key("numerics", "picard_tol", "float", _D["picard_tol"], "1", "tolerance of the Picard iteration of the plastic projection", 1e-14, 1.0),
     Key("numerics", "theta", "float", _D["theta"], "1", "θ, pseudo-relaxation of the Picard iteration", 0.0, 1.0, hi_open=True),
+    Key("numerics", "interface_yield", "choice", _D["interface_yield"], "",
+        "where the smoothed jump of the yield stress and basal friction sits: the paper's H_ε(Φ) or H_ε(Φ + ε)",
+        choices=("paper", "granular-side")),
     Key("numerics", "mass_correction", "bool", _D["mass_correction"], "",
         "global mass correction of the level set (dense area kept at its initial value)"),
     Key("output", "dir", "str", "out/run", "path", "output folder, relative to the current directory"),
@@ -299,4 +302,5 @@ def column_case(cfg: Config) -> ColumnCase:
     return ColumnCase(aspect_ratio=c["aspect_ratio"], width=c["width"], fluidised=c["fluidised"],
                       pore_pressure_ratio=c["pore_pressure_ratio"], rheology=c["rheology"], ny=g["ny"],
                       length=g["length"], t_end=n["t_end"], cfl=n["cfl"], threads=n["threads"],
-                      picard_tol=n["picard_tol"], theta=n["theta"], mass_correction=n["mass_correction"], **m)
+                      picard_tol=n["picard_tol"], theta=n["theta"], mass_correction=n["mass_correction"],
+                      interface_yield=n["interface_yield"], **m)

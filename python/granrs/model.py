@@ -93,6 +93,14 @@ class Numerics:
     open top, so that the air is at p ≈ 0 and tan(α) p⁺ and the Coulomb walls see the weight of
     the grains only), or 'auto' (default: 'top' when the yield stress or the wall friction depend
     on p, 'mean' otherwise).
+    interface_yield: where the smoothed jump of the yield stress τ(Φ) and of the wall friction
+    τ_b(Φ) sits across the interface band: 'paper' (default: τ = tan(α) p H_ε(Φ), the paper's
+    §2.4) or 'granular-side' (H_ε(Φ + ε), full strength wherever Φ > 0; with 'paper' the band,
+    which the density already counts as granular, yields below the friction angle and runs
+    ahead of a decelerating tongue; docs/validation.md, column collapse).
+    ambient_hydrostatic: p is the pressure in excess of the light phase's hydrostatic pressure
+    ρ_f g·x and the body force is (ρ − ρ_f) g (off by default). For boxes where the air cannot
+    balance its weight, as between the open sides of an x-invariant layer on a slope.
     """
 
     cfl: float = 0.5
@@ -120,6 +128,8 @@ class Numerics:
     viscous_rtol: float = 1e-10
     viscous_max_iterations: int = 2000
     pressure_gauge: str = "auto"
+    interface_yield: str = "paper"
+    ambient_hydrostatic: bool = False
 
 
 class Model:
@@ -168,7 +178,7 @@ class Model:
             n.pressure_max_iterations, threads, rheology.spec(), n.plastic, n.regularisation, n.r, n.r_wall,
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
-            n.pressure_gauge, n.viscous_max_iterations)
+            n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

@@ -76,6 +76,10 @@ class ColumnCase:
     # (solve where Φ > 0 with p_f = 0 on the interface: the default, docs/validation.md) or the
     # paper's 'kappa-infinity' extension by zero through the air
     pore_formulation: str = "granular-only"
+    # where the smoothed jump of the yield stress and of the basal friction sits across the
+    # interface band (granrs.Numerics.interface_yield): the paper's 'paper' (default,
+    # τ = tan(α) p H_ε(Φ)) or 'granular-side' (full strength wherever Φ > 0); docs/validation.md
+    interface_yield: str = "paper"
     length: Optional[float] = None
     height: Optional[float] = None
     # Picard iteration of the plastic projection: stress-weighted increment tolerance and
@@ -114,6 +118,9 @@ class ColumnCase:
         if self.pore_formulation not in ("granular-only", "kappa-infinity", "kappa-infinity-smoothed"):
             raise ParameterError(f"invalid parameter `pore_formulation` = {self.pore_formulation!r}: allowed "
                                  "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")
+        if self.interface_yield not in ("granular-side", "paper"):
+            raise ParameterError(f"invalid parameter `interface_yield` = {self.interface_yield!r}: allowed "
+                                 "'granular-side' or 'paper'")
         if self.model == "granular":
             raise ParameterError("invalid parameter `model` = 'granular': not available yet (reserved for the "
                                  "granular-only model); allowed 'auto', 'two-phase' or 'depth-averaged'")
@@ -179,7 +186,7 @@ def build_model(case: ColumnCase) -> Model:
                                         bottom=Coulomb(case.wall_friction_angle), top=FreeSlip()),
                   numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta,
                                     picard_max_iterations=1000, convection_scheme="weno5",
-                                    mass_correction=case.mass_correction),
+                                    mass_correction=case.mass_correction, interface_yield=case.interface_yield),
                   threads=case.threads, pore_pressure=pore,
                   **_rheology_kwargs(case))
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
@@ -323,7 +330,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "nx": grid.nx, "ny": grid.ny, "cells": grid.cells, "h_m": grid.dy, "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
-        "threads": case.threads, "version": __version__,
+        "interface_yield": case.interface_yield, "threads": case.threads, "version": __version__,
         "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
                                                               if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,

@@ -124,6 +124,8 @@ def fluidised_layer_speed(beta: float, ny: int = 32, slope_deg: float = 20.0, t_
     on a rough base inclined at ``slope_deg`` < α under air, sides fully developed. β = 0: the
     yield stress holds the layer; β near 1: the pore pressure (kept by a basal air flux) carries
     the weight, the effective pressure and the yield stress vanish and the layer flows.
+    The air's weight along the slope is balanced by the ambient hydrostatic pressure
+    (``Numerics.ambient_hydrostatic``): between open sides nothing else can hold it.
     Returns the largest speed over the run."""
     from ..boundary import FullyDeveloped, NoSlip
     from ..rheology import DruckerPrager
@@ -138,7 +140,8 @@ def fluidised_layer_speed(beta: float, ny: int = 32, slope_deg: float = 20.0, t_
         pore = PorePressure(diffusivity=0.035, basal_gradient=-beta * rho * g * math.cos(th))
     model = Model(grid, Material(rho, 0.1), light=AIR, gravity=(gx, gy),
                   bc=BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=NoSlip(), top=Outflow()),
-                  numerics=Numerics(cfl=0.4, max_dt=2e-3, picard_tol=1e-6, theta=0.8, picard_max_iterations=500),
+                  numerics=Numerics(cfl=0.4, max_dt=2e-3, picard_tol=1e-6, theta=0.8, picard_max_iterations=500,
+                                     ambient_hydrostatic=True),
                   threads=threads, rheology=DruckerPrager(friction_angle=27.0), pore_pressure=pore)
     model.set_initial(phi=lambda x, y: hl - y, balance_pressure=False)
     if pore is not None:

@@ -6,7 +6,10 @@
 //!
 //! with the tensor norm |λ| = √(½ Σᵢⱼ λᵢⱼ²) (simple shear u(y): |D| = |u'|/2, so the shear
 //! stress is η u' + τ sign(u')), P the orthogonal projection on the unit ball of symmetric
-//! traceless tensors, and, in the two-phase model, τ(Φ) = τ H_ε(Φ) (only the dense phase yields).
+//! traceless tensors, and, in the two-phase model, τ(Φ) = τ H_ε(Φ + s ε) (only the dense phase
+//! yields), with the shift s of [`InterfaceYield`]: 0 is the paper's τ(Φ) = tan(α) p H_ε(Φ)
+//! (§2.4, the default), 1 puts the whole smoothed jump on the air side, so that every cell the
+//! density counts as granular (Φ > 0) has its full Coulomb ratio τ/p = tan α.
 //!
 //! | law | yield stress τ | viscosity η of the dense phase |
 //! |---|---|---|
@@ -80,7 +83,10 @@ impl RheologyLaw {
 
     /// Whether the yield stress depends on the pressure.
     pub fn pressure_dependent(&self) -> bool {
-        matches!(self, RheologyLaw::DruckerPrager { .. } | RheologyLaw::MuI { .. })
+        matches!(
+            self,
+            RheologyLaw::DruckerPrager { .. } | RheologyLaw::MuI { .. }
+        )
     }
 
     /// Yield stress of the pure dense phase at pressure `p` (before the H_ε(Φ) factor).
@@ -89,7 +95,9 @@ impl RheologyLaw {
         match *self {
             RheologyLaw::Newtonian => 0.0,
             RheologyLaw::Bingham { yield_stress } => yield_stress,
-            RheologyLaw::DruckerPrager { friction_angle } => friction_angle.to_radians().tan() * p.max(0.0),
+            RheologyLaw::DruckerPrager { friction_angle } => {
+                friction_angle.to_radians().tan() * p.max(0.0)
+            }
             RheologyLaw::MuI { mu_s, .. } => mu_s * p.max(0.0),
         }
     }
@@ -99,7 +107,13 @@ impl RheologyLaw {
     #[inline]
     pub fn extra_viscosity(&self, d_norm: f64, p: f64) -> f64 {
         match *self {
-            RheologyLaw::MuI { mu_s, mu_2, i0, grain_diameter, grain_density } => {
+            RheologyLaw::MuI {
+                mu_s,
+                mu_2,
+                i0,
+                grain_diameter,
+                grain_density,
+            } => {
                 let p = p.max(0.0);
                 let den = 2.0 * d_norm + (i0 / grain_diameter) * (p / grain_density).sqrt();
                 if den > 0.0 {
@@ -116,23 +130,74 @@ impl RheologyLaw {
     pub fn validate(&self) -> Result<()> {
         match *self {
             RheologyLaw::Newtonian => Ok(()),
-            RheologyLaw::Bingham { yield_stress } => crate::error::check_non_negative("yield_stress", yield_stress),
+            RheologyLaw::Bingham { yield_stress } => {
+                crate::error::check_non_negative("yield_stress", yield_stress)
+            }
             RheologyLaw::DruckerPrager { friction_angle } => {
                 if friction_angle.is_finite() && friction_angle > 0.0 && friction_angle < 90.0 {
                     Ok(())
                 } else {
-                    Err(Error::param("friction_angle", friction_angle, "an angle in degrees in (0, 90)"))
+                    Err(Error::param(
+                        "friction_angle",
+                        friction_angle,
+                        "an angle in degrees in (0, 90)",
+                    ))
                 }
             }
-            RheologyLaw::MuI { mu_s, mu_2, i0, grain_diameter, grain_density } => {
+            RheologyLaw::MuI {
+                mu_s,
+                mu_2,
+                i0,
+                grain_diameter,
+                grain_density,
+            } => {
                 crate::error::check_non_negative("mu_s", mu_s)?;
                 if !(mu_2.is_finite() && mu_2 > mu_s) {
-                    return Err(Error::param("mu_2", mu_2, &format!("a finite number > mu_s = {mu_s}")));
+                    return Err(Error::param(
+                        "mu_2",
+                        mu_2,
+                        &format!("a finite number > mu_s = {mu_s}"),
+                    ));
                 }
                 check_positive("i0", i0)?;
                 check_positive("grain_diameter", grain_diameter)?;
                 check_positive("grain_density", grain_density)
             }
+        }
+    }
+}
+
+/// Where the smoothed jump of the yield stress τ(Φ) and of the wall friction τ_b(Φ) sits across
+/// the interface band |Φ| < ε of the two-phase model.
+///
+/// The density is ρ(Φ) = ρ_f + (ρ_s − ρ_f) H_ε(Φ) (paper §2.4), so the band carries granular
+/// weight from Φ = −ε on. With the paper's τ(Φ) = tan(α) p H_ε(Φ) the band's Coulomb ratio is
+/// τ/p = tan(α) H_ε(Φ) < tan α: a band element whose shear-to-normal stress ratio exceeds
+/// tan(α) H_ε(Φ) yields although the material is below its friction angle. On a slope θ < α
+/// the part of the band where H_ε(Φ) < tan θ / tan α slides (about the upper half of the band
+/// at θ = 20°, α = 27°), and in a tongue decelerated by basal friction (tan α_b / tan α = 0.53
+/// in the paper's column) the upper half of the band cannot be decelerated with the rest and
+/// runs ahead: about ε/2 of granular thickness, a large share of a tongue a few cells thick.
+/// Measured on the paper's column (docs/validation.md): at ny = 32 / 64 the fluidised run-out
+/// is 2.03 / 2.12 m with `Paper` and 1.66 / 1.98 m with `GranularSide`. The paper's form stays
+/// the default until the column's grid convergence decides between them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum InterfaceYield {
+    /// τ(Φ) = τ(p) H_ε(Φ), τ_b(Φ) = tan(α_b)(−σ_n)⁺ H_ε(Φ): the paper's eq. after (10f).
+    #[default]
+    Paper,
+    /// τ(Φ) = τ(p) H_ε(Φ + ε), τ_b likewise: full strength wherever Φ > 0 (the same smoothed
+    /// function, shifted by ε to the air side, where p ≈ 0 under the top gauge).
+    GranularSide,
+}
+
+impl InterfaceYield {
+    /// The argument of H_ε for the level-set value `phi`.
+    #[inline]
+    pub fn shift(self, phi: f64, eps: f64) -> f64 {
+        match self {
+            InterfaceYield::Paper => phi,
+            InterfaceYield::GranularSide => phi + eps,
         }
     }
 }
@@ -167,7 +232,11 @@ impl YieldTreatment {
             YieldTreatment::Papanastasiou { m } => {
                 let x = m * d_norm;
                 // (1 − e^{−x})/x → 1 as x → 0: τ m / 2
-                let f = if x > 1e-8 { -(-x).exp_m1() / x } else { 1.0 - 0.5 * x };
+                let f = if x > 1e-8 {
+                    -(-x).exp_m1() / x
+                } else {
+                    1.0 - 0.5 * x
+                };
                 0.5 * tau * m * f
             }
             YieldTreatment::BiViscous { yield_viscosity } => {
@@ -200,6 +269,8 @@ pub struct RheologyConfig {
     pub picard_tol: f64,
     /// Reaching this many iterations without convergence is an error.
     pub picard_max_iterations: usize,
+    /// Where the smoothed jump of τ(Φ) and τ_b(Φ) sits (two-phase models only).
+    pub interface_yield: InterfaceYield,
 }
 
 impl Default for RheologyConfig {
@@ -213,6 +284,7 @@ impl Default for RheologyConfig {
             theta: 0.5,
             picard_tol: 1e-9,
             picard_max_iterations: 1000,
+            interface_yield: InterfaceYield::default(),
         }
     }
 }
@@ -220,7 +292,10 @@ impl Default for RheologyConfig {
 impl RheologyConfig {
     /// A configuration with `law` and the default numerics.
     pub fn new(law: RheologyLaw) -> Self {
-        RheologyConfig { law, ..Default::default() }
+        RheologyConfig {
+            law,
+            ..Default::default()
+        }
     }
 
     /// Whether the bi-projection (Picard loop) runs: a yield stress with the projection
@@ -242,11 +317,17 @@ impl RheologyConfig {
         match self.treatment {
             YieldTreatment::Projection => {}
             YieldTreatment::Papanastasiou { m } => check_positive("regularisation", m)?,
-            YieldTreatment::BiViscous { yield_viscosity } => check_positive("regularisation", yield_viscosity)?,
+            YieldTreatment::BiViscous { yield_viscosity } => {
+                check_positive("regularisation", yield_viscosity)?
+            }
         }
         if let Some(a) = self.wall_friction_angle {
             if !(a.is_finite() && (0.0..90.0).contains(&a)) {
-                return Err(Error::param("wall_friction_angle", a, "an angle in degrees in [0, 90)"));
+                return Err(Error::param(
+                    "wall_friction_angle",
+                    a,
+                    "an angle in degrees in [0, 90)",
+                ));
             }
         }
         if let Some(r) = self.r {
@@ -260,7 +341,11 @@ impl RheologyConfig {
         }
         check_range("picard_tol", self.picard_tol, 1e-15, 0.5)?;
         if self.picard_max_iterations == 0 || self.picard_max_iterations > 1_000_000 {
-            return Err(Error::param("picard_max_iterations", self.picard_max_iterations, "an integer in [1, 1e6]"));
+            return Err(Error::param(
+                "picard_max_iterations",
+                self.picard_max_iterations,
+                "an integer in [1, 1e6]",
+            ));
         }
         Ok(())
     }
