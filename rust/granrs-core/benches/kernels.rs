@@ -8,9 +8,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use granrs_core::exec::{build_pool, Exec};
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, VelocityBc};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
-use granrs_core::operators::{
-    convection, divergence, fill_velocity_ghosts, strain_rate, viscous, BcMode,
-};
+use granrs_core::operators::{convection, divergence, fill_velocity_ghosts, strain_rate, viscous, BcMode};
 use rayon::prelude::*;
 use std::hint::black_box;
 use std::time::Duration;
@@ -20,12 +18,8 @@ fn paper_grid() -> Grid {
 }
 
 fn fields(grid: &Grid) -> (Field, Field) {
-    let mut u = Field::from_fn(grid, Location::XFace, |x, y| {
-        (3.0 * x).sin() * (5.0 * y).cos()
-    });
-    let mut v = Field::from_fn(grid, Location::YFace, |x, y| {
-        (2.0 * x).cos() * (4.0 * y).sin()
-    });
+    let mut u = Field::from_fn(grid, Location::XFace, |x, y| (3.0 * x).sin() * (5.0 * y).cos());
+    let mut v = Field::from_fn(grid, Location::YFace, |x, y| (2.0 * x).cos() * (4.0 * y).sin());
     let bc = BoundaryConditions::uniform(VelocityBc::NoSlip);
     fill_velocity_ghosts(&mut u, &mut v, &bc, grid, BcMode::Full);
     (u, v)
@@ -44,9 +38,7 @@ fn operators(c: &mut Criterion) {
     let mut eta_n = Field::zeros(&grid, Location::Node);
     eta_n.fill(0.1);
     let mut g = c.benchmark_group("operators_1280x256");
-    g.sample_size(20)
-        .measurement_time(Duration::from_secs(2))
-        .warm_up_time(Duration::from_millis(500));
+    g.sample_size(20).measurement_time(Duration::from_secs(2)).warm_up_time(Duration::from_millis(500));
     g.throughput(Throughput::Elements(grid.cells() as u64));
     for threads in [1usize, 2] {
         let pool = build_pool(threads).unwrap();
@@ -55,45 +47,14 @@ fn operators(c: &mut Criterion) {
             pool.install(|| b.iter(|| divergence(black_box(&u), &v, &grid, &mut out_c, exec)))
         });
         g.bench_with_input(BenchmarkId::new("viscous", threads), &threads, |b, _| {
-            pool.install(|| {
-                b.iter(|| {
-                    viscous(
-                        black_box(&u),
-                        &v,
-                        &eta_c,
-                        &eta_n,
-                        &grid,
-                        &mut out_u,
-                        &mut out_v,
-                        exec,
-                    )
-                })
-            })
+            pool.install(|| b.iter(|| viscous(black_box(&u), &v, &eta_c, &eta_n, &grid, &mut out_u, &mut out_v, exec)))
         });
         g.bench_with_input(BenchmarkId::new("convection", threads), &threads, |b, _| {
-            pool.install(|| {
-                b.iter(|| convection(black_box(&u), &v, &grid, &mut out_u, &mut out_v, exec))
-            })
+            pool.install(|| b.iter(|| convection(black_box(&u), &v, &grid, &mut out_u, &mut out_v, exec)))
         });
-        g.bench_with_input(
-            BenchmarkId::new("strain_rate", threads),
-            &threads,
-            |b, _| {
-                pool.install(|| {
-                    b.iter(|| {
-                        strain_rate(
-                            black_box(&u),
-                            &v,
-                            &grid,
-                            &mut out_c,
-                            &mut dyy,
-                            &mut dxy,
-                            exec,
-                        )
-                    })
-                })
-            },
-        );
+        g.bench_with_input(BenchmarkId::new("strain_rate", threads), &threads, |b, _| {
+            pool.install(|| b.iter(|| strain_rate(black_box(&u), &v, &grid, &mut out_c, &mut dyy, &mut dxy, exec)))
+        });
     }
     g.finish();
 }
@@ -101,26 +62,13 @@ fn operators(c: &mut Criterion) {
 /// One full two-phase Navier–Stokes step (no rheology) on the paper's grid: heavy column under air.
 fn full_step(c: &mut Criterion) {
     let mut g = c.benchmark_group("ns_step_1280x256");
-    g.sample_size(10)
-        .measurement_time(Duration::from_secs(5))
-        .warm_up_time(Duration::from_secs(1));
+    g.sample_size(10).measurement_time(Duration::from_secs(5)).warm_up_time(Duration::from_secs(1));
     let grid = paper_grid();
     g.throughput(Throughput::Elements(grid.cells() as u64));
     for threads in [1usize, 2] {
-        let bc = BoundaryConditions::uniform(VelocityBc::NoSlip)
-            .with(granrs_core::Side::Top, VelocityBc::Outflow);
-        let mut cfg = ModelConfig::single_phase(
-            grid.clone(),
-            bc,
-            Material {
-                density: 1450.0,
-                viscosity: 0.1,
-            },
-        );
-        cfg.light = Some(Material {
-            density: 1.0,
-            viscosity: 2e-5,
-        });
+        let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(granrs_core::Side::Top, VelocityBc::Outflow);
+        let mut cfg = ModelConfig::single_phase(grid.clone(), bc, Material { density: 1450.0, viscosity: 0.1 });
+        cfg.light = Some(Material { density: 1.0, viscosity: 2e-5 });
         cfg.gravity = [0.0, -9.81];
         cfg.threads = threads;
         cfg.time.fixed_dt = Some(2e-4);
@@ -131,9 +79,7 @@ fn full_step(c: &mut Criterion) {
         for _ in 0..5 {
             m.step().unwrap();
         }
-        g.bench_with_input(BenchmarkId::new("step", threads), &threads, |b, _| {
-            b.iter(|| m.step().unwrap())
-        });
+        g.bench_with_input(BenchmarkId::new("step", threads), &threads, |b, _| b.iter(|| m.step().unwrap()));
     }
     g.finish();
 }
@@ -142,9 +88,7 @@ fn full_step(c: &mut Criterion) {
 /// this machine) and on 64 MB arrays (DRAM). Throughput counts 24 bytes per element.
 fn triad(c: &mut Criterion) {
     let mut g = c.benchmark_group("stream_triad");
-    g.sample_size(20)
-        .measurement_time(Duration::from_secs(2))
-        .warm_up_time(Duration::from_millis(500));
+    g.sample_size(20).measurement_time(Duration::from_secs(2)).warm_up_time(Duration::from_millis(500));
     for n in [1290 * 262usize, 8 << 20] {
         let b_arr: Vec<f64> = (0..n).map(|i| i as f64).collect();
         let c_arr: Vec<f64> = (0..n).map(|i| 1.0 / (1.0 + i as f64)).collect();
@@ -152,26 +96,20 @@ fn triad(c: &mut Criterion) {
         g.throughput(Throughput::Bytes((24 * n) as u64));
         for threads in [1usize, 2] {
             let pool = build_pool(threads).unwrap();
-            g.bench_with_input(
-                BenchmarkId::new(format!("n{n}"), threads),
-                &threads,
-                |bch, _| {
-                    pool.install(|| {
-                        bch.iter(|| {
-                            a_arr
-                                .par_chunks_mut(1 << 14)
-                                .zip(b_arr.par_chunks(1 << 14))
-                                .zip(c_arr.par_chunks(1 << 14))
-                                .for_each(|((a, b), c)| {
-                                    for k in 0..a.len() {
-                                        a[k] = b[k] + 3.0 * c[k];
-                                    }
-                                });
-                            black_box(&a_arr);
-                        })
+            g.bench_with_input(BenchmarkId::new(format!("n{n}"), threads), &threads, |bch, _| {
+                pool.install(|| {
+                    bch.iter(|| {
+                        a_arr.par_chunks_mut(1 << 14).zip(b_arr.par_chunks(1 << 14)).zip(c_arr.par_chunks(1 << 14)).for_each(
+                            |((a, b), c)| {
+                                for k in 0..a.len() {
+                                    a[k] = b[k] + 3.0 * c[k];
+                                }
+                            },
+                        );
+                        black_box(&a_arr);
                     })
-                },
-            );
+                })
+            });
         }
     }
     g.finish();

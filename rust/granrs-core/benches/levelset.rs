@@ -8,8 +8,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use granrs_core::exec::build_pool;
 use granrs_core::levelset::{
-    init_signed_distance, stable_dt, InterfaceTreatment, LevelSetTransport, RedistanceSettings,
-    Redistancer, Shape, WenoWeights,
+    init_signed_distance, stable_dt, InterfaceTreatment, LevelSetTransport, RedistanceSettings, Redistancer, Shape,
+    WenoWeights,
 };
 use granrs_core::{Exec, Field, Grid, Location};
 use std::hint::black_box;
@@ -18,24 +18,10 @@ use std::time::Duration;
 fn setup() -> (Grid, Field, Field, Field) {
     let grid = Grid::new(1280, 256, 2.25, 0.45).unwrap();
     let mut phi = Field::zeros(&grid, Location::Centre);
-    init_signed_distance(
-        &Shape::Rectangle {
-            x0: -1.0,
-            x1: 0.2,
-            y0: -1.0,
-            y1: 0.4,
-        },
-        &grid,
-        &mut phi,
-    )
-    .unwrap();
+    init_signed_distance(&Shape::Rectangle { x0: -1.0, x1: 0.2, y0: -1.0, y1: 0.4 }, &grid, &mut phi).unwrap();
     // A smooth, roughly collapsing flow (m/s).
-    let u = Field::from_fn(&grid, Location::XFace, |x, y| {
-        1.5 * (y / 0.45) * (-x / 0.5).exp()
-    });
-    let v = Field::from_fn(&grid, Location::YFace, |x, y| {
-        -0.8 * (y / 0.45) * (-(x - 0.1).powi(2) / 0.02).exp()
-    });
+    let u = Field::from_fn(&grid, Location::XFace, |x, y| 1.5 * (y / 0.45) * (-x / 0.5).exp());
+    let v = Field::from_fn(&grid, Location::YFace, |x, y| -0.8 * (y / 0.45) * (-(x - 0.1).powi(2) / 0.02).exp());
     (grid, phi, u, v)
 }
 
@@ -44,37 +30,18 @@ fn bench(c: &mut Criterion) {
     let dt = stable_dt(&u, &v, &grid, 0.5, Exec::SERIAL).unwrap();
     let pool = build_pool(2).unwrap();
     let mut group = c.benchmark_group("levelset_1280x256");
-    group
-        .sample_size(10)
-        .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(3));
+    group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
 
-    for (name, weights) in [
-        ("advect_rk3_weno5js", WenoWeights::JiangShu),
-        ("advect_rk3_weno5m", WenoWeights::Mapped),
-    ] {
+    for (name, weights) in [("advect_rk3_weno5js", WenoWeights::JiangShu), ("advect_rk3_weno5m", WenoWeights::Mapped)] {
         let mut tr = LevelSetTransport::with_weights(&grid, weights);
         let mut phi = phi0.clone();
         group.bench_function(format!("{name}_serial"), |b| {
-            b.iter(|| {
-                tr.advect(black_box(&mut phi), &u, &v, &grid, dt, Exec::SERIAL)
-                    .unwrap()
-            })
+            b.iter(|| tr.advect(black_box(&mut phi), &u, &v, &grid, dt, Exec::SERIAL).unwrap())
         });
         let mut phi = phi0.clone();
         group.bench_function(format!("{name}_2threads"), |b| {
             b.iter(|| {
-                pool.install(|| {
-                    tr.advect(
-                        black_box(&mut phi),
-                        &u,
-                        &v,
-                        &grid,
-                        dt,
-                        Exec { parallel: true },
-                    )
-                    .unwrap()
-                })
+                pool.install(|| tr.advect(black_box(&mut phi), &u, &v, &grid, dt, Exec { parallel: true }).unwrap())
             })
         });
     }
@@ -83,42 +50,28 @@ fn bench(c: &mut Criterion) {
     let mut moved = phi0.clone();
     let mut tr = LevelSetTransport::new(&grid);
     for _ in 0..10 {
-        tr.advect(&mut moved, &u, &v, &grid, dt, Exec::SERIAL)
-            .unwrap();
+        tr.advect(&mut moved, &u, &v, &grid, dt, Exec::SERIAL).unwrap();
     }
     for (name, settings) in [
         ("redistance_closest_point", RedistanceSettings::default()),
         (
             "redistance_subcell_pde",
-            RedistanceSettings {
-                interface: InterfaceTreatment::SubcellPde,
-                ..Default::default()
-            },
+            RedistanceSettings { interface: InterfaceTreatment::SubcellPde, ..Default::default() },
         ),
-        (
-            "redistance_closest_point_band12",
-            RedistanceSettings {
-                band: Some(12.0),
-                ..Default::default()
-            },
-        ),
+        ("redistance_closest_point_band12", RedistanceSettings { band: Some(12.0), ..Default::default() }),
     ] {
         let mut rd = Redistancer::new(&grid, settings).unwrap();
         let mut phi = moved.clone();
         group.bench_function(format!("{name}_serial"), |b| {
             b.iter(|| {
                 phi.assign(&moved);
-                rd.redistance(black_box(&mut phi), &grid, Exec::SERIAL)
-                    .unwrap()
+                rd.redistance(black_box(&mut phi), &grid, Exec::SERIAL).unwrap()
             })
         });
         group.bench_function(format!("{name}_2threads"), |b| {
             b.iter(|| {
                 phi.assign(&moved);
-                pool.install(|| {
-                    rd.redistance(black_box(&mut phi), &grid, Exec { parallel: true })
-                        .unwrap()
-                })
+                pool.install(|| rd.redistance(black_box(&mut phi), &grid, Exec { parallel: true }).unwrap())
             })
         });
     }

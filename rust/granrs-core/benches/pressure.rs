@@ -20,12 +20,7 @@ const NX: usize = 1280;
 const NY: usize = 256;
 const LX: f64 = 2.25;
 const LY: f64 = 0.45;
-const BC: [PressureBc; 4] = [
-    PressureBc::Neumann,
-    PressureBc::Neumann,
-    PressureBc::Neumann,
-    PressureBc::Dirichlet,
-];
+const BC: [PressureBc; 4] = [PressureBc::Neumann, PressureBc::Neumann, PressureBc::Neumann, PressureBc::Dirichlet];
 
 /// β on faces: 2/(ρ_a + ρ_b) (harmonic mean of the cells' β); boundary faces take the cell's.
 fn coefficients() -> (Vec<f64>, Vec<f64>) {
@@ -44,19 +39,13 @@ fn coefficients() -> (Vec<f64>, Vec<f64>) {
     let mut bx = vec![0.0; NY * (NX + 1)];
     for j in 0..NY {
         for i in 0..=NX {
-            bx[j * (NX + 1) + i] = face(
-                rho[j * NX + i.saturating_sub(1)],
-                rho[j * NX + i.min(NX - 1)],
-            );
+            bx[j * (NX + 1) + i] = face(rho[j * NX + i.saturating_sub(1)], rho[j * NX + i.min(NX - 1)]);
         }
     }
     let mut by = vec![0.0; (NY + 1) * NX];
     for j in 0..=NY {
         for i in 0..NX {
-            by[j * NX + i] = face(
-                rho[j.saturating_sub(1) * NX + i],
-                rho[j.min(NY - 1) * NX + i],
-            );
+            by[j * NX + i] = face(rho[j.saturating_sub(1) * NX + i], rho[j.min(NY - 1) * NX + i]);
         }
     }
     (bx, by)
@@ -88,27 +77,18 @@ fn pressure(c: &mut Criterion) {
     let (bx, by) = coefficients();
     let f = rhs();
     let cells = (NX * NY) as u64;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let w = solver(SolverSettings::default(), &bx, &by);
     println!("{w}");
     {
         let mut w = solver(SolverSettings::default(), &bx, &by);
         let mut p = vec![0.0; NX * NY];
         let info = w.solve(&f, &mut p, Exec::SERIAL).unwrap();
-        println!(
-            "full solve: {} iterations, relative residual {:.2e}",
-            info.iterations, info.residual
-        );
+        println!("full solve: {} iterations, relative residual {:.2e}", info.iterations, info.residual);
     }
 
     let mut group = c.benchmark_group("pressure_1280x256_jump");
-    group
-        .sample_size(10)
-        .measurement_time(Duration::from_secs(3))
-        .warm_up_time(Duration::from_secs(1));
+    group.sample_size(10).measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_secs(1));
     group.throughput(Throughput::Elements(cells));
 
     for (label, threads) in [("serial", 1usize), ("2threads", 2)] {
@@ -122,14 +102,7 @@ fn pressure(c: &mut Criterion) {
         });
 
         for (name, cycle) in [("W(2,2)", Cycle::W), ("V(2,2)", Cycle::V)] {
-            let mut s = solver(
-                SolverSettings {
-                    cycle,
-                    ..SolverSettings::default()
-                },
-                &bx,
-                &by,
-            );
+            let mut s = solver(SolverSettings { cycle, ..SolverSettings::default() }, &bx, &by);
             let mut z = vec![0.0; NX * NY];
             group.bench_function(format!("cycle_{name}/{label}"), |b| {
                 b.iter(|| run(&mut || s.precondition(black_box(&f), &mut z, exec).unwrap()))

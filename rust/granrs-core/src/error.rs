@@ -9,28 +9,15 @@ pub enum Error {
     /// A parameter is outside its allowed range. `name` is the public name of the parameter
     /// (the same in Rust, Python and the docs), `allowed` says which values are accepted.
     #[error("invalid parameter `{name}` = {value}: allowed {allowed}")]
-    InvalidParameter {
-        name: String,
-        value: String,
-        allowed: String,
-    },
+    InvalidParameter { name: String, value: String, allowed: String },
 
     /// An array has the wrong shape.
     #[error("array `{name}` has shape {got:?}, expected {expected:?}")]
-    Shape {
-        name: String,
-        got: Vec<usize>,
-        expected: Vec<usize>,
-    },
+    Shape { name: String, got: Vec<usize>, expected: Vec<usize> },
 
     /// An iterative solver did not reach its tolerance.
     #[error("{solver} did not converge: relative residual {residual:.3e} after {iterations} iterations (tolerance {tolerance:.1e})")]
-    NotConverged {
-        solver: String,
-        iterations: usize,
-        residual: f64,
-        tolerance: f64,
-    },
+    NotConverged { solver: String, iterations: usize, residual: f64, tolerance: f64 },
 
     /// A linear solver failed for another reason (singular matrix, factorisation failure).
     #[error("{solver} failed: {message}")]
@@ -38,12 +25,7 @@ pub enum Error {
 
     /// A simulation blew up or left its domain of validity: says what, where and when.
     #[error("simulation stopped at step {step}, t = {time:.6e} s: {what}{}", location.map(|(i, j)| format!(" at cell (i={i}, j={j})")).unwrap_or_default())]
-    Simulation {
-        what: String,
-        step: u64,
-        time: f64,
-        location: Option<(usize, usize)>,
-    },
+    Simulation { what: String, step: u64, time: f64, location: Option<(usize, usize)> },
 }
 
 /// Result alias used throughout the core.
@@ -52,11 +34,7 @@ pub type Result<T> = std::result::Result<T, Error>;
 impl Error {
     /// Shorthand for [`Error::InvalidParameter`].
     pub fn param(name: &str, value: impl std::fmt::Display, allowed: &str) -> Self {
-        Error::InvalidParameter {
-            name: name.to_string(),
-            value: value.to_string(),
-            allowed: allowed.to_string(),
-        }
+        Error::InvalidParameter { name: name.to_string(), value: value.to_string(), allowed: allowed.to_string() }
     }
 }
 
@@ -83,11 +61,7 @@ pub fn check_range(name: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
     if value.is_finite() && value >= lo && value <= hi {
         Ok(())
     } else {
-        Err(Error::param(
-            name,
-            value,
-            &format!("a finite number in [{lo}, {hi}]"),
-        ))
+        Err(Error::param(name, value, &format!("a finite number in [{lo}, {hi}]")))
     }
 }
 

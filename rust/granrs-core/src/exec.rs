@@ -29,9 +29,7 @@ impl Exec {
 
     /// Parallel execution when `threads > 1`.
     pub fn with_threads(threads: usize) -> Self {
-        Exec {
-            parallel: threads > 1,
-        }
+        Exec { parallel: threads > 1 }
     }
 
     /// Whether a sweep over `cells` cells should run in parallel.
@@ -47,13 +45,11 @@ impl Exec {
         F: Fn(usize, &mut [f64]) + Sync + Send,
     {
         if self.use_parallel(data.len()) {
-            data.par_chunks_mut(stride * ROW_BLOCK)
-                .enumerate()
-                .for_each(|(b, block)| {
-                    for (r, row) in block.chunks_mut(stride).enumerate() {
-                        f(b * ROW_BLOCK + r, row);
-                    }
-                });
+            data.par_chunks_mut(stride * ROW_BLOCK).enumerate().for_each(|(b, block)| {
+                for (r, row) in block.chunks_mut(stride).enumerate() {
+                    f(b * ROW_BLOCK + r, row);
+                }
+            });
         } else {
             for (r, row) in data.chunks_mut(stride).enumerate() {
                 f(r, row);
@@ -92,18 +88,9 @@ impl Exec {
     where
         F: Fn(usize) -> f64 + Sync + Send,
     {
-        let fold = |a: f64, b: f64| {
-            if a.is_nan() || b.is_nan() {
-                f64::NAN
-            } else {
-                a.max(b)
-            }
-        };
+        let fold = |a: f64, b: f64| if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) };
         if self.use_parallel(cells) {
-            (0..nrows)
-                .into_par_iter()
-                .map(&f)
-                .reduce(|| f64::NEG_INFINITY, fold)
+            (0..nrows).into_par_iter().map(&f).reduce(|| f64::NEG_INFINITY, fold)
         } else {
             (0..nrows).map(&f).fold(f64::NEG_INFINITY, fold)
         }
@@ -113,20 +100,10 @@ impl Exec {
 /// Builds a rayon pool with exactly `threads` threads.
 pub fn build_pool(threads: usize) -> crate::Result<rayon::ThreadPool> {
     if threads == 0 || threads > 1024 {
-        return Err(crate::Error::param(
-            "threads",
-            threads,
-            "an integer in [1, 1024]",
-        ));
+        return Err(crate::Error::param("threads", threads, "an integer in [1, 1024]"));
     }
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| {
-            crate::Error::param(
-                "threads",
-                threads,
-                &format!("a thread count the OS accepts ({e})"),
-            )
-        })
+        .map_err(|e| crate::Error::param("threads", threads, &format!("a thread count the OS accepts ({e})")))
 }

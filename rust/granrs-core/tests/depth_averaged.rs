@@ -10,9 +10,7 @@
 //!   with that analytic position.
 
 use granrs_core::models::depth_averaged::active_earth_pressure;
-use granrs_core::models::{
-    DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure,
-};
+use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 use granrs_core::Error;
 
 const G: f64 = 1.0;
@@ -24,9 +22,7 @@ fn dam(n: usize, len: f64, x0: f64, delta: f64) -> DepthAveragedModel {
     cfg.basal_friction_angle = delta;
     cfg.dry_depth = 1e-10;
     let mut m = DepthAveragedModel::new(cfg).unwrap();
-    let h: Vec<f64> = (0..n)
-        .map(|i| if m.x(i) < x0 { 1.0 } else { 0.0 })
-        .collect();
+    let h: Vec<f64> = (0..n).map(|i| if m.x(i) < x0 { 1.0 } else { 0.0 }).collect();
     m.set_state(&h, &vec![0.0; n], &vec![0.0; n]).unwrap();
     m
 }
@@ -46,31 +42,13 @@ fn ritter(x: f64, t: f64, x0: f64) -> f64 {
 
 /// L1 error of the cell averages of h against Ritter (4-point Gauss average of the exact h).
 fn ritter_l1(m: &DepthAveragedModel, x0: f64) -> f64 {
-    let (gx, gw) = (
-        [
-            -0.861_136_311_594_053,
-            -0.339_981_043_584_856,
-            0.339_981_043_584_856,
-            0.861_136_311_594_053,
-        ],
-        [
-            0.347_854_845_137_454,
-            0.652_145_154_862_546,
-            0.652_145_154_862_546,
-            0.347_854_845_137_454,
-        ],
-    );
+    let (gx, gw) = ([-0.861_136_311_594_053, -0.339_981_043_584_856, 0.339_981_043_584_856, 0.861_136_311_594_053],
+                    [0.347_854_845_137_454, 0.652_145_154_862_546, 0.652_145_154_862_546, 0.347_854_845_137_454]);
     let dx = m.dx();
-    m.depth()
-        .iter()
-        .enumerate()
-        .map(|(i, &h)| {
-            let exact: f64 = (0..4)
-                .map(|k| 0.5 * gw[k] * ritter(m.x(i) + 0.5 * dx * gx[k], m.time, x0))
-                .sum();
-            (h - exact).abs() * dx
-        })
-        .sum()
+    m.depth().iter().enumerate().map(|(i, &h)| {
+        let exact: f64 = (0..4).map(|k| 0.5 * gw[k] * ritter(m.x(i) + 0.5 * dx * gx[k], m.time, x0)).sum();
+        (h - exact).abs() * dx
+    }).sum()
 }
 
 #[test]
@@ -87,12 +65,8 @@ fn ritter_dam_break_profile_front_and_convergence_order() {
         assert!((m.time - t).abs() < 1e-12);
         errors.push(ritter_l1(&m, x0));
         lags.push(exact_front - m.front(eps));
-        println!(
-            "n = {n}: L1(h) = {:.3e}, front lag at 1 % of h0 = {:.2e} ({:.2} cells)",
-            errors.last().unwrap(),
-            lags.last().unwrap(),
-            lags.last().unwrap() / m.dx()
-        );
+        println!("n = {n}: L1(h) = {:.3e}, front lag at 1 % of h0 = {:.2e} ({:.2} cells)", errors.last().unwrap(),
+                 lags.last().unwrap(), lags.last().unwrap() / m.dx());
     }
     let orders: Vec<f64> = errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
     let lag_orders: Vec<f64> = lags.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
@@ -105,10 +79,7 @@ fn ritter_dam_break_profile_front_and_convergence_order() {
     }
     // the numerical tip is thin and slow (u drops in the last wet cells): the 1 % front lags by
     // about 3 cells at n ≥ 800 and converges at first order (measured 1.25, 0.97, 1.00)
-    assert!(
-        lags[2] > 0.0 && lags[2] < 4.0 * 2.0 / 800.0 && lags[3] < 4.0 * 2.0 / 1600.0,
-        "front lags {lags:?}"
-    );
+    assert!(lags[2] > 0.0 && lags[2] < 4.0 * 2.0 / 800.0 && lags[3] < 4.0 * 2.0 / 1600.0, "front lags {lags:?}");
     assert!(lag_orders[2] > 0.8, "front order {lag_orders:?}");
     // and the front approaches 2 c0 t: at n = 1600 the crossing of 1 % of h0 is within 0.12 + 4 Δx
     assert!(errors[3] < 1e-3, "L1 error at n = 1600: {}", errors[3]);
@@ -130,10 +101,7 @@ fn coulomb_dam_break_front_matches_mangeney_heinrich_roche_2000() {
         let ritter_front = x0 + 2.0 * G.sqrt() * t - 3.0 * t * (G * eps).sqrt();
         let got = m.front(eps);
         println!("t = {t}: front(1e-2) = {got:.5}, Mangeney {exact:.5}, frictionless {ritter_front:.5}, dx = {:.5}", m.dx());
-        assert!(
-            (got - exact).abs() < 3.0 * m.dx(),
-            "t = {t}: front {got} vs {exact}"
-        );
+        assert!((got - exact).abs() < 3.0 * m.dx(), "t = {t}: front {got} vs {exact}");
         // and it is not the frictionless front: more than half the friction shift ½ g tan δ t²
         // (7 to 115 cells here) separates them
         assert!(ritter_front - got > 0.25 * G * mu * t * t);
@@ -148,21 +116,11 @@ fn mass_is_conserved_to_round_off() {
     let n = 400;
     let mut cfg = DepthAveragedConfig::new(n, 2.0);
     cfg.basal_friction_angle = 15.0;
-    cfg.pore = Some(DepthAveragedPore {
-        diffusivity: 0.035,
-        supply_ratio: 0.9,
-        supply_x_max: 0.3,
-    });
+    cfg.pore = Some(DepthAveragedPore { diffusivity: 0.035, supply_ratio: 0.9, supply_x_max: 0.3 });
     let mut m = DepthAveragedModel::new(cfg).unwrap();
-    let h: Vec<f64> = (0..n)
-        .map(|i| if m.x(i) < 0.3 { 0.4 } else { 0.0 })
-        .collect();
-    let beta: Vec<f64> = (0..n)
-        .map(|i| if m.x(i) < 0.3 { 0.9 } else { 0.0 })
-        .collect();
-    let bed: Vec<f64> = (0..n)
-        .map(|i| 0.02 * (8.0 * m.x(i)).sin().powi(2))
-        .collect();
+    let h: Vec<f64> = (0..n).map(|i| if m.x(i) < 0.3 { 0.4 } else { 0.0 }).collect();
+    let beta: Vec<f64> = (0..n).map(|i| if m.x(i) < 0.3 { 0.9 } else { 0.0 }).collect();
+    let bed: Vec<f64> = (0..n).map(|i| 0.02 * (8.0 * m.x(i)).sin().powi(2)).collect();
     m.set_bed(&bed).unwrap();
     m.set_state(&h, &vec![0.0; n], &beta).unwrap();
     let m0 = m.mass();
@@ -171,16 +129,9 @@ fn mass_is_conserved_to_round_off() {
         m.step().unwrap();
         worst = worst.max((m.mass() - m0).abs() / m0);
     }
-    println!(
-        "mass: largest relative change {worst:e} over 2000 steps, t = {:.3} s",
-        m.time
-    );
+    println!("mass: largest relative change {worst:e} over 2000 steps, t = {:.3} s", m.time);
     assert!(worst < 1e-12, "relative mass change {worst:e}");
-    assert!(
-        m.front(1e-3) > 0.8,
-        "the layer spread: front {}",
-        m.front(1e-3)
-    );
+    assert!(m.front(1e-3) > 0.8, "the layer spread: front {}", m.front(1e-3));
 }
 
 #[test]
@@ -194,21 +145,14 @@ fn friction_stops_a_sliding_layer_exactly_and_it_stays_at_rest() {
     cfg.basal_friction_angle = 0.5_f64.atan().to_degrees();
     let mut m = DepthAveragedModel::new(cfg).unwrap();
     let inside = |x: f64| (1.0..2.0).contains(&x);
-    let h: Vec<f64> = (0..n)
-        .map(|i| if inside(m.x(i)) { 0.1 } else { 0.0 })
-        .collect();
-    let u: Vec<f64> = (0..n)
-        .map(|i| if inside(m.x(i)) { 0.5 } else { 0.0 })
-        .collect();
+    let h: Vec<f64> = (0..n).map(|i| if inside(m.x(i)) { 0.1 } else { 0.0 }).collect();
+    let u: Vec<f64> = (0..n).map(|i| if inside(m.x(i)) { 0.5 } else { 0.0 }).collect();
     m.set_state(&h, &u, &vec![0.0; n]).unwrap();
     let core = n / 2; // x = 1.5025
     let decel = 9.81 * 0.5;
     m.advance(0.05, u64::MAX).unwrap();
     let expected = 0.5 - decel * 0.05;
-    println!(
-        "core u(0.05) = {:.15}, analytic {expected:.15}",
-        m.velocity()[core]
-    );
+    println!("core u(0.05) = {:.15}, analytic {expected:.15}", m.velocity()[core]);
     assert!((m.velocity()[core] - expected).abs() < 1e-12);
     let t_s = 0.5 / decel;
     m.advance(t_s + 1e-3, u64::MAX).unwrap();
@@ -220,20 +164,12 @@ fn friction_stops_a_sliding_layer_exactly_and_it_stays_at_rest() {
         steps += 1;
         assert!(steps < 200_000, "the layer never stopped (t = {})", m.time);
     }
-    println!(
-        "at rest at t = {:.4} s after {} more steps; front {:.4}",
-        m.time,
-        steps,
-        m.front(1e-6)
-    );
+    println!("at rest at t = {:.4} s after {} more steps; front {:.4}", m.time, steps, m.front(1e-6));
     let h_rest = m.depth().to_vec();
     for _ in 0..500 {
         m.step().unwrap();
     }
-    assert!(
-        m.velocity().iter().all(|&v| v == 0.0),
-        "stays at rest: u = 0 exactly"
-    );
+    assert!(m.velocity().iter().all(|&v| v == 0.0), "stays at rest: u = 0 exactly");
     assert_eq!(m.depth(), &h_rest[..], "and the deposit does not creep");
 }
 
@@ -242,25 +178,15 @@ fn lake_at_rest_over_a_bump_with_a_dry_island_is_preserved() {
     // hydrostatic reconstruction: h + b = 0.5 over a bump reaching 0.7 (dry on top); u stays 0
     let n = 200;
     let mut m = DepthAveragedModel::new(DepthAveragedConfig::new(n, 1.0)).unwrap();
-    let b: Vec<f64> = (0..n)
-        .map(|i| 0.7 * (-((m.x(i) - 0.5) / 0.1).powi(2)).exp())
-        .collect();
+    let b: Vec<f64> = (0..n).map(|i| 0.7 * (-((m.x(i) - 0.5) / 0.1).powi(2)).exp()).collect();
     let h: Vec<f64> = b.iter().map(|&b| (0.5 - b).max(0.0)).collect();
     m.set_bed(&b).unwrap();
     m.set_state(&h, &vec![0.0; n], &vec![0.0; n]).unwrap();
     for _ in 0..500 {
         m.step().unwrap();
     }
-    let dh = m
-        .depth()
-        .iter()
-        .zip(&h)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    println!(
-        "lake at rest: max |u| = {:e}, max |dh| = {dh:e}",
-        m.max_speed()
-    );
+    let dh = m.depth().iter().zip(&h).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    println!("lake at rest: max |u| = {:e}, max |dh| = {dh:e}", m.max_speed());
     assert!(m.max_speed() < 1e-12 && dh < 1e-12);
 }
 
@@ -271,22 +197,13 @@ fn pore_pressure_decays_at_the_diffusion_rate_and_is_held_by_the_supply() {
     let n = 50;
     let mut cfg = DepthAveragedConfig::new(n, 1.0);
     cfg.basal_friction_angle = 15.0;
-    cfg.pore = Some(DepthAveragedPore {
-        diffusivity: 0.035,
-        supply_ratio: 0.9,
-        supply_x_max: 0.2,
-    });
+    cfg.pore = Some(DepthAveragedPore { diffusivity: 0.035, supply_ratio: 0.9, supply_x_max: 0.2 });
     let mut m = DepthAveragedModel::new(cfg).unwrap();
-    m.set_state(&vec![0.1; n], &vec![0.0; n], &vec![0.8; n])
-        .unwrap();
+    m.set_state(&vec![0.1; n], &vec![0.0; n], &vec![0.8; n]).unwrap();
     m.advance(0.05, u64::MAX).unwrap();
     let expected = 0.8 * (-0.05 * std::f64::consts::PI.powi(2) * 0.035 / (4.0 * 0.01)).exp();
     let beta = m.pore_ratio();
-    println!(
-        "beta(0.05) = {} (analytic {expected}), under the supply {}",
-        beta[n - 1],
-        beta[0]
-    );
+    println!("beta(0.05) = {} (analytic {expected}), under the supply {}", beta[n - 1], beta[0]);
     assert!((beta[n - 1] - expected).abs() < 1e-12);
     assert_eq!(beta[0], 0.9);
     assert_eq!(m.max_speed(), 0.0);
@@ -306,38 +223,14 @@ fn parameters_are_validated_by_name() {
     bad(&|c| c.cfl = 0.7, "cfl");
     bad(&|c| c.cells = 2, "cells");
     bad(&|c| c.length = -1.0, "length");
-    bad(
-        &|c| c.earth_pressure = EarthPressure::Constant(0.0),
-        "earth_pressure",
-    );
-    bad(
-        &|c| {
-            c.earth_pressure = EarthPressure::SavageHutterActive {
-                internal_friction_angle: -3.0,
-            }
-        },
-        "internal_friction_angle",
-    );
+    bad(&|c| c.earth_pressure = EarthPressure::Constant(0.0), "earth_pressure");
+    bad(&|c| c.earth_pressure = EarthPressure::SavageHutterActive { internal_friction_angle: -3.0 }, "internal_friction_angle");
     bad(&|c| c.basal_friction_angle = 95.0, "basal_friction_angle");
     bad(&|c| c.dry_depth = f64::NAN, "dry_depth");
-    bad(
-        &|c| {
-            c.pore = Some(DepthAveragedPore {
-                diffusivity: 0.035,
-                supply_ratio: 1.5,
-                supply_x_max: 0.2,
-            })
-        },
-        "supply_ratio",
-    );
+    bad(&|c| c.pore = Some(DepthAveragedPore { diffusivity: 0.035, supply_ratio: 1.5, supply_x_max: 0.2 }), "supply_ratio");
     let mut m = DepthAveragedModel::new(DepthAveragedConfig::new(10, 1.0)).unwrap();
-    assert!(
-        matches!(m.set_state(&[-1.0; 10], &[0.0; 10], &[0.0; 10]), Err(Error::InvalidParameter { ref name, .. }) if name == "h")
-    );
-    assert!(matches!(
-        m.set_state(&[1.0; 9], &[0.0; 9], &[0.0; 9]),
-        Err(Error::Shape { .. })
-    ));
+    assert!(matches!(m.set_state(&[-1.0; 10], &[0.0; 10], &[0.0; 10]), Err(Error::InvalidParameter { ref name, .. }) if name == "h"));
+    assert!(matches!(m.set_state(&[1.0; 9], &[0.0; 9], &[0.0; 9]), Err(Error::Shape { .. })));
 }
 
 #[test]
@@ -349,12 +242,7 @@ fn a_blow_up_is_reported_with_step_time_and_cell() {
     u[3] = 1e160;
     m.set_state(&[1.0; 10], &u, &[0.0; 10]).unwrap();
     match m.step() {
-        Err(Error::Simulation {
-            step,
-            location: Some((i, 0)),
-            what,
-            ..
-        }) => {
+        Err(Error::Simulation { step, location: Some((i, 0)), what, .. }) => {
             println!("{what} at cell {i}");
             assert_eq!(step, 1, "the first step");
             // two stages of a 5-cell stencil spread it at most 3 cells: the first bad cell is
@@ -365,6 +253,7 @@ fn a_blow_up_is_reported_with_step_time_and_cell() {
     }
 }
 
+
 #[test]
 fn savage_hutter_active_coefficient_limits() {
     // δ = 0: Rankine's active coefficient (1 − sin φ)/(1 + sin φ) (1/3 at φ = 30°); β = 1 (no
@@ -373,25 +262,13 @@ fn savage_hutter_active_coefficient_limits() {
     assert!((active_earth_pressure(t(30.0), 0.0, 0.0) - 1.0 / 3.0).abs() < 1e-14);
     assert!((active_earth_pressure(t(27.0), t(15.0), 1.0) - 1.0).abs() < 1e-14);
     let k = active_earth_pressure(t(27.0), t(15.0), 0.0);
-    let (c2p, c2d) = (
-        27.0_f64.to_radians().cos().powi(2),
-        15.0_f64.to_radians().cos().powi(2),
-    );
-    assert!(
-        (k - (2.0 / c2p * (1.0 - (1.0 - c2p / c2d).sqrt()) - 1.0)).abs() < 1e-14
-            && (k - 0.5464).abs() < 1e-4
-    );
+    let (c2p, c2d) = (27.0_f64.to_radians().cos().powi(2), 15.0_f64.to_radians().cos().powi(2));
+    assert!((k - (2.0 / c2p * (1.0 - (1.0 - c2p / c2d).sqrt()) - 1.0)).abs() < 1e-14 && (k - 0.5464).abs() < 1e-4);
     // in a model, k follows β cell by cell
     let mut cfg = DepthAveragedConfig::new(10, 1.0);
     cfg.basal_friction_angle = 15.0;
-    cfg.earth_pressure = EarthPressure::SavageHutterActive {
-        internal_friction_angle: 27.0,
-    };
-    cfg.pore = Some(DepthAveragedPore {
-        diffusivity: 0.035,
-        supply_ratio: 0.9,
-        supply_x_max: 0.0,
-    });
+    cfg.earth_pressure = EarthPressure::SavageHutterActive { internal_friction_angle: 27.0 };
+    cfg.pore = Some(DepthAveragedPore { diffusivity: 0.035, supply_ratio: 0.9, supply_x_max: 0.0 });
     let mut m = DepthAveragedModel::new(cfg).unwrap();
     let beta: Vec<f64> = (0..10).map(|i| i as f64 / 10.0).collect();
     m.set_state(&[0.1; 10], &[0.0; 10], &beta).unwrap();

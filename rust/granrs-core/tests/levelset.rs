@@ -6,9 +6,7 @@
 //! `cargo test --release -p granrs-core --test levelset -- --ignored --nocapture`.
 
 use granrs_core::exec::build_pool;
-use granrs_core::levelset::weno5::{
-    weno5_minus, weno5_minus_with, weno5_plus, weno5_plus_with, window,
-};
+use granrs_core::levelset::weno5::{weno5_minus, weno5_minus_with, weno5_plus, weno5_plus_with, window};
 use granrs_core::levelset::*;
 use granrs_core::{Error, Exec, Field, Grid, Location};
 use std::f64::consts::PI;
@@ -45,10 +43,7 @@ fn weno_error(n: usize, mapped: bool) -> f64 {
 #[test]
 fn weno5_derivative_is_fifth_order_on_smooth_data() {
     for mapped in [false, true] {
-        let e: Vec<f64> = [20, 40, 80, 160]
-            .iter()
-            .map(|&n| weno_error(n, mapped))
-            .collect();
+        let e: Vec<f64> = [20, 40, 80, 160].iter().map(|&n| weno_error(n, mapped)).collect();
         let orders: Vec<f64> = e.windows(2).map(|p| order(p[0], p[1])).collect();
         println!("WENO5 (mapped: {mapped}) max errors {e:?}, orders {orders:?}");
         // Jiang & Shu: 5th order where f' ≠ 0 (measured 5.00–5.01); 4.5 leaves room for the
@@ -73,8 +68,7 @@ fn weno5_of_constant_data_is_zero_not_nan() {
 fn uniform_transport_error(n: usize) -> f64 {
     let grid = Grid::new(n, n, 1.0, 1.0).unwrap();
     let (ux, vy, sigma) = (1.0, 0.5, 0.08);
-    let bump =
-        |x: f64, y: f64| (-((x - 0.35).powi(2) + (y - 0.35).powi(2)) / (sigma * sigma)).exp();
+    let bump = |x: f64, y: f64| (-((x - 0.35).powi(2) + (y - 0.35).powi(2)) / (sigma * sigma)).exp();
     let mut phi = Field::from_fn(&grid, Location::Centre, bump);
     let u = Field::from_fn(&grid, Location::XFace, |_, _| ux);
     let v = Field::from_fn(&grid, Location::YFace, |_, _| vy);
@@ -84,8 +78,7 @@ fn uniform_transport_error(n: usize) -> f64 {
     let dt = t_end / steps as f64;
     let mut tr = LevelSetTransport::new(&grid);
     for _ in 0..steps {
-        tr.advect(&mut phi, &u, &v, &grid, dt, Exec::SERIAL)
-            .unwrap();
+        tr.advect(&mut phi, &u, &v, &grid, dt, Exec::SERIAL).unwrap();
     }
     let (xe, ye) = (0.35 + ux * t_end, 0.35 + vy * t_end);
     let mut err = 0.0;
@@ -93,10 +86,8 @@ fn uniform_transport_error(n: usize) -> f64 {
         for i in 0..n {
             let (x, y) = (grid.xc(i as isize), grid.yc(j as isize));
             if (x - xe).hypot(y - ye) < 0.3 {
-                err += (phi.at(i as isize, j as isize) - bump(x - ux * t_end, y - vy * t_end))
-                    .abs()
-                    * grid.dx
-                    * grid.dy;
+                err +=
+                    (phi.at(i as isize, j as isize) - bump(x - ux * t_end, y - vy * t_end)).abs() * grid.dx * grid.dy;
             }
         }
     }
@@ -105,19 +96,12 @@ fn uniform_transport_error(n: usize) -> f64 {
 
 #[test]
 fn transport_of_smooth_profile_converges_at_third_order() {
-    let e: Vec<f64> = [50, 100, 200]
-        .iter()
-        .map(|&n| uniform_transport_error(n))
-        .collect();
+    let e: Vec<f64> = [50, 100, 200].iter().map(|&n| uniform_transport_error(n)).collect();
     let orders: Vec<f64> = e.windows(2).map(|p| order(p[0], p[1])).collect();
     println!("uniform transport L1 errors {e:?}, orders {orders:.2?}");
     // At fixed Courant number δt ∝ h: error = O(h⁵) + O(δt³), so the combined order tends to
     // 3 (RK3-limited) from above (measured 4.3 then 3.65 while the spatial error still counts).
-    assert!(
-        orders[1] >= 2.8,
-        "transport order {:.2} < 2.8 ({e:?})",
-        orders[1]
-    );
+    assert!(orders[1] >= 2.8, "transport order {:.2} < 2.8 ({e:?})", orders[1]);
 }
 
 #[test]
@@ -128,18 +112,12 @@ fn transport_rejects_bad_inputs() {
     let v = Field::zeros(&grid, Location::YFace);
     let mut tr = LevelSetTransport::new(&grid);
     // u passed where v belongs
-    assert!(matches!(
-        tr.advect(&mut phi, &u, &u, &grid, 0.1, Exec::SERIAL),
-        Err(Error::Shape { .. })
-    ));
+    assert!(matches!(tr.advect(&mut phi, &u, &u, &grid, 0.1, Exec::SERIAL), Err(Error::Shape { .. })));
     match tr.advect(&mut phi, &u, &v, &grid, f64::NAN, Exec::SERIAL) {
         Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "dt"),
         other => panic!("expected a `dt` error, got {other:?}"),
     }
-    assert_eq!(
-        stable_dt(&u, &v, &grid, 0.5, Exec::SERIAL).unwrap(),
-        f64::INFINITY
-    );
+    assert_eq!(stable_dt(&u, &v, &grid, 0.5, Exec::SERIAL).unwrap(), f64::INFINITY);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -160,16 +138,8 @@ fn zalesak_one_revolution_without_redistancing() {
     // Acceptance numbers of the level-set room: 1 % area, 5 % symmetric difference (measured
     // −0.90 % and 3.1 %; the area is the bicubic-refined estimate, whose own error on the initial
     // disk is −2e-6; the second-order estimate would say −1.02 %, 0.066 % of it its own bias).
-    assert!(
-        m.area_rel_error.abs() <= 0.01,
-        "area error {:.4}",
-        m.area_rel_error
-    );
-    assert!(
-        m.symdiff_rel <= 0.05,
-        "symmetric difference {:.4}",
-        m.symdiff_rel
-    );
+    assert!(m.area_rel_error.abs() <= 0.01, "area error {:.4}", m.area_rel_error);
+    assert!(m.symdiff_rel <= 0.05, "symmetric difference {:.4}", m.symdiff_rel);
 }
 
 #[test]
@@ -178,11 +148,7 @@ fn zalesak_one_revolution_with_redistancing_every_10_steps() {
     println!("Zalesak 100², redistancing every 10 steps: {m:#?}");
     // Acceptance number: 2 % area with redistancing (the paper's frequency); measured +1.43 %
     // (the 5-cell slot narrows: its flanks are re-sharpened into kinks that WENO then erodes).
-    assert!(
-        m.area_rel_error.abs() <= 0.02,
-        "area error {:.4}",
-        m.area_rel_error
-    );
+    assert!(m.area_rel_error.abs() <= 0.02, "area error {:.4}", m.area_rel_error);
     assert!(m.redistance_calls == m.steps / 10);
 }
 
@@ -191,11 +157,7 @@ fn single_vortex_t2_conserves_area() {
     let m = single_vortex(128, 2.0, None, 0.5, Exec::SERIAL).unwrap();
     println!("single vortex 128², T = 2: {m:#?}");
     // Acceptance number: 1 % area at T = 2 on 128² (measured −0.02 %).
-    assert!(
-        m.area_rel_error.abs() <= 0.01,
-        "area error {:.4}",
-        m.area_rel_error
-    );
+    assert!(m.area_rel_error.abs() <= 0.01, "area error {:.4}", m.area_rel_error);
 }
 
 /// Prints Zalesak's disk (100², one revolution) for the combinations of weights, redistancing
@@ -209,15 +171,8 @@ fn zalesak_table() {
             (Some(10), InterfaceTreatment::ClosestPoint),
             (Some(10), InterfaceTreatment::SubcellPde),
         ] {
-            let redistance = RedistanceSettings {
-                interface,
-                ..Default::default()
-            };
-            let opts = CaseOptions {
-                weights,
-                redistance,
-                ..CaseOptions::new(every, 0.5)
-            };
+            let redistance = RedistanceSettings { interface, ..Default::default() };
+            let opts = CaseOptions { weights, redistance, ..CaseOptions::new(every, 0.5) };
             let m = zalesak_with(100, &opts, Exec::SERIAL).unwrap();
             println!(
                 "zalesak 100² {weights:?} redistance={every:?} {interface:?}: area_rel_error {:+.4e} symdiff_rel {:.4e}",
@@ -233,15 +188,10 @@ fn zalesak_table() {
 #[ignore]
 fn single_vortex_t8_table() {
     for n in [64, 128, 256] {
-        for (every, weights) in [
-            (None, WenoWeights::JiangShu),
-            (Some(10), WenoWeights::JiangShu),
-            (Some(10), WenoWeights::Mapped),
-        ] {
-            let opts = CaseOptions {
-                weights,
-                ..CaseOptions::new(every, 0.5)
-            };
+        for (every, weights) in
+            [(None, WenoWeights::JiangShu), (Some(10), WenoWeights::JiangShu), (Some(10), WenoWeights::Mapped)]
+        {
+            let opts = CaseOptions { weights, ..CaseOptions::new(every, 0.5) };
             let m = single_vortex_with(n, 8.0, &opts, Exec::SERIAL).unwrap();
             println!(
                 "vortex T=8 n={n:4} {weights:?} redistance={every:?}: steps {} area_rel_error {:+.4e} symdiff_rel {:.4e} (initial {:.2e})",
@@ -260,9 +210,7 @@ fn single_vortex_t8_table() {
 fn ellipse_distance(x: f64, y: f64, a: f64, b: f64) -> f64 {
     let dist = |t: f64| (x - a * t.cos()).hypot(y - b * t.sin());
     let dt = PI / 1800.0;
-    let best = (0..3600)
-        .map(|k| k as f64 * dt)
-        .fold(0.0, |bt, t| if dist(t) < dist(bt) { t } else { bt });
+    let best = (0..3600).map(|k| k as f64 * dt).fold(0.0, |bt, t| if dist(t) < dist(bt) { t } else { bt });
     let (mut lo, mut hi) = (best - dt, best + dt);
     let g = 0.5 * (5f64.sqrt() - 1.0);
     for _ in 0..100 {
@@ -281,32 +229,16 @@ fn redistancing_stretched_ellipse_keeps_interface_and_gives_unit_gradient() {
     let (a, b) = (0.35, 0.1);
     let grid = Grid::with_origin(256, 128, -0.5, -0.25, 1.0, 0.5).unwrap();
     let h = grid.h();
-    for interface in [
-        InterfaceTreatment::ClosestPoint,
-        InterfaceTreatment::SubcellPde,
-    ] {
+    for interface in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde] {
         // A non-distance function with the ellipse as zero set: |∇Φ⁰| runs from 0.57 to 2.
-        let mut phi = Field::from_fn(&grid, Location::Centre, |x, y| {
-            -(x * x / (a * a) + y * y / (b * b) - 1.0) * 0.1
-        });
+        let mut phi = Field::from_fn(&grid, Location::Centre, |x, y| -(x * x / (a * a) + y * y / (b * b) - 1.0) * 0.1);
         let e0 = eikonal_error(&phi, &grid, 3.0 * h);
-        let before: Vec<f64> = interface_points(&phi, &grid)
-            .iter()
-            .map(|p| ellipse_distance(p[0], p[1], a, b))
-            .collect();
-        let mut r = Redistancer::new(
-            &grid,
-            RedistanceSettings {
-                interface,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let before: Vec<f64> =
+            interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
+        let mut r = Redistancer::new(&grid, RedistanceSettings { interface, ..Default::default() }).unwrap();
         let info = r.redistance(&mut phi, &grid, Exec::SERIAL).unwrap();
-        let after: Vec<f64> = interface_points(&phi, &grid)
-            .iter()
-            .map(|p| ellipse_distance(p[0], p[1], a, b))
-            .collect();
+        let after: Vec<f64> =
+            interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
         let max_before = before.iter().cloned().fold(0.0, f64::max) / h;
         let max_after = after.iter().cloned().fold(0.0, f64::max) / h;
         let mean_after = after.iter().sum::<f64>() / after.len() as f64 / h;
@@ -316,32 +248,16 @@ fn redistancing_stretched_ellipse_keeps_interface_and_gives_unit_gradient() {
             "ellipse, {interface:?}: {info:?}\n  crossings' distance to the exact ellipse / h: before max {max_before:.4}, after max {max_after:.4} mean {mean_after:.5} ({} points)\n  eikonal error before (3h band) {e0:?}\n  after (3h) {e3:?}\n  after (6h) {e6:?}",
             after.len()
         );
-        assert_eq!(
-            before.len(),
-            after.len(),
-            "the interface must cross the same number of grid lines"
-        );
+        assert_eq!(before.len(), after.len(), "the interface must cross the same number of grid lines");
         // Acceptance: the zero level set moves by < 0.1 h. Before redistancing the crossings
         // (linear interpolation of Φ⁰ between centres) are already 0.016 h off at the tips.
-        assert!(
-            max_after < 0.1,
-            "{interface:?}: interface moved up to {max_after:.3} h"
-        );
+        assert!(max_after < 0.1, "{interface:?}: interface moved up to {max_after:.3} h");
         // |∇Φ| ≈ 1 near the interface: Φ⁰ has a mean error of 0.54 in the 3-cell band; both
         // treatments bring it below 1e-3 (measured 2e-4 to 6e-4, max 5e-3 to 1e-2 in the 6-cell
         // band, where the kinks of the distance function on the major axis begin).
-        assert!(
-            e0.mean > 0.3,
-            "test set-up: Φ⁰ should be far from a distance function ({e0:?})"
-        );
-        assert!(
-            e6.mean < 0.005,
-            "{interface:?}: eikonal error in the 6-cell band {e6:?}"
-        );
-        assert!(
-            e3.max < 0.03,
-            "{interface:?}: eikonal error in the 3-cell band {e3:?}"
-        );
+        assert!(e0.mean > 0.3, "test set-up: Φ⁰ should be far from a distance function ({e0:?})");
+        assert!(e6.mean < 0.005, "{interface:?}: eikonal error in the 6-cell band {e6:?}");
+        assert!(e3.max < 0.03, "{interface:?}: eikonal error in the 3-cell band {e3:?}");
     }
 }
 
@@ -351,45 +267,16 @@ fn repeated_redistancing_does_not_creep() {
     // redistanced 100 times must keep its area: circle of radius 6 cells and a square (corners).
     let grid = Grid::new(64, 64, 64.0, 64.0).unwrap();
     for (shape, tol_closest, creeps) in [
-        (
-            Shape::Circle {
-                xc: 31.3,
-                yc: 32.6,
-                radius: 6.0,
-            },
-            4e-4,
-            true,
-        ),
-        (
-            Shape::Rectangle {
-                x0: 20.3,
-                x1: 40.6,
-                y0: 22.2,
-                y1: 41.7,
-            },
-            1e-4,
-            false,
-        ),
+        (Shape::Circle { xc: 31.3, yc: 32.6, radius: 6.0 }, 4e-4, true),
+        (Shape::Rectangle { x0: 20.3, x1: 40.6, y0: 22.2, y1: 41.7 }, 1e-4, false),
     ] {
         let mut area = [0.0; 2];
-        for (m, interface) in [
-            InterfaceTreatment::ClosestPoint,
-            InterfaceTreatment::SubcellPde,
-        ]
-        .into_iter()
-        .enumerate()
+        for (m, interface) in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde].into_iter().enumerate()
         {
             let mut phi = Field::zeros(&grid, Location::Centre);
             init_signed_distance(&shape, &grid, &mut phi).unwrap();
             let a0 = dense_area(&phi, &grid, Exec::SERIAL);
-            let mut r = Redistancer::new(
-                &grid,
-                RedistanceSettings {
-                    interface,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let mut r = Redistancer::new(&grid, RedistanceSettings { interface, ..Default::default() }).unwrap();
             for _ in 0..100 {
                 r.redistance(&mut phi, &grid, Exec::SERIAL).unwrap();
             }
@@ -401,17 +288,9 @@ fn repeated_redistancing_does_not_creep() {
         );
         // Closest point: measured +1.5e-4 (circle r = 6h) and −1.2e-5 (square); the subcell PDE
         // shrinks the circle by 2.6e-2 (0.04 h (h/r)² per call), which this test documents.
-        assert!(
-            area[0].abs() < tol_closest,
-            "closest point: area change {:.2e}",
-            area[0]
-        );
+        assert!(area[0].abs() < tol_closest, "closest point: area change {:.2e}", area[0]);
         if creeps {
-            assert!(
-                area[1] < -1e-2,
-                "subcell PDE expected to creep on a 6-cell circle ({:.2e})",
-                area[1]
-            );
+            assert!(area[1] < -1e-2, "subcell PDE expected to creep on a 6-cell circle ({:.2e})", area[1]);
         }
     }
 }
@@ -419,11 +298,7 @@ fn repeated_redistancing_does_not_creep() {
 #[test]
 fn redistancing_keeps_a_distance_function_almost_unchanged() {
     let grid = Grid::new(96, 96, 1.0, 1.0).unwrap();
-    let circle = Shape::Circle {
-        xc: 0.47,
-        yc: 0.52,
-        radius: 0.23,
-    };
+    let circle = Shape::Circle { xc: 0.47, yc: 0.52, radius: 0.23 };
     let mut phi = Field::zeros(&grid, Location::Centre);
     init_signed_distance(&circle, &grid, &mut phi).unwrap();
     let exact = phi.clone();
@@ -440,44 +315,19 @@ fn redistancing_keeps_a_distance_function_almost_unchanged() {
             }
         }
     }
-    println!(
-        "circle redistancing: max |Φ − d| in a 6-cell band = {:.3e} h",
-        max_err / grid.dx
-    );
+    println!("circle redistancing: max |Φ − d| in a 6-cell band = {:.3e} h", max_err / grid.dx);
     // The frozen closest-point band reproduces the distance to O(h⁴) and the WENO5 PDE keeps it
     // (measured 3e-6 h; the subcell-PDE treatment gives 5e-4 h): 1e-4 h.
-    assert!(
-        max_err < 1e-4 * grid.dx,
-        "max |Φ − d| = {:.3} h",
-        max_err / grid.dx
-    );
+    assert!(max_err < 1e-4 * grid.dx, "max |Φ − d| = {:.3} h", max_err / grid.dx);
 }
 
 #[test]
 fn redistance_settings_are_validated() {
     let grid = Grid::new(16, 16, 1.0, 1.0).unwrap();
     for (s, name) in [
-        (
-            RedistanceSettings {
-                iterations: 0,
-                ..Default::default()
-            },
-            "iterations",
-        ),
-        (
-            RedistanceSettings {
-                cfl: 0.8,
-                ..Default::default()
-            },
-            "cfl",
-        ),
-        (
-            RedistanceSettings {
-                band: Some(0.5),
-                ..Default::default()
-            },
-            "band",
-        ),
+        (RedistanceSettings { iterations: 0, ..Default::default() }, "iterations"),
+        (RedistanceSettings { cfl: 0.8, ..Default::default() }, "cfl"),
+        (RedistanceSettings { band: Some(0.5), ..Default::default() }, "band"),
     ] {
         match Redistancer::new(&grid, s) {
             Err(Error::InvalidParameter { name: n, .. }) => assert_eq!(n, name),
@@ -499,33 +349,9 @@ fn paper_column_rectangle_is_subcell_exact() {
     let exact = 0.2 * 0.4;
     let mut phi = Field::zeros(&grid, Location::Centre);
     for (shape, what) in [
-        (
-            Shape::Rectangle {
-                x0: 0.0,
-                x1: 0.2,
-                y0: 0.0,
-                y1: 0.4,
-            },
-            "flush with the walls",
-        ),
-        (
-            Shape::Rectangle {
-                x0: -1.0,
-                x1: 0.2,
-                y0: -1.0,
-                y1: 0.4,
-            },
-            "extending through the walls",
-        ),
-        (
-            Shape::Rectangle {
-                x0: 0.7001,
-                x1: 0.9001,
-                y0: 0.0203,
-                y1: 0.4203,
-            },
-            "inside the domain",
-        ),
+        (Shape::Rectangle { x0: 0.0, x1: 0.2, y0: 0.0, y1: 0.4 }, "flush with the walls"),
+        (Shape::Rectangle { x0: -1.0, x1: 0.2, y0: -1.0, y1: 0.4 }, "extending through the walls"),
+        (Shape::Rectangle { x0: 0.7001, x1: 0.9001, y0: 0.0203, y1: 0.4203 }, "inside the domain"),
     ] {
         init_signed_distance(&shape, &grid, &mut phi).unwrap();
         let area = dense_area(&phi, &grid, Exec::SERIAL);
@@ -542,17 +368,7 @@ fn paper_column_rectangle_is_subcell_exact() {
     }
     // The zero level set at the exact non-grid-aligned position x = 0.2 (113.78 cells) on a
     // row at mid-height of the flush column, and y = 0.4 on a column at mid-width.
-    init_signed_distance(
-        &Shape::Rectangle {
-            x0: -1.0,
-            x1: 0.2,
-            y0: -1.0,
-            y1: 0.4,
-        },
-        &grid,
-        &mut phi,
-    )
-    .unwrap();
+    init_signed_distance(&Shape::Rectangle { x0: -1.0, x1: 0.2, y0: -1.0, y1: 0.4 }, &grid, &mut phi).unwrap();
     let (i, j) = ((0.2 / h - 0.5) as isize, 100);
     let (pa, pb) = (phi.at(i, j), phi.at(i + 1, j));
     assert!(pa > 0.0 && pb < 0.0);
@@ -587,23 +403,15 @@ fn slotted_disk_distance_is_exact() {
     }
     let mut seed = 12345u64;
     let mut rnd = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         (seed >> 11) as f64 / (1u64 << 53) as f64
     };
     for _ in 0..400 {
         let (x, y) = (25.0 + 50.0 * rnd(), 50.0 + 50.0 * rnd());
         let d = shape.signed_distance(x, y);
-        let brute = pts
-            .iter()
-            .map(|&(px, py)| (x - px).hypot(y - py))
-            .fold(f64::INFINITY, f64::min);
+        let brute = pts.iter().map(|&(px, py)| (x - px).hypot(y - py)).fold(f64::INFINITY, f64::min);
         // Sampling spacing ≤ 2π·15/1e5 ≈ 1e-3: the brute force over-estimates by < 1e-3.
-        assert!(
-            (d.abs() - brute).abs() < 1e-3,
-            "at ({x}, {y}): {d} vs {brute}"
-        );
+        assert!((d.abs() - brute).abs() < 1e-3, "at ({x}, {y}): {d} vs {brute}");
         let inside = (x - xc).hypot(y - yc) < r && !((x - xc).abs() < hw && y < top);
         assert_eq!(d > 0.0, inside);
     }
@@ -611,11 +419,7 @@ fn slotted_disk_distance_is_exact() {
 
 #[test]
 fn dense_area_is_second_order_for_a_circle() {
-    let circle = Shape::Circle {
-        xc: 0.503,
-        yc: 0.488,
-        radius: 0.3,
-    };
+    let circle = Shape::Circle { xc: 0.503, yc: 0.488, radius: 0.3 };
     let exact = circle.area().unwrap();
     let mut refined = vec![];
     let errs: Vec<f64> = [32, 64, 128]
@@ -631,11 +435,7 @@ fn dense_area_is_second_order_for_a_circle() {
     println!("refined relative area errors {refined:?}");
     // Bicubic + 8 × 8 sub-cells: the second-order error divided by 64 at least.
     for (r, e) in refined.iter().zip(&errs) {
-        assert!(
-            *r < e / exact / 30.0,
-            "refined {r:e} vs second order {:e}",
-            e / exact
-        );
+        assert!(*r < e / exact / 30.0, "refined {r:e} vs second order {:e}", e / exact);
     }
     let o = order(errs[1], errs[2]);
     println!("circle area errors {errs:?}, order {o:.2}");
@@ -646,40 +446,15 @@ fn dense_area_is_second_order_for_a_circle() {
 
 #[test]
 fn shapes_are_validated_and_combine() {
-    match (Shape::Circle {
-        xc: 0.0,
-        yc: 0.0,
-        radius: -1.0,
-    })
-    .validate()
-    {
+    match (Shape::Circle { xc: 0.0, yc: 0.0, radius: -1.0 }).validate() {
         Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "radius"),
         other => panic!("{other:?}"),
     }
-    let layer = Shape::HalfPlane {
-        px: 0.0,
-        py: 0.1,
-        nx: 0.0,
-        ny: 2.0,
-    };
+    let layer = Shape::HalfPlane { px: 0.0, py: 0.1, nx: 0.0, ny: 2.0 };
     assert!((layer.signed_distance(0.3, 0.04) - 0.06).abs() < 1e-15);
-    let u = Shape::Union(vec![
-        layer.clone(),
-        Shape::Circle {
-            xc: 0.5,
-            yc: 0.3,
-            radius: 0.1,
-        },
-    ]);
+    let u = Shape::Union(vec![layer.clone(), Shape::Circle { xc: 0.5, yc: 0.3, radius: 0.1 }]);
     assert!(u.contains(0.5, 0.35) && u.contains(0.9, 0.05) && !u.contains(0.9, 0.3));
-    let d = Shape::Difference(
-        Box::new(layer),
-        Box::new(Shape::Circle {
-            xc: 0.5,
-            yc: 0.0,
-            radius: 0.05,
-        }),
-    );
+    let d = Shape::Difference(Box::new(layer), Box::new(Shape::Circle { xc: 0.5, yc: 0.0, radius: 0.05 }));
     assert!(!d.contains(0.5, 0.01) && d.contains(0.7, 0.01));
 }
 
@@ -714,27 +489,14 @@ fn heaviside_and_two_phase_laws() {
     assert!((p.viscosity(1.0) - 0.1).abs() < 1e-15 && (p.viscosity(-1.0) - 2e-5).abs() < 1e-18);
     // κ(Φ) = κ_f H + κ_∞ (1 − H) with κ_∞ = 1e16 (paper)
     assert_eq!(p.blend(1.0, 0.035, 1e16), 0.035);
-    let bad = TwoPhaseProperties {
-        eta_light: 0.0,
-        ..p
-    };
+    let bad = TwoPhaseProperties { eta_light: 0.0, ..p };
     match bad.validate() {
         Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "eta_light"),
         other => panic!("{other:?}"),
     }
     // field version
     let mut phi = Field::zeros(&grid, Location::Centre);
-    init_signed_distance(
-        &Shape::Rectangle {
-            x0: -1.0,
-            x1: 0.2,
-            y0: -1.0,
-            y1: 0.4,
-        },
-        &grid,
-        &mut phi,
-    )
-    .unwrap();
+    init_signed_distance(&Shape::Rectangle { x0: -1.0, x1: 0.2, y0: -1.0, y1: 0.4 }, &grid, &mut phi).unwrap();
     let mut rho = Field::zeros(&grid, Location::Centre);
     map_centre_field(&phi, &mut rho, Exec::SERIAL, |f| p.density(f)).unwrap();
     assert_eq!(rho.at(10, 10), 2500.0);
@@ -751,13 +513,7 @@ fn serial_and_parallel_give_identical_fields() {
     let run = |exec: Exec| -> (Field, f64) {
         let mut phi = Field::zeros(&grid, Location::Centre);
         init_signed_distance(
-            &Shape::SlottedDisk {
-                xc: 50.0,
-                yc: 45.0,
-                radius: 15.0,
-                slot_width: 5.0,
-                slot_top: 55.0,
-            },
+            &Shape::SlottedDisk { xc: 50.0, yc: 45.0, radius: 15.0, slot_width: 5.0, slot_top: 55.0 },
             &grid,
             &mut phi,
         )
@@ -809,11 +565,7 @@ fn redistancing_respects_the_bounds_of_the_continuous_equation() {
             let film = 0.75 * h - (y - 0.75 * h).abs();
             let pocket = if (i / 4) % 3 == 1 { 0.3 * h - y } else { -1.0 };
             let v = if pocket > 0.0 { -pocket } else { film };
-            phi.set(
-                i,
-                j,
-                if v < 0.0 { 3.0 * v } else { v } + 1e-3 * (x * 7.0).sin() * h,
-            );
+            phi.set(i, j, if v < 0.0 { 3.0 * v } else { v } + 1e-3 * (x * 7.0).sin() * h);
         }
     }
     let phi0 = phi.clone();
@@ -827,14 +579,8 @@ fn redistancing_respects_the_bounds_of_the_continuous_equation() {
             // sign always; magnitude inside the band the pseudo time reached (beyond τ − 2h the
             // far field is the fast-sweeping distance)
             let in_band = b.abs() < tau - 2.0 * h;
-            assert!(
-                a * b >= 0.0 && (!in_band || b.abs() <= a.abs() + tau + 1e-12),
-                "cell ({i}, {j}): Φ⁰ = {a:.3e}, Φ = {b:.3e}, τ = {tau:.3e}"
-            );
+            assert!(a * b >= 0.0 && (!in_band || b.abs() <= a.abs() + tau + 1e-12), "cell ({i}, {j}): Φ⁰ = {a:.3e}, Φ = {b:.3e}, τ = {tau:.3e}");
         }
     }
-    println!(
-        "thin film: {} interface cells, {} clamped",
-        info.interface_cells, info.clamped_cells
-    );
+    println!("thin film: {} interface cells, {} clamped", info.interface_cells, info.clamped_cells);
 }

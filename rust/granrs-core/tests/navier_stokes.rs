@@ -10,27 +10,14 @@ use std::f64::consts::PI;
 fn taylor_green_error(n: usize, threads: usize) -> f64 {
     let nu = 0.01;
     let grid = Grid::new(n, n, 1.0, 1.0).unwrap();
-    let mut cfg = ModelConfig::single_phase(
-        grid.clone(),
-        BoundaryConditions::uniform(VelocityBc::FreeSlip),
-        Material {
-            density: 1.0,
-            viscosity: nu,
-        },
-    );
+    let mut cfg = ModelConfig::single_phase(grid.clone(), BoundaryConditions::uniform(VelocityBc::FreeSlip), Material { density: 1.0, viscosity: nu });
     let h = 1.0 / n as f64;
     cfg.time.fixed_dt = Some(0.25 * h);
     cfg.threads = threads;
     let mut m = TwoPhaseModel::new(cfg).unwrap();
-    m.u = Field::from_fn(&grid, Location::XFace, |x, y| {
-        (PI * x).sin() * (PI * y).cos()
-    });
-    m.v = Field::from_fn(&grid, Location::YFace, |x, y| {
-        -(PI * x).cos() * (PI * y).sin()
-    });
-    m.p = Field::from_fn(&grid, Location::Centre, |x, y| {
-        0.25 * ((2.0 * PI * x).cos() + (2.0 * PI * y).cos())
-    });
+    m.u = Field::from_fn(&grid, Location::XFace, |x, y| (PI * x).sin() * (PI * y).cos());
+    m.v = Field::from_fn(&grid, Location::YFace, |x, y| -(PI * x).cos() * (PI * y).sin());
+    m.p = Field::from_fn(&grid, Location::Centre, |x, y| 0.25 * ((2.0 * PI * x).cos() + (2.0 * PI * y).cos()));
     m.fields_changed();
     let t_end = 0.5;
     let steps = (t_end / (0.25 * h)).round() as usize;
@@ -60,10 +47,7 @@ fn taylor_green_error(n: usize, threads: usize) -> f64 {
 
 #[test]
 fn taylor_green_second_order() {
-    let e: Vec<f64> = [32, 64, 128]
-        .iter()
-        .map(|&n| taylor_green_error(n, 1))
-        .collect();
+    let e: Vec<f64> = [32, 64, 128].iter().map(|&n| taylor_green_error(n, 1)).collect();
     let o1 = (e[0] / e[1]).log2();
     let o2 = (e[1] / e[2]).log2();
     println!("Taylor-Green L2 errors {e:?}, orders {o1:.3} {o2:.3}");
@@ -77,18 +61,8 @@ fn hydrostatic_two_density_layer_stays_at_rest() {
     // fluid of density 1450 under one of density 1, interface at mid-cell (y = 0.5 + h/2)
     let n = 32;
     let grid = Grid::new(n, n, 1.0, 1.0).unwrap();
-    let mut cfg = ModelConfig::single_phase(
-        grid.clone(),
-        BoundaryConditions::uniform(VelocityBc::NoSlip),
-        Material {
-            density: 1450.0,
-            viscosity: 0.1,
-        },
-    );
-    cfg.light = Some(Material {
-        density: 1.0,
-        viscosity: 2e-5,
-    });
+    let mut cfg = ModelConfig::single_phase(grid.clone(), BoundaryConditions::uniform(VelocityBc::NoSlip), Material { density: 1450.0, viscosity: 0.1 });
+    cfg.light = Some(Material { density: 1.0, viscosity: 2e-5 });
     cfg.gravity = [0.0, -9.81];
     cfg.transport_interface = false;
     let mut m = TwoPhaseModel::new(cfg).unwrap();
@@ -101,10 +75,7 @@ fn hydrostatic_two_density_layer_stays_at_rest() {
         let info = m.step().unwrap();
         worst = worst.max(info.max_speed);
     }
-    println!(
-        "hydrostatic: max speed over 1000 steps {worst:.3e}, final {:.3e}, t = {}",
-        m.last.max_speed, m.time
-    );
+    println!("hydrostatic: max speed over 1000 steps {worst:.3e}, final {:.3e}, t = {}", m.last.max_speed, m.time);
     // round-off level: |g| δt ε_machine ρ-ratio ≈ 1e-12; 1e-8 is the bound
     assert!(worst < 1e-8, "max speed {worst}");
 }

@@ -22,13 +22,7 @@ const TOP_DIRICHLET: [PressureBc; 4] = [N, N, N, D];
 // ---------------------------------------------------------------------------------------------
 
 /// Face coefficients from a function β(x, y) sampled at face centres.
-fn faces_from_fn(
-    nx: usize,
-    ny: usize,
-    dx: f64,
-    dy: f64,
-    beta: impl Fn(f64, f64) -> f64,
-) -> (Vec<f64>, Vec<f64>) {
+fn faces_from_fn(nx: usize, ny: usize, dx: f64, dy: f64, beta: impl Fn(f64, f64) -> f64) -> (Vec<f64>, Vec<f64>) {
     let mut bx = vec![0.0; ny * (nx + 1)];
     for j in 0..ny {
         for i in 0..=nx {
@@ -87,9 +81,7 @@ fn column_density(nx: usize, ny: usize, dx: f64, dy: f64) -> Vec<f64> {
 /// boundary, as in a projection (its sum is exactly 0, so it suits the singular case too).
 fn divergence_rhs(nx: usize, ny: usize, lx: f64, ly: f64) -> Vec<f64> {
     let (dx, dy) = (lx / nx as f64, ly / ny as f64);
-    let u = |x: f64, y: f64| {
-        (PI * x / lx).sin() * (3.0 * PI * y / ly).cos() + 0.3 * (4.0 * PI * x / lx).sin()
-    };
+    let u = |x: f64, y: f64| (PI * x / lx).sin() * (3.0 * PI * y / ly).cos() + 0.3 * (4.0 * PI * x / lx).sin();
     let v = |x: f64, y: f64| (PI * y / ly).sin() * (5.0 * PI * x / lx).cos() * (1.0 + y / ly);
     let mut f = vec![0.0; nx * ny];
     for j in 0..ny {
@@ -141,11 +133,7 @@ fn true_residual(solver: &PoissonSolver, f: &[f64], p: &[f64], singular: bool) -
 }
 
 fn settings(kind: PressureSolverKind, rtol: f64) -> SolverSettings {
-    SolverSettings {
-        kind,
-        rtol,
-        ..SolverSettings::default()
-    }
+    SolverSettings { kind, rtol, ..SolverSettings::default() }
 }
 
 /// Solves L p = f from p = 0 with MGCG; returns (p, info).
@@ -161,9 +149,7 @@ fn mgcg_solve(
     s: SolverSettings,
 ) -> (Vec<f64>, SolveInfo, PoissonSolver) {
     let mut solver = PoissonSolver::new(nx, ny, dx, dy, bc, s).unwrap();
-    solver
-        .set_coefficients(beta.0, beta.1, Exec::SERIAL)
-        .unwrap();
+    solver.set_coefficients(beta.0, beta.1, Exec::SERIAL).unwrap();
     let mut p = vec![0.0; nx * ny];
     let info = solver.solve(f, &mut p, Exec::SERIAL).unwrap();
     (p, info, solver)
@@ -179,10 +165,7 @@ fn beta_smooth(x: f64, y: f64) -> f64 {
 }
 
 fn grad_beta_smooth(x: f64, y: f64) -> (f64, f64) {
-    (
-        PI * (PI * x).cos() * (2.0 * PI * y).cos(),
-        -2.0 * PI * (PI * x).sin() * (2.0 * PI * y).sin(),
-    )
+    (PI * (PI * x).cos() * (2.0 * PI * y).cos(), -2.0 * PI * (PI * x).sin() * (2.0 * PI * y).sin())
 }
 
 /// RMS error of the discrete solution against `exact` on the unit square with n × n cells.
@@ -210,23 +193,12 @@ fn manufactured_error(
     // rtol 1e-12: the algebraic error is far below the O(h²) discretisation error.
     let (mut p, info, solver) = mgcg_solve(n, n, h, h, bc, (&bx, &by), &f, settings(kind, 1e-12));
     // MGCG guarantees its tolerance; the direct solve is exact up to rounding (≈ cond(A) ε).
-    let tol = if kind == PressureSolverKind::Direct {
-        1e-10
-    } else {
-        1e-12
-    };
+    let tol = if kind == PressureSolverKind::Direct { 1e-10 } else { 1e-12 };
     assert!(info.residual <= tol, "residual {info:?}");
-    assert!(
-        true_residual(&solver, &f, &p, singular) < 1e-11,
-        "apply and solve disagree"
-    );
+    assert!(true_residual(&solver, &f, &p, singular) < 1e-11, "apply and solve disagree");
     if singular {
         // Solutions are defined up to a constant: compare zero-mean representatives.
-        assert!(
-            mean(&p).abs() < 1e-12,
-            "singular solution does not have zero mean: {}",
-            mean(&p)
-        );
+        assert!(mean(&p).abs() < 1e-12, "singular solution does not have zero mean: {}", mean(&p));
         let m = mean(&pe);
         pe.iter_mut().for_each(|v| *v -= m);
         let m = mean(&p);
@@ -236,31 +208,16 @@ fn manufactured_error(
     norm(&d) / n as f64
 }
 
-fn check_second_order(
-    name: &str,
-    bc: [PressureBc; 4],
-    exact: impl Fn(f64, f64) -> [f64; 4] + Copy,
-) {
+fn check_second_order(name: &str, bc: [PressureBc; 4], exact: impl Fn(f64, f64) -> [f64; 4] + Copy) {
     for kind in [PressureSolverKind::MultigridCg, PressureSolverKind::Direct] {
-        let errors: Vec<f64> = [32, 64, 128]
-            .iter()
-            .map(|&n| manufactured_error(n, bc, kind, exact))
-            .collect();
-        let orders = [
-            (errors[0] / errors[1]).log2(),
-            (errors[1] / errors[2]).log2(),
-        ];
+        let errors: Vec<f64> = [32, 64, 128].iter().map(|&n| manufactured_error(n, bc, kind, exact)).collect();
+        let orders = [(errors[0] / errors[1]).log2(), (errors[1] / errors[2]).log2()];
         let shown: Vec<String> = errors.iter().map(|e| format!("{e:.3e}")).collect();
-        println!(
-            "{name} ({kind:?}): RMS errors n=32,64,128: {shown:?}, observed orders {orders:.3?}"
-        );
+        println!("{name} ({kind:?}): RMS errors n=32,64,128: {shown:?}, observed orders {orders:.3?}");
         // The scheme is second order; 1.9 leaves room for the pre-asymptotic regime at n = 32
         // while still failing for any first-order boundary or coefficient treatment.
         for o in orders {
-            assert!(
-                o >= 1.9,
-                "{name} ({kind:?}): observed order {o:.3} < 1.9 (errors {errors:?})"
-            );
+            assert!(o >= 1.9, "{name} ({kind:?}): observed order {o:.3} < 1.9 (errors {errors:?})");
         }
     }
 }
@@ -269,12 +226,7 @@ fn check_second_order(
 fn manufactured_solution_all_neumann_is_second_order() {
     // p = cos(πx) cos(πy): ∂p/∂n = 0 on every side.
     check_second_order("all Neumann, p = cos(πx)cos(πy)", ALL_NEUMANN, |x, y| {
-        let (c, s, cy, sy) = (
-            (PI * x).cos(),
-            (PI * x).sin(),
-            (PI * y).cos(),
-            (PI * y).sin(),
-        );
+        let (c, s, cy, sy) = ((PI * x).cos(), (PI * x).sin(), (PI * y).cos(), (PI * y).sin());
         [c * cy, -PI * s * cy, -PI * c * sy, -2.0 * PI * PI * c * cy]
     });
 }
@@ -282,42 +234,19 @@ fn manufactured_solution_all_neumann_is_second_order() {
 #[test]
 fn manufactured_solution_top_dirichlet_is_second_order() {
     // p = cos(πx) cos(πy/2): ∂p/∂n = 0 left, right, bottom; p = 0 on the top.
-    check_second_order(
-        "top Dirichlet, p = cos(πx)cos(πy/2)",
-        TOP_DIRICHLET,
-        |x, y| {
-            let (c, s, cy, sy) = (
-                (PI * x).cos(),
-                (PI * x).sin(),
-                (0.5 * PI * y).cos(),
-                (0.5 * PI * y).sin(),
-            );
-            [
-                c * cy,
-                -PI * s * cy,
-                -0.5 * PI * c * sy,
-                -1.25 * PI * PI * c * cy,
-            ]
-        },
-    );
+    check_second_order("top Dirichlet, p = cos(πx)cos(πy/2)", TOP_DIRICHLET, |x, y| {
+        let (c, s, cy, sy) = ((PI * x).cos(), (PI * x).sin(), (0.5 * PI * y).cos(), (0.5 * PI * y).sin());
+        [c * cy, -PI * s * cy, -0.5 * PI * c * sy, -1.25 * PI * PI * c * cy]
+    });
 }
 
 #[test]
 fn manufactured_solution_all_dirichlet_is_second_order() {
     // p = sin(πx) sin(πy): p = 0 on every side.
-    check_second_order(
-        "all Dirichlet, p = sin(πx)sin(πy)",
-        [D, D, D, D],
-        |x, y| {
-            let (c, s, cy, sy) = (
-                (PI * x).cos(),
-                (PI * x).sin(),
-                (PI * y).cos(),
-                (PI * y).sin(),
-            );
-            [s * sy, PI * c * sy, PI * s * cy, -2.0 * PI * PI * s * sy]
-        },
-    );
+    check_second_order("all Dirichlet, p = sin(πx)sin(πy)", [D, D, D, D], |x, y| {
+        let (c, s, cy, sy) = ((PI * x).cos(), (PI * x).sin(), (PI * y).cos(), (PI * y).sin());
+        [s * sy, PI * c * sy, PI * s * cy, -2.0 * PI * PI * s * sy]
+    });
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -329,11 +258,7 @@ fn constant_counts(bc: [PressureBc; 4], random: bool) -> Vec<usize> {
     for n in [128, 256, 512, 1024] {
         let h = 1.0 / n as f64;
         let (bx, by) = (vec![1.0; n * (n + 1)], vec![1.0; (n + 1) * n]);
-        let f = if random {
-            random_vec(n * n, n as u64)
-        } else {
-            divergence_rhs(n, n, 1.0, 1.0)
-        };
+        let f = if random { random_vec(n * n, n as u64) } else { divergence_rhs(n, n, 1.0, 1.0) };
         let (_, info, _) = mgcg_solve(n, n, h, h, bc, (&bx, &by), &f, SolverSettings::default());
         assert!(info.residual <= 1e-8);
         counts.push(info.iterations);
@@ -344,21 +269,12 @@ fn constant_counts(bc: [PressureBc; 4], random: bool) -> Vec<usize> {
 #[test]
 fn iteration_counts_constant_coefficients_are_small_and_mesh_independent() {
     println!("MGCG iterations to ‖f − Lp‖/‖f‖ ≤ 1e-8, β = 1, p0 = 0");
-    println!(
-        "{:<28} {:>6} {:>6} {:>6} {:>6}",
-        "case", "128²", "256²", "512²", "1024²"
-    );
-    for (name, bc) in [
-        ("all Neumann (singular)", ALL_NEUMANN),
-        ("top Dirichlet", TOP_DIRICHLET),
-    ] {
+    println!("{:<28} {:>6} {:>6} {:>6} {:>6}", "case", "128²", "256²", "512²", "1024²");
+    for (name, bc) in [("all Neumann (singular)", ALL_NEUMANN), ("top Dirichlet", TOP_DIRICHLET)] {
         for random in [true, false] {
             let c = constant_counts(bc, random);
             let label = format!("{name}, {}", if random { "random f" } else { "smooth f" });
-            println!(
-                "{label:<28} {:>6} {:>6} {:>6} {:>6}",
-                c[0], c[1], c[2], c[3]
-            );
+            println!("{label:<28} {:>6} {:>6} {:>6} {:>6}", c[0], c[1], c[2], c[3]);
             // Multigrid preconditioning makes the count independent of the mesh: ≤ 15 and a
             // spread of at most 3 over an 8× refinement (plain CG would grow 8×).
             let (lo, hi) = (*c.iter().min().unwrap(), *c.iter().max().unwrap());
@@ -383,56 +299,26 @@ fn jump_counts(bc: [PressureBc; 4]) -> (SolveInfo, SolveInfo) {
     let f = divergence_rhs(nx, ny, lx, ly);
     let rho = column_density(nx, ny, dx, dy);
     let (bx, by) = faces_from_density(nx, ny, &rho);
-    let (p, jump, solver) = mgcg_solve(
-        nx,
-        ny,
-        dx,
-        dy,
-        bc,
-        (&bx, &by),
-        &f,
-        SolverSettings::default(),
-    );
+    let (p, jump, solver) = mgcg_solve(nx, ny, dx, dy, bc, (&bx, &by), &f, SolverSettings::default());
     let singular = bc == ALL_NEUMANN;
     // Independent check of the reported residual (tolerance 1e-8 plus rounding of the check).
     assert!(true_residual(&solver, &f, &p, singular) < 1.5e-8);
     let (cx, cy) = (vec![1.0; ny * (nx + 1)], vec![1.0; (ny + 1) * nx]);
-    let (_, constant, _) = mgcg_solve(
-        nx,
-        ny,
-        dx,
-        dy,
-        bc,
-        (&cx, &cy),
-        &f,
-        SolverSettings::default(),
-    );
+    let (_, constant, _) = mgcg_solve(nx, ny, dx, dy, bc, (&cx, &cy), &f, SolverSettings::default());
     (jump, constant)
 }
 
 #[test]
 fn density_jump_converges_like_constant_coefficients() {
-    println!(
-        "1280 × 256, 2.25 m × 0.45 m, ρ = 1450 (column x<0.2, y<0.4 and layer y<0.05) / 1 (air)"
-    );
+    println!("1280 × 256, 2.25 m × 0.45 m, ρ = 1450 (column x<0.2, y<0.4 and layer y<0.05) / 1 (air)");
     println!("{:<24} {:>10} {:>10}", "bc", "jump", "β = 1");
-    for (name, bc) in [
-        ("top Dirichlet", TOP_DIRICHLET),
-        ("all Neumann (singular)", ALL_NEUMANN),
-    ] {
+    for (name, bc) in [("top Dirichlet", TOP_DIRICHLET), ("all Neumann (singular)", ALL_NEUMANN)] {
         let (jump, constant) = jump_counts(bc);
-        println!(
-            "{name:<24} {:>10} {:>10}",
-            jump.iterations, constant.iterations
-        );
+        println!("{name:<24} {:>10} {:>10}", jump.iterations, constant.iterations);
         // Required: ≤ 15 iterations to 1e-8 despite the 1450:1 jump, and within ±3 of the
         // constant-coefficient count on the same grid and right-hand side.
         assert!(jump.residual <= 1e-8);
-        assert!(
-            jump.iterations <= 15,
-            "{name}: {} iterations with the jump",
-            jump.iterations
-        );
+        assert!(jump.iterations <= 15, "{name}: {} iterations with the jump", jump.iterations);
         assert!(
             jump.iterations.abs_diff(constant.iterations) <= 3,
             "{name}: jump {} vs constant {}",
@@ -465,37 +351,21 @@ fn multigrid_cg_agrees_with_direct() {
     let jump = faces_from_density(n, n, &rho);
     for (name, (bx, by)) in [("smooth β", &smooth), ("β jump 1450:1", &jump)] {
         for bc in [ALL_NEUMANN, TOP_DIRICHLET, [D, N, D, N]] {
-            let (pd, infod, _) = mgcg_solve(
-                n,
-                n,
-                h,
-                h,
-                bc,
-                (bx, by),
-                &f,
-                settings(PressureSolverKind::Direct, 1e-8),
-            );
+            let (pd, infod, _) = mgcg_solve(n, n, h, h, bc, (bx, by), &f, settings(PressureSolverKind::Direct, 1e-8));
             // rtol 1e-12 for MGCG: the error is ≤ cond(A) × 1e-12 ≈ 1e-12 × 4n²/π² × 1450 ≈ 2e-6
             // in the worst case, typically far less; the check is 1e-7 relative as required.
             assert_eq!(infod.iterations, 1);
             assert!(infod.residual < 1e-10, "direct residual {}", infod.residual);
             // Both cycles are valid (symmetric) preconditioners and must reach the same solution.
             for cycle in [Cycle::W, Cycle::V] {
-                let s = SolverSettings {
-                    rtol: 1e-12,
-                    cycle,
-                    ..SolverSettings::default()
-                };
+                let s = SolverSettings { rtol: 1e-12, cycle, ..SolverSettings::default() };
                 let (pm, infom, _) = mgcg_solve(n, n, h, h, bc, (bx, by), &f, s);
                 let d = rel_diff(&pm, &pd);
                 println!(
                     "{name}, bc {bc:?}, {cycle:?}-cycle: ‖p_mg − p_direct‖/‖p_direct‖ = {d:.2e} ({} its)",
                     infom.iterations
                 );
-                assert!(
-                    d < 1e-7,
-                    "{name} {bc:?} {cycle:?}: MGCG and direct differ by {d:e}"
-                );
+                assert!(d < 1e-7, "{name} {bc:?} {cycle:?}: MGCG and direct differ by {d:e}");
             }
         }
     }
@@ -512,14 +382,10 @@ fn serial_and_parallel_solutions_are_bit_identical() {
     let rho = column_density(nx, ny, dx * 0.5, dy * 0.4);
     let (bx, by) = faces_from_density(nx, ny, &rho);
     let f = random_vec(nx * ny, 3);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     for bc in [ALL_NEUMANN, TOP_DIRICHLET] {
         let run = |exec: Exec| -> (Vec<f64>, SolveInfo) {
-            let mut solver =
-                PoissonSolver::new(nx, ny, dx, dy, bc, SolverSettings::default()).unwrap();
+            let mut solver = PoissonSolver::new(nx, ny, dx, dy, bc, SolverSettings::default()).unwrap();
             solver.set_coefficients(&bx, &by, exec).unwrap();
             let mut p = vec![0.0; nx * ny];
             let info = solver.solve(&f, &mut p, exec).unwrap();
@@ -531,14 +397,8 @@ fn serial_and_parallel_solutions_are_bit_identical() {
         // red–black smoother is order-independent within a colour: the results must be
         // bit-identical, not merely close (the required 1e-12 is implied).
         assert_eq!(is, ip, "{bc:?}: solve info differs");
-        assert!(
-            ps.iter().zip(&pp).all(|(a, b)| a.to_bits() == b.to_bits()),
-            "{bc:?}: solutions differ"
-        );
-        assert!(
-            is.iterations > 3,
-            "the problem is too easy to test anything"
-        );
+        assert!(ps.iter().zip(&pp).all(|(a, b)| a.to_bits() == b.to_bits()), "{bc:?}: solutions differ");
+        assert!(is.iterations > 3, "the problem is too easy to test anything");
     }
 }
 
@@ -565,11 +425,7 @@ fn warm_start_needs_at_most_one_iteration() {
         );
         assert!(first.iterations > 3);
         // The previous solution already satisfies the tolerance (residual ≤ 1e-8).
-        assert!(
-            second.iterations <= 1,
-            "warm start took {} iterations",
-            second.iterations
-        );
+        assert!(second.iterations <= 1, "warm start took {} iterations", second.iterations);
         assert!(second.initial_residual <= 1e-8);
     }
 }
@@ -578,20 +434,15 @@ fn warm_start_needs_at_most_one_iteration() {
 fn zero_and_constant_rhs_give_zero_pressure() {
     let n = 32;
     let h = 1.0 / n as f64;
-    let mut solver =
-        PoissonSolver::new(n, n, h, h, ALL_NEUMANN, SolverSettings::default()).unwrap();
+    let mut solver = PoissonSolver::new(n, n, h, h, ALL_NEUMANN, SolverSettings::default()).unwrap();
     assert!(solver.is_singular());
     let mut p = vec![1.0; n * n];
-    let info = solver
-        .solve(&vec![0.0; n * n], &mut p, Exec::SERIAL)
-        .unwrap();
+    let info = solver.solve(&vec![0.0; n * n], &mut p, Exec::SERIAL).unwrap();
     assert_eq!(info.iterations, 0);
     assert!(p.iter().all(|&v| v == 0.0));
     // A constant f is incompatible with all-Neumann conditions: its mean is removed (and
     // reported), which leaves f = 0.
-    let info = solver
-        .solve(&vec![2.5; n * n], &mut p, Exec::SERIAL)
-        .unwrap();
+    let info = solver.solve(&vec![2.5; n * n], &mut p, Exec::SERIAL).unwrap();
     assert_eq!(info.iterations, 0);
     assert!((info.rhs_mean_removed - 2.5).abs() < 1e-14, "{info:?}");
     assert!(p.iter().all(|&v| v == 0.0));
@@ -612,55 +463,15 @@ fn invalid_inputs_are_rejected_with_the_parameter_name() {
     let h = 1.0 / 16.0;
     let s = SolverSettings::default();
     // Construction.
-    assert_eq!(
-        param_name(PoissonSolver::new(0, ny, h, h, TOP_DIRICHLET, s).unwrap_err()),
-        "nx"
-    );
-    assert_eq!(
-        param_name(PoissonSolver::new(nx, ny, h, f64::NAN, TOP_DIRICHLET, s).unwrap_err()),
-        "dy"
-    );
-    assert_eq!(
-        param_name(SolverSettings { rtol: 0.0, ..s }.validate().unwrap_err()),
-        "rtol"
-    );
+    assert_eq!(param_name(PoissonSolver::new(0, ny, h, h, TOP_DIRICHLET, s).unwrap_err()), "nx");
+    assert_eq!(param_name(PoissonSolver::new(nx, ny, h, f64::NAN, TOP_DIRICHLET, s).unwrap_err()), "dy");
+    assert_eq!(param_name(SolverSettings { rtol: 0.0, ..s }.validate().unwrap_err()), "rtol");
+    assert_eq!(param_name(SolverSettings { max_iterations: 0, ..s }.validate().unwrap_err()), "max_iterations");
+    assert_eq!(param_name(SolverSettings { post_smooth: 3, ..s }.validate().unwrap_err()), "post_smooth");
     assert_eq!(
         param_name(
-            SolverSettings {
-                max_iterations: 0,
-                ..s
-            }
-            .validate()
-            .unwrap_err()
-        ),
-        "max_iterations"
-    );
-    assert_eq!(
-        param_name(
-            SolverSettings {
-                post_smooth: 3,
-                ..s
-            }
-            .validate()
-            .unwrap_err()
-        ),
-        "post_smooth"
-    );
-    assert_eq!(
-        param_name(
-            PoissonSolver::new(
-                nx,
-                ny,
-                h,
-                h,
-                TOP_DIRICHLET,
-                SolverSettings {
-                    pre_smooth: 0,
-                    post_smooth: 0,
-                    ..s
-                }
-            )
-            .unwrap_err()
+            PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, SolverSettings { pre_smooth: 0, post_smooth: 0, ..s })
+                .unwrap_err()
         ),
         "pre_smooth"
     );
@@ -668,10 +479,7 @@ fn invalid_inputs_are_rejected_with_the_parameter_name() {
     let mut solver = PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, s).unwrap();
     let (mut bx, by) = (vec![1.0; ny * (nx + 1)], vec![1.0; (ny + 1) * nx]);
     // Shapes.
-    match solver
-        .set_coefficients(&bx[1..], &by, Exec::SERIAL)
-        .unwrap_err()
-    {
+    match solver.set_coefficients(&bx[1..], &by, Exec::SERIAL).unwrap_err() {
         Error::Shape { name, expected, .. } => {
             assert_eq!(name, "beta_x");
             assert_eq!(expected, vec![ny, nx + 1]);
@@ -679,66 +487,31 @@ fn invalid_inputs_are_rejected_with_the_parameter_name() {
         e => panic!("{e:?}"),
     }
     let mut p = vec![0.0; nx * ny];
-    match solver
-        .solve(&vec![0.0; nx * ny + 1], &mut p, Exec::SERIAL)
-        .unwrap_err()
-    {
+    match solver.solve(&vec![0.0; nx * ny + 1], &mut p, Exec::SERIAL).unwrap_err() {
         Error::Shape { name, .. } => assert_eq!(name, "f"),
         e => panic!("{e:?}"),
     }
     // Non-positive and non-finite coefficients name the array and the face.
     bx[3 * (nx + 1) + 5] = -1.0;
-    assert_eq!(
-        param_name(solver.set_coefficients(&bx, &by, Exec::SERIAL).unwrap_err()),
-        "beta_x[j=3, i=5]"
-    );
+    assert_eq!(param_name(solver.set_coefficients(&bx, &by, Exec::SERIAL).unwrap_err()), "beta_x[j=3, i=5]");
     bx[3 * (nx + 1) + 5] = 1.0;
     let mut by_nan = by.clone();
     by_nan[nx] = f64::INFINITY;
-    assert_eq!(
-        param_name(
-            solver
-                .set_coefficients(&bx, &by_nan, Exec::SERIAL)
-                .unwrap_err()
-        ),
-        "beta_y[j=1, i=0]"
-    );
+    assert_eq!(param_name(solver.set_coefficients(&bx, &by_nan, Exec::SERIAL).unwrap_err()), "beta_y[j=1, i=0]");
     solver.set_coefficients(&bx, &by, Exec::SERIAL).unwrap();
     // Non-finite right-hand side and initial guess.
     let mut f = random_vec(nx * ny, 1);
     f[2 * nx + 7] = f64::NAN;
-    assert_eq!(
-        param_name(solver.solve(&f, &mut p, Exec::SERIAL).unwrap_err()),
-        "f[j=2, i=7]"
-    );
+    assert_eq!(param_name(solver.solve(&f, &mut p, Exec::SERIAL).unwrap_err()), "f[j=2, i=7]");
     f[2 * nx + 7] = 0.0;
     p[0] = f64::NEG_INFINITY;
-    assert_eq!(
-        param_name(solver.solve(&f, &mut p, Exec::SERIAL).unwrap_err()),
-        "p[j=0, i=0]"
-    );
+    assert_eq!(param_name(solver.solve(&f, &mut p, Exec::SERIAL).unwrap_err()), "p[j=0, i=0]");
     p[0] = 0.0;
     // Non-convergence is a typed error with the solver's name, the iterations and the residual.
-    let mut tight = PoissonSolver::new(
-        nx,
-        ny,
-        h,
-        h,
-        TOP_DIRICHLET,
-        SolverSettings {
-            max_iterations: 1,
-            ..s
-        },
-    )
-    .unwrap();
+    let mut tight = PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, SolverSettings { max_iterations: 1, ..s }).unwrap();
     tight.set_coefficients(&bx, &by, Exec::SERIAL).unwrap();
     match tight.solve(&f, &mut p, Exec::SERIAL).unwrap_err() {
-        Error::NotConverged {
-            solver,
-            iterations,
-            residual,
-            tolerance,
-        } => {
+        Error::NotConverged { solver, iterations, residual, tolerance } => {
             assert_eq!(solver, "multigrid-preconditioned CG");
             assert_eq!(iterations, 1);
             assert!(residual > tolerance && tolerance == 1e-8);
@@ -756,21 +529,9 @@ fn odd_grid_sizes_and_single_level_work() {
         let f = random_vec(nx * ny, 11);
         for bc in [ALL_NEUMANN, TOP_DIRICHLET] {
             let (bx, by) = faces_from_fn(nx, ny, dx, dy, beta_smooth);
-            let (p, info, solver) = mgcg_solve(
-                nx,
-                ny,
-                dx,
-                dy,
-                bc,
-                (&bx, &by),
-                &f,
-                SolverSettings::default(),
-            );
+            let (p, info, solver) = mgcg_solve(nx, ny, dx, dy, bc, (&bx, &by), &f, SolverSettings::default());
             assert!(info.residual <= 1e-8);
-            assert!(
-                true_residual(&solver, &f, &p, bc == ALL_NEUMANN) < 1.5e-8,
-                "{nx}×{ny} {bc:?}"
-            );
+            assert!(true_residual(&solver, &f, &p, bc == ALL_NEUMANN) < 1.5e-8, "{nx}×{ny} {bc:?}");
         }
     }
     let s = PoissonSolver::new(48, 20, 0.1, 0.1, TOP_DIRICHLET, SolverSettings::default()).unwrap();
@@ -840,10 +601,7 @@ fn solve_apply_and_set_coefficients_do_not_allocate() {
         solver.apply(&p, &mut out, Exec::SERIAL);
         let count = allocations() - before;
         // Work arrays and factorisation workspaces are allocated once in `new`.
-        assert_eq!(
-            count, 0,
-            "{kind:?} {bc:?}: {count} allocations in set_coefficients/solve/apply ({info:?})"
-        );
+        assert_eq!(count, 0, "{kind:?} {bc:?}: {count} allocations in set_coefficients/solve/apply ({info:?})");
     }
 }
 
@@ -859,18 +617,10 @@ fn compare_cycles_and_smoothing() {
     let rho = column_density(nx, ny, dx, dy);
     let (bx, by) = faces_from_density(nx, ny, &rho);
     let (cx, cy) = (vec![1.0; ny * (nx + 1)], vec![1.0; (ny + 1) * nx]);
-    println!(
-        "{:<26} {:>14} {:>10} {:>14} {:>10}",
-        "1280 × 256, to 1e-8", "jump, top D", "β=1", "jump, all N", "β=1"
-    );
+    println!("{:<26} {:>14} {:>10} {:>14} {:>10}", "1280 × 256, to 1e-8", "jump, top D", "β=1", "jump, all N", "β=1");
     for cycle in [Cycle::W, Cycle::V] {
         for nu in 1..=3 {
-            let s = SolverSettings {
-                cycle,
-                pre_smooth: nu,
-                post_smooth: nu,
-                ..SolverSettings::default()
-            };
+            let s = SolverSettings { cycle, pre_smooth: nu, post_smooth: nu, ..SolverSettings::default() };
             let mut row = format!("{cycle:?}({nu},{nu})");
             row = format!("{row:<26}");
             for bc in [TOP_DIRICHLET, ALL_NEUMANN] {
@@ -883,12 +633,7 @@ fn compare_cycles_and_smoothing() {
                     best = best.min(t.elapsed().as_secs_f64());
                 }
                 let (_, c, _) = mgcg_solve(nx, ny, dx, dy, bc, (&cx, &cy), &f, s);
-                row += &format!(
-                    " {:>4} ({:>5.0} ms) {:>10}",
-                    j.iterations,
-                    best * 1e3,
-                    c.iterations
-                );
+                row += &format!(" {:>4} ({:>5.0} ms) {:>10}", j.iterations, best * 1e3, c.iterations);
             }
             println!("{row}");
         }
@@ -919,50 +664,26 @@ fn harder_density_fields_converge() {
     };
     let centres: Vec<(f64, f64, f64)> = random_vec(180, 99)
         .chunks(3)
-        .map(|c| {
-            (
-                (c[0] + 1.0) * 0.5 * lx,
-                (c[1] + 1.0) * 0.5 * ly,
-                (4.0 + 2.0 * c[2]) * dx,
-            )
-        })
+        .map(|c| ((c[0] + 1.0) * 0.5 * lx, (c[1] + 1.0) * 0.5 * ly, (4.0 + 2.0 * c[2]) * dx))
         .collect();
     let cases: Vec<(&str, Vec<f64>)> = vec![
-        (
-            "column, ρ ratio 2500",
-            cells(&|x, y| (x < 0.2 && y < 0.4) || y < 0.05, 2500.0),
-        ),
-        (
-            "slumped column (diagonal)",
-            cells(&|x, y| y < 0.4 * (1.0 - x / 0.9) || y < 0.02, 1450.0),
-        ),
+        ("column, ρ ratio 2500", cells(&|x, y| (x < 0.2 && y < 0.4) || y < 0.05, 2500.0)),
+        ("slumped column (diagonal)", cells(&|x, y| y < 0.4 * (1.0 - x / 0.9) || y < 0.02, 1450.0)),
         (
             "60 droplets",
-            cells(
-                &|x, y| {
-                    centres
-                        .iter()
-                        .any(|&(cx, cy, r)| (x - cx).powi(2) + (y - cy).powi(2) < r * r)
-                },
-                1450.0,
-            ),
+            cells(&|x, y| centres.iter().any(|&(cx, cy, r)| (x - cx).powi(2) + (y - cy).powi(2) < r * r), 1450.0),
         ),
     ];
     for (name, rho) in &cases {
         let (bx, by) = faces_from_density(nx, ny, rho);
         for bc in [TOP_DIRICHLET, ALL_NEUMANN] {
-            let mut solver =
-                PoissonSolver::new(nx, ny, dx, dy, bc, SolverSettings::default()).unwrap();
+            let mut solver = PoissonSolver::new(nx, ny, dx, dy, bc, SolverSettings::default()).unwrap();
             solver.set_coefficients(&bx, &by, Exec::SERIAL).unwrap();
             let mut p = vec![0.0; nx * ny];
             let info = solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
             println!("{name:<28} {bc:?}: {} iterations", info.iterations);
             assert!(true_residual(&solver, &f, &p, bc == ALL_NEUMANN) < 1.5e-8);
-            assert!(
-                info.iterations <= 12,
-                "{name} {bc:?}: {} iterations",
-                info.iterations
-            );
+            assert!(info.iterations <= 12, "{name} {bc:?}: {} iterations", info.iterations);
         }
     }
 }

@@ -2,9 +2,7 @@
 //! Equations and numerics: granrs-core `models/depth_averaged.rs`.
 
 use granrs_core::models::depth_averaged::GHOSTS;
-use granrs_core::models::{
-    DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure,
-};
+use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -18,13 +16,7 @@ pub struct PyDepthAveraged {
 }
 
 fn slice1<'a>(name: &str, a: &'a PyReadonlyArray1<'_, f64>) -> PyResult<&'a [f64]> {
-    a.as_slice().map_err(|_| {
-        param_err(
-            name,
-            "a non-contiguous array",
-            "a contiguous 1-D float64 array",
-        )
-    })
+    a.as_slice().map_err(|_| param_err(name, "a non-contiguous array", "a contiguous 1-D float64 array"))
 }
 
 #[pymethods]
@@ -36,26 +28,14 @@ impl PyDepthAveraged {
     #[pyo3(signature = (cells, length, gravity=9.81, earth_pressure=1.0, basal_friction_angle=0.0, cfl=0.4,
                         dry_depth=1e-6, max_dt=1e-2, pore=None, internal_friction_angle=None))]
     #[allow(clippy::too_many_arguments)]
-    fn new(
-        cells: usize,
-        length: f64,
-        gravity: f64,
-        earth_pressure: f64,
-        basal_friction_angle: f64,
-        cfl: f64,
-        dry_depth: f64,
-        max_dt: f64,
-        pore: Option<&Bound<'_, PyDict>>,
-        internal_friction_angle: Option<f64>,
-    ) -> PyResult<Self> {
+    fn new(cells: usize, length: f64, gravity: f64, earth_pressure: f64, basal_friction_angle: f64, cfl: f64,
+           dry_depth: f64, max_dt: f64, pore: Option<&Bound<'_, PyDict>>, internal_friction_angle: Option<f64>) -> PyResult<Self> {
         let pore = match pore {
             None => None,
             Some(d) => {
                 let get = |key: &str| -> PyResult<f64> {
                     match d.get_item(key)? {
-                        Some(v) => v
-                            .extract::<f64>()
-                            .map_err(|_| param_err(&format!("pore.{key}"), v, "a number")),
+                        Some(v) => v.extract::<f64>().map_err(|_| param_err(&format!("pore.{key}"), v, "a number")),
                         None => Err(param_err(&format!("pore.{key}"), "missing", "a number")),
                     }
                 };
@@ -68,32 +48,15 @@ impl PyDepthAveraged {
         };
         let earth_pressure = match internal_friction_angle {
             None => EarthPressure::Constant(earth_pressure),
-            Some(phi) => EarthPressure::SavageHutterActive {
-                internal_friction_angle: phi,
-            },
+            Some(phi) => EarthPressure::SavageHutterActive { internal_friction_angle: phi },
         };
-        let cfg = DepthAveragedConfig {
-            cells,
-            length,
-            gravity,
-            earth_pressure,
-            basal_friction_angle,
-            cfl,
-            dry_depth,
-            max_dt,
-            pore,
-        };
-        Ok(PyDepthAveraged {
-            inner: DepthAveragedModel::new(cfg).map_err(to_py)?,
-        })
+        let cfg = DepthAveragedConfig { cells, length, gravity, earth_pressure, basal_friction_angle, cfl, dry_depth, max_dt, pore };
+        Ok(PyDepthAveraged { inner: DepthAveragedModel::new(cfg).map_err(to_py)? })
     }
 
     /// Full storage (2 ghost cells at each end) of "h", "u" or "beta" as a zero-copy NumPy array
     /// that keeps the model alive; buffers are never reallocated, so the view stays live.
-    fn field_storage<'py>(
-        slf: Bound<'py, Self>,
-        name: &str,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    fn field_storage<'py>(slf: Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let borrowed = slf.borrow();
         let field = match name {
             "h" => &borrowed.inner.h,
@@ -109,15 +72,8 @@ impl PyDepthAveraged {
     }
 
     /// Sets h, u, β (interior values, n each).
-    fn set_state(
-        &mut self,
-        h: PyReadonlyArray1<'_, f64>,
-        u: PyReadonlyArray1<'_, f64>,
-        beta: PyReadonlyArray1<'_, f64>,
-    ) -> PyResult<()> {
-        self.inner
-            .set_state(slice1("h", &h)?, slice1("u", &u)?, slice1("beta", &beta)?)
-            .map_err(to_py)
+    fn set_state(&mut self, h: PyReadonlyArray1<'_, f64>, u: PyReadonlyArray1<'_, f64>, beta: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+        self.inner.set_state(slice1("h", &h)?, slice1("u", &u)?, slice1("beta", &beta)?).map_err(to_py)
     }
 
     /// Sets the bed elevation b (n values).
@@ -139,8 +95,7 @@ impl PyDepthAveraged {
             return Err(param_err("t_end", t_end, "a finite time"));
         }
         let inner = &mut self.inner;
-        py.detach(|| inner.advance(t_end, max_steps.unwrap_or(u64::MAX)))
-            .map_err(to_py)
+        py.detach(|| inner.advance(t_end, max_steps.unwrap_or(u64::MAX))).map_err(to_py)
     }
 
     /// Σ h Δx [m²].
@@ -181,11 +136,6 @@ impl PyDepthAveraged {
     /// (cells, length, dx, ghosts).
     #[getter]
     fn grid(&self) -> (usize, f64, f64, usize) {
-        (
-            self.inner.cells(),
-            self.inner.config().length,
-            self.inner.dx(),
-            GHOSTS,
-        )
+        (self.inner.cells(), self.inner.config().length, self.inner.dx(), GHOSTS)
     }
 }

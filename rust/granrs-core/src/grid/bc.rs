@@ -119,10 +119,7 @@ impl VelocityBc {
     pub fn tangential_ghost(&self, h: f64) -> (f64, f64) {
         match *self {
             VelocityBc::NoSlip => (-1.0, 0.0),
-            VelocityBc::FreeSlip
-            | VelocityBc::Outflow
-            | VelocityBc::Coulomb
-            | VelocityBc::FullyDeveloped => (1.0, 0.0),
+            VelocityBc::FreeSlip | VelocityBc::Outflow | VelocityBc::Coulomb | VelocityBc::FullyDeveloped => (1.0, 0.0),
             VelocityBc::Velocity { tangential, .. } => (-1.0, 2.0 * tangential),
             VelocityBc::NavierSlip { slip_length } => {
                 let r = slip_length / h;
@@ -180,9 +177,7 @@ impl BoundaryConditions {
 
     /// Whether the pressure is only defined up to a constant (no Dirichlet side).
     pub fn pressure_is_singular(&self) -> bool {
-        Side::ALL
-            .iter()
-            .all(|&s| self.pressure(s) == PressureBc::Neumann)
+        Side::ALL.iter().all(|&s| self.pressure(s) == PressureBc::Neumann)
     }
 
     /// Checks parameters and the compatibility of the four conditions on a domain of size
@@ -198,45 +193,24 @@ impl BoundaryConditions {
                         return Err(Error::param(&name("normal"), normal, "a finite velocity"));
                     }
                     if !tangential.is_finite() {
-                        return Err(Error::param(
-                            &name("tangential"),
-                            tangential,
-                            "a finite velocity",
-                        ));
+                        return Err(Error::param(&name("tangential"), tangential, "a finite velocity"));
                     }
                     net_inflow += normal * if side.is_x() { ly } else { lx };
                 }
                 VelocityBc::NavierSlip { slip_length } => {
                     if !(slip_length.is_finite() && slip_length > 0.0) {
-                        return Err(Error::param(
-                            &name("slip_length"),
-                            slip_length,
-                            "a finite length > 0",
-                        ));
+                        return Err(Error::param(&name("slip_length"), slip_length, "a finite length > 0"));
                     }
                 }
                 _ => {}
             }
         }
         for (a, b) in [(Side::Left, Side::Right), (Side::Bottom, Side::Top)] {
-            if (self.get(a) == VelocityBc::FullyDeveloped)
-                != (self.get(b) == VelocityBc::FullyDeveloped)
-            {
+            if (self.get(a) == VelocityBc::FullyDeveloped) != (self.get(b) == VelocityBc::FullyDeveloped) {
                 return Err(Error::param(
-                    &format!(
-                        "bc.{}",
-                        if self.get(a) == VelocityBc::FullyDeveloped {
-                            a.name()
-                        } else {
-                            b.name()
-                        }
-                    ),
+                    &format!("bc.{}", if self.get(a) == VelocityBc::FullyDeveloped { a.name() } else { b.name() }),
                     "fully-developed",
-                    &format!(
-                        "fully-developed on both {} and {} (the velocity is periodic between them)",
-                        a.name(),
-                        b.name()
-                    ),
+                    &format!("fully-developed on both {} and {} (the velocity is periodic between them)", a.name(), b.name()),
                 ));
             }
         }

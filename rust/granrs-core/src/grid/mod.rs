@@ -96,22 +96,9 @@ impl Grid {
         let dy = ly / ny as f64;
         let aspect = dx / dy;
         if !(0.1..=10.0).contains(&aspect) {
-            return Err(Error::param(
-                "lx/nx ÷ ly/ny",
-                aspect,
-                "a cell aspect ratio dx/dy in [0.1, 10]",
-            ));
+            return Err(Error::param("lx/nx ÷ ly/ny", aspect, "a cell aspect ratio dx/dy in [0.1, 10]"));
         }
-        Ok(Grid {
-            nx,
-            ny,
-            x0,
-            y0,
-            lx,
-            ly,
-            dx,
-            dy,
-        })
+        Ok(Grid { nx, ny, x0, y0, lx, ly, dx, dy })
     }
 
     /// Number of cells.
@@ -128,10 +115,7 @@ impl Grid {
     #[inline]
     pub fn coord(&self, loc: Location, i: isize, j: isize) -> (f64, f64) {
         let (ox, oy) = loc.offset();
-        (
-            self.x0 + (i as f64 + ox) * self.dx,
-            self.y0 + (j as f64 + oy) * self.dy,
-        )
+        (self.x0 + (i as f64 + ox) * self.dx, self.y0 + (j as f64 + oy) * self.dy)
     }
 
     /// Cell-centre x coordinate of column i.
@@ -163,12 +147,7 @@ impl Field {
     /// A zero field at `loc` on `grid`.
     pub fn zeros(grid: &Grid, loc: Location) -> Self {
         let (nx, ny) = loc.interior_shape(grid.nx, grid.ny);
-        Field {
-            loc,
-            nx,
-            ny,
-            data: Array2::zeros((ny + 2 * HALO, nx + 2 * HALO)),
-        }
+        Field { loc, nx, ny, data: Array2::zeros((ny + 2 * HALO, nx + 2 * HALO)) }
     }
 
     /// A field filled from `f(x, y)` at every interior point (ghosts are zero).
@@ -223,15 +202,13 @@ impl Field {
 
     /// A view of the interior points only, shape (ny, nx).
     pub fn interior(&self) -> ndarray::ArrayView2<'_, f64> {
-        self.data
-            .slice(ndarray::s![HALO..HALO + self.ny, HALO..HALO + self.nx])
+        self.data.slice(ndarray::s![HALO..HALO + self.ny, HALO..HALO + self.nx])
     }
 
     /// A mutable view of the interior points, shape (ny, nx).
     pub fn interior_mut(&mut self) -> ndarray::ArrayViewMut2<'_, f64> {
         let (nx, ny) = (self.nx, self.ny);
-        self.data
-            .slice_mut(ndarray::s![HALO..HALO + ny, HALO..HALO + nx])
+        self.data.slice_mut(ndarray::s![HALO..HALO + ny, HALO..HALO + nx])
     }
 
     /// Copies the values (halos included) of another field of the same shape.

@@ -37,18 +37,8 @@ pub(crate) struct Bicubic<'a> {
 fn hermite(s: f64) -> ([f64; 4], [f64; 4]) {
     let s2 = s * s;
     let s3 = s2 * s;
-    let b = [
-        2.0 * s3 - 3.0 * s2 + 1.0,
-        -2.0 * s3 + 3.0 * s2,
-        s3 - 2.0 * s2 + s,
-        s3 - s2,
-    ];
-    let d = [
-        6.0 * s2 - 6.0 * s,
-        -6.0 * s2 + 6.0 * s,
-        3.0 * s2 - 4.0 * s + 1.0,
-        3.0 * s2 - 2.0 * s,
-    ];
+    let b = [2.0 * s3 - 3.0 * s2 + 1.0, -2.0 * s3 + 3.0 * s2, s3 - 2.0 * s2 + s, s3 - s2];
+    let d = [6.0 * s2 - 6.0 * s, -6.0 * s2 + 6.0 * s, 3.0 * s2 - 4.0 * s + 1.0, 3.0 * s2 - 2.0 * s];
     (b, d)
 }
 
@@ -96,12 +86,7 @@ impl<'a> Bicubic<'a> {
     /// The nodal data of the dual cell whose lower-left node is centre (a, b): corners in the
     /// order (a, b), (a+1, b), (a, b+1), (a+1, b+1).
     pub(crate) fn patch(&self, a: isize, b: isize) -> [[f64; 4]; 4] {
-        [
-            self.node(a, b),
-            self.node(a + 1, b),
-            self.node(a, b + 1),
-            self.node(a + 1, b + 1),
-        ]
+        [self.node(a, b), self.node(a + 1, b), self.node(a, b + 1), self.node(a + 1, b + 1)]
     }
 
     /// Φ̃ at local coordinates (s, t) ∈ [0, 1]² of a dual cell with nodal data `patch`.
@@ -110,15 +95,9 @@ impl<'a> Bicubic<'a> {
         let (bs, _) = hermite(s);
         let (bt, _) = hermite(t);
         let mut v = 0.0;
-        for (c, &(m, n)) in [(0usize, 0usize), (1, 0), (0, 1), (1, 1)]
-            .iter()
-            .enumerate()
-        {
+        for (c, &(m, n)) in [(0usize, 0usize), (1, 0), (0, 1), (1, 1)].iter().enumerate() {
             let [f, fx, fy, fxy] = patch[c];
-            v += f * bs[m] * bt[n]
-                + fx * bs[2 + m] * bt[n]
-                + fy * bs[m] * bt[2 + n]
-                + fxy * bs[2 + m] * bt[2 + n];
+            v += f * bs[m] * bt[n] + fx * bs[2 + m] * bt[n] + fy * bs[m] * bt[2 + n] + fxy * bs[2 + m] * bt[2 + n];
         }
         v
     }
@@ -179,12 +158,7 @@ impl<'a> Bicubic<'a> {
 
     /// Distance from `p` to the zero set, trying p and each of `starts`; `None` if no start
     /// converges within `max_dist`.
-    pub(crate) fn distance(
-        &self,
-        p: (f64, f64),
-        starts: &[(f64, f64)],
-        max_dist: f64,
-    ) -> Option<f64> {
+    pub(crate) fn distance(&self, p: (f64, f64), starts: &[(f64, f64)], max_dist: f64) -> Option<f64> {
         let mut best: Option<f64> = None;
         for &s in std::iter::once(&p).chain(starts) {
             if let Some(d) = self.foot_from(p, s, max_dist) {

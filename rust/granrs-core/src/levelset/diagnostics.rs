@@ -44,11 +44,7 @@ struct Dual<'a> {
 
 impl<'a> Dual<'a> {
     fn new(phi: &'a Field) -> Self {
-        Dual {
-            phi,
-            nx: phi.nx,
-            ny: phi.ny,
-        }
+        Dual { phi, nx: phi.nx, ny: phi.ny }
     }
 
     /// Value at dual node (a, b), a ∈ 0..=nx+1, b ∈ 0..=ny+1.
@@ -127,12 +123,7 @@ pub fn dense_area(phi: &Field, grid: &Grid, exec: Exec) -> f64 {
         let mut s = 0.0;
         for a in 0..=nx {
             let hx = Dual::pos(a + 1, nx, grid.x0, grid.dx) - Dual::pos(a, nx, grid.x0, grid.dx);
-            let (f00, f10, f01, f11) = (
-                d.value(a, b),
-                d.value(a + 1, b),
-                d.value(a, b + 1),
-                d.value(a + 1, b + 1),
-            );
+            let (f00, f10, f01, f11) = (d.value(a, b), d.value(a + 1, b), d.value(a, b + 1), d.value(a + 1, b + 1));
             let fraction = quad_fraction(f00, f10, f01, f11);
             s += fraction * hx * hy;
         }
@@ -154,12 +145,7 @@ pub fn dense_area_refined(phi: &Field, grid: &Grid, sub: usize, exec: Exec) -> f
         let mut s = 0.0;
         for a in 0..=nx {
             let hx = Dual::pos(a + 1, nx, grid.x0, grid.dx) - Dual::pos(a, nx, grid.x0, grid.dx);
-            let (f00, f10, f01, f11) = (
-                d.value(a, b),
-                d.value(a + 1, b),
-                d.value(a, b + 1),
-                d.value(a + 1, b + 1),
-            );
+            let (f00, f10, f01, f11) = (d.value(a, b), d.value(a + 1, b), d.value(a, b + 1), d.value(a + 1, b + 1));
             let all_pos = f00 > 0.0 && f10 > 0.0 && f01 > 0.0 && f11 > 0.0;
             let all_neg = f00 <= 0.0 && f10 <= 0.0 && f01 <= 0.0 && f11 <= 0.0;
             let interior = a >= 1 && a < nx && b >= 1 && b < ny;
@@ -174,8 +160,7 @@ pub fn dense_area_refined(phi: &Field, grid: &Grid, sub: usize, exec: Exec) -> f
                 let patch = bic.patch(a as isize - 1, b as isize - 1);
                 for q in 0..=sub {
                     for p in 0..=sub {
-                        vals[q * (sub + 1) + p] =
-                            Bicubic::patch_value(&patch, p as f64 * inv, q as f64 * inv);
+                        vals[q * (sub + 1) + p] = Bicubic::patch_value(&patch, p as f64 * inv, q as f64 * inv);
                     }
                 }
                 let mut fr = 0.0;
@@ -307,9 +292,5 @@ pub fn eikonal_error(phi: &Field, grid: &Grid, band: f64) -> EikonalError {
             cells += 1;
         }
     }
-    EikonalError {
-        mean: if cells > 0 { sum / cells as f64 } else { 0.0 },
-        max,
-        cells,
-    }
+    EikonalError { mean: if cells > 0 { sum / cells as f64 } else { 0.0 }, max, cells }
 }

@@ -86,20 +86,8 @@ pub struct TwoPhaseProperties {
 
 impl TwoPhaseProperties {
     /// Properties with ε = [`DEFAULT_EPS_CELLS`] · h on `grid`; validated.
-    pub fn new(
-        rho_dense: f64,
-        rho_light: f64,
-        eta_dense: f64,
-        eta_light: f64,
-        grid: &Grid,
-    ) -> Result<Self> {
-        let p = TwoPhaseProperties {
-            rho_dense,
-            rho_light,
-            eta_dense,
-            eta_light,
-            eps: default_eps(grid),
-        };
+    pub fn new(rho_dense: f64, rho_light: f64, eta_dense: f64, eta_light: f64, grid: &Grid) -> Result<Self> {
+        let p = TwoPhaseProperties { rho_dense, rho_light, eta_dense, eta_light, eps: default_eps(grid) };
         p.validate()?;
         Ok(p)
     }
@@ -141,16 +129,8 @@ impl TwoPhaseProperties {
 
 /// out(i, j) = f(Φ(i, j)) on the interior of two cell-centre fields (step 2 of the paper's
 /// scheme: ρⁿ⁺¹ = ρ(Φⁿ⁺¹), …). Ghosts of `out` are left untouched.
-pub fn map_centre_field(
-    phi: &Field,
-    out: &mut Field,
-    exec: Exec,
-    f: impl Fn(f64) -> f64 + Sync + Send,
-) -> Result<()> {
-    if phi.loc != Location::Centre
-        || out.loc != Location::Centre
-        || phi.data.dim() != out.data.dim()
-    {
+pub fn map_centre_field(phi: &Field, out: &mut Field, exec: Exec, f: impl Fn(f64) -> f64 + Sync + Send) -> Result<()> {
+    if phi.loc != Location::Centre || out.loc != Location::Centre || phi.data.dim() != out.data.dim() {
         return Err(crate::Error::Shape {
             name: "out (same shape as the cell-centre field phi)".into(),
             got: vec![out.ny, out.nx],

@@ -47,19 +47,13 @@ pub mod validation;
 pub mod weno5;
 
 pub use diagnostics::{
-    dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area,
-    EikonalError,
+    dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError,
 };
 pub use heaviside::{
-    blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties,
-    DEFAULT_EPS_CELLS,
+    blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS,
 };
-pub use redistance::{
-    InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO,
-};
+pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};
 pub use transport::{cfl_number, max_transport_rate, stable_dt, LevelSetTransport, DEFAULT_CFL};
-pub use validation::{
-    single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics,
-};
+pub use validation::{single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics};
 pub use weno5::WenoWeights;

@@ -99,12 +99,7 @@ pub struct RedistanceSettings {
 impl Default for RedistanceSettings {
     /// 20 iterations at Δτ = h/2: a band of about 10 cells.
     fn default() -> Self {
-        RedistanceSettings {
-            iterations: 20,
-            cfl: 0.5,
-            band: None,
-            interface: InterfaceTreatment::ClosestPoint,
-        }
+        RedistanceSettings { iterations: 20, cfl: 0.5, band: None, interface: InterfaceTreatment::ClosestPoint }
     }
 }
 
@@ -112,11 +107,7 @@ impl RedistanceSettings {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
         if !(1..=100_000).contains(&self.iterations) {
-            return Err(Error::param(
-                "iterations",
-                self.iterations,
-                "an integer in [1, 100000]",
-            ));
+            return Err(Error::param("iterations", self.iterations, "an integer in [1, 100000]"));
         }
         if !(self.cfl.is_finite() && self.cfl > 0.0 && self.cfl <= 0.5) {
             return Err(Error::param("cfl", self.cfl, "a number in (0, 0.5]"));
@@ -177,16 +168,7 @@ impl Redistancer {
     pub fn new(grid: &Grid, settings: RedistanceSettings) -> Result<Self> {
         settings.validate()?;
         let z = || Field::zeros(grid, Location::Centre);
-        Ok(Redistancer {
-            settings,
-            phi0: z(),
-            phi1: z(),
-            phi2: z(),
-            prev: z(),
-            sub: [z(), z(), z(), z()],
-            frozen: z(),
-            dist: z(),
-        })
+        Ok(Redistancer { settings, phi0: z(), phi1: z(), phi2: z(), prev: z(), sub: [z(), z(), z(), z()], frozen: z(), dist: z() })
     }
 
     /// The settings in use.
@@ -195,12 +177,7 @@ impl Redistancer {
     }
 
     /// Redistances `phi` in place (interior; ghosts left linearly extrapolated).
-    pub fn redistance(
-        &mut self,
-        phi: &mut Field,
-        grid: &Grid,
-        exec: Exec,
-    ) -> Result<RedistanceInfo> {
+    pub fn redistance(&mut self, phi: &mut Field, grid: &Grid, exec: Exec) -> Result<RedistanceInfo> {
         check_field("phi", phi, grid, Location::Centre)?;
         check_field("scratch", &self.phi0, grid, Location::Centre)?;
         let st = self.settings;
@@ -222,21 +199,8 @@ impl Redistancer {
         // stencil past the reach) the far field below overwrites whatever the iterations did
         // (it keeps only d ≤ τ − 2h). On the column at ny = 256 this is ~10 % of the domain.
         let tau = st.iterations as f64 * st.cfl * h;
-        let reach = if sweep_distance(phi, &self.sub, grid, &mut self.dist) {
-            tau + 3.0 * h
-        } else {
-            f64::INFINITY
-        };
-        let ctx = Ctx {
-            phi0: &self.phi0,
-            sub: &self.sub,
-            frozen: &self.frozen,
-            dist: &self.dist,
-            reach,
-            grid,
-            cfl: st.cfl,
-            band,
-        };
+        let reach = if sweep_distance(phi, &self.sub, grid, &mut self.dist) { tau + 3.0 * h } else { f64::INFINITY };
+        let ctx = Ctx { phi0: &self.phi0, sub: &self.sub, frozen: &self.frozen, dist: &self.dist, reach, grid, cfl: st.cfl, band };
         let (phi1, phi2) = (&mut self.phi1, &mut self.phi2);
         for it in 0..st.iterations {
             if it + 1 == st.iterations {
@@ -257,13 +221,7 @@ impl Redistancer {
             for i in 0..grid.nx as isize {
                 let (f0, v) = (self.phi0.at(i, j), phi.at(i, j));
                 let bound = f0.abs() + tau;
-                let fixed = if v * f0 < 0.0 {
-                    f0
-                } else if v.abs() > bound {
-                    bound.copysign(f0)
-                } else {
-                    v
-                };
+                let fixed = if v * f0 < 0.0 { f0 } else if v.abs() > bound { bound.copysign(f0) } else { v };
                 if fixed != v {
                     phi.set(i as usize, j as usize, fixed);
                     clamped += 1;
@@ -280,9 +238,7 @@ impl Redistancer {
         let prev = &self.prev;
         let last_change = exec.max_rows(grid.ny, grid.cells(), |j| {
             let j = j as isize;
-            (0..grid.nx as isize)
-                .map(|i| (phi.at(i, j) - prev.at(i, j)).abs())
-                .fold(0.0, f64::max)
+            (0..grid.nx as isize).map(|i| (phi.at(i, j) - prev.at(i, j)).abs()).fold(0.0, f64::max)
         });
         if !last_change.is_finite() {
             let (_, (i, j)) = phi.max_abs_with_location();
@@ -318,11 +274,7 @@ impl Redistancer {
                 let dist = d.at(i, j);
                 if dist.is_finite() && dist > keep {
                     let s = self.phi0.at(i, j);
-                    let s = if s != 0.0 {
-                        s.signum()
-                    } else {
-                        phi.at(i, j).signum()
-                    };
+                    let s = if s != 0.0 { s.signum() } else { phi.at(i, j).signum() };
                     phi.set(i as usize, j as usize, s * dist);
                     count += 1;
                 }
@@ -441,9 +393,7 @@ impl Redistancer {
         }
         let sub = &self.sub;
         exec.sum_rows(ny, grid.cells(), |j| {
-            (0..nx as isize)
-                .filter(|&i| sub.iter().any(|f| f.at(i, j as isize).is_finite()))
-                .count() as f64
+            (0..nx as isize).filter(|&i| sub.iter().any(|f| f.at(i, j as isize).is_finite())).count() as f64
         }) as usize
     }
 }
@@ -559,12 +509,7 @@ impl Ctx<'_> {
         let (inv_dx, inv_dy) = (1.0 / g.dx, 1.0 / g.dy);
         let (inv_dx2, inv_dy2) = (inv_dx * inv_dx, inv_dy * inv_dy);
         let dtau_far = self.cfl * g.h();
-        let (s, p0, fz, dist) = (
-            src.slice(),
-            self.phi0.slice(),
-            self.frozen.slice(),
-            self.dist.slice(),
-        );
+        let (s, p0, fz, dist) = (src.slice(), self.phi0.slice(), self.frozen.slice(), self.dist.slice());
         let reach = self.reach;
         let [sxm, sxp, sym, syp] = [0, 1, 2, 3].map(|d| self.sub[d].slice());
         let base_s = match base {
@@ -586,8 +531,7 @@ impl Ctx<'_> {
                 if f0 != 0.0 && f0.abs() <= band && dist[k] <= reach && !fz[k].is_finite() {
                     let (lxm, lxp, lym, lyp) = (sxm[k], sxp[k], sym[k], syp[k]);
                     let (dxa, dxb) = one_sided(&window(s, k, 1), phi, lxm, lxp, inv_dx, inv_dx2);
-                    let (dya, dyb) =
-                        one_sided(&window(s, k, stride), phi, lym, lyp, inv_dy, inv_dy2);
+                    let (dya, dyb) = one_sided(&window(s, k, stride), phi, lym, lyp, inv_dy, inv_dy2);
                     let (gx2, gy2, sign) = if f0 > 0.0 {
                         (
                             dxa.max(0.0).powi(2).max(dxb.min(0.0).powi(2)),
@@ -620,72 +564,54 @@ impl Ctx<'_> {
 /// |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice. Returns false (d = ∞) when there
 /// is no interface.
 fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field) -> bool {
-    let (nx, ny) = (grid.nx as isize, grid.ny as isize);
-    let (dx, dy) = (grid.dx, grid.dy);
-    let mut any = false;
-    for j in 0..ny {
-        for i in 0..nx {
-            let at_interface = sub.iter().any(|f| f.at(i, j).is_finite());
-            any |= at_interface;
-            d.set(
-                i as usize,
-                j as usize,
-                if at_interface {
-                    phi.at(i, j).abs()
-                } else {
-                    f64::INFINITY
-                },
-            );
-        }
-    }
-    if !any {
-        return false;
-    }
-    let update = |d: &mut Field, i: isize, j: isize| {
-        let get = |ii: isize, jj: isize| {
-            if ii < 0 || jj < 0 || ii >= nx || jj >= ny {
-                f64::INFINITY
-            } else {
-                d.at(ii, jj)
-            }
-        };
-        let a = get(i - 1, j).min(get(i + 1, j));
-        let b = get(i, j - 1).min(get(i, j + 1));
-        if !a.is_finite() && !b.is_finite() {
-            return;
-        }
-        let (lo, hi, hlo) = if a + dx <= b + dy {
-            (a, b, dx)
-        } else {
-            (b, a, dy)
-        };
-        let mut new = lo + hlo;
-        if new > hi {
-            // ((d − a)/dx)² + ((d − b)/dy)² = 1
-            let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
-            let (qa, qb) = (wa + wb, -2.0 * (wa * a + wb * b));
-            let qc = wa * a * a + wb * b * b - 1.0;
-            let disc = qb * qb - 4.0 * qa * qc;
-            if disc >= 0.0 {
-                new = (-qb + disc.sqrt()) / (2.0 * qa);
+        let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+        let (dx, dy) = (grid.dx, grid.dy);
+        let mut any = false;
+        for j in 0..ny {
+            for i in 0..nx {
+                let at_interface = sub.iter().any(|f| f.at(i, j).is_finite());
+                any |= at_interface;
+                d.set(i as usize, j as usize, if at_interface { phi.at(i, j).abs() } else { f64::INFINITY });
             }
         }
-        if new < d.at(i, j) {
-            d.set(i as usize, j as usize, new);
+        if !any {
+            return false;
         }
-    };
-    for _ in 0..2 {
-        for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
-            for jj in 0..ny {
-                let j = if ry { ny - 1 - jj } else { jj };
-                for ii in 0..nx {
-                    let i = if rx { nx - 1 - ii } else { ii };
-                    if !sub.iter().any(|f| f.at(i, j).is_finite()) {
-                        update(d, i, j);
+        let update = |d: &mut Field, i: isize, j: isize| {
+            let get = |ii: isize, jj: isize| if ii < 0 || jj < 0 || ii >= nx || jj >= ny { f64::INFINITY } else { d.at(ii, jj) };
+            let a = get(i - 1, j).min(get(i + 1, j));
+            let b = get(i, j - 1).min(get(i, j + 1));
+            if !a.is_finite() && !b.is_finite() {
+                return;
+            }
+            let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
+            let mut new = lo + hlo;
+            if new > hi {
+                // ((d − a)/dx)² + ((d − b)/dy)² = 1
+                let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
+                let (qa, qb) = (wa + wb, -2.0 * (wa * a + wb * b));
+                let qc = wa * a * a + wb * b * b - 1.0;
+                let disc = qb * qb - 4.0 * qa * qc;
+                if disc >= 0.0 {
+                    new = (-qb + disc.sqrt()) / (2.0 * qa);
+                }
+            }
+            if new < d.at(i, j) {
+                d.set(i as usize, j as usize, new);
+            }
+        };
+        for _ in 0..2 {
+            for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
+                for jj in 0..ny {
+                    let j = if ry { ny - 1 - jj } else { jj };
+                    for ii in 0..nx {
+                        let i = if rx { nx - 1 - ii } else { ii };
+                        if !sub.iter().any(|f| f.at(i, j).is_finite()) {
+                            update(d, i, j);
+                        }
                     }
                 }
             }
         }
-    }
-    true
+        true
 }

@@ -31,13 +31,7 @@ pub enum Shape {
     Circle { xc: f64, yc: f64, radius: f64 },
     /// Zalesak's slotted disk: the disk minus the vertical slot |x − xc| ≤ slot_width/2,
     /// y ≤ slot_top (the slot is open at the bottom of the disk).
-    SlottedDisk {
-        xc: f64,
-        yc: f64,
-        radius: f64,
-        slot_width: f64,
-        slot_top: f64,
-    },
+    SlottedDisk { xc: f64, yc: f64, radius: f64, slot_width: f64, slot_top: f64 },
     /// The half-plane {(x − px, y − py)·n ≤ 0} below the line through (px, py) with normal
     /// (nx, ny) pointing into the light phase; n need not be unit. A flat layer of height H is
     /// `HalfPlane { px: 0.0, py: H, nx: 0.0, ny: 1.0 }`; tilt n for an inclined layer.
@@ -64,22 +58,12 @@ impl Shape {
                 check_finite("yc", *yc)?;
                 check_positive("radius", *radius)
             }
-            Shape::SlottedDisk {
-                xc,
-                yc,
-                radius,
-                slot_width,
-                slot_top,
-            } => {
+            Shape::SlottedDisk { xc, yc, radius, slot_width, slot_top } => {
                 check_finite("xc", *xc)?;
                 check_finite("yc", *yc)?;
                 check_positive("radius", *radius)?;
                 if !(slot_width.is_finite() && *slot_width > 0.0 && *slot_width < 2.0 * radius) {
-                    return Err(Error::param(
-                        "slot_width",
-                        slot_width,
-                        "a number in (0, 2·radius)",
-                    ));
+                    return Err(Error::param("slot_width", slot_width, "a number in (0, 2·radius)"));
                 }
                 let hw = 0.5 * slot_width;
                 let ymax = yc + (radius * radius - hw * hw).sqrt();
@@ -116,21 +100,14 @@ impl Shape {
         match self {
             Shape::Rectangle { x0, x1, y0, y1 } => rectangle_sd(x, y, *x0, *x1, *y0, *y1),
             Shape::Circle { xc, yc, radius } => radius - (x - xc).hypot(y - yc),
-            Shape::SlottedDisk {
-                xc,
-                yc,
-                radius,
-                slot_width,
-                slot_top,
-            } => slotted_disk_sd(x, y, *xc, *yc, *radius, *slot_width, *slot_top),
+            Shape::SlottedDisk { xc, yc, radius, slot_width, slot_top } => {
+                slotted_disk_sd(x, y, *xc, *yc, *radius, *slot_width, *slot_top)
+            }
             Shape::HalfPlane { px, py, nx, ny } => {
                 let n = nx.hypot(*ny);
                 -((x - px) * nx + (y - py) * ny) / n
             }
-            Shape::Union(v) => v
-                .iter()
-                .map(|s| s.signed_distance(x, y))
-                .fold(f64::NEG_INFINITY, f64::max),
+            Shape::Union(v) => v.iter().map(|s| s.signed_distance(x, y)).fold(f64::NEG_INFINITY, f64::max),
             Shape::Difference(a, b) => a.signed_distance(x, y).min(-b.signed_distance(x, y)),
         }
     }
@@ -146,13 +123,7 @@ impl Shape {
         match self {
             Shape::Rectangle { x0, x1, y0, y1 } => Some((x1 - x0) * (y1 - y0)),
             Shape::Circle { radius, .. } => Some(std::f64::consts::PI * radius * radius),
-            Shape::SlottedDisk {
-                radius,
-                slot_width,
-                slot_top,
-                yc,
-                ..
-            } => {
+            Shape::SlottedDisk { radius, slot_width, slot_top, yc, .. } => {
                 // disk − ∫_{−w/2}^{w/2} (slot_top − (yc − √(r² − s²))) ds
                 let (r, a) = (*radius, 0.5 * slot_width);
                 let chord = a * (r * r - a * a).sqrt() + r * r * (a / r).asin();

@@ -78,15 +78,7 @@ impl LevelSetTransport {
     /// Advances Φ by one step δt of ∂Φ/∂t + u·∇Φ = 0 with the MAC velocity (u on x-faces, v on
     /// y-faces) frozen over the step. On return the interior of `phi` holds Φⁿ⁺¹ (its ghosts hold
     /// the linear extrapolation of Φⁿ).
-    pub fn advect(
-        &mut self,
-        phi: &mut Field,
-        u: &Field,
-        v: &Field,
-        grid: &Grid,
-        dt: f64,
-        exec: Exec,
-    ) -> Result<()> {
+    pub fn advect(&mut self, phi: &mut Field, u: &Field, v: &Field, grid: &Grid, dt: f64, exec: Exec) -> Result<()> {
         self.advect_stages(phi, [(u, v), (u, v), (u, v)], grid, dt, exec)
     }
 
@@ -120,30 +112,10 @@ impl LevelSetTransport {
         stage(phi1, Base::None, 0.0, 1.0, phi, vel[0], grid, dt, exec);
         // Φ⁽²⁾ = ¾ Φⁿ + ¼ (Φ⁽¹⁾ + δt L(Φ⁽¹⁾))
         phi1.extrapolate_ghosts_linear();
-        stage(
-            phi2,
-            Base::Other(phi),
-            0.75,
-            0.25,
-            phi1,
-            vel[1],
-            grid,
-            dt,
-            exec,
-        );
+        stage(phi2, Base::Other(phi), 0.75, 0.25, phi1, vel[1], grid, dt, exec);
         // Φⁿ⁺¹ = ⅓ Φⁿ + ⅔ (Φ⁽²⁾ + δt L(Φ⁽²⁾)), written in place over Φⁿ
         phi2.extrapolate_ghosts_linear();
-        stage(
-            phi,
-            Base::InPlace,
-            1.0 / 3.0,
-            2.0 / 3.0,
-            phi2,
-            vel[2],
-            grid,
-            dt,
-            exec,
-        );
+        stage(phi, Base::InPlace, 1.0 / 3.0, 2.0 / 3.0, phi2, vel[2], grid, dt, exec);
         Ok(())
     }
 }
@@ -196,20 +168,12 @@ fn stage<const MAPPED: bool>(
             let mut l = 0.0;
             if uc != 0.0 {
                 let w = window(s, k, 1);
-                let d = if uc > 0.0 {
-                    weno5_minus_with::<MAPPED>(&w)
-                } else {
-                    weno5_plus_with::<MAPPED>(&w)
-                };
+                let d = if uc > 0.0 { weno5_minus_with::<MAPPED>(&w) } else { weno5_plus_with::<MAPPED>(&w) };
                 l -= uc * d * inv_dx;
             }
             if vc != 0.0 {
                 let w = window(s, k, stride);
-                let d = if vc > 0.0 {
-                    weno5_minus_with::<MAPPED>(&w)
-                } else {
-                    weno5_plus_with::<MAPPED>(&w)
-                };
+                let d = if vc > 0.0 { weno5_minus_with::<MAPPED>(&w) } else { weno5_plus_with::<MAPPED>(&w) };
                 l -= vc * d * inv_dy;
             }
             let new = b * (s[k] + dt * l);
@@ -251,18 +215,10 @@ pub fn max_transport_rate(u: &Field, v: &Field, grid: &Grid, exec: Exec) -> Resu
 /// The largest δt with δt · max(|u_c|/dx + |v_c|/dy) ≤ `cfl` (infinite for a fluid at rest).
 pub fn stable_dt(u: &Field, v: &Field, grid: &Grid, cfl: f64, exec: Exec) -> Result<f64> {
     if !(cfl.is_finite() && cfl > 0.0 && cfl <= 1.4) {
-        return Err(Error::param(
-            "cfl",
-            cfl,
-            "a number in (0, 1.4] (WENO5 + TVD-RK3 linear stability)",
-        ));
+        return Err(Error::param("cfl", cfl, "a number in (0, 1.4] (WENO5 + TVD-RK3 linear stability)"));
     }
     let rate = max_transport_rate(u, v, grid, exec)?;
-    Ok(if rate > 0.0 {
-        cfl / rate
-    } else {
-        f64::INFINITY
-    })
+    Ok(if rate > 0.0 { cfl / rate } else { f64::INFINITY })
 }
 
 /// The transport Courant number δt · max(|u_c|/dx + |v_c|/dy) of a step δt.

@@ -83,12 +83,7 @@ pub struct CaseOptions {
 impl CaseOptions {
     /// The defaults of the production code with the given frequency and Courant number.
     pub fn new(redistance_every: Option<usize>, cfl: f64) -> Self {
-        CaseOptions {
-            redistance_every,
-            cfl,
-            weights: WenoWeights::JiangShu,
-            redistance: RedistanceSettings::default(),
-        }
+        CaseOptions { redistance_every, cfl, weights: WenoWeights::JiangShu, redistance: RedistanceSettings::default() }
     }
 }
 
@@ -100,11 +95,7 @@ fn check_run(n: usize, opts: &CaseOptions) -> Result<()> {
         return Err(Error::param("cfl", opts.cfl, "a number in (0, 1.4]"));
     }
     if opts.redistance_every == Some(0) {
-        return Err(Error::param(
-            "redistance_every",
-            0,
-            "None or an integer >= 1",
-        ));
+        return Err(Error::param("redistance_every", 0, "None or an integer >= 1"));
     }
     opts.redistance.validate()
 }
@@ -157,24 +148,10 @@ fn run_case(
         let t = n as f64 * dt;
         for (s, ts) in [t, t + dt, t + 0.5 * dt].into_iter().enumerate() {
             let g = modulation(ts);
-            us[s]
-                .slice_mut()
-                .iter_mut()
-                .zip(u0.slice())
-                .for_each(|(a, b)| *a = g * b);
-            vs[s]
-                .slice_mut()
-                .iter_mut()
-                .zip(v0.slice())
-                .for_each(|(a, b)| *a = g * b);
+            us[s].slice_mut().iter_mut().zip(u0.slice()).for_each(|(a, b)| *a = g * b);
+            vs[s].slice_mut().iter_mut().zip(v0.slice()).for_each(|(a, b)| *a = g * b);
         }
-        transport.advect_stages(
-            &mut phi,
-            [(&us[0], &vs[0]), (&us[1], &vs[1]), (&us[2], &vs[2])],
-            grid,
-            dt,
-            exec,
-        )?;
+        transport.advect_stages(&mut phi, [(&us[0], &vs[0]), (&us[1], &vs[1]), (&us[2], &vs[2])], grid, dt, exec)?;
         if let Some(k) = opts.redistance_every {
             if (n + 1) % k == 0 {
                 redistancer.redistance(&mut phi, grid, exec)?;
@@ -203,23 +180,12 @@ fn run_case(
 
 /// Zalesak's slotted disk.
 pub fn zalesak_shape() -> Shape {
-    Shape::SlottedDisk {
-        xc: 50.0,
-        yc: 75.0,
-        radius: 15.0,
-        slot_width: 5.0,
-        slot_top: 85.0,
-    }
+    Shape::SlottedDisk { xc: 50.0, yc: 75.0, radius: 15.0, slot_width: 5.0, slot_top: 85.0 }
 }
 
 /// One revolution of Zalesak's slotted disk on an n × n grid of \[0,100\]²; redistancing every
 /// `redistance_every` steps (None: never), transport Courant number `cfl`.
-pub fn zalesak(
-    n: usize,
-    redistance_every: Option<usize>,
-    cfl: f64,
-    exec: Exec,
-) -> Result<LevelSetMetrics> {
+pub fn zalesak(n: usize, redistance_every: Option<usize>, cfl: f64, exec: Exec) -> Result<LevelSetMetrics> {
     zalesak_with(n, &CaseOptions::new(redistance_every, cfl), exec)
 }
 
@@ -230,17 +196,7 @@ pub fn zalesak_with(n: usize, opts: &CaseOptions, exec: Exec) -> Result<LevelSet
     let shape = zalesak_shape();
     let area = shape.area().expect("closed form");
     let w = PI / 314.0;
-    run_case(
-        &grid,
-        &shape,
-        area,
-        |_, y| w * (50.0 - y),
-        |x, _| w * (x - 50.0),
-        |_| 1.0,
-        628.0,
-        opts,
-        exec,
-    )
+    run_case(&grid, &shape, area, |_, y| w * (50.0 - y), |x, _| w * (x - 50.0), |_| 1.0, 628.0, opts, exec)
 }
 
 /// Rider–Kothe single vortex of period `period` (T) on an n × n grid of \[0,1\]², evaluated at
@@ -256,20 +212,11 @@ pub fn single_vortex(
 }
 
 /// [`single_vortex`] with all options.
-pub fn single_vortex_with(
-    n: usize,
-    period: f64,
-    opts: &CaseOptions,
-    exec: Exec,
-) -> Result<LevelSetMetrics> {
+pub fn single_vortex_with(n: usize, period: f64, opts: &CaseOptions, exec: Exec) -> Result<LevelSetMetrics> {
     check_run(n, opts)?;
     check_positive("period", period)?;
     let grid = Grid::new(n, n, 1.0, 1.0)?;
-    let shape = Shape::Circle {
-        xc: 0.5,
-        yc: 0.75,
-        radius: 0.15,
-    };
+    let shape = Shape::Circle { xc: 0.5, yc: 0.75, radius: 0.15 };
     let area = shape.area().expect("closed form");
     run_case(
         &grid,

@@ -63,11 +63,7 @@ pub fn weno5_with<const MAPPED: bool>(v1: f64, v2: f64, v3: f64, v4: f64, v5: f6
     let b = 3.0 * v3 - 4.0 * v4 + v5;
     let s3 = (13.0 / 12.0) * a * a + 0.25 * b * b;
 
-    let vmax = (v1 * v1)
-        .max(v2 * v2)
-        .max(v3 * v3)
-        .max(v4 * v4)
-        .max(v5 * v5);
+    let vmax = (v1 * v1).max(v2 * v2).max(v3 * v3).max(v4 * v4).max(v5 * v5);
     let eps = WENO_EPS * vmax + 1e-99;
     let e1 = s1 + eps;
     let e2 = s2 + eps;
@@ -83,11 +79,7 @@ pub fn weno5_with<const MAPPED: bool>(v1: f64, v2: f64, v3: f64, v4: f64, v5: f6
     let a3 = 0.3 * e1 * e2;
     if MAPPED {
         let inv = 1.0 / (a1 + a2 + a3);
-        let (b1, b2, b3) = (
-            map_weight(a1 * inv, 0.1),
-            map_weight(a2 * inv, 0.6),
-            map_weight(a3 * inv, 0.3),
-        );
+        let (b1, b2, b3) = (map_weight(a1 * inv, 0.1), map_weight(a2 * inv, 0.6), map_weight(a3 * inv, 0.3));
         (b1 * q1 + b2 * q2 + b3 * q3) / (b1 + b2 + b3)
     } else {
         (a1 * q1 + a2 * q2 + a3 * q3) / (a1 + a2 + a3)
@@ -121,25 +113,13 @@ pub fn weno5_plus(p: &[f64; 7]) -> f64 {
 /// [`weno5_minus`] with a choice of weights.
 #[inline(always)]
 pub fn weno5_minus_with<const MAPPED: bool>(p: &[f64; 7]) -> f64 {
-    weno5_with::<MAPPED>(
-        p[1] - p[0],
-        p[2] - p[1],
-        p[3] - p[2],
-        p[4] - p[3],
-        p[5] - p[4],
-    )
+    weno5_with::<MAPPED>(p[1] - p[0], p[2] - p[1], p[3] - p[2], p[4] - p[3], p[5] - p[4])
 }
 
 /// [`weno5_plus`] with a choice of weights.
 #[inline(always)]
 pub fn weno5_plus_with<const MAPPED: bool>(p: &[f64; 7]) -> f64 {
-    weno5_with::<MAPPED>(
-        p[6] - p[5],
-        p[5] - p[4],
-        p[4] - p[3],
-        p[3] - p[2],
-        p[2] - p[1],
-    )
+    weno5_with::<MAPPED>(p[6] - p[5], p[5] - p[4], p[4] - p[3], p[3] - p[2], p[2] - p[1])
 }
 
 /// The seven values `data[k + m·step]`, m = −3..=3 (a WENO5 window along a row when `step = 1`,
@@ -148,15 +128,7 @@ pub fn weno5_plus_with<const MAPPED: bool>(p: &[f64; 7]) -> f64 {
 pub fn window(data: &[f64], k: usize, step: usize) -> [f64; 7] {
     let b = k - 3 * step;
     let w = &data[b..=b + 6 * step];
-    [
-        w[0],
-        w[step],
-        w[2 * step],
-        w[3 * step],
-        w[4 * step],
-        w[5 * step],
-        w[6 * step],
-    ]
+    [w[0], w[step], w[2 * step], w[3 * step], w[4 * step], w[5 * step], w[6 * step]]
 }
 
 #[cfg(test)]

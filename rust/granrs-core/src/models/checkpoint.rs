@@ -38,11 +38,7 @@ impl TwoPhaseModel {
             f("sigma_xx", rs.plastic.sigma_xx.slice());
             f("sigma_xy", rs.plastic.sigma_xy.slice());
         }
-        let walls: Vec<Vec<f64>> = self
-            .rheology
-            .as_ref()
-            .map(|rs| rs.walls.directions())
-            .unwrap_or_default();
+        let walls: Vec<Vec<f64>> = self.rheology.as_ref().map(|rs| rs.walls.directions()).unwrap_or_default();
         for (k, s) in walls.iter().enumerate() {
             f(&format!("wall_direction_{k}"), s);
         }
@@ -59,71 +55,34 @@ impl TwoPhaseModel {
         let expected = self.checkpoint();
         for (name, data) in &expected {
             match state.iter().find(|(n, _)| n == name) {
-                None => {
-                    return Err(Error::param(
-                        "state",
-                        name,
-                        "a checkpoint of a model with the same configuration (entry missing)",
-                    ))
-                }
+                None => return Err(Error::param("state", name, "a checkpoint of a model with the same configuration (entry missing)")),
                 Some((_, d)) if d.len() != data.len() => {
-                    return Err(Error::Shape {
-                        name: format!("checkpoint entry `{name}`"),
-                        got: vec![d.len()],
-                        expected: vec![data.len()],
-                    })
+                    return Err(Error::Shape { name: format!("checkpoint entry `{name}`"), got: vec![d.len()], expected: vec![data.len()] })
                 }
                 _ => {}
             }
         }
-        if let Some((extra, _)) = state
-            .iter()
-            .find(|(n, _)| !expected.iter().any(|(e, _)| e == n))
-        {
-            return Err(Error::param(
-                "state",
-                extra,
-                "only entries of a model with the same configuration",
-            ));
+        if let Some((extra, _)) = state.iter().find(|(n, _)| !expected.iter().any(|(e, _)| e == n)) {
+            return Err(Error::param("state", extra, "only entries of a model with the same configuration"));
         }
-        let get = |name: &str| -> &[f64] {
-            &state
-                .iter()
-                .find(|(n, _)| n == name)
-                .expect("checked above")
-                .1
-        };
+        let get = |name: &str| -> &[f64] { &state.iter().find(|(n, _)| n == name).expect("checked above").1 };
         self.u.slice_mut().copy_from_slice(get("u"));
         self.v.slice_mut().copy_from_slice(get("v"));
         self.u_prev.slice_mut().copy_from_slice(get("u_prev"));
         self.v_prev.slice_mut().copy_from_slice(get("v_prev"));
-        self.conv_prev_u
-            .slice_mut()
-            .copy_from_slice(get("conv_prev_u"));
-        self.conv_prev_v
-            .slice_mut()
-            .copy_from_slice(get("conv_prev_v"));
+        self.conv_prev_u.slice_mut().copy_from_slice(get("conv_prev_u"));
+        self.conv_prev_v.slice_mut().copy_from_slice(get("conv_prev_v"));
         self.p.slice_mut().copy_from_slice(get("p"));
         self.phi.slice_mut().copy_from_slice(get("phi"));
-        self.projection
-            .increment_mut()
-            .copy_from_slice(get("pressure_increment"));
+        self.projection.increment_mut().copy_from_slice(get("pressure_increment"));
         if let Some(pore) = &mut self.pore {
             pore.pf.slice_mut().copy_from_slice(get("pf"));
             pore.pf_prev.slice_mut().copy_from_slice(get("pf_prev"));
-            pore.adv_prev
-                .slice_mut()
-                .copy_from_slice(get("pf_advection_prev"));
+            pore.adv_prev.slice_mut().copy_from_slice(get("pf_advection_prev"));
         }
         if let Some(rs) = &mut self.rheology {
-            rs.plastic
-                .sigma_xx
-                .slice_mut()
-                .copy_from_slice(get("sigma_xx"));
-            rs.plastic
-                .sigma_xy
-                .slice_mut()
-                .copy_from_slice(get("sigma_xy"));
+            rs.plastic.sigma_xx.slice_mut().copy_from_slice(get("sigma_xx"));
+            rs.plastic.sigma_xy.slice_mut().copy_from_slice(get("sigma_xy"));
             for (k, s) in rs.walls.directions_mut().into_iter().enumerate() {
                 s.copy_from_slice(get(&format!("wall_direction_{k}")));
             }
@@ -131,11 +90,7 @@ impl TwoPhaseModel {
         self.time = get("time")[0];
         self.step_count = get("step_count")[0] as u64;
         let dt_prev = get("dt_prev")[0];
-        self.dt_prev = if dt_prev.is_nan() {
-            None
-        } else {
-            Some(dt_prev)
-        };
+        self.dt_prev = if dt_prev.is_nan() { None } else { Some(dt_prev) };
         self.reference_area = get("reference_area")[0];
         self.properties_current = false;
         self.projection_stale = true;

@@ -155,32 +155,19 @@ impl DepthAveragedConfig {
     /// Checks every parameter, naming the first bad one.
     pub fn validate(&self) -> Result<()> {
         if !(4..=10_000_000).contains(&self.cells) {
-            return Err(Error::param(
-                "cells",
-                self.cells,
-                "an integer in [4, 10000000]",
-            ));
+            return Err(Error::param("cells", self.cells, "an integer in [4, 10000000]"));
         }
         check_positive("length", self.length)?;
         check_positive("gravity", self.gravity)?;
         match self.earth_pressure {
             EarthPressure::Constant(k) => check_positive("earth_pressure", k)?,
-            EarthPressure::SavageHutterActive {
-                internal_friction_angle,
-            } => check_range(
-                "internal_friction_angle",
-                internal_friction_angle,
-                0.0,
-                89.0,
-            )?,
+            EarthPressure::SavageHutterActive { internal_friction_angle } => {
+                check_range("internal_friction_angle", internal_friction_angle, 0.0, 89.0)?
+            }
         }
         check_range("basal_friction_angle", self.basal_friction_angle, 0.0, 89.0)?;
         if !(self.cfl.is_finite() && self.cfl > 0.0 && self.cfl <= 0.5) {
-            return Err(Error::param(
-                "cfl",
-                self.cfl,
-                "a number in (0, 0.5] (positivity of the depth)",
-            ));
+            return Err(Error::param("cfl", self.cfl, "a number in (0, 0.5] (positivity of the depth)"));
         }
         check_positive("dry_depth", self.dry_depth)?;
         check_positive("max_dt", self.max_dt)?;
@@ -330,33 +317,17 @@ impl DepthAveragedModel {
         let n = self.cfg.cells;
         for (name, a) in [("h", h), ("u", u), ("beta", beta)] {
             if a.len() != n {
-                return Err(Error::Shape {
-                    name: name.into(),
-                    got: vec![a.len()],
-                    expected: vec![n],
-                });
+                return Err(Error::Shape { name: name.into(), got: vec![a.len()], expected: vec![n] });
             }
             if let Some(i) = a.iter().position(|v| !v.is_finite()) {
-                return Err(Error::param(
-                    name,
-                    format!("non-finite value at index {i}"),
-                    "finite values",
-                ));
+                return Err(Error::param(name, format!("non-finite value at index {i}"), "finite values"));
             }
         }
         if let Some(i) = h.iter().position(|&v| v < 0.0) {
-            return Err(Error::param(
-                "h",
-                format!("{} at index {i}", h[i]),
-                "depths >= 0",
-            ));
+            return Err(Error::param("h", format!("{} at index {i}", h[i]), "depths >= 0"));
         }
         if let Some(i) = beta.iter().position(|&v| !(0.0..=1.0).contains(&v)) {
-            return Err(Error::param(
-                "beta",
-                format!("{} at index {i}", beta[i]),
-                "ratios in [0, 1]",
-            ));
+            return Err(Error::param("beta", format!("{} at index {i}", beta[i]), "ratios in [0, 1]"));
         }
         let pore = self.cfg.pore.is_some();
         for i in 0..n {
@@ -375,18 +346,10 @@ impl DepthAveragedModel {
     pub fn set_bed(&mut self, b: &[f64]) -> Result<()> {
         let n = self.cfg.cells;
         if b.len() != n {
-            return Err(Error::Shape {
-                name: "bed".into(),
-                got: vec![b.len()],
-                expected: vec![n],
-            });
+            return Err(Error::Shape { name: "bed".into(), got: vec![b.len()], expected: vec![n] });
         }
         if let Some(i) = b.iter().position(|v| !v.is_finite()) {
-            return Err(Error::param(
-                "bed",
-                format!("non-finite value at index {i}"),
-                "finite values",
-            ));
+            return Err(Error::param("bed", format!("non-finite value at index {i}"), "finite values"));
         }
         for (dst, &v) in self.bed.iter_mut().skip(GHOSTS).zip(b) {
             *dst = v;
@@ -463,23 +426,17 @@ impl DepthAveragedModel {
                 self.beta[k] = 0.0;
             }
         }
-        if let EarthPressure::SavageHutterActive {
-            internal_friction_angle,
-        } = self.cfg.earth_pressure
-        {
+        if let EarthPressure::SavageHutterActive { internal_friction_angle } = self.cfg.earth_pressure {
             let tan_phi = internal_friction_angle.to_radians().tan();
             for k in 0..self.h.len() {
-                self.kg[k] =
-                    self.cfg.gravity * active_earth_pressure(tan_phi, self.tan_b, self.beta[k]);
+                self.kg[k] = self.cfg.gravity * active_earth_pressure(tan_phi, self.tan_b, self.beta[k]);
             }
         }
     }
 
     /// Earth-pressure coefficient k of the cells (n values).
     pub fn earth_pressure(&self) -> impl Iterator<Item = f64> + '_ {
-        self.kg[GHOSTS..GHOSTS + self.cfg.cells]
-            .iter()
-            .map(move |v| v / self.cfg.gravity)
+        self.kg[GHOSTS..GHOSTS + self.cfg.cells].iter().map(move |v| v / self.cfg.gravity)
     }
 
     /// Reconstructs and computes the face fluxes of the current state; returns the largest
@@ -494,11 +451,7 @@ impl DepthAveragedModel {
             self.s_h[k] = minmod(self.h[b] - self.h[a], self.h[c] - self.h[b]);
             self.s_u[k] = minmod(self.u[b] - self.u[a], self.u[c] - self.u[b]);
             self.s_b[k] = minmod(self.beta[b] - self.beta[a], self.beta[c] - self.beta[b]);
-            let (ea, eb, ec) = (
-                self.h[a] + self.bed[a],
-                self.h[b] + self.bed[b],
-                self.h[c] + self.bed[c],
-            );
+            let (ea, eb, ec) = (self.h[a] + self.bed[a], self.h[b] + self.bed[b], self.h[c] + self.bed[c]);
             self.s_eta[k] = minmod(eb - ea, ec - eb);
         }
         let mut smax = 0.0_f64;
@@ -509,10 +462,7 @@ impl DepthAveragedModel {
             let b_l = self.h[l] + self.bed[l] + 0.5 * self.s_eta[l] - h_l;
             let b_r = self.h[r] + self.bed[r] - 0.5 * self.s_eta[r] - h_r;
             let (u_l, u_r) = (self.u[l] + 0.5 * self.s_u[l], self.u[r] - 0.5 * self.s_u[r]);
-            let (be_l, be_r) = (
-                self.beta[l] + 0.5 * self.s_b[l],
-                self.beta[r] - 0.5 * self.s_b[r],
-            );
+            let (be_l, be_r) = (self.beta[l] + 0.5 * self.s_b[l], self.beta[r] - 0.5 * self.s_b[r]);
             // hydrostatic reconstruction
             let b_face = b_l.max(b_r);
             let hs_l = (h_l + b_l - b_face).max(0.0);
@@ -564,11 +514,7 @@ impl DepthAveragedModel {
             let beta = if pore { self.hb[k] / h } else { 0.0 };
             let j = tau * g * h * self.tan_b * (1.0 - beta).max(0.0);
             let q = self.q[k];
-            self.q[k] = if q.abs() <= j {
-                0.0
-            } else {
-                q - j * q.signum()
-            };
+            self.q[k] = if q.abs() <= j { 0.0 } else { q - j * q.signum() };
         }
     }
 
@@ -591,11 +537,7 @@ impl DepthAveragedModel {
             for i in 0..self.cfg.cells {
                 let k = i + GHOSTS;
                 let h = self.h[k];
-                self.hb[k] = if h > 0.0 {
-                    self.hb[k] * (-dt * rate / (h * h)).exp()
-                } else {
-                    0.0
-                };
+                self.hb[k] = if h > 0.0 { self.hb[k] * (-dt * rate / (h * h)).exp() } else { 0.0 };
             }
             self.apply_supply();
         }
@@ -614,12 +556,7 @@ impl DepthAveragedModel {
             } else {
                 continue;
             };
-            return Err(Error::Simulation {
-                what,
-                step: self.step_count,
-                time: self.time,
-                location: Some((i, 0)),
-            });
+            return Err(Error::Simulation { what, step: self.step_count, time: self.time, location: Some((i, 0)) });
         }
         Ok(())
     }
@@ -635,11 +572,7 @@ impl DepthAveragedModel {
             self.m0[i] = self.hb[k];
         }
         let smax = self.fluxes();
-        let mut dt = if smax > 0.0 {
-            (self.cfg.cfl * self.dx / smax).min(self.cfg.max_dt)
-        } else {
-            self.cfg.max_dt
-        };
+        let mut dt = if smax > 0.0 { (self.cfg.cfl * self.dx / smax).min(self.cfg.max_dt) } else { self.cfg.max_dt };
         if let Some(rem) = self.land {
             dt = dt.min(rem);
         }

@@ -12,7 +12,5 @@ pub mod depth_averaged;
 mod two_phase;
 
 pub use checkpoint::StateEntry;
-pub use depth_averaged::{
-    DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure,
-};
+pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};

@@ -47,13 +47,7 @@ pub fn periodic_pair(low: VelocityBc, high: VelocityBc) -> bool {
 }
 
 /// Fills boundary values and ghost layers of u (XFace) and v (YFace).
-pub fn fill_velocity_ghosts(
-    u: &mut Field,
-    v: &mut Field,
-    bc: &BoundaryConditions,
-    grid: &Grid,
-    mode: BcMode,
-) {
+pub fn fill_velocity_ghosts(u: &mut Field, v: &mut Field, bc: &BoundaryConditions, grid: &Grid, mode: BcMode) {
     let xper = periodic_pair(bc.get(Side::Left), bc.get(Side::Right));
     let yper = periodic_pair(bc.get(Side::Bottom), bc.get(Side::Top));
     fill_velocity_ghosts_walls(u, v, bc, grid, mode);
@@ -79,11 +73,7 @@ fn wrap_x(f: &mut Field, n: isize, faces: bool) {
             f.slice_mut()[k0] = a;
         }
         for k in 1..=g {
-            let (lo_src, hi_dst, hi_src) = if faces {
-                (n - k, n + k, k)
-            } else {
-                (n - k, n - 1 + k, k - 1)
-            };
+            let (lo_src, hi_dst, hi_src) = if faces { (n - k, n + k, k) } else { (n - k, n - 1 + k, k - 1) };
             let (a, b) = (get(f, lo_src), get(f, hi_src));
             let (ia, ib) = (f.idx(-k, j), f.idx(hi_dst, j));
             let s = f.slice_mut();
@@ -103,11 +93,7 @@ fn wrap_y(f: &mut Field, n: isize, faces: bool) {
             f.slice_mut()[k0] = a;
         }
         for k in 1..=g {
-            let (lo_src, hi_dst, hi_src) = if faces {
-                (n - k, n + k, k)
-            } else {
-                (n - k, n - 1 + k, k - 1)
-            };
+            let (lo_src, hi_dst, hi_src) = if faces { (n - k, n + k, k) } else { (n - k, n - 1 + k, k - 1) };
             let (a, b) = (f.at(i, lo_src), f.at(i, hi_src));
             let (ia, ib) = (f.idx(i, -k), f.idx(i, hi_dst));
             let s = f.slice_mut();
@@ -117,13 +103,7 @@ fn wrap_y(f: &mut Field, n: isize, faces: bool) {
     }
 }
 
-fn fill_velocity_ghosts_walls(
-    u: &mut Field,
-    v: &mut Field,
-    bc: &BoundaryConditions,
-    grid: &Grid,
-    mode: BcMode,
-) {
+fn fill_velocity_ghosts_walls(u: &mut Field, v: &mut Field, bc: &BoundaryConditions, grid: &Grid, mode: BcMode) {
     let (nx, ny) = (grid.nx as isize, grid.ny as isize);
     let g = HALO as isize;
     let hom = mode == BcMode::Homogeneous;
@@ -131,21 +111,10 @@ fn fill_velocity_ghosts_walls(
         let (a, bb) = b.tangential_ghost(h);
         (a, if hom { 0.0 } else { bb })
     };
-    let normal = |b: VelocityBc| {
-        if hom {
-            0.0
-        } else {
-            b.normal_inflow().unwrap_or(0.0)
-        }
-    };
+    let normal = |b: VelocityBc| if hom { 0.0 } else { b.normal_inflow().unwrap_or(0.0) };
 
     // ---- u: normal on left/right, tangential on bottom/top ----
-    let (bl, br, bb, bt) = (
-        bc.get(Side::Left),
-        bc.get(Side::Right),
-        bc.get(Side::Bottom),
-        bc.get(Side::Top),
-    );
+    let (bl, br, bb, bt) = (bc.get(Side::Left), bc.get(Side::Right), bc.get(Side::Bottom), bc.get(Side::Top));
     for j in 0..ny {
         // left boundary face i = 0
         if !bl.normal_is_unknown() {

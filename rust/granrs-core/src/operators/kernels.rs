@@ -61,15 +61,7 @@ pub fn gradient(p: &Field, grid: &Grid, gx: &mut Field, gy: &mut Field, exec: Ex
 
 /// Strain rate D(u) = ½(∇u + ∇uᵀ): D_xx = ∂u/∂x and D_yy = ∂v/∂y at centres, D_xy = ½(∂u/∂y + ∂v/∂x)
 /// at nodes (all (nx+1) × (ny+1) of them; velocity ghosts must be filled).
-pub fn strain_rate(
-    u: &Field,
-    v: &Field,
-    grid: &Grid,
-    dxx: &mut Field,
-    dyy: &mut Field,
-    dxy: &mut Field,
-    exec: Exec,
-) {
+pub fn strain_rate(u: &Field, v: &Field, grid: &Grid, dxx: &mut Field, dyy: &mut Field, dxy: &mut Field, exec: Exec) {
     let (us, vs) = (u.slice(), v.slice());
     let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
     for_each_interior_row(exec, dxx, |j, row| {
@@ -88,8 +80,7 @@ pub fn strain_rate(
         let j = j as isize;
         let (bu0, bu1, bv) = (base(u, j - 1), base(u, j), base(v, j));
         for i in 0..=nx {
-            row[HALO + i] =
-                0.5 * ((us[bu1 + i] - us[bu0 + i]) * idy + (vs[bv + i] - vs[bv + i - 1]) * idx);
+            row[HALO + i] = 0.5 * ((us[bu1 + i] - us[bu0 + i]) * idy + (vs[bv + i] - vs[bv + i - 1]) * idx);
         }
     });
 }
@@ -104,8 +95,7 @@ pub fn strain_rate_norm_centre(dxx: &Field, dyy: &Field, dxy: &Field, out: &mut 
         let (bc, bn0, bn1) = (base(dxx, j), base(dxy, j), base(dxy, j + 1));
         for i in 0..nx {
             let xy = 0.25 * (c[bn0 + i] + c[bn0 + i + 1] + c[bn1 + i] + c[bn1 + i + 1]);
-            row[HALO + i] =
-                (0.5 * (a[bc + i] * a[bc + i] + b[bc + i] * b[bc + i]) + xy * xy).sqrt();
+            row[HALO + i] = (0.5 * (a[bc + i] * a[bc + i] + b[bc + i] * b[bc + i]) + xy * xy).sqrt();
         }
     });
 }
@@ -137,10 +127,8 @@ pub fn viscous(
         for i in 0..=nx {
             let txx_r = 2.0 * ec[bc + i] * (us[bu + i + 1] - us[bu + i]) * idx;
             let txx_l = 2.0 * ec[bc + i - 1] * (us[bu + i] - us[bu + i - 1]) * idx;
-            let txy_t = en[bn1 + i]
-                * ((us[bup + i] - us[bu + i]) * idy + (vs[bv1 + i] - vs[bv1 + i - 1]) * idx);
-            let txy_b = en[bn0 + i]
-                * ((us[bu + i] - us[bum + i]) * idy + (vs[bv0 + i] - vs[bv0 + i - 1]) * idx);
+            let txy_t = en[bn1 + i] * ((us[bup + i] - us[bu + i]) * idy + (vs[bv1 + i] - vs[bv1 + i - 1]) * idx);
+            let txy_b = en[bn0 + i] * ((us[bu + i] - us[bum + i]) * idy + (vs[bv0 + i] - vs[bv0 + i - 1]) * idx);
             row[HALO + i] = (txx_r - txx_l) * idx + (txy_t - txy_b) * idy;
         }
     });
@@ -153,10 +141,8 @@ pub fn viscous(
         for i in 0..nx {
             let tyy_t = 2.0 * ec[bc0 + i] * (vs[bvp + i] - vs[bv + i]) * idy;
             let tyy_b = 2.0 * ec[bcm + i] * (vs[bv + i] - vs[bvm + i]) * idy;
-            let txy_r = en[bn + i + 1]
-                * ((us[bu0 + i + 1] - us[bum + i + 1]) * idy + (vs[bv + i + 1] - vs[bv + i]) * idx);
-            let txy_l = en[bn + i]
-                * ((us[bu0 + i] - us[bum + i]) * idy + (vs[bv + i] - vs[bv + i - 1]) * idx);
+            let txy_r = en[bn + i + 1] * ((us[bu0 + i + 1] - us[bum + i + 1]) * idy + (vs[bv + i + 1] - vs[bv + i]) * idx);
+            let txy_l = en[bn + i] * ((us[bu0 + i] - us[bum + i]) * idy + (vs[bv + i] - vs[bv + i - 1]) * idx);
             row[HALO + i] = (txy_r - txy_l) * idx + (tyy_t - tyy_b) * idy;
         }
     });
@@ -164,14 +150,7 @@ pub fn viscous(
 
 /// Convective acceleration (u·∇)u on every face, centred second order, advective form. The
 /// transverse velocity is the average of the four nearest values (velocity ghosts filled).
-pub fn convection(
-    u: &Field,
-    v: &Field,
-    grid: &Grid,
-    out_u: &mut Field,
-    out_v: &mut Field,
-    exec: Exec,
-) {
+pub fn convection(u: &Field, v: &Field, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
     let (us, vs) = (u.slice(), v.slice());
     let (h2x, h2y, nx) = (0.5 / grid.dx, 0.5 / grid.dy, grid.nx);
     for_each_interior_row(exec, out_u, |j, row| {
@@ -181,8 +160,7 @@ pub fn convection(
         for i in 0..=nx {
             let uu = us[bu + i];
             let vv = 0.25 * (vs[bv0 + i - 1] + vs[bv0 + i] + vs[bv1 + i - 1] + vs[bv1 + i]);
-            row[HALO + i] = uu * (us[bu + i + 1] - us[bu + i - 1]) * h2x
-                + vv * (us[bup + i] - us[bum + i]) * h2y;
+            row[HALO + i] = uu * (us[bu + i + 1] - us[bu + i - 1]) * h2x + vv * (us[bup + i] - us[bum + i]) * h2y;
         }
     });
     for_each_interior_row(exec, out_v, |j, row| {
@@ -192,8 +170,7 @@ pub fn convection(
         for i in 0..nx {
             let vv = vs[bv + i];
             let uu = 0.25 * (us[bum + i] + us[bum + i + 1] + us[bu0 + i] + us[bu0 + i + 1]);
-            row[HALO + i] = uu * (vs[bv + i + 1] - vs[bv + i - 1]) * h2x
-                + vv * (vs[bvp + i] - vs[bvm + i]) * h2y;
+            row[HALO + i] = uu * (vs[bv + i + 1] - vs[bv + i - 1]) * h2x + vv * (vs[bvp + i] - vs[bvm + i]) * h2y;
         }
     });
 }
@@ -207,14 +184,7 @@ pub fn convection(
 /// purely imaginary eigenvalues lie outside the stability region (SBDF2 has no imaginary-axis
 /// interval), and at a cell Reynolds number of ~10³ (air) viscosity does not damp them.
 /// Needs three valid ghost layers of u and v.
-pub fn convection_weno5(
-    u: &Field,
-    v: &Field,
-    grid: &Grid,
-    out_u: &mut Field,
-    out_v: &mut Field,
-    exec: Exec,
-) {
+pub fn convection_weno5(u: &Field, v: &Field, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
     use crate::levelset::weno5::{weno5_minus, weno5_plus, window};
     let (us, vs) = (u.slice(), v.slice());
     let (sx, sy) = (1.0 / grid.dx, 1.0 / grid.dy);
@@ -237,8 +207,7 @@ pub fn convection_weno5(
         for i in 0..=nx {
             let uu = us[bu + i];
             let vv = 0.25 * (vs[bv0 + i - 1] + vs[bv0 + i] + vs[bv1 + i - 1] + vs[bv1 + i]);
-            row[HALO + i] =
-                uu * upwind(us, bu + i, 1, uu) * sx + vv * upwind(us, bu + i, su, vv) * sy;
+            row[HALO + i] = uu * upwind(us, bu + i, 1, uu) * sx + vv * upwind(us, bu + i, su, vv) * sy;
         }
     });
     for_each_interior_row(exec, out_v, |j, row| {
@@ -248,8 +217,7 @@ pub fn convection_weno5(
         for i in 0..nx {
             let vv = vs[bv + i];
             let uu = 0.25 * (us[bum + i] + us[bum + i + 1] + us[bu0 + i] + us[bu0 + i + 1]);
-            row[HALO + i] =
-                uu * upwind(vs, bv + i, 1, uu) * sx + vv * upwind(vs, bv + i, sv, vv) * sy;
+            row[HALO + i] = uu * upwind(vs, bv + i, 1, uu) * sx + vv * upwind(vs, bv + i, sv, vv) * sy;
         }
     });
 }
@@ -299,11 +267,7 @@ pub fn max_speed(u: &Field, v: &Field, exec: Exec) -> (f64, f64) {
         for i in 0..f.nx {
             let a = s[b + i];
             // NaN is sticky (f64::max would drop it when a finite value follows)
-            m = if a.is_nan() || m.is_nan() {
-                f64::NAN
-            } else {
-                m.max(a.abs())
-            };
+            m = if a.is_nan() || m.is_nan() { f64::NAN } else { m.max(a.abs()) };
         }
         m
     };

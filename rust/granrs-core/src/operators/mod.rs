@@ -18,8 +18,8 @@ mod kernels;
 
 pub use ghosts::{fill_velocity_ghosts, unknown_face_range, BcMode};
 pub use kernels::{
-    cell_to_face_x, cell_to_face_y, cell_to_node, convection, convection_weno5, divergence,
-    divergence_max_abs, gradient, max_speed, strain_rate, strain_rate_norm_centre, viscous,
+    cell_to_face_x, cell_to_face_y, cell_to_node, convection, convection_weno5, divergence, divergence_max_abs, gradient, max_speed,
+    strain_rate, strain_rate_norm_centre, viscous,
 };
 
 use crate::exec::Exec;
@@ -50,10 +50,7 @@ where
     let ra = &mut a.slice_mut()[HALO * stride..(HALO + ny) * stride];
     let rb = &mut b.slice_mut()[HALO * stride..(HALO + ny) * stride];
     if exec.use_parallel(ra.len()) {
-        ra.par_chunks_mut(stride)
-            .zip(rb.par_chunks_mut(stride))
-            .enumerate()
-            .for_each(|(j, (x, y))| f(j, x, y));
+        ra.par_chunks_mut(stride).zip(rb.par_chunks_mut(stride)).enumerate().for_each(|(j, (x, y))| f(j, x, y));
     } else {
         for (j, (x, y)) in ra.chunks_mut(stride).zip(rb.chunks_mut(stride)).enumerate() {
             f(j, x, y);

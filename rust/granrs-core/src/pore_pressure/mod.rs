@@ -53,9 +53,9 @@
 use crate::error::{check_positive, Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, PressureBc, HALO};
-use crate::levelset::heaviside;
 use crate::operators::for_each_interior_row;
 use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
+use crate::levelset::heaviside;
 
 /// What p_f does outside the granular phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,9 +75,7 @@ impl PoreFormulation {
     pub fn name(&self) -> &'static str {
         match self {
             PoreFormulation::GranularOnly => "granular-only",
-            PoreFormulation::KappaInfinity {
-                smoothed: false, ..
-            } => "kappa-infinity",
+            PoreFormulation::KappaInfinity { smoothed: false, .. } => "kappa-infinity",
             PoreFormulation::KappaInfinity { smoothed: true, .. } => "kappa-infinity-smoothed",
         }
     }
@@ -139,18 +137,10 @@ impl PorePressureConfig {
         }
         if let Some(b) = self.basal_flux {
             if !b.gradient.is_finite() {
-                return Err(Error::param(
-                    "basal_flux.gradient",
-                    b.gradient,
-                    "a finite pressure gradient (Pa/m)",
-                ));
+                return Err(Error::param("basal_flux.gradient", b.gradient, "a finite pressure gradient (Pa/m)"));
             }
             if b.x_min.is_nan() || b.x_max.is_nan() || b.x_max < b.x_min {
-                return Err(Error::param(
-                    "basal_flux.x_max",
-                    b.x_max,
-                    &format!("a position >= basal_flux.x_min = {}", b.x_min),
-                ));
+                return Err(Error::param("basal_flux.x_max", b.x_max, &format!("a position >= basal_flux.x_min = {}", b.x_min)));
             }
         }
         Ok(())
@@ -183,12 +173,7 @@ impl PorePressure {
         config.validate()?;
         let bc = match config.formulation {
             PoreFormulation::GranularOnly => [PressureBc::Neumann; 4],
-            PoreFormulation::KappaInfinity { .. } => [
-                PressureBc::Neumann,
-                PressureBc::Neumann,
-                PressureBc::Neumann,
-                PressureBc::Dirichlet,
-            ],
+            PoreFormulation::KappaInfinity { .. } => [PressureBc::Neumann, PressureBc::Neumann, PressureBc::Neumann, PressureBc::Dirichlet],
         };
         let n = grid.cells();
         Ok(PorePressure {
@@ -232,11 +217,7 @@ impl PorePressure {
             let (ps, us, vs) = (self.pf.slice(), u.slice(), v.slice());
             let (sp, su, sv) = (self.pf.stride(), u.stride(), v.stride());
             for_each_interior_row(exec, &mut self.adv, |j, row| {
-                let (bp, bpm, bpp) = (
-                    (j + HALO) * sp + HALO,
-                    (j + HALO - 1) * sp + HALO,
-                    (j + HALO + 1) * sp + HALO,
-                );
+                let (bp, bpm, bpp) = ((j + HALO) * sp + HALO, (j + HALO - 1) * sp + HALO, (j + HALO + 1) * sp + HALO);
                 let bu = (j + HALO) * su + HALO;
                 let (bv0, bv1) = ((j + HALO) * sv + HALO, (j + HALO + 1) * sv + HALO);
                 for i in 0..nx {
@@ -256,38 +237,24 @@ impl PorePressure {
             PoreFormulation::GranularOnly => {
                 for j in 0..ny {
                     for i in 0..=nx {
-                        let (a, b) = (
-                            phi.at(i as isize - 1, j as isize),
-                            phi.at(i as isize, j as isize),
-                        );
-                        self.beta_x[j * (nx + 1) + i] =
-                            if inside(a) && inside(b) { kf } else { 0.0 };
+                        let (a, b) = (phi.at(i as isize - 1, j as isize), phi.at(i as isize, j as isize));
+                        self.beta_x[j * (nx + 1) + i] = if inside(a) && inside(b) { kf } else { 0.0 };
                     }
                 }
                 for j in 0..=ny {
                     for i in 0..nx {
-                        let (a, b) = (
-                            phi.at(i as isize, j as isize - 1),
-                            phi.at(i as isize, j as isize),
-                        );
+                        let (a, b) = (phi.at(i as isize, j as isize - 1), phi.at(i as isize, j as isize));
                         self.beta_y[j * nx + i] = if inside(a) && inside(b) { kf } else { 0.0 };
                     }
                 }
             }
-            PoreFormulation::KappaInfinity {
-                kappa_air,
-                smoothed,
-            } => {
+            PoreFormulation::KappaInfinity { kappa_air, smoothed } => {
                 let face = |a: f64, b: f64| -> f64 {
                     if smoothed {
                         let h = heaviside(0.5 * (a + b), eps);
                         kf * h + kappa_air * (1.0 - h)
                     } else if inside(a) == inside(b) {
-                        if inside(a) {
-                            kf
-                        } else {
-                            kappa_air
-                        }
+                        if inside(a) { kf } else { kappa_air }
                     } else {
                         let (pin, pout) = if inside(a) { (a, b) } else { (b, a) };
                         let theta = pin / (pin - pout);
@@ -296,18 +263,12 @@ impl PorePressure {
                 };
                 for j in 0..ny {
                     for i in 0..=nx {
-                        self.beta_x[j * (nx + 1) + i] = face(
-                            phi.at(i as isize - 1, j as isize),
-                            phi.at(i as isize, j as isize),
-                        );
+                        self.beta_x[j * (nx + 1) + i] = face(phi.at(i as isize - 1, j as isize), phi.at(i as isize, j as isize));
                     }
                 }
                 for j in 0..=ny {
                     for i in 0..nx {
-                        self.beta_y[j * nx + i] = face(
-                            phi.at(i as isize, j as isize - 1),
-                            phi.at(i as isize, j as isize),
-                        );
+                        self.beta_y[j * nx + i] = face(phi.at(i as isize, j as isize - 1), phi.at(i as isize, j as isize));
                     }
                 }
             }
@@ -350,15 +311,11 @@ impl PorePressure {
                 self.x[k] = self.pf.at(ii, jj);
             }
         }
-        self.solver
-            .set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
+        self.solver.set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
         let info = self.solver.solve(&self.rhs, &mut self.x, exec)?;
         if let Some(k) = self.x.iter().position(|v| !v.is_finite()) {
             return Err(Error::Simulation {
-                what: format!(
-                    "pore pressure p_f is not finite ({}) after the implicit (BDF2) solve",
-                    self.x[k]
-                ),
+                what: format!("pore pressure p_f is not finite ({}) after the implicit (BDF2) solve", self.x[k]),
                 step: 0,
                 time: 0.0,
                 location: Some((k % nx, k / nx)),
@@ -430,10 +387,7 @@ impl PorePressure {
                 }
                 // sub-cell Dirichlet p_f = 0 on the interface, taken at n+1 (diagonal)
                 let mut dd = 0.0;
-                for (theta, h) in interface_faces(phi, i, j, grid.dx, grid.dy)
-                    .into_iter()
-                    .flatten()
-                {
+                for (theta, h) in interface_faces(phi, i, j, grid.dx, grid.dy).into_iter().flatten() {
                     dd += kf / (theta * h * h);
                 }
                 let mut src = -self.adv.at(ii, jj);
@@ -468,9 +422,7 @@ impl PorePressure {
         );
         if let Some((v, loc)) = non_finite {
             return Err(Error::Simulation {
-                what: format!(
-                    "pore pressure p_f is not finite ({v}) with the explicit scheme: {tail}"
-                ),
+                what: format!("pore pressure p_f is not finite ({v}) with the explicit scheme: {tail}"),
                 step: 0,
                 time: 0.0,
                 location: Some(loc),
@@ -496,9 +448,7 @@ impl PorePressure {
     /// The stability limit of the explicit scheme, δt_exp = 1/(2κ(1/dx² + 1/dy²)) (= h²/(4κ) on
     /// square cells).
     pub fn explicit_limit(&self, grid: &Grid) -> f64 {
-        1.0 / (2.0
-            * self.config.diffusivity
-            * (1.0 / (grid.dx * grid.dx) + 1.0 / (grid.dy * grid.dy)))
+        1.0 / (2.0 * self.config.diffusivity * (1.0 / (grid.dx * grid.dx) + 1.0 / (grid.dy * grid.dy)))
     }
 
     /// Makes the current p_f the whole history (after p_f was set from outside).

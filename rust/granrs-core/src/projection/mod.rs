@@ -22,19 +22,8 @@ use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
 pub fn fill_pressure_ghosts(p: &mut Field, bc: &BoundaryConditions) {
     let (nx, ny) = (p.nx as isize, p.ny as isize);
     let g = HALO as isize;
-    let sign = |s: Side| {
-        if bc.pressure(s) == PressureBc::Dirichlet {
-            -1.0
-        } else {
-            1.0
-        }
-    };
-    let (sl, sr, sb, st) = (
-        sign(Side::Left),
-        sign(Side::Right),
-        sign(Side::Bottom),
-        sign(Side::Top),
-    );
+    let sign = |s: Side| if bc.pressure(s) == PressureBc::Dirichlet { -1.0 } else { 1.0 };
+    let (sl, sr, sb, st) = (sign(Side::Left), sign(Side::Right), sign(Side::Bottom), sign(Side::Top));
     for j in 0..ny {
         for k in 1..=g {
             let (a, b) = (sl * p.at(k - 1, j), sr * p.at(nx - k, j));
@@ -70,14 +59,7 @@ pub struct PressureProjection {
 impl PressureProjection {
     /// A projection for `grid` with the pressure conditions implied by `bc`.
     pub fn new(grid: &Grid, bc: &BoundaryConditions, settings: SolverSettings) -> Result<Self> {
-        let solver = PoissonSolver::new(
-            grid.nx,
-            grid.ny,
-            grid.dx,
-            grid.dy,
-            bc.pressure_all(),
-            settings,
-        )?;
+        let solver = PoissonSolver::new(grid.nx, grid.ny, grid.dx, grid.dy, bc.pressure_all(), settings)?;
         let n = grid.cells();
         Ok(PressureProjection {
             solver,
@@ -104,8 +86,7 @@ impl PressureProjection {
                 self.beta_y[j * nxv + i] = 1.0 / rho_v.at(i as isize, j as isize);
             }
         }
-        self.solver
-            .set_coefficients(&self.beta_x, &self.beta_y, exec)
+        self.solver.set_coefficients(&self.beta_x, &self.beta_y, exec)
     }
 
     /// Projects ũ (in `u`, `v`, boundary values already set) onto discretely divergence-free
@@ -139,24 +120,13 @@ impl PressureProjection {
         let floor = 1e-13 * vel_scale / grid.h() * scale * (grid.cells() as f64).sqrt();
         let rhs_norm = self.rhs.iter().map(|x| x * x).sum::<f64>().sqrt();
         if rhs_norm <= floor {
-            return Ok(SolveInfo {
-                iterations: 0,
-                residual: 0.0,
-                initial_residual: 0.0,
-                rhs_mean_removed: 0.0,
-            });
+            return Ok(SolveInfo { iterations: 0, residual: 0.0, initial_residual: 0.0, rhs_mean_removed: 0.0 });
         }
         // Warm start from the last increment only when it beats the zero guess (after a large
         // increment, e.g. the pressure initialisation, it would leave a residual far above a
         // small right-hand side and a round-off floor the relative tolerance cannot pass).
         self.solver.apply(&self.dp, &mut self.work, exec);
-        let warm = self
-            .rhs
-            .iter()
-            .zip(&self.work)
-            .map(|(f, l)| (f - l) * (f - l))
-            .sum::<f64>()
-            .sqrt();
+        let warm = self.rhs.iter().zip(&self.work).map(|(f, l)| (f - l) * (f - l)).sum::<f64>().sqrt();
         if !(warm < rhs_norm) {
             self.dp.fill(0.0);
         }

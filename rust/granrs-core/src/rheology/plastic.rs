@@ -149,10 +149,7 @@ impl PlasticState {
     ///   u-face (i, j): [τ_c Σ_xx]_{i−1}^{i}/dx + [τ_n Σ_xy]_{j}^{j+1}/dy,
     ///   v-face (i, j): [τ_n Σ_xy]_{i}^{i+1}/dx − [τ_c Σ_xx]_{j−1}^{j}/dy   (Σ_yy = −Σ_xx).
     pub fn add_force(&mut self, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
-        for (stress, tau, sigma) in [
-            (&mut self.stress_c, &self.tau_c, &self.sigma_xx),
-            (&mut self.stress_n, &self.tau_n, &self.sigma_xy),
-        ] {
+        for (stress, tau, sigma) in [(&mut self.stress_c, &self.tau_c, &self.sigma_xx), (&mut self.stress_n, &self.tau_n, &self.sigma_xy)] {
             let (ts, ss, st) = (tau.slice(), sigma.slice(), tau.stride());
             let n = stress.nx;
             for_each_interior_row(exec, stress, |j, row| {
@@ -170,16 +167,14 @@ impl PlasticState {
             let j = j as isize;
             let (bc, bn0, bn1) = (base(stress_c, j), base(stress_n, j), base(stress_n, j + 1));
             for i in 0..=nx {
-                row[HALO + i] +=
-                    (sc[bc + i] - sc[bc + i - 1]) * idx + (sn[bn1 + i] - sn[bn0 + i]) * idy;
+                row[HALO + i] += (sc[bc + i] - sc[bc + i - 1]) * idx + (sn[bn1 + i] - sn[bn0 + i]) * idy;
             }
         });
         for_each_interior_row(exec, out_v, |j, row| {
             let j = j as isize;
             let (bc0, bcm, bn) = (base(stress_c, j), base(stress_c, j - 1), base(stress_n, j));
             for i in 0..nx {
-                row[HALO + i] +=
-                    (sn[bn + i + 1] - sn[bn + i]) * idx - (sc[bc0 + i] - sc[bcm + i]) * idy;
+                row[HALO + i] += (sn[bn + i + 1] - sn[bn + i]) * idx - (sc[bc0 + i] - sc[bcm + i]) * idy;
             }
         });
     }
@@ -193,13 +188,7 @@ impl PlasticState {
     pub fn update(&mut self, dxx: &Field, dyy: &Field, dxy: &Field, theta: f64, exec: Exec) -> f64 {
         // trial values at centres and nodes
         {
-            let (sx, sxn, tc, a, b) = (
-                self.sigma_xx.slice(),
-                self.sigma_xx_n.slice(),
-                self.tau_c.slice(),
-                dxx.slice(),
-                dyy.slice(),
-            );
+            let (sx, sxn, tc, a, b) = (self.sigma_xx.slice(), self.sigma_xx_n.slice(), self.tau_c.slice(), dxx.slice(), dyy.slice());
             let rc = self.r_c.slice();
             let st = self.sigma_xx.stride();
             let n = self.trial_c.nx;
@@ -207,22 +196,13 @@ impl PlasticState {
                 let bb = (j + HALO) * st + HALO;
                 for i in 0..n {
                     let k = bb + i;
-                    row[HALO + i] = if tc[k] > 0.0 {
-                        sx[k] + 0.5 * rc[k] * (a[k] - b[k]) + theta * (sxn[k] - sx[k])
-                    } else {
-                        0.0
-                    };
+                    row[HALO + i] = if tc[k] > 0.0 { sx[k] + 0.5 * rc[k] * (a[k] - b[k]) + theta * (sxn[k] - sx[k]) } else { 0.0 };
                 }
             });
         }
         self.trial_c.extrapolate_ghosts_constant();
         {
-            let (sy, syn, tn, c) = (
-                self.sigma_xy.slice(),
-                self.sigma_xy_n.slice(),
-                self.tau_n.slice(),
-                dxy.slice(),
-            );
+            let (sy, syn, tn, c) = (self.sigma_xy.slice(), self.sigma_xy_n.slice(), self.tau_n.slice(), dxy.slice());
             let rn = self.r_n.slice();
             let st = self.sigma_xy.stride();
             let (nxn, nyn) = (self.trial_n.nx, self.trial_n.ny);
@@ -232,11 +212,7 @@ impl PlasticState {
                 let bb = (j + HALO) * st + HALO;
                 for i in 0..nxn {
                     let k = bb + i;
-                    row[HALO + i] = if tn[k] > 0.0 && !held(i, j) {
-                        sy[k] + rn[k] * c[k] + theta * (syn[k] - sy[k])
-                    } else {
-                        0.0
-                    };
+                    row[HALO + i] = if tn[k] > 0.0 && !held(i, j) { sy[k] + rn[k] * c[k] + theta * (syn[k] - sy[k]) } else { 0.0 };
                 }
             });
         }
@@ -251,8 +227,7 @@ impl PlasticState {
                 let (bc, bn0, bn1) = (base(trial_c, j), base(trial_n, j), base(trial_n, j + 1));
                 for i in 0..n {
                     let xx = tcs[bc + i];
-                    let xy =
-                        0.25 * (tns[bn0 + i] + tns[bn0 + i + 1] + tns[bn1 + i] + tns[bn1 + i + 1]);
+                    let xy = 0.25 * (tns[bn0 + i] + tns[bn0 + i + 1] + tns[bn1 + i] + tns[bn1 + i + 1]);
                     row[HALO + i] = xx * unit_ball_scale(xx, xy);
                 }
             });
@@ -262,17 +237,14 @@ impl PlasticState {
                 let (bn, bc0, bc1) = (base(trial_n, j), base(trial_c, j - 1), base(trial_c, j));
                 for i in 0..n {
                     let xy = tns[bn + i];
-                    let xx =
-                        0.25 * (tcs[bc0 + i] + tcs[bc0 + i - 1] + tcs[bc1 + i] + tcs[bc1 + i - 1]);
+                    let xx = 0.25 * (tcs[bc0 + i] + tcs[bc0 + i - 1] + tcs[bc1 + i] + tcs[bc1 + i - 1]);
                     row[HALO + i] = xy * unit_ball_scale(xx, xy);
                 }
             });
         }
         let tau_ref = self.tau_max;
-        let inc =
-            weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec).max(
-                weighted_max_abs_diff(&self.new_n, &self.sigma_xy, &self.tau_n, tau_ref, exec),
-            );
+        let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec)
+            .max(weighted_max_abs_diff(&self.new_n, &self.sigma_xy, &self.tau_n, tau_ref, exec));
         self.sigma_xx.assign(&self.new_c);
         self.sigma_xy.assign(&self.new_n);
         inc
@@ -327,17 +299,7 @@ impl PlasticState {
         self.r_n.slice_mut().iter_mut().for_each(|v| *v *= f);
     }
 
-    pub fn set_r(
-        &mut self,
-        r: Option<f64>,
-        theta: f64,
-        eta_c: &Field,
-        rho_u: &Field,
-        rho_v: &Field,
-        a0_over_dt: f64,
-        grid: &Grid,
-        exec: Exec,
-    ) -> f64 {
+    pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
         if let Some(r) = r {
             self.r_c.fill(r);
             self.r_n.fill(r);
@@ -354,10 +316,7 @@ impl PlasticState {
                 let (bv0, bv1) = (base(rho_v, j as isize), base(rho_v, j as isize + 1));
                 for i in 0..n {
                     // the lightest of the cell's four faces (the largest velocity response)
-                    let rho = rs[bu + i]
-                        .min(rs[bu + i + 1])
-                        .min(rvs[bv0 + i])
-                        .min(rvs[bv1 + i]);
+                    let rho = rs[bu + i].min(rs[bu + i + 1]).min(rvs[bv0 + i]).min(rvs[bv1 + i]);
                     let c = a0_over_dt * rho;
                     row[HALO + i] = 2.0 * s / (c + 4.0 * es[bc + i] * s);
                 }
@@ -389,11 +348,7 @@ impl PlasticState {
                 let b = base(kmax, j as isize);
                 for i in 0..n {
                     let t = ts[b + i];
-                    row[HALO + i] = if t > 0.0 {
-                        (1.0 - theta) / (t * ks[b + i])
-                    } else {
-                        0.0
-                    };
+                    row[HALO + i] = if t > 0.0 { (1.0 - theta) / (t * ks[b + i]) } else { 0.0 };
                 }
             });
         }
@@ -405,25 +360,13 @@ impl PlasticState {
                 let j = j as isize;
                 let (bn, b0, b1) = (base(tau_n, j), base(kmax, j - 1), base(kmax, j));
                 for i in 0..n {
-                    let k = ks[b0 + i]
-                        .max(ks[b0 + i - 1])
-                        .max(ks[b1 + i])
-                        .max(ks[b1 + i - 1]);
+                    let k = ks[b0 + i].max(ks[b0 + i - 1]).max(ks[b1 + i]).max(ks[b1 + i - 1]);
                     let t = ts[bn + i];
-                    row[HALO + i] = if t > 0.0 {
-                        (1.0 - theta) / (t * k)
-                    } else {
-                        0.0
-                    };
+                    row[HALO + i] = if t > 0.0 { (1.0 - theta) / (t * k) } else { 0.0 };
                 }
             });
         }
-        let (rc, tc, st, n) = (
-            self.r_c.slice(),
-            self.tau_c.slice(),
-            self.r_c.stride(),
-            self.r_c.nx,
-        );
+        let (rc, tc, st, n) = (self.r_c.slice(), self.tau_c.slice(), self.r_c.stride(), self.r_c.nx);
         let m = exec.max_rows(self.r_c.ny, n * self.r_c.ny, |j| {
             let b = (j + HALO) * st + HALO;
             let mut m = 0.0f64;
@@ -443,15 +386,7 @@ impl PlasticState {
 }
 
 /// The error of a Picard iteration that reached its cap.
-pub fn not_converged(
-    increment: f64,
-    iterations: usize,
-    tol: f64,
-    r: f64,
-    theta: f64,
-    step: u64,
-    time: f64,
-) -> Error {
+pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta: f64, step: u64, time: f64) -> Error {
     Error::Simulation {
         what: format!(
             "Picard iteration of the plastic projection did not converge: increment {increment:.3e} after {iterations} iterations \

@@ -64,9 +64,7 @@ pub(crate) fn dot(exec: Exec, a: &[f64], b: &[f64], nx: usize, partials: &mut [[
 /// Deterministic sum of a row-major array with rows of length `nx`.
 pub(crate) fn sum(exec: Exec, a: &[f64], nx: usize, partials: &mut [[f64; 1]]) -> f64 {
     let ny = a.len() / nx;
-    let [s] = par::sum_rows(exec, ny, a.len(), partials, |j| {
-        [a[j * nx..(j + 1) * nx].iter().sum()]
-    });
+    let [s] = par::sum_rows(exec, ny, a.len(), partials, |j| [a[j * nx..(j + 1) * nx].iter().sum()]);
     s
 }
 
@@ -97,18 +95,10 @@ pub(crate) fn pcg(
     let mut rel = dot(exec, &w.r, &w.r, nx, &mut w.partials1).sqrt() / bnorm;
     let initial_residual = rel;
     if !rel.is_finite() {
-        return Err(Error::SolverFailure {
-            solver: SOLVER.to_string(),
-            message: format!("initial residual is {rel}"),
-        });
+        return Err(Error::SolverFailure { solver: SOLVER.to_string(), message: format!("initial residual is {rel}") });
     }
     if rel <= rtol {
-        return Ok(SolveInfo {
-            iterations: 0,
-            residual: rel,
-            initial_residual,
-            rhs_mean_removed: 0.0,
-        });
+        return Ok(SolveInfo { iterations: 0, residual: rel, initial_residual, rhs_mean_removed: 0.0 });
     }
     let mut rho = precondition(mg, w, singular, exec, 0)?;
     w.d.copy_from_slice(&w.z);
@@ -162,12 +152,7 @@ pub(crate) fn pcg(
                 if singular {
                     remove_mean(exec, x, nx, &mut w.partials1);
                 }
-                return Ok(SolveInfo {
-                    iterations,
-                    residual: rel,
-                    initial_residual,
-                    rhs_mean_removed: 0.0,
-                });
+                return Ok(SolveInfo { iterations, residual: rel, initial_residual, rhs_mean_removed: 0.0 });
             }
             // Restart from the true residual.
             rho = precondition(mg, w, singular, exec, iterations)?;
@@ -185,23 +170,12 @@ pub(crate) fn pcg(
             }
         });
     }
-    Err(Error::NotConverged {
-        solver: SOLVER.to_string(),
-        iterations,
-        residual: rel,
-        tolerance: rtol,
-    })
+    Err(Error::NotConverged { solver: SOLVER.to_string(), iterations, residual: rel, tolerance: rtol })
 }
 
 /// z = M r (one multigrid cycle, projected onto zero mean in the singular case); returns r·z,
 /// or an error if it is not positive (M not positive definite: CG would break down).
-fn precondition(
-    mg: &mut Multigrid,
-    w: &mut CgWork,
-    singular: bool,
-    exec: Exec,
-    iteration: usize,
-) -> Result<f64> {
+fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec, iteration: usize) -> Result<f64> {
     let nx = mg.levels[0].nx;
     mg.precondition(&w.r, &mut w.z, exec);
     if singular {
@@ -222,14 +196,7 @@ fn precondition(
 
 /// Runs `f(j, a_row, b_row)` on every row of two arrays and returns the deterministic sum of its
 /// results (per-block partial sums added in block order).
-fn rows_update<F>(
-    exec: Exec,
-    a: &mut [f64],
-    b: &mut [f64],
-    nx: usize,
-    partials: &mut [[f64; 2]],
-    f: F,
-) -> f64
+fn rows_update<F>(exec: Exec, a: &mut [f64], b: &mut [f64], nx: usize, partials: &mut [[f64; 2]], f: F) -> f64
 where
     F: Fn(usize, &mut [f64], &mut [f64]) -> f64 + Sync + Send,
 {
@@ -251,12 +218,7 @@ where
             .enumerate()
             .for_each(|(blk, ((ca, cb), out))| out[0] = block(blk, ca, cb));
     } else {
-        for (blk, ((ca, cb), out)) in a
-            .chunks_mut(rows)
-            .zip(b.chunks_mut(rows))
-            .zip(partials.iter_mut())
-            .enumerate()
-        {
+        for (blk, ((ca, cb), out)) in a.chunks_mut(rows).zip(b.chunks_mut(rows)).zip(partials.iter_mut()).enumerate() {
             out[0] = block(blk, ca, cb);
         }
     }

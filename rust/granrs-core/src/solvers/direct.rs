@@ -19,8 +19,7 @@
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -106,13 +105,8 @@ impl DirectSolver {
         };
         let symbolic = {
             let a = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-            factorize_symbolic_cholesky(
-                a,
-                Side::Upper,
-                SymmetricOrdering::Amd,
-                CholeskySymbolicParams::default(),
-            )
-            .map_err(|e| failure("symbolic factorisation", &e))?
+            factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
+                .map_err(|e| failure("symbolic factorisation", &e))?
         };
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
@@ -150,13 +144,7 @@ impl DirectSolver {
         }
         self.factorised = false;
         let a = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(
-                self.n,
-                self.n,
-                &self.col_ptr,
-                None,
-                &self.row_idx,
-            ),
+            SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx),
             &self.values,
         );
         self.symbolic
@@ -171,9 +159,7 @@ impl DirectSolver {
             )
             .map_err(|e| Error::SolverFailure {
                 solver: SOLVER.to_string(),
-                message: format!(
-                    "numeric factorisation failed ({e:?}): the operator is not positive definite"
-                ),
+                message: format!("numeric factorisation failed ({e:?}): the operator is not positive definite"),
             })?;
         self.factorised = true;
         Ok(())
@@ -182,10 +168,7 @@ impl DirectSolver {
     /// x = A⁻¹ b (with cell 0 pinned to 0 in the singular case; the caller makes b sum to zero
     /// and shifts x). Requires a successful [`DirectSolver::factorize`].
     pub fn solve(&mut self, b: &[f64], x: &mut [f64]) {
-        assert!(
-            self.factorised,
-            "DirectSolver::solve before a successful factorize"
-        );
+        assert!(self.factorised, "DirectSolver::solve before a successful factorize");
         self.work.copy_from_slice(b);
         if self.pinned {
             self.work[0] = 0.0;

@@ -104,8 +104,7 @@ impl Level {
         exec.for_each_row(&mut self.shift, nx, |j, row| {
             let (r0, r1) = (2 * j * nfx, (2 * j + 1) * nfx);
             for (i, v) in row.iter_mut().enumerate() {
-                *v = 0.25
-                    * (fs[r0 + 2 * i] + fs[r0 + 2 * i + 1] + fs[r1 + 2 * i] + fs[r1 + 2 * i + 1]);
+                *v = 0.25 * (fs[r0 + 2 * i] + fs[r0 + 2 * i + 1] + fs[r1 + 2 * i] + fs[r1 + 2 * i + 1]);
             }
         });
     }
@@ -117,34 +116,20 @@ impl Level {
         let bx = &self.beta_x;
         exec.for_each_row(&mut self.cx, nx + 1, |j, row| {
             for (i, c) in row.iter_mut().enumerate() {
-                *c = if i == 0 || i == nx {
-                    0.0
-                } else {
-                    bx[j * (nx + 1) + i] * idx2
-                };
+                *c = if i == 0 || i == nx { 0.0 } else { bx[j * (nx + 1) + i] * idx2 };
             }
         });
         let by = &self.beta_y;
         exec.for_each_row(&mut self.cy, nx, |j, row| {
             for (i, c) in row.iter_mut().enumerate() {
-                *c = if j == 0 || j == ny {
-                    0.0
-                } else {
-                    by[j * nx + i] * idy2
-                };
+                *c = if j == 0 || j == ny { 0.0 } else { by[j * nx + i] * idy2 };
             }
         });
-        let dirichlet = self
-            .bc
-            .map(|b| if b == PressureBc::Dirichlet { 2.0 } else { 0.0 });
+        let dirichlet = self.bc.map(|b| if b == PressureBc::Dirichlet { 2.0 } else { 0.0 });
         let (cx, cy, sh) = (&self.cx, &self.cy, &self.shift);
         exec.for_each_row(&mut self.diag, nx, |j, row| {
             for (i, d) in row.iter_mut().enumerate() {
-                let mut s = sh[j * nx + i]
-                    + cx[j * (nx + 1) + i]
-                    + cx[j * (nx + 1) + i + 1]
-                    + cy[j * nx + i]
-                    + cy[(j + 1) * nx + i];
+                let mut s = sh[j * nx + i] + cx[j * (nx + 1) + i] + cx[j * (nx + 1) + i + 1] + cy[j * nx + i] + cy[(j + 1) * nx + i];
                 if i == 0 {
                     s += dirichlet[LEFT] * bx[j * (nx + 1)] * idx2;
                 }
@@ -174,16 +159,8 @@ impl Level {
     pub fn stencil_row(&self, j: usize, p: &[f64], mut emit: impl FnMut(usize, f64)) {
         let nx = self.nx;
         let pc = &p[j * nx..(j + 1) * nx];
-        let ps = if j > 0 {
-            &p[(j - 1) * nx..j * nx]
-        } else {
-            &self.zeros[..]
-        };
-        let pn = if j + 1 < self.ny {
-            &p[(j + 1) * nx..(j + 2) * nx]
-        } else {
-            &self.zeros[..]
-        };
+        let ps = if j > 0 { &p[(j - 1) * nx..j * nx] } else { &self.zeros[..] };
+        let pn = if j + 1 < self.ny { &p[(j + 1) * nx..(j + 2) * nx] } else { &self.zeros[..] };
         let cxr = &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)];
         let cys = &self.cy[j * nx..(j + 1) * nx];
         let cyn = &self.cy[(j + 1) * nx..(j + 2) * nx];
@@ -192,25 +169,12 @@ impl Level {
             emit(0, dg[0] * pc[0] - cys[0] * ps[0] - cyn[0] * pn[0]);
             return;
         }
-        emit(
-            0,
-            dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0],
-        );
+        emit(0, dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0]);
         for i in 1..nx - 1 {
-            emit(
-                i,
-                dg[i] * pc[i]
-                    - cxr[i] * pc[i - 1]
-                    - cxr[i + 1] * pc[i + 1]
-                    - cys[i] * ps[i]
-                    - cyn[i] * pn[i],
-            );
+            emit(i, dg[i] * pc[i] - cxr[i] * pc[i - 1] - cxr[i + 1] * pc[i + 1] - cys[i] * ps[i] - cyn[i] * pn[i]);
         }
         let i = nx - 1;
-        emit(
-            i,
-            dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i],
-        );
+        emit(i, dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i]);
     }
 
     /// r = b − A x.
@@ -290,14 +254,7 @@ impl Level {
     /// call. Indices: rows j±1 are read only when they exist (the zero row stands in otherwise),
     /// columns i±1 only when 0 ≤ i±1 < nx. No reference to the buffer is created.
     #[inline(always)]
-    unsafe fn half_sweep_row(
-        &self,
-        base: *mut f64,
-        b: &[f64],
-        j: usize,
-        colour: usize,
-        from_zero: bool,
-    ) {
+    unsafe fn half_sweep_row(&self, base: *mut f64, b: &[f64], j: usize, colour: usize, from_zero: bool) {
         let (nx, ny) = (self.nx, self.ny);
         let start = (colour + j) % 2;
         let br = &b[j * nx..(j + 1) * nx];
@@ -314,16 +271,8 @@ impl Level {
         let cys = self.cy[j * nx..(j + 1) * nx].as_ptr();
         let cyn = self.cy[(j + 1) * nx..(j + 2) * nx].as_ptr();
         let (br, inv) = (br.as_ptr(), inv.as_ptr());
-        let ps: *const f64 = if j > 0 {
-            base.add((j - 1) * nx)
-        } else {
-            self.zeros.as_ptr()
-        };
-        let pn: *const f64 = if j + 1 < ny {
-            base.add((j + 1) * nx)
-        } else {
-            self.zeros.as_ptr()
-        };
+        let ps: *const f64 = if j > 0 { base.add((j - 1) * nx) } else { self.zeros.as_ptr() };
+        let pn: *const f64 = if j + 1 < ny { base.add((j + 1) * nx) } else { self.zeros.as_ptr() };
         // i < nx for every call below.
         let update = |i: usize, west: f64, east: f64| -> f64 {
             let horizontal = *br.add(i) + *cxr.add(i) * west + *cxr.add(i + 1) * east;

@@ -149,42 +149,23 @@ impl SolverSettings {
     /// Checks every parameter; errors name the offending field.
     pub fn validate(&self) -> Result<()> {
         if !(self.rtol.is_finite() && self.rtol >= 1e-15 && self.rtol < 1.0) {
-            return Err(Error::param(
-                "rtol",
-                self.rtol,
-                "a finite number in [1e-15, 1)",
-            ));
+            return Err(Error::param("rtol", self.rtol, "a finite number in [1e-15, 1)"));
         }
         if self.max_iterations == 0 {
-            return Err(Error::param(
-                "max_iterations",
-                self.max_iterations,
-                "an integer >= 1",
-            ));
+            return Err(Error::param("max_iterations", self.max_iterations, "an integer >= 1"));
         }
         if !(1..=10).contains(&self.pre_smooth) {
-            return Err(Error::param(
-                "pre_smooth",
-                self.pre_smooth,
-                "an integer in [1, 10]",
-            ));
+            return Err(Error::param("pre_smooth", self.pre_smooth, "an integer in [1, 10]"));
         }
         if self.post_smooth != self.pre_smooth {
             return Err(Error::param(
                 "post_smooth",
                 self.post_smooth,
-                &format!(
-                    "the value of pre_smooth ({}) (the multigrid cycle must be symmetric)",
-                    self.pre_smooth
-                ),
+                &format!("the value of pre_smooth ({}) (the multigrid cycle must be symmetric)", self.pre_smooth),
             ));
         }
         if self.min_coarse_size == 0 {
-            return Err(Error::param(
-                "min_coarse_size",
-                self.min_coarse_size,
-                "an integer >= 1",
-            ));
+            return Err(Error::param("min_coarse_size", self.min_coarse_size, "an integer >= 1"));
         }
         Ok(())
     }
@@ -210,42 +191,20 @@ impl PoissonSolver {
     /// Builds the solver for `nx × ny` cells of size `dx × dy` with pressure conditions `bc`
     /// (left, right, bottom, top): level hierarchy, work arrays, symbolic factorisation. The
     /// coefficients start at β = 1 everywhere (already factorised).
-    pub fn new(
-        nx: usize,
-        ny: usize,
-        dx: f64,
-        dy: f64,
-        bc: [PressureBc; 4],
-        settings: SolverSettings,
-    ) -> Result<Self> {
+    pub fn new(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings) -> Result<Self> {
         Self::build(nx, ny, dx, dy, bc, settings, false)
     }
 
     /// A solver for the shifted (Helmholtz-type) operator (L − σ) p = f, σ ≥ 0 per cell, set with
     /// [`PoissonSolver::set_coefficients_with_shift`]; σ must be positive somewhere when every
     /// side is Neumann, so the problem is never singular (implicit diffusion, pore pressure).
-    pub fn new_shifted(
-        nx: usize,
-        ny: usize,
-        dx: f64,
-        dy: f64,
-        bc: [PressureBc; 4],
-        settings: SolverSettings,
-    ) -> Result<Self> {
+    pub fn new_shifted(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings) -> Result<Self> {
         Self::build(nx, ny, dx, dy, bc, settings, true)
     }
 
     /// Shared constructor: a Poisson operator is singular when every side is Neumann; a shifted
     /// one never is (its shift starts at σ = 1).
-    fn build(
-        nx: usize,
-        ny: usize,
-        dx: f64,
-        dy: f64,
-        bc: [PressureBc; 4],
-        settings: SolverSettings,
-        shifted: bool,
-    ) -> Result<Self> {
+    fn build(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings, shifted: bool) -> Result<Self> {
         if nx == 0 {
             return Err(Error::param("nx", nx, "an integer >= 1"));
         }
@@ -268,18 +227,7 @@ impl PoissonSolver {
         let ones_x = vec![1.0; ny * (nx + 1)];
         let ones_y = vec![1.0; (ny + 1) * nx];
         mg.set_coefficients(&ones_x, &ones_y, Exec::SERIAL)?;
-        Ok(PoissonSolver {
-            nx,
-            ny,
-            dx,
-            dy,
-            bc,
-            settings,
-            singular,
-            mg,
-            work: CgWork::new(nx, ny),
-            ready: true,
-        })
+        Ok(PoissonSolver { nx, ny, dx, dy, bc, settings, singular, mg, work: CgWork::new(nx, ny), ready: true })
     }
 
     /// Sets β on the faces (β^x shape (ny, nx+1), β^y shape (ny+1, nx), row-major), rebuilds the
@@ -300,20 +248,10 @@ impl PoissonSolver {
     /// Sets β and the diagonal shift σ (shape (ny, nx), finite, ≥ 0; positive somewhere when
     /// every side is Neumann) of a solver built with [`PoissonSolver::new_shifted`]: solves
     /// (L − σ) p = f afterwards.
-    pub fn set_coefficients_with_shift(
-        &mut self,
-        beta_x: &[f64],
-        beta_y: &[f64],
-        shift: &[f64],
-        exec: Exec,
-    ) -> Result<()> {
+    pub fn set_coefficients_with_shift(&mut self, beta_x: &[f64], beta_y: &[f64], shift: &[f64], exec: Exec) -> Result<()> {
         let (nx, ny) = (self.nx, self.ny);
         if self.singular {
-            return Err(Error::param(
-                "shift",
-                "given",
-                "only for a solver built with PoissonSolver::new_shifted",
-            ));
+            return Err(Error::param("shift", "given", "only for a solver built with PoissonSolver::new_shifted"));
         }
         check_len("beta_x", beta_x.len(), &[ny, nx + 1])?;
         check_len("beta_y", beta_y.len(), &[ny + 1, nx])?;
@@ -321,22 +259,13 @@ impl PoissonSolver {
         check_non_negative_array("beta_x", beta_x, nx + 1)?;
         check_non_negative_array("beta_y", beta_y, nx)?;
         if let Some(k) = shift.iter().position(|s| !(s.is_finite() && *s >= 0.0)) {
-            return Err(Error::param(
-                "shift",
-                format!("{} at cell (i={}, j={})", shift[k], k % nx, k / nx),
-                "finite values >= 0",
-            ));
+            return Err(Error::param("shift", format!("{} at cell (i={}, j={})", shift[k], k % nx, k / nx), "finite values >= 0"));
         }
         if self.bc.iter().all(|&b| b == PressureBc::Neumann) && shift.iter().all(|&s| s == 0.0) {
-            return Err(Error::param(
-                "shift",
-                "0 everywhere",
-                "positive somewhere when every side is Neumann (else singular)",
-            ));
+            return Err(Error::param("shift", "0 everywhere", "positive somewhere when every side is Neumann (else singular)"));
         }
         self.ready = false;
-        self.mg
-            .set_coefficients_with_shift(beta_x, beta_y, Some(shift), exec)?;
+        self.mg.set_coefficients_with_shift(beta_x, beta_y, Some(shift), exec)?;
         self.ready = true;
         Ok(())
     }
@@ -352,8 +281,7 @@ impl PoissonSolver {
         if !self.ready {
             return Err(Error::SolverFailure {
                 solver: self.solver_name().to_string(),
-                message: "the last set_coefficients failed; set valid coefficients before solving"
-                    .to_string(),
+                message: "the last set_coefficients failed; set valid coefficients before solving".to_string(),
             });
         }
         check_finite_array("f", f, nx)?;
@@ -365,31 +293,17 @@ impl PoissonSolver {
                 *v = -fv;
             }
         });
-        let rhs_mean_removed = if self.singular {
-            -cg::remove_mean(exec, rhs, nx, &mut self.work.partials1)
-        } else {
-            0.0
-        };
+        let rhs_mean_removed =
+            if self.singular { -cg::remove_mean(exec, rhs, nx, &mut self.work.partials1) } else { 0.0 };
         let bnorm = cg::dot(exec, rhs, rhs, nx, &mut self.work.partials1).sqrt();
         if bnorm == 0.0 {
             p.iter_mut().for_each(|v| *v = 0.0);
-            return Ok(SolveInfo {
-                iterations: 0,
-                residual: 0.0,
-                initial_residual: 0.0,
-                rhs_mean_removed,
-            });
+            return Ok(SolveInfo { iterations: 0, residual: 0.0, initial_residual: 0.0, rhs_mean_removed });
         }
         let mut info = match self.settings.kind {
-            PressureSolverKind::MultigridCg => cg::pcg(
-                &mut self.mg,
-                &mut self.work,
-                p,
-                bnorm,
-                &self.settings,
-                self.singular,
-                exec,
-            )?,
+            PressureSolverKind::MultigridCg => {
+                cg::pcg(&mut self.mg, &mut self.work, p, bnorm, &self.settings, self.singular, exec)?
+            }
             PressureSolverKind::Direct => self.solve_direct(p, bnorm, exec),
         };
         info.rhs_mean_removed = rhs_mean_removed;
@@ -408,12 +322,7 @@ impl PoissonSolver {
         }
         self.mg.levels[0].residual(p, &w.rhs, &mut w.r, exec);
         let residual = cg::dot(exec, &w.r, &w.r, nx, &mut w.partials1).sqrt() / bnorm;
-        SolveInfo {
-            iterations: 1,
-            residual,
-            initial_residual,
-            rhs_mean_removed: 0.0,
-        }
+        SolveInfo { iterations: 1, residual, initial_residual, rhs_mean_removed: 0.0 }
     }
 
     /// out = L p (the operator with the current coefficients and boundary conditions).
@@ -422,14 +331,9 @@ impl PoissonSolver {
     /// If `p` or `out` does not have nx·ny elements.
     pub fn apply(&self, p: &[f64], out: &mut [f64], exec: Exec) {
         let n = self.nx * self.ny;
-        assert!(
-            p.len() == n && out.len() == n,
-            "PoissonSolver::apply: p and out must have nx*ny = {n} elements"
-        );
+        assert!(p.len() == n && out.len() == n, "PoissonSolver::apply: p and out must have nx*ny = {n} elements");
         let level = &self.mg.levels[0];
-        exec.for_each_row(out, self.nx, |j, row| {
-            level.stencil_row(j, p, |i, v| row[i] = -v)
-        });
+        exec.for_each_row(out, self.nx, |j, row| level.stencil_row(j, p, |i, v| row[i] = -v));
     }
 
     /// Applies the preconditioner once: one multigrid cycle (V or W, per the settings) from a
@@ -474,40 +378,18 @@ impl PoissonSolver {
 
 impl fmt::Display for PoissonSolver {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let bc: Vec<&str> = self
-            .bc
-            .iter()
-            .map(|b| {
-                if *b == PressureBc::Neumann {
-                    "Neumann"
-                } else {
-                    "Dirichlet"
-                }
-            })
-            .collect();
+        let bc: Vec<&str> =
+            self.bc.iter().map(|b| if *b == PressureBc::Neumann { "Neumann" } else { "Dirichlet" }).collect();
         writeln!(f, "PoissonSolver ({})", self.solver_name())?;
-        writeln!(
-            f,
-            "├── grid: {} × {} cells, dx = {:e}, dy = {:e}",
-            self.nx, self.ny, self.dx, self.dy
-        )?;
+        writeln!(f, "├── grid: {} × {} cells, dx = {:e}, dy = {:e}", self.nx, self.ny, self.dx, self.dy)?;
         writeln!(
             f,
             "├── bc (left, right, bottom, top): {}{}",
             bc.join(", "),
             if self.singular { " (singular)" } else { "" }
         )?;
-        let levels: Vec<String> = self
-            .mg
-            .levels
-            .iter()
-            .map(|l| format!("{}×{}", l.nx, l.ny))
-            .collect();
-        writeln!(
-            f,
-            "├── levels: {} (coarsest solved by sparse Cholesky)",
-            levels.join(" → ")
-        )?;
+        let levels: Vec<String> = self.mg.levels.iter().map(|l| format!("{}×{}", l.nx, l.ny)).collect();
+        writeln!(f, "├── levels: {} (coarsest solved by sparse Cholesky)", levels.join(" → "))?;
         write!(
             f,
             "└── rtol = {:e}, max_iterations = {}, {:?}({}, {})-cycle, piecewise-constant transfers",
@@ -525,11 +407,7 @@ fn check_len(name: &str, len: usize, shape: &[usize]) -> Result<()> {
     if len == shape.iter().product::<usize>() {
         Ok(())
     } else {
-        Err(Error::Shape {
-            name: name.to_string(),
-            got: vec![len],
-            expected: shape.to_vec(),
-        })
+        Err(Error::Shape { name: name.to_string(), got: vec![len], expected: shape.to_vec() })
     }
 }
 
@@ -549,11 +427,7 @@ fn check_coefficients(name: &str, beta: &[f64], stride: usize) -> Result<()> {
 fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<()> {
     match beta.iter().position(|&b| !(b.is_finite() && b >= 0.0)) {
         None => Ok(()),
-        Some(k) => Err(Error::param(
-            &format!("{name}[j={}, i={}]", k / stride, k % stride),
-            beta[k],
-            "a finite number >= 0",
-        )),
+        Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), beta[k], "a finite number >= 0")),
     }
 }
 
@@ -561,10 +435,6 @@ fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<(
 fn check_finite_array(name: &str, v: &[f64], stride: usize) -> Result<()> {
     match v.iter().position(|x| !x.is_finite()) {
         None => Ok(()),
-        Some(k) => Err(Error::param(
-            &format!("{name}[j={}, i={}]", k / stride, k % stride),
-            v[k],
-            "a finite number",
-        )),
+        Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), v[k], "a finite number")),
     }
 }

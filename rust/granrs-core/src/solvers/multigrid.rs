@@ -89,10 +89,8 @@ impl Multigrid {
         max_levels: usize,
         singular: bool,
     ) -> Result<Self> {
-        let sizes: Vec<(usize, usize)> = level_sizes(nx, ny, settings.min_coarse_size)
-            .into_iter()
-            .take(max_levels.max(1))
-            .collect();
+        let sizes: Vec<(usize, usize)> =
+            level_sizes(nx, ny, settings.min_coarse_size).into_iter().take(max_levels.max(1)).collect();
         let levels: Vec<Level> = sizes
             .iter()
             .enumerate()
@@ -102,16 +100,8 @@ impl Multigrid {
             })
             .collect();
         let nl = levels.len();
-        let xs = levels
-            .iter()
-            .enumerate()
-            .map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }])
-            .collect();
-        let bs = levels
-            .iter()
-            .enumerate()
-            .map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }])
-            .collect();
+        let xs = levels.iter().enumerate().map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }]).collect();
+        let bs = levels.iter().enumerate().map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }]).collect();
         let last = &levels[nl - 1];
         let coarse = DirectSolver::new(last.nx, last.ny, singular)?;
         let partials = vec![[0.0]; par::n_blocks(last.ny)];
@@ -145,13 +135,7 @@ impl Multigrid {
     }
 
     /// Same, with a diagonal shift σ on the fine level (None: keep the current one).
-    pub fn set_coefficients_with_shift(
-        &mut self,
-        beta_x: &[f64],
-        beta_y: &[f64],
-        shift: Option<&[f64]>,
-        exec: Exec,
-    ) -> Result<()> {
+    pub fn set_coefficients_with_shift(&mut self, beta_x: &[f64], beta_y: &[f64], shift: Option<&[f64]>, exec: Exec) -> Result<()> {
         if let Some(s) = shift {
             self.levels[0].shift.copy_from_slice(s);
         }

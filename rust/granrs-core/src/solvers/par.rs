@@ -64,11 +64,7 @@ where
             .enumerate()
             .for_each(|(b, (chunk, out))| *out = block(b, chunk));
     } else {
-        for (b, (chunk, out)) in data
-            .chunks_mut(stride * ROW_BLOCK)
-            .zip(partials.iter_mut())
-            .enumerate()
-        {
+        for (b, (chunk, out)) in data.chunks_mut(stride * ROW_BLOCK).zip(partials.iter_mut()).enumerate() {
             *out = block(b, chunk);
         }
     }
@@ -106,10 +102,7 @@ where
         s
     };
     if exec.use_parallel(cells) {
-        partials
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(b, out)| *out = block(b));
+        partials.par_iter_mut().enumerate().for_each(|(b, out)| *out = block(b));
     } else {
         for (b, out) in partials.iter_mut().enumerate() {
             *out = block(b);

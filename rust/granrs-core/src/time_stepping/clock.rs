@@ -31,13 +31,7 @@ pub struct TimeConfig {
 
 impl Default for TimeConfig {
     fn default() -> Self {
-        TimeConfig {
-            cfl: 0.5,
-            fixed_dt: None,
-            max_dt: f64::INFINITY,
-            max_growth: 1.2,
-            cfl_abort: 1.0,
-        }
+        TimeConfig { cfl: 0.5, fixed_dt: None, max_dt: f64::INFINITY, max_growth: 1.2, cfl_abort: 1.0 }
     }
 }
 
@@ -49,11 +43,7 @@ impl TimeConfig {
             check_positive("dt", dt)?;
         }
         if !(self.max_dt > 0.0) {
-            return Err(Error::param(
-                "max_dt",
-                self.max_dt,
-                "a number > 0 (inf allowed)",
-            ));
+            return Err(Error::param("max_dt", self.max_dt, "a number > 0 (inf allowed)"));
         }
         check_range("max_growth", self.max_growth, 1.0, 2.4)?;
         check_range("cfl_abort", self.cfl_abort, 1e-6, 100.0)?;
@@ -74,15 +64,7 @@ pub fn bdf_coefficients(dt: f64, dt_prev: Option<f64>) -> (f64, f64, f64, f64) {
 }
 
 /// The stable step of the adaptive rule (before caps).
-pub fn stable_dt(
-    cfl: f64,
-    umax: f64,
-    vmax: f64,
-    dx: f64,
-    dy: f64,
-    gravity: f64,
-    nu_explicit: f64,
-) -> f64 {
+pub fn stable_dt(cfl: f64, umax: f64, vmax: f64, dx: f64, dy: f64, gravity: f64, nu_explicit: f64) -> f64 {
     let c = umax / dx + vmax / dy + 2.0 * nu_explicit * (1.0 / (dx * dx) + 1.0 / (dy * dy));
     let f = gravity.abs() / dx.min(dy);
     let denom = c + (c * c + 4.0 * f).sqrt();

@@ -16,9 +16,7 @@
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
-use crate::operators::{
-    fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, BcMode,
-};
+use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, BcMode};
 use crate::solvers::SolveInfo;
 use std::ops::Range;
 
@@ -114,14 +112,7 @@ impl MomentumSolver {
     }
 
     /// out = A(u) = c ⊙ u − div(2η D(u)) on every face (ghosts of u, v filled by the caller).
-    fn apply(
-        sys: &ViscousSystem,
-        u: &Field,
-        v: &Field,
-        out_u: &mut Field,
-        out_v: &mut Field,
-        exec: Exec,
-    ) {
+    fn apply(sys: &ViscousSystem, u: &Field, v: &Field, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
         viscous(u, v, sys.eta_c, sys.eta_n, sys.grid, out_u, out_v, exec);
         for (out, c, w) in [(out_u, sys.c_u, u), (out_v, sys.c_v, v)] {
             let (cs, ws) = (c.slice(), w.slice());
@@ -206,26 +197,8 @@ impl MomentumSolver {
         // r = rhs − A u, z = r / diag, d = z (zero off the unknown faces)
         let mut bnorm2 = 0.0;
         for (r, q, rhs, z, d, diag, ri, rj) in [
-            (
-                &mut self.ru,
-                &self.qu,
-                rhs_u,
-                &mut self.zu,
-                &mut self.du,
-                &self.diag_u,
-                ru.clone(),
-                0..sys.grid.ny,
-            ),
-            (
-                &mut self.rv,
-                &self.qv,
-                rhs_v,
-                &mut self.zv,
-                &mut self.dv,
-                &self.diag_v,
-                0..sys.grid.nx,
-                rv.clone(),
-            ),
+            (&mut self.ru, &self.qu, rhs_u, &mut self.zu, &mut self.du, &self.diag_u, ru.clone(), 0..sys.grid.ny),
+            (&mut self.rv, &self.qv, rhs_v, &mut self.zv, &mut self.dv, &self.diag_v, 0..sys.grid.nx, rv.clone()),
         ] {
             bnorm2 += dot(rhs, rhs, &ri, &rj, exec);
             r.fill(0.0);
@@ -255,8 +228,7 @@ impl MomentumSolver {
         let scale = if bnorm > 0.0 { bnorm } else { 1.0 };
         let mut res = rnorm0 / scale;
         let initial = res;
-        let mut rz = dot(&self.ru, &self.zu, &ru, &(0..sys.grid.ny), exec)
-            + dot(&self.rv, &self.zv, &(0..sys.grid.nx), &rv, exec);
+        let mut rz = dot(&self.ru, &self.zu, &ru, &(0..sys.grid.ny), exec) + dot(&self.rv, &self.zv, &(0..sys.grid.nx), &rv, exec);
         let mut it = 0;
         while res > self.rtol && rnorm0 > 0.0 {
             if it >= self.max_iterations {
@@ -267,71 +239,35 @@ impl MomentumSolver {
                     tolerance: self.rtol,
                 });
             }
-            fill_velocity_ghosts(
-                &mut self.du,
-                &mut self.dv,
-                sys.bc,
-                sys.grid,
-                BcMode::Homogeneous,
-            );
+            fill_velocity_ghosts(&mut self.du, &mut self.dv, sys.bc, sys.grid, BcMode::Homogeneous);
             Self::apply(sys, &self.du, &self.dv, &mut self.qu, &mut self.qv, exec);
-            let dq = dot(&self.du, &self.qu, &ru, &(0..sys.grid.ny), exec)
-                + dot(&self.dv, &self.qv, &(0..sys.grid.nx), &rv, exec);
+            let dq = dot(&self.du, &self.qu, &ru, &(0..sys.grid.ny), exec) + dot(&self.dv, &self.qv, &(0..sys.grid.nx), &rv, exec);
             let alpha = rz / dq;
             let mut rz_new = 0.0;
             let mut rr = 0.0;
             for (x, r, z, d, q, diag, ri, rj) in [
-                (
-                    &mut *u,
-                    &mut self.ru,
-                    &mut self.zu,
-                    &self.du,
-                    &self.qu,
-                    &self.diag_u,
-                    ru.clone(),
-                    0..sys.grid.ny,
-                ),
-                (
-                    &mut *v,
-                    &mut self.rv,
-                    &mut self.zv,
-                    &self.dv,
-                    &self.qv,
-                    &self.diag_v,
-                    0..sys.grid.nx,
-                    rv.clone(),
-                ),
+                (&mut *u, &mut self.ru, &mut self.zu, &self.du, &self.qu, &self.diag_u, ru.clone(), 0..sys.grid.ny),
+                (&mut *v, &mut self.rv, &mut self.zv, &self.dv, &self.qv, &self.diag_v, 0..sys.grid.nx, rv.clone()),
             ] {
                 let st = x.stride();
                 let (ds, qs, dg) = (d.slice(), q.slice(), diag.slice());
                 let (i0, i1) = (ri.start, ri.end);
                 // x += α d, r −= α q, z = r / diag, row by row (elementwise: serial == parallel)
-                rows3(
-                    exec,
-                    st,
-                    rj.clone(),
-                    x.slice_mut(),
-                    r.slice_mut(),
-                    z.slice_mut(),
-                    |j, xr, rr_, zr| {
-                        let base = (j + HALO) * st;
-                        for c in HALO + i0..HALO + i1 {
-                            xr[c] += alpha * ds[base + c];
-                            rr_[c] -= alpha * qs[base + c];
-                            zr[c] = rr_[c] / dg[base + c];
-                        }
-                    },
-                );
+                rows3(exec, st, rj.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), |j, xr, rr_, zr| {
+                    let base = (j + HALO) * st;
+                    for c in HALO + i0..HALO + i1 {
+                        xr[c] += alpha * ds[base + c];
+                        rr_[c] -= alpha * qs[base + c];
+                        zr[c] = rr_[c] / dg[base + c];
+                    }
+                });
                 rz_new += dot(r, z, &ri, &rj, exec);
                 rr += dot(r, r, &ri, &rj, exec);
             }
             res = rr.sqrt() / scale;
             let beta = rz_new / rz;
             rz = rz_new;
-            for (d, z, ri, rj) in [
-                (&mut self.du, &self.zu, ru.clone(), 0..sys.grid.ny),
-                (&mut self.dv, &self.zv, 0..sys.grid.nx, rv.clone()),
-            ] {
+            for (d, z, ri, rj) in [(&mut self.du, &self.zu, ru.clone(), 0..sys.grid.ny), (&mut self.dv, &self.zv, 0..sys.grid.nx, rv.clone())] {
                 let st = d.stride();
                 let zs = z.slice();
                 let rows = &mut d.slice_mut()[(rj.start + HALO) * st..(rj.end + HALO) * st];
@@ -345,37 +281,15 @@ impl MomentumSolver {
             it += 1;
         }
         fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
-        Ok(SolveInfo {
-            iterations: it,
-            residual: res,
-            initial_residual: initial,
-            rhs_mean_removed: 0.0,
-        })
+        Ok(SolveInfo { iterations: it, residual: res, initial_residual: initial, rhs_mean_removed: 0.0 })
     }
 
     /// Explicit predictor: ũ = (rhs + div(2η D(u*)))/c on the unknown faces, with u* in `u`, `v`
     /// on entry (ghosts are filled here).
-    pub fn solve_explicit(
-        &mut self,
-        sys: &ViscousSystem,
-        u: &mut Field,
-        v: &mut Field,
-        rhs_u: &Field,
-        rhs_v: &Field,
-        exec: Exec,
-    ) {
+    pub fn solve_explicit(&mut self, sys: &ViscousSystem, u: &mut Field, v: &mut Field, rhs_u: &Field, rhs_v: &Field, exec: Exec) {
         let (ru, rv) = ranges(sys.grid, sys.bc);
         fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
-        viscous(
-            u,
-            v,
-            sys.eta_c,
-            sys.eta_n,
-            sys.grid,
-            &mut self.qu,
-            &mut self.qv,
-            exec,
-        );
+        viscous(u, v, sys.eta_c, sys.eta_n, sys.grid, &mut self.qu, &mut self.qv, exec);
         for (x, q, rhs, c, ri, rj) in [
             (&mut *u, &self.qu, rhs_u, sys.c_u, ru, 0..sys.grid.ny),
             (&mut *v, &self.qv, rhs_v, sys.c_v, 0..sys.grid.nx, rv),
@@ -399,15 +313,8 @@ impl MomentumSolver {
 
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
 /// with the same stride, in parallel when `exec` says so; rows are whole (ghosts included).
-fn rows3<F>(
-    exec: Exec,
-    st: usize,
-    rows: std::ops::Range<usize>,
-    x: &mut [f64],
-    r: &mut [f64],
-    z: &mut [f64],
-    f: F,
-) where
+fn rows3<F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], f: F)
+where
     F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
 {
     let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
@@ -420,12 +327,7 @@ fn rows3<F>(
             .enumerate()
             .for_each(|(k, ((a, b), c))| f(rows.start + k, a, b, c));
     } else {
-        for (k, ((a, b), c)) in x
-            .chunks_mut(st)
-            .zip(r.chunks_mut(st))
-            .zip(z.chunks_mut(st))
-            .enumerate()
-        {
+        for (k, ((a, b), c)) in x.chunks_mut(st).zip(r.chunks_mut(st)).zip(z.chunks_mut(st)).enumerate() {
             f(rows.start + k, a, b, c);
         }
     }
