@@ -12,32 +12,19 @@ use granrs_core::Error;
 fn poiseuille(n: usize, tau_y: f64, theta: f64) -> TwoPhaseModel {
     let dy = 2.0 / n as f64;
     let grid = Grid::new(4, n, 4.0 * dy, 2.0).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip)
-        .with(Side::Left, VelocityBc::Outflow)
-        .with(Side::Right, VelocityBc::Outflow);
-    let mut cfg = ModelConfig::single_phase(
-        grid,
-        bc,
-        Material {
-            density: 1.0,
-            viscosity: 1.0,
-        },
-    );
+    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Left, VelocityBc::Outflow).with(Side::Right, VelocityBc::Outflow);
+    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 1.0 });
     cfg.gravity = [1.0, 0.0];
     cfg.time.fixed_dt = Some(0.5);
     cfg.time.cfl_abort = 100.0;
-    cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham {
-        yield_stress: tau_y,
-    });
+    cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: tau_y });
     cfg.rheology.theta = theta;
     cfg.rheology.picard_tol = 1e-11;
     let mut m = TwoPhaseModel::new(cfg).unwrap();
     for _ in 0..400 {
         let before = m.u.clone();
         m.step().unwrap();
-        let change = (0..n)
-            .map(|j| (m.u.at(2, j as isize) - before.at(2, j as isize)).abs())
-            .fold(0.0, f64::max);
+        let change = (0..n).map(|j| (m.u.at(2, j as isize) - before.at(2, j as isize)).abs()).fold(0.0, f64::max);
         if change < 1e-10 {
             break;
         }
@@ -76,11 +63,7 @@ fn poiseuille_plug_exact_and_second_order() {
             }
         }
         let l2 = (e2 / n2).sqrt();
-        println!(
-            "n = {n}: steps {} u_plug {umax:.12} (exact 0.28125) spread {:.1e} l2 {l2:.3e}",
-            m.step_count,
-            plug_max - plug_min
-        );
+        println!("n = {n}: steps {} u_plug {umax:.12} (exact 0.28125) spread {:.1e} l2 {l2:.3e}", m.step_count, plug_max - plug_min);
         // exact plug velocity to the Picard tolerance; rigid plug
         assert!((umax - 0.28125).abs() < 1e-6 && plug_max - plug_min < 1e-9);
         errors.push(l2);
@@ -104,21 +87,13 @@ fn unit_ball_projection() {
 
 #[test]
 fn laws_in_simple_shear() {
-    let dp = RheologyLaw::DruckerPrager {
-        friction_angle: 27.0,
-    };
+    let dp = RheologyLaw::DruckerPrager { friction_angle: 27.0 };
     assert!((dp.yield_stress(1000.0) - 27f64.to_radians().tan() * 1000.0).abs() < 1e-9);
     assert_eq!(dp.yield_stress(-5.0), 0.0);
     // μ(I): in simple shear u'(y) = γ̇, |D| = γ̇/2, I = γ̇ d √(ρ_s/p); total shear stress
     // η γ̇ + μ_s p must equal μ(I) p
     let (mu_s, mu_2, i0, d, rho_s) = (0.38, 0.64, 0.3, 1e-3, 2500.0);
-    let law = RheologyLaw::MuI {
-        mu_s,
-        mu_2,
-        i0,
-        grain_diameter: d,
-        grain_density: rho_s,
-    };
+    let law = RheologyLaw::MuI { mu_s, mu_2, i0, grain_diameter: d, grain_density: rho_s };
     let (p, gd) = (800.0, 12.0);
     let i = gd * d * (rho_s / p).sqrt();
     let mu_i = mu_s + (mu_2 - mu_s) / (i0 / i + 1.0);
@@ -128,22 +103,13 @@ fn laws_in_simple_shear() {
     let pap = YieldTreatment::Papanastasiou { m: 100.0 };
     assert!((pap.regularised_viscosity(2.0, 0.0, 1.0) - 100.0).abs() < 1e-12);
     assert!((pap.regularised_viscosity(2.0, 10.0, 1.0) - 0.1).abs() < 1e-12);
-    let bv = YieldTreatment::BiViscous {
-        yield_viscosity: 50.0,
-    };
+    let bv = YieldTreatment::BiViscous { yield_viscosity: 50.0 };
     assert_eq!(bv.regularised_viscosity(2.0, 0.0, 1.0), 49.0);
 }
 
 fn cfg_with(f: impl Fn(&mut RheologyConfig)) -> Result<TwoPhaseModel, Error> {
     let grid = Grid::new(8, 8, 1.0, 1.0).unwrap();
-    let mut cfg = ModelConfig::single_phase(
-        grid,
-        BoundaryConditions::uniform(VelocityBc::NoSlip),
-        Material {
-            density: 1.0,
-            viscosity: 1.0,
-        },
-    );
+    let mut cfg = ModelConfig::single_phase(grid, BoundaryConditions::uniform(VelocityBc::NoSlip), Material { density: 1.0, viscosity: 1.0 });
     cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 1.0 });
     f(&mut cfg.rheology);
     TwoPhaseModel::new(cfg)
@@ -158,63 +124,23 @@ fn bad_parameters_name_themselves() {
     };
     assert_eq!(name(cfg_with(|c| c.theta = 1.0)), "theta");
     assert_eq!(name(cfg_with(|c| c.r = Some(-1.0))), "r");
+    assert_eq!(name(cfg_with(|c| c.law = RheologyLaw::Bingham { yield_stress: -1.0 })), "yield_stress");
+    assert_eq!(name(cfg_with(|c| c.law = RheologyLaw::DruckerPrager { friction_angle: 90.0 })), "friction_angle");
+    assert_eq!(name(cfg_with(|c| c.wall_friction_angle = Some(f64::NAN))), "wall_friction_angle");
     assert_eq!(
-        name(cfg_with(
-            |c| c.law = RheologyLaw::Bingham { yield_stress: -1.0 }
-        )),
-        "yield_stress"
-    );
-    assert_eq!(
-        name(cfg_with(|c| c.law = RheologyLaw::DruckerPrager {
-            friction_angle: 90.0
-        })),
-        "friction_angle"
-    );
-    assert_eq!(
-        name(cfg_with(|c| c.wall_friction_angle = Some(f64::NAN))),
-        "wall_friction_angle"
-    );
-    assert_eq!(
-        name(cfg_with(|c| c.law = RheologyLaw::MuI {
-            mu_s: 0.5,
-            mu_2: 0.4,
-            i0: 0.3,
-            grain_diameter: 1e-3,
-            grain_density: 2500.0
-        })),
+        name(cfg_with(|c| c.law = RheologyLaw::MuI { mu_s: 0.5, mu_2: 0.4, i0: 0.3, grain_diameter: 1e-3, grain_density: 2500.0 })),
         "mu_2"
     );
-    assert_eq!(
-        name(cfg_with(
-            |c| c.treatment = YieldTreatment::Papanastasiou { m: 0.0 }
-        )),
-        "regularisation"
-    );
-    assert_eq!(
-        name(cfg_with(|c| c.picard_max_iterations = 0)),
-        "picard_max_iterations"
-    );
+    assert_eq!(name(cfg_with(|c| c.treatment = YieldTreatment::Papanastasiou { m: 0.0 })), "regularisation");
+    assert_eq!(name(cfg_with(|c| c.picard_max_iterations = 0)), "picard_max_iterations");
 }
 
 /// Bingham cavity (Stokes) with a given θ: fitted geometric ratio of the Picard increments of the
 /// third step.
 fn cavity_ratio(theta: f64) -> f64 {
     let grid = Grid::new(32, 32, 1.0, 1.0).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(
-        Side::Top,
-        VelocityBc::Velocity {
-            normal: 0.0,
-            tangential: 1.0,
-        },
-    );
-    let mut cfg = ModelConfig::single_phase(
-        grid,
-        bc,
-        Material {
-            density: 1.0,
-            viscosity: 1.0,
-        },
-    );
+    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Top, VelocityBc::Velocity { normal: 0.0, tangential: 1.0 });
+    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 1.0 });
     cfg.convection = false;
     cfg.time.fixed_dt = Some(0.05);
     cfg.time.cfl_abort = 100.0;
@@ -226,19 +152,12 @@ fn cavity_ratio(theta: f64) -> f64 {
     for _ in 0..3 {
         m.step().unwrap();
     }
-    let h: Vec<(f64, f64)> = m
-        .picard_history()
-        .iter()
-        .enumerate()
-        .filter(|(k, &x)| *k >= 3 && x > 1e-11)
-        .map(|(k, &x)| (k as f64, x.ln()))
-        .collect();
+    let h: Vec<(f64, f64)> = m.picard_history().iter().enumerate().filter(|(k, &x)| *k >= 3 && x > 1e-11).map(|(k, &x)| (k as f64, x.ln())).collect();
     let tail = &h[h.len() / 2..];
     let n = tail.len() as f64;
     let (sx, sy) = tail.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
     let (mx, my) = (sx / n, sy / n);
-    let slope = tail.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>()
-        / tail.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
+    let slope = tail.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / tail.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
     slope.exp()
 }
 
@@ -255,29 +174,15 @@ fn picard_ratio_is_one_minus_theta() {
 #[test]
 fn picard_cap_is_a_simulation_error() {
     let grid = Grid::new(16, 16, 1.0, 1.0).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(
-        Side::Top,
-        VelocityBc::Velocity {
-            normal: 0.0,
-            tangential: 1.0,
-        },
-    );
-    let mut cfg = ModelConfig::single_phase(
-        grid,
-        bc,
-        Material {
-            density: 1.0,
-            viscosity: 1.0,
-        },
-    );
+    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Top, VelocityBc::Velocity { normal: 0.0, tangential: 1.0 });
+    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 1.0 });
     cfg.time.fixed_dt = Some(0.05);
     cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 5.0 });
     cfg.rheology.picard_max_iterations = 2;
     cfg.rheology.picard_tol = 1e-12;
     let mut m = TwoPhaseModel::new(cfg).unwrap();
     match m.step() {
-        Err(Error::Simulation { what, .. }) => assert!(what
-            .starts_with("Picard iteration of the plastic projection did not converge: increment")),
+        Err(Error::Simulation { what, .. }) => assert!(what.starts_with("Picard iteration of the plastic projection did not converge: increment")),
         other => panic!("expected a Picard error, got {other:?}"),
     }
 }
@@ -292,14 +197,7 @@ fn sliding_layer_on_coulomb_base_accelerates_at_the_friction_rate() {
     let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
         .with(Side::Bottom, VelocityBc::Coulomb)
         .with(Side::Top, VelocityBc::Outflow);
-    let mut cfg = ModelConfig::single_phase(
-        grid,
-        bc,
-        Material {
-            density: 1450.0,
-            viscosity: 0.1,
-        },
-    );
+    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1450.0, viscosity: 0.1 });
     let s = 30f64.to_radians();
     cfg.gravity = [9.81 * s.sin(), -9.81 * s.cos()];
     cfg.convection = false;
@@ -307,9 +205,7 @@ fn sliding_layer_on_coulomb_base_accelerates_at_the_friction_rate() {
     cfg.time.cfl_abort = 100.0;
     cfg.pressure_solver.rtol = 1e-12;
     cfg.pressure_solver.max_iterations = 50000;
-    cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager {
-        friction_angle: 27.0,
-    });
+    cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager { friction_angle: 27.0 });
     cfg.rheology.wall_friction_angle = Some(15.0);
     let mut m = TwoPhaseModel::new(cfg).unwrap();
     m.initialise_pressure().unwrap();
@@ -334,21 +230,8 @@ fn sliding_layer_on_coulomb_base_accelerates_at_the_friction_rate() {
 fn restart_from_a_checkpoint_is_bit_identical() {
     let build = || {
         let grid = Grid::new(16, 16, 1.0, 1.0).unwrap();
-        let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(
-            Side::Top,
-            VelocityBc::Velocity {
-                normal: 0.0,
-                tangential: 1.0,
-            },
-        );
-        let mut cfg = ModelConfig::single_phase(
-            grid,
-            bc,
-            Material {
-                density: 1.0,
-                viscosity: 0.05,
-            },
-        );
+        let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Top, VelocityBc::Velocity { normal: 0.0, tangential: 1.0 });
+        let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 0.05 });
         cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 0.5 });
         cfg.rheology.picard_tol = 1e-8;
         TwoPhaseModel::new(cfg).unwrap()
@@ -370,28 +253,27 @@ fn restart_from_a_checkpoint_is_bit_identical() {
     assert_eq!(a.u.slice(), b.u.slice());
     assert_eq!(a.v.slice(), b.v.slice());
     assert_eq!(a.p.slice(), b.p.slice());
-    assert_eq!(
-        a.plastic_tensor().unwrap().0.slice(),
-        b.plastic_tensor().unwrap().0.slice()
-    );
+    assert_eq!(a.plastic_tensor().unwrap().0.slice(), b.plastic_tensor().unwrap().0.slice());
     assert_eq!(a.time.to_bits(), b.time.to_bits());
     // a Newtonian model has no Σ: the entry is refused by name
     let grid = Grid::new(16, 16, 1.0, 1.0).unwrap();
-    let mut c = TwoPhaseModel::new(ModelConfig::single_phase(
-        grid,
-        BoundaryConditions::uniform(VelocityBc::NoSlip),
-        Material {
-            density: 1.0,
-            viscosity: 0.05,
-        },
-    ))
-    .unwrap();
+    let mut c = TwoPhaseModel::new(ModelConfig::single_phase(grid, BoundaryConditions::uniform(VelocityBc::NoSlip), Material { density: 1.0, viscosity: 0.05 })).unwrap();
     match c.restore(&state) {
-        Err(Error::InvalidParameter { value, .. }) => {
-            assert!(value.starts_with("sigma"), "{value}")
-        }
+        Err(Error::InvalidParameter { value, .. }) => assert!(value.starts_with("sigma"), "{value}"),
         other => panic!("accepted a foreign checkpoint: {other:?}"),
     }
+}
+
+/// A D-P granular phase (φρ_s = 1450, η_s = 0.1, α = 27°) under `light` with vertical gravity,
+/// δt = 1 ms, Picard tolerance 1e-6.
+fn dp_layer_under_air(grid: Grid, bc: BoundaryConditions, light: Material) -> ModelConfig {
+    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1450.0, viscosity: 0.1 });
+    cfg.light = Some(light);
+    cfg.gravity = [0.0, -9.81];
+    cfg.time.fixed_dt = Some(1e-3);
+    cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager { friction_angle: 27.0 });
+    cfg.rheology.picard_tol = 1e-6;
+    cfg
 }
 
 /// The pressure gauge (`ModelConfig::pressure_gauge`): in a closed box with a pressure-dependent
@@ -405,34 +287,11 @@ fn pressure_gauge_puts_the_air_at_zero_under_a_closed_lid() {
     let build = |gauge: PressureGauge| {
         let grid = Grid::new(32, 16, 1.0, 0.5).unwrap();
         let bc = BoundaryConditions::uniform(VelocityBc::FreeSlip);
-        let mut cfg = ModelConfig::single_phase(
-            grid,
-            bc,
-            Material {
-                density: 1450.0,
-                viscosity: 0.1,
-            },
-        );
-        cfg.light = Some(Material {
-            density: 1.2,
-            viscosity: 1.8e-5,
-        });
-        cfg.gravity = [0.0, -9.81];
-        cfg.time.fixed_dt = Some(1e-3);
-        cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager {
-            friction_angle: 27.0,
-        });
-        cfg.rheology.picard_tol = 1e-6;
+        let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.2, viscosity: 1.8e-5 });
         cfg.pressure_gauge = gauge;
         let mut m = TwoPhaseModel::new(cfg).unwrap();
         // a flat layer 0.2 m deep with its surface in mid-cell
-        m.set_shape(&Shape::Rectangle {
-            x0: -1.0,
-            x1: 2.0,
-            y0: -1.0,
-            y1: 0.2 + 1.0 / 64.0,
-        })
-        .unwrap();
+        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 2.0, y0: -1.0, y1: 0.2 + 1.0 / 64.0 }).unwrap();
         m.initialise_pressure().unwrap();
         for _ in 0..3 {
             m.step().unwrap();
@@ -440,38 +299,16 @@ fn pressure_gauge_puts_the_air_at_zero_under_a_closed_lid() {
         m
     };
     let top_mean = |m: &TwoPhaseModel| (0..32).map(|i| m.p.at(i, 15)).sum::<f64>() / 32.0;
-    let all_mean = |m: &TwoPhaseModel| {
-        (0..16)
-            .flat_map(|j| (0..32).map(move |i| (i, j)))
-            .map(|(i, j)| m.p.at(i, j))
-            .sum::<f64>()
-            / 512.0
-    };
+    let all_mean = |m: &TwoPhaseModel| (0..16).flat_map(|j| (0..32).map(move |i| (i, j))).map(|(i, j)| m.p.at(i, j)).sum::<f64>() / 512.0;
     let top = build(PressureGauge::Auto);
     let mean = build(PressureGauge::Mean);
-    assert_eq!(
-        top.config().resolved_pressure_gauge(),
-        Some(PressureGauge::Top)
-    );
-    assert!(
-        top_mean(&top).abs() < 1e-9,
-        "top-row mean {}",
-        top_mean(&top)
-    );
+    assert_eq!(top.config().resolved_pressure_gauge(), Some(PressureGauge::Top));
+    assert!(top_mean(&top).abs() < 1e-9, "top-row mean {}", top_mean(&top));
     // bottom cell centre at depth 0.2156 − 0.0156: ρ g d ≈ 2845 Pa (+ the air column, 3 Pa)
     let expect = 1450.0 * 9.81 * (0.2 + 1.0 / 64.0 - 1.0 / 64.0) + 1.2 * 9.81 * 0.3;
-    assert!(
-        (top.p.at(16, 0) / expect - 1.0).abs() < 0.02,
-        "bottom p {} vs {}",
-        top.p.at(16, 0),
-        expect
-    );
+    assert!((top.p.at(16, 0) / expect - 1.0).abs() < 0.02, "bottom p {} vs {}", top.p.at(16, 0), expect);
     assert!(all_mean(&mean).abs() < 1e-9 * expect);
-    assert!(
-        mean.p.at(16, 15) < -500.0,
-        "zero-mean gauge: air at {}",
-        mean.p.at(16, 15)
-    );
+    assert!(mean.p.at(16, 15) < -500.0, "zero-mean gauge: air at {}", mean.p.at(16, 15));
     // a layer at rest stays at rest either way: the pressures differ by a constant
     let shift = top.p.at(0, 0) - mean.p.at(0, 0);
     for j in 0..16 {
@@ -500,41 +337,18 @@ fn interface_yield_sets_the_coulomb_ratio_of_the_band() {
         let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
             .with(Side::Bottom, VelocityBc::Coulomb)
             .with(Side::Top, VelocityBc::FreeSlip);
-        let mut cfg = ModelConfig::single_phase(
-            grid,
-            bc,
-            Material {
-                density: 1450.0,
-                viscosity: 0.1,
-            },
-        );
-        cfg.light = Some(Material {
-            density: 1.0,
-            viscosity: 2e-5,
-        });
-        cfg.gravity = [0.0, -9.81];
-        cfg.time.fixed_dt = Some(1e-3);
-        cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager {
-            friction_angle: 27.0,
-        });
+        let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
         cfg.rheology.wall_friction_angle = Some(15.0);
-        cfg.rheology.picard_tol = 1e-6;
         cfg.rheology.interface_yield = iy;
         let mut m = TwoPhaseModel::new(cfg).unwrap();
-        m.set_shape(&Shape::Rectangle {
-            x0: -1.0,
-            x1: 1.0,
-            y0: -1.0,
-            y1: 4.16 * h,
-        })
-        .unwrap();
+        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 1.0, y0: -1.0, y1: 4.16 * h }).unwrap();
         m.initialise_pressure().unwrap();
         m.step().unwrap();
         m
     };
     let (tan_a, tan_b, eps) = (27f64.to_radians().tan(), 15f64.to_radians().tan(), 1.5 * h);
+    // smallest τ/(tan α p⁺) over cells with Φ > 0, largest τ where Φ < −2ε, τ_b/(tan α_b p_wall)
     let ratios = |m: &TwoPhaseModel| -> (f64, f64, f64) {
-        // smallest τ/(tan α p⁺) over cells with Φ > 0, largest τ where Φ < −2ε, τ_b/(tan α_b p_wall)
         let tau = m.yield_stress().unwrap();
         let (mut min_in, mut max_air) = (f64::INFINITY, 0.0f64);
         for j in 0..ny as isize {
@@ -554,23 +368,18 @@ fn interface_yield_sets_the_coulomb_ratio_of_the_band() {
     let (side_in, side_air, side_b) = ratios(&build(InterfaceYield::GranularSide));
     println!("min τ/(tan α p) where Φ > 0: paper {paper_in:.4}, granular-side {side_in:.4}; air τ {paper_air:.1e} / {side_air:.1e}; base {paper_b:.4} / {side_b:.4}");
     // τ was set from p^n, compared here with p^{n+1}: a layer at rest changes p by ~1e-12
-    assert!(
-        (side_in - 1.0).abs() < 1e-9,
-        "granular-side ratio {side_in}"
-    );
-    assert!(paper_in < 0.9, "paper ratio {paper_in}");
+    assert!((side_in - 1.0).abs() < 1e-9, "granular-side ratio {side_in}");
+    // H_ε(0.44 ε) = 0.876 at the first cell under the surface
+    assert!((paper_in - 0.876).abs() < 1e-3, "paper ratio {paper_in}");
     assert_eq!(paper_air, 0.0);
     assert_eq!(side_air, 0.0);
-    assert!(
-        (side_b - 1.0).abs() < 1e-9 && (paper_b - 1.0).abs() < 1e-9,
-        "base {paper_b} {side_b}"
-    );
+    assert!((side_b - 1.0).abs() < 1e-9 && (paper_b - 1.0).abs() < 1e-9, "base {paper_b} {side_b}");
 }
 
 /// `ModelConfig::ambient_hydrostatic`: between the open (fully developed) sides of a box whose
 /// gravity is tilted by 20°, nothing can balance the air's weight along x, and the air falls
 /// freely (u = g sin θ t); with the ambient hydrostatic pressure removed from p (body force
-/// (ρ − ρ_f) g) it stays at rest. A heavy layer at the bottom, Newtonian, no-slip base.
+/// (ρ − ρ_f) g) it stays at rest. A heavy Newtonian layer at the bottom, no-slip base.
 #[test]
 fn ambient_hydrostatic_keeps_the_air_at_rest_between_open_sides() {
     use granrs_core::levelset::Shape;
@@ -581,46 +390,26 @@ fn ambient_hydrostatic_keeps_the_air_at_rest_between_open_sides() {
         let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
             .with(Side::Bottom, VelocityBc::NoSlip)
             .with(Side::Top, VelocityBc::FreeSlip);
-        let mut cfg = ModelConfig::single_phase(
-            grid,
-            bc,
-            Material {
-                density: 1450.0,
-                viscosity: 1e3,
-            },
-        );
-        cfg.light = Some(Material {
-            density: 1.0,
-            viscosity: 2e-5,
-        });
+        let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1450.0, viscosity: 1e3 });
+        cfg.light = Some(Material { density: 1.0, viscosity: 2e-5 });
         let th = 20f64.to_radians();
         cfg.gravity = [9.81 * th.sin(), -9.81 * th.cos()];
         cfg.convection = false;
         cfg.time.fixed_dt = Some(1e-3);
         cfg.ambient_hydrostatic = ambient;
         let mut m = TwoPhaseModel::new(cfg).unwrap();
-        m.set_shape(&Shape::Rectangle {
-            x0: -1.0,
-            x1: 1.0,
-            y0: -1.0,
-            y1: 0.05,
-        })
-        .unwrap();
+        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 1.0, y0: -1.0, y1: 0.05 }).unwrap();
         m.initialise_pressure().unwrap();
         for _ in 0..100 {
             m.step().unwrap();
         }
         // the largest air speed (top rows, Φ < 0)
-        (ny as isize - 4..ny as isize)
-            .map(|j| m.u.at(1, j).abs())
-            .fold(0.0, f64::max)
+        (ny as isize - 4..ny as isize).map(|j| m.u.at(1, j).abs()).fold(0.0, f64::max)
     };
     let free = run(false);
     let ambient = run(true);
     println!("air speed after 0.1 s: {free:.4} m/s without, {ambient:.2e} m/s with the ambient reference");
-    assert!(
-        (free / (9.81 * 20f64.to_radians().sin() * 0.1) - 1.0).abs() < 0.05,
-        "free fall {free}"
-    );
+    // free fall: g sin θ t = 0.3355 m/s at t = 0.1 s (the air's viscosity changes it by < 1e-4)
+    assert!((free / (9.81 * 20f64.to_radians().sin() * 0.1) - 1.0).abs() < 0.01, "free fall {free}");
     assert!(ambient < 1e-6, "ambient {ambient}");
 }

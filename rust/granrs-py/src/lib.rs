@@ -19,40 +19,16 @@ use pyo3::types::{PyDict, PyTuple};
 
 mod depth_averaged;
 
-create_exception!(
-    _granrs,
-    ParameterError,
-    PyValueError,
-    "A parameter is outside its allowed range, or an array has the wrong shape."
-);
-create_exception!(
-    _granrs,
-    SolverError,
-    PyRuntimeError,
-    "A linear solver failed or did not converge."
-);
-create_exception!(
-    _granrs,
-    SimulationError,
-    PyRuntimeError,
-    "A simulation stopped: what failed, where and when."
-);
+create_exception!(_granrs, ParameterError, PyValueError, "A parameter is outside its allowed range, or an array has the wrong shape.");
+create_exception!(_granrs, SolverError, PyRuntimeError, "A linear solver failed or did not converge.");
+create_exception!(_granrs, SimulationError, PyRuntimeError, "A simulation stopped: what failed, where and when.");
 
 /// Maps the core's one error type to the Python exception classes.
 fn to_py(e: Error) -> PyErr {
     match &e {
-        Error::InvalidParameter { .. } | Error::Shape { .. } => {
-            ParameterError::new_err(e.to_string())
-        }
-        Error::NotConverged { .. } | Error::SolverFailure { .. } => {
-            SolverError::new_err(e.to_string())
-        }
-        Error::Simulation {
-            step,
-            time,
-            location,
-            ..
-        } => {
+        Error::InvalidParameter { .. } | Error::Shape { .. } => ParameterError::new_err(e.to_string()),
+        Error::NotConverged { .. } | Error::SolverFailure { .. } => SolverError::new_err(e.to_string()),
+        Error::Simulation { step, time, location, .. } => {
             let err = SimulationError::new_err(e.to_string());
             Python::attach(|py| {
                 let v = err.value(py);
@@ -73,9 +49,7 @@ fn param_err(name: &str, value: impl std::fmt::Display, allowed: &str) -> PyErr 
 fn parse_bc(side: &str, kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<VelocityBc> {
     let get = |key: &str| -> PyResult<f64> {
         match params.and_then(|p| p.get_item(key).ok().flatten()) {
-            Some(v) => v
-                .extract::<f64>()
-                .map_err(|_| param_err(&format!("bc.{side}.{key}"), v, "a number")),
+            Some(v) => v.extract::<f64>().map_err(|_| param_err(&format!("bc.{side}.{key}"), v, "a number")),
             None => Ok(0.0),
         }
     };
@@ -101,24 +75,14 @@ fn parse_bc(side: &str, kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyRes
 fn parse_rheology(kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<RheologyLaw> {
     let get = |key: &str| -> PyResult<f64> {
         match params.and_then(|p| p.get_item(key).ok().flatten()) {
-            Some(v) => v
-                .extract::<f64>()
-                .map_err(|_| param_err(key, v, "a number")),
-            None => Err(param_err(
-                key,
-                "missing",
-                &format!("a number (required by the '{kind}' rheology)"),
-            )),
+            Some(v) => v.extract::<f64>().map_err(|_| param_err(key, v, "a number")),
+            None => Err(param_err(key, "missing", &format!("a number (required by the '{kind}' rheology)"))),
         }
     };
     Ok(match kind {
         "newtonian" => RheologyLaw::Newtonian,
-        "bingham" => RheologyLaw::Bingham {
-            yield_stress: get("yield_stress")?,
-        },
-        "drucker-prager" => RheologyLaw::DruckerPrager {
-            friction_angle: get("friction_angle")?,
-        },
+        "bingham" => RheologyLaw::Bingham { yield_stress: get("yield_stress")? },
+        "drucker-prager" => RheologyLaw::DruckerPrager { friction_angle: get("friction_angle")? },
         "mu-i" => RheologyLaw::MuI {
             mu_s: get("mu_s")?,
             mu_2: get("mu_2")?,
@@ -126,13 +90,7 @@ fn parse_rheology(kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Rh
             grain_diameter: get("grain_diameter")?,
             grain_density: get("grain_density")?,
         },
-        other => {
-            return Err(param_err(
-                "rheology",
-                other,
-                "one of 'newtonian', 'bingham', 'drucker-prager', 'mu-i'",
-            ))
-        }
+        other => return Err(param_err("rheology", other, "one of 'newtonian', 'bingham', 'drucker-prager', 'mu-i'")),
     })
 }
 
@@ -202,89 +160,44 @@ impl PyModel {
 
 /// Parses a shape spec: (kind, [numbers]) or ("union"/"difference", [specs]).
 fn parse_shape(spec: &Bound<'_, PyAny>) -> PyResult<Shape> {
-    let (kind, args): (String, Bound<'_, PyAny>) = spec
-        .extract()
-        .map_err(|_| param_err("shape", spec, "a (kind, parameters) tuple"))?;
+    let (kind, args): (String, Bound<'_, PyAny>) = spec.extract().map_err(|_| param_err("shape", spec, "a (kind, parameters) tuple"))?;
     let nums = |n: usize| -> PyResult<Vec<f64>> {
-        let v: Vec<f64> = args
-            .extract()
-            .map_err(|_| param_err(&format!("shape.{kind}"), &args, &format!("{n} numbers")))?;
+        let v: Vec<f64> = args.extract().map_err(|_| param_err(&format!("shape.{kind}"), &args, &format!("{n} numbers")))?;
         if v.len() != n {
-            return Err(param_err(
-                &format!("shape.{kind}"),
-                format!("{v:?}"),
-                &format!("{n} numbers"),
-            ));
+            return Err(param_err(&format!("shape.{kind}"), format!("{v:?}"), &format!("{n} numbers")));
         }
         Ok(v)
     };
-    let shape =
-        match kind.as_str() {
-            "rectangle" => {
-                let v = nums(4)?;
-                Shape::Rectangle {
-                    x0: v[0],
-                    x1: v[1],
-                    y0: v[2],
-                    y1: v[3],
-                }
+    let shape = match kind.as_str() {
+        "rectangle" => {
+            let v = nums(4)?;
+            Shape::Rectangle { x0: v[0], x1: v[1], y0: v[2], y1: v[3] }
+        }
+        "circle" => {
+            let v = nums(3)?;
+            Shape::Circle { xc: v[0], yc: v[1], radius: v[2] }
+        }
+        "slotted-disk" => {
+            let v = nums(5)?;
+            Shape::SlottedDisk { xc: v[0], yc: v[1], radius: v[2], slot_width: v[3], slot_top: v[4] }
+        }
+        "half-plane" => {
+            let v = nums(4)?;
+            Shape::HalfPlane { px: v[0], py: v[1], nx: v[2], ny: v[3] }
+        }
+        "union" => {
+            let parts: Vec<Bound<'_, PyAny>> = args.extract()?;
+            Shape::Union(parts.iter().map(parse_shape).collect::<PyResult<Vec<_>>>()?)
+        }
+        "difference" => {
+            let parts: Vec<Bound<'_, PyAny>> = args.extract()?;
+            if parts.len() != 2 {
+                return Err(param_err("shape.difference", parts.len(), "exactly 2 shapes"));
             }
-            "circle" => {
-                let v = nums(3)?;
-                Shape::Circle {
-                    xc: v[0],
-                    yc: v[1],
-                    radius: v[2],
-                }
-            }
-            "slotted-disk" => {
-                let v = nums(5)?;
-                Shape::SlottedDisk {
-                    xc: v[0],
-                    yc: v[1],
-                    radius: v[2],
-                    slot_width: v[3],
-                    slot_top: v[4],
-                }
-            }
-            "half-plane" => {
-                let v = nums(4)?;
-                Shape::HalfPlane {
-                    px: v[0],
-                    py: v[1],
-                    nx: v[2],
-                    ny: v[3],
-                }
-            }
-            "union" => {
-                let parts: Vec<Bound<'_, PyAny>> = args.extract()?;
-                Shape::Union(
-                    parts
-                        .iter()
-                        .map(parse_shape)
-                        .collect::<PyResult<Vec<_>>>()?,
-                )
-            }
-            "difference" => {
-                let parts: Vec<Bound<'_, PyAny>> = args.extract()?;
-                if parts.len() != 2 {
-                    return Err(param_err(
-                        "shape.difference",
-                        parts.len(),
-                        "exactly 2 shapes",
-                    ));
-                }
-                Shape::Difference(
-                    Box::new(parse_shape(&parts[0])?),
-                    Box::new(parse_shape(&parts[1])?),
-                )
-            }
-            other => return Err(param_err(
-                "shape",
-                other,
-                "one of 'rectangle', 'circle', 'slotted-disk', 'half-plane', 'union', 'difference'",
-            )),
-        };
+            Shape::Difference(Box::new(parse_shape(&parts[0])?), Box::new(parse_shape(&parts[1])?))
+        }
+        other => return Err(param_err("shape", other, "one of 'rectangle', 'circle', 'slotted-disk', 'half-plane', 'union', 'difference'")),
+    };
     shape.validate().map_err(to_py)?;
     Ok(shape)
 }
@@ -292,22 +205,10 @@ fn parse_shape(spec: &Bound<'_, PyAny>) -> PyResult<Shape> {
 /// Runs a level-set benchmark ('zalesak' or 'single-vortex') in Rust; returns its metrics.
 #[pyfunction]
 #[pyo3(signature = (case, n, period, redistance_every, cfl, threads=1))]
-fn levelset_validation<'py>(
-    py: Python<'py>,
-    case: &str,
-    n: usize,
-    period: f64,
-    redistance_every: usize,
-    cfl: f64,
-    threads: usize,
-) -> PyResult<Bound<'py, PyDict>> {
+fn levelset_validation<'py>(py: Python<'py>, case: &str, n: usize, period: f64, redistance_every: usize, cfl: f64, threads: usize) -> PyResult<Bound<'py, PyDict>> {
     let pool = granrs_core::exec::build_pool(threads).map_err(to_py)?;
     let exec = Exec::with_threads(threads);
-    let every = if redistance_every == 0 {
-        None
-    } else {
-        Some(redistance_every)
-    };
+    let every = if redistance_every == 0 { None } else { Some(redistance_every) };
     let case_owned = case.to_string();
     let m = py
         .detach(|| {
@@ -337,75 +238,29 @@ fn levelset_validation<'py>(
 fn parse_pore(d: &Bound<'_, PyDict>) -> PyResult<PorePressureConfig> {
     let f = |key: &str| -> PyResult<Option<f64>> {
         match d.get_item(key)? {
-            Some(v) if !v.is_none() => {
-                Ok(Some(v.extract::<f64>().map_err(|_| {
-                    param_err(&format!("pore_pressure.{key}"), &v, "a number")
-                })?))
-            }
+            Some(v) if !v.is_none() => Ok(Some(v.extract::<f64>().map_err(|_| param_err(&format!("pore_pressure.{key}"), &v, "a number"))?)),
             _ => Ok(None),
         }
     };
-    let diffusivity = f("diffusivity")?.ok_or_else(|| {
-        param_err(
-            "pore_pressure.diffusivity",
-            "missing",
-            "a number > 0 (m²/s)",
-        )
-    })?;
-    let formulation: String = d
-        .get_item("formulation")?
-        .map(|v| v.extract())
-        .transpose()?
-        .unwrap_or_else(|| "granular-only".into());
+    let diffusivity = f("diffusivity")?.ok_or_else(|| param_err("pore_pressure.diffusivity", "missing", "a number > 0 (m²/s)"))?;
+    let formulation: String = d.get_item("formulation")?.map(|v| v.extract()).transpose()?.unwrap_or_else(|| "granular-only".into());
     let formulation = match formulation.as_str() {
         "granular-only" => PoreFormulation::GranularOnly,
-        "kappa-infinity" => PoreFormulation::KappaInfinity {
-            kappa_air: f("kappa_air")?.unwrap_or(1e16),
-            smoothed: false,
-        },
-        "kappa-infinity-smoothed" => PoreFormulation::KappaInfinity {
-            kappa_air: f("kappa_air")?.unwrap_or(1e16),
-            smoothed: true,
-        },
-        other => {
-            return Err(param_err(
-                "pore_pressure.formulation",
-                other,
-                "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'",
-            ))
-        }
+        "kappa-infinity" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16), smoothed: false },
+        "kappa-infinity-smoothed" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16), smoothed: true },
+        other => return Err(param_err("pore_pressure.formulation", other, "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")),
     };
     let basal_flux = match f("basal_gradient")? {
-        Some(g) => Some(BasalFlux {
-            gradient: g,
-            x_min: f("basal_x_min")?.unwrap_or(f64::NEG_INFINITY),
-            x_max: f("basal_x_max")?.unwrap_or(f64::INFINITY),
-        }),
+        Some(g) => Some(BasalFlux { gradient: g, x_min: f("basal_x_min")?.unwrap_or(f64::NEG_INFINITY), x_max: f("basal_x_max")?.unwrap_or(f64::INFINITY) }),
         None => None,
     };
-    let time_scheme: String = d
-        .get_item("time_scheme")?
-        .filter(|v| !v.is_none())
-        .map(|v| v.extract())
-        .transpose()?
-        .unwrap_or_else(|| "implicit".into());
+    let time_scheme: String = d.get_item("time_scheme")?.filter(|v| !v.is_none()).map(|v| v.extract()).transpose()?.unwrap_or_else(|| "implicit".into());
     let time_scheme = match time_scheme.as_str() {
         "implicit" => PoreTimeScheme::Implicit,
         "explicit" => PoreTimeScheme::Explicit,
-        other => {
-            return Err(param_err(
-                "pore_pressure.time_scheme",
-                other,
-                "'implicit' or 'explicit'",
-            ))
-        }
+        other => return Err(param_err("pore_pressure.time_scheme", other, "'implicit' or 'explicit'")),
     };
-    let cfg = PorePressureConfig {
-        diffusivity,
-        formulation,
-        basal_flux,
-        time_scheme,
-    };
+    let cfg = PorePressureConfig { diffusivity, formulation, basal_flux, time_scheme };
     cfg.validate().map_err(to_py)?;
     Ok(cfg)
 }
@@ -479,35 +334,18 @@ impl PyModel {
         }
         for side in Side::ALL {
             if let Some(item) = bc.get_item(side.name())? {
-                let t = item.cast::<PyTuple>().map_err(|_| {
-                    param_err(
-                        &format!("bc.{}", side.name()),
-                        &item,
-                        "a (kind, params) tuple",
-                    )
-                })?;
+                let t = item.cast::<PyTuple>().map_err(|_| param_err(&format!("bc.{}", side.name()), &item, "a (kind, params) tuple"))?;
                 let kind: String = t.get_item(0)?.extract()?;
                 let params = t.get_item(1)?;
                 let params = params.cast::<PyDict>().ok();
                 conds = conds.with(side, parse_bc(side.name(), &kind, params.as_deref())?);
                 if kind == "coulomb" {
-                    if let Some(a) = params
-                        .as_ref()
-                        .and_then(|p| p.get_item("friction_angle").ok().flatten())
-                    {
+                    if let Some(a) = params.as_ref().and_then(|p| p.get_item("friction_angle").ok().flatten()) {
                         let name = format!("bc.{}.friction_angle", side.name());
-                        let a: f64 = a
-                            .extract()
-                            .map_err(|_| param_err(&name, &a, "an angle in degrees"))?;
+                        let a: f64 = a.extract().map_err(|_| param_err(&name, &a, "an angle in degrees"))?;
                         match wall_friction_angle {
                             Some(b) if b != a => {
-                                return Err(param_err(
-                                    &name,
-                                    a,
-                                    &format!(
-                                        "the same angle on every Coulomb side ({b} elsewhere)"
-                                    ),
-                                ))
+                                return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)")))
                             }
                             _ => wall_friction_angle = Some(a),
                         }
@@ -520,18 +358,8 @@ impl PyModel {
             "explicit" => ViscousScheme::Explicit,
             other => return Err(param_err("viscous", other, "'implicit' or 'explicit'")),
         };
-        let mut cfg = ModelConfig::single_phase(
-            grid,
-            conds,
-            Material {
-                density: dense.0,
-                viscosity: dense.1,
-            },
-        );
-        cfg.light = light.map(|(r, e)| Material {
-            density: r,
-            viscosity: e,
-        });
+        let mut cfg = ModelConfig::single_phase(grid, conds, Material { density: dense.0, viscosity: dense.1 });
+        cfg.light = light.map(|(r, e)| Material { density: r, viscosity: e });
         cfg.gravity = [gravity.0, gravity.1];
         cfg.interface_width = interface_width;
         cfg.transport_interface = transport_interface;
@@ -545,17 +373,10 @@ impl PyModel {
         cfg.pressure_solver.kind = match pressure_solver {
             "multigrid-cg" => PressureSolverKind::MultigridCg,
             "direct" => PressureSolverKind::Direct,
-            other => {
-                return Err(param_err(
-                    "pressure_solver",
-                    other,
-                    "'multigrid-cg' or 'direct'",
-                ))
-            }
+            other => return Err(param_err("pressure_solver", other, "'multigrid-cg' or 'direct'")),
         };
         cfg.pressure_solver.rtol = pressure_rtol;
-        cfg.pressure_solver.max_iterations =
-            pos("pressure_max_iterations", pressure_max_iterations)?;
+        cfg.pressure_solver.max_iterations = pos("pressure_max_iterations", pressure_max_iterations)?;
         cfg.threads = pos("threads", threads)?;
         cfg.pore = pore_pressure.map(parse_pore).transpose()?;
         cfg.mass_correction = mass_correction;
@@ -563,25 +384,13 @@ impl PyModel {
         cfg.convection_scheme = match convection_scheme {
             "centred" => ConvectionScheme::Centred,
             "weno5" => ConvectionScheme::Weno5,
-            other => {
-                return Err(param_err(
-                    "convection_scheme",
-                    other,
-                    "'centred' or 'weno5'",
-                ))
-            }
+            other => return Err(param_err("convection_scheme", other, "'centred' or 'weno5'")),
         };
         cfg.pressure_gauge = match pressure_gauge {
             "auto" => PressureGauge::Auto,
             "mean" => PressureGauge::Mean,
             "top" => PressureGauge::Top,
-            other => {
-                return Err(param_err(
-                    "pressure_gauge",
-                    other,
-                    "'auto', 'mean' or 'top'",
-                ))
-            }
+            other => return Err(param_err("pressure_gauge", other, "'auto', 'mean' or 'top'")),
         };
         cfg.viscous_rtol = viscous_rtol;
         cfg.ambient_hydrostatic = ambient_hydrostatic;
@@ -591,29 +400,13 @@ impl PyModel {
             None => RheologyLaw::Newtonian,
         };
         let need_reg = |what: &str| -> PyResult<f64> {
-            regularisation.ok_or_else(|| {
-                param_err(
-                    "regularisation",
-                    "None",
-                    &format!("a number ({what}) for plastic = '{plastic}'"),
-                )
-            })
+            regularisation.ok_or_else(|| param_err("regularisation", "None", &format!("a number ({what}) for plastic = '{plastic}'")))
         };
         let treatment = match plastic {
             "projection" => YieldTreatment::Projection,
-            "papanastasiou" => YieldTreatment::Papanastasiou {
-                m: need_reg("the exponent m in s")?,
-            },
-            "bi-viscous" => YieldTreatment::BiViscous {
-                yield_viscosity: need_reg("the viscosity below yield in Pa s")?,
-            },
-            other => {
-                return Err(param_err(
-                    "plastic",
-                    other,
-                    "'projection', 'papanastasiou' or 'bi-viscous'",
-                ))
-            }
+            "papanastasiou" => YieldTreatment::Papanastasiou { m: need_reg("the exponent m in s")? },
+            "bi-viscous" => YieldTreatment::BiViscous { yield_viscosity: need_reg("the viscosity below yield in Pa s")? },
+            other => return Err(param_err("plastic", other, "'projection', 'papanastasiou' or 'bi-viscous'")),
         };
         cfg.rheology = RheologyConfig {
             law,
@@ -627,13 +420,7 @@ impl PyModel {
             interface_yield: match interface_yield {
                 "paper" => InterfaceYield::Paper,
                 "granular-side" => InterfaceYield::GranularSide,
-                other => {
-                    return Err(param_err(
-                        "interface_yield",
-                        other,
-                        "'paper' or 'granular-side'",
-                    ))
-                }
+                other => return Err(param_err("interface_yield", other, "'paper' or 'granular-side'")),
             },
         };
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
@@ -642,10 +429,7 @@ impl PyModel {
 
     /// Full storage (halos included) of a field as a zero-copy NumPy array; the array keeps the
     /// model alive. The buffers are never reallocated, so the view stays valid and live.
-    fn field_storage<'py>(
-        slf: Bound<'py, Self>,
-        name: &str,
-    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    fn field_storage<'py>(slf: Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let borrowed = slf.borrow();
         let field = borrowed.field_ref(name)?;
         let container = slf.clone().into_any();
@@ -665,36 +449,16 @@ impl PyModel {
             "phi" => &mut self.inner.phi,
             "pf" => match &mut self.inner.pore {
                 Some(p) => &mut p.pf,
-                None => {
-                    return Err(param_err(
-                        "name",
-                        "pf",
-                        "a field of this model: it has no pore pressure (not fluidised)",
-                    ))
-                }
+                None => return Err(param_err("name", "pf", "a field of this model: it has no pore pressure (not fluidised)")),
             },
-            other => {
-                return Err(param_err(
-                    "name",
-                    other,
-                    "one of 'u', 'v', 'p', 'phi', 'pf'",
-                ))
-            }
+            other => return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf'")),
         };
         let expected = (field.ny, field.nx);
         if a.dim() != expected {
-            return Err(to_py(Error::Shape {
-                name: name.into(),
-                got: a.shape().to_vec(),
-                expected: vec![expected.0, expected.1],
-            }));
+            return Err(to_py(Error::Shape { name: name.into(), got: a.shape().to_vec(), expected: vec![expected.0, expected.1] }));
         }
         if let Some(bad) = a.iter().position(|x| !x.is_finite()) {
-            return Err(param_err(
-                name,
-                format!("non-finite value at flat index {bad}"),
-                "finite values",
-            ));
+            return Err(param_err(name, format!("non-finite value at flat index {bad}"), "finite values"));
         }
         field.interior_mut().assign(&a);
         if name == "pf" {
@@ -740,12 +504,7 @@ impl PyModel {
     /// pressure_iterations, viscous_iterations, divergence, picard_iterations, picard_increment,
     /// picard_r_halvings.
     #[pyo3(signature = (t_end=None, max_steps=None))]
-    fn advance<'py>(
-        &mut self,
-        py: Python<'py>,
-        t_end: Option<f64>,
-        max_steps: Option<u64>,
-    ) -> PyResult<Bound<'py, PyDict>> {
+    fn advance<'py>(&mut self, py: Python<'py>, t_end: Option<f64>, max_steps: Option<u64>) -> PyResult<Bound<'py, PyDict>> {
         if t_end.is_none() && max_steps.is_none() {
             return Err(param_err("t_end/max_steps", "None", "at least one of them"));
         }
@@ -780,43 +539,15 @@ impl PyModel {
         let d = PyDict::new(py);
         d.set_item("time", log.iter().map(|s| s.time).collect::<Vec<_>>())?;
         d.set_item("dt", log.iter().map(|s| s.dt).collect::<Vec<_>>())?;
-        d.set_item(
-            "max_speed",
-            log.iter().map(|s| s.max_speed).collect::<Vec<_>>(),
-        )?;
+        d.set_item("max_speed", log.iter().map(|s| s.max_speed).collect::<Vec<_>>())?;
         d.set_item("cfl", log.iter().map(|s| s.cfl).collect::<Vec<_>>())?;
-        d.set_item(
-            "divergence",
-            log.iter().map(|s| s.divergence).collect::<Vec<_>>(),
-        )?;
-        d.set_item(
-            "pressure_iterations",
-            log.iter()
-                .map(|s| s.pressure.iterations)
-                .collect::<Vec<_>>(),
-        )?;
-        d.set_item(
-            "viscous_iterations",
-            log.iter().map(|s| s.viscous.iterations).collect::<Vec<_>>(),
-        )?;
-        d.set_item(
-            "pore_iterations",
-            log.iter().map(|s| s.pore.iterations).collect::<Vec<_>>(),
-        )?;
-        d.set_item(
-            "picard_iterations",
-            log.iter().map(|s| s.picard_iterations).collect::<Vec<_>>(),
-        )?;
-        d.set_item(
-            "picard_increment",
-            log.iter().map(|s| s.picard_increment).collect::<Vec<_>>(),
-        )?;
-        d.set_item(
-            "picard_r_halvings",
-            log.iter()
-                .map(|s| s.picard_r_halvings as f64)
-                .collect::<Vec<_>>(),
-        )?;
+        d.set_item("divergence", log.iter().map(|s| s.divergence).collect::<Vec<_>>())?;
+        d.set_item("pressure_iterations", log.iter().map(|s| s.pressure.iterations).collect::<Vec<_>>())?;
+        d.set_item("viscous_iterations", log.iter().map(|s| s.viscous.iterations).collect::<Vec<_>>())?;
+        d.set_item("pore_iterations", log.iter().map(|s| s.pore.iterations).collect::<Vec<_>>())?;
+        d.set_item("picard_iterations", log.iter().map(|s| s.picard_iterations).collect::<Vec<_>>())?;
+        d.set_item("picard_increment", log.iter().map(|s| s.picard_increment).collect::<Vec<_>>())?;
+        d.set_item("picard_r_halvings", log.iter().map(|s| s.picard_r_halvings as f64).collect::<Vec<_>>())?;
         if let Some(e) = err {
             // the steps taken before the failure travel with the exception
             let pyerr = to_py(e);
@@ -857,18 +588,9 @@ impl PyModel {
             "right" => Side::Right,
             "bottom" => Side::Bottom,
             "top" => Side::Top,
-            other => {
-                return Err(param_err(
-                    "side",
-                    other,
-                    "'left', 'right', 'bottom' or 'top'",
-                ))
-            }
+            other => return Err(param_err("side", other, "'left', 'right', 'bottom' or 'top'")),
         };
-        Ok(self
-            .inner
-            .wall_friction(s)
-            .map(|(a, b)| (a.to_vec(), b.to_vec())))
+        Ok(self.inner.wall_friction(s).map(|(a, b)| (a.to_vec(), b.to_vec())))
     }
 
     /// The whole state a step reads (fields with their ghost layers, BDF2 history, Σ, wall
@@ -890,11 +612,7 @@ impl PyModel {
             let data: Vec<f64> = match v.extract::<numpy::PyReadonlyArray1<f64>>() {
                 Ok(a) => a.as_slice()?.to_vec(),
                 Err(_) => vec![v.extract::<f64>().map_err(|_| {
-                    to_py(Error::param(
-                        "state",
-                        &name,
-                        "1-D float64 arrays or numbers",
-                    ))
+                    to_py(Error::param("state", &name, "1-D float64 arrays or numbers"))
                 })?],
             };
             entries.push((name, data));
@@ -919,14 +637,7 @@ impl PyModel {
 fn build_info<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("version", granrs_core::VERSION)?;
-    d.set_item(
-        "profile",
-        if cfg!(debug_assertions) {
-            "debug"
-        } else {
-            "release"
-        },
-    )?;
+    d.set_item("profile", if cfg!(debug_assertions) { "debug" } else { "release" })?;
     d.set_item("halo", granrs_core::HALO)?;
     Ok(d)
 }

@@ -6,9 +6,7 @@
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
-use crate::levelset::{
-    dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape,
-};
+use crate::levelset::{dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureProjection;
 use crate::rheology::stage::RheologyState;
@@ -153,22 +151,14 @@ impl ModelConfig {
     /// `Auto` resolved (see [`PressureGauge::Auto`]).
     pub fn resolved_pressure_gauge(&self) -> Option<PressureGauge> {
         use crate::grid::{PressureBc, Side};
-        if [Side::Left, Side::Right, Side::Bottom, Side::Top]
-            .iter()
-            .any(|&s| self.bc.pressure(s) == PressureBc::Dirichlet)
-        {
+        if [Side::Left, Side::Right, Side::Bottom, Side::Top].iter().any(|&s| self.bc.pressure(s) == PressureBc::Dirichlet) {
             return None;
         }
         Some(match self.pressure_gauge {
             PressureGauge::Auto => {
-                let pressure_law = matches!(
-                    self.rheology.law,
-                    RheologyLaw::DruckerPrager { .. } | RheologyLaw::MuI { .. }
-                );
+                let pressure_law = matches!(self.rheology.law, RheologyLaw::DruckerPrager { .. } | RheologyLaw::MuI { .. });
                 let coulomb = self.rheology.wall_friction_angle.is_some()
-                    && [Side::Left, Side::Right, Side::Bottom, Side::Top]
-                        .iter()
-                        .any(|&s| self.bc.get(s) == crate::grid::VelocityBc::Coulomb);
+                    && [Side::Left, Side::Right, Side::Bottom, Side::Top].iter().any(|&s| self.bc.get(s) == crate::grid::VelocityBc::Coulomb);
                 if pressure_law || coulomb {
                     PressureGauge::Top
                 } else {
@@ -190,11 +180,7 @@ impl ModelConfig {
         }
         crate::error::check_range("interface_width", self.interface_width, 0.0, 10.0)?;
         if self.redistance_every > 1_000_000 {
-            return Err(Error::param(
-                "redistance_every",
-                self.redistance_every,
-                "an integer in [0, 1e6]",
-            ));
+            return Err(Error::param("redistance_every", self.redistance_every, "an integer in [0, 1e6]"));
         }
         self.redistance.validate()?;
         self.pressure_solver.validate()?;
@@ -205,18 +191,10 @@ impl ModelConfig {
         self.rheology.validate()?;
         crate::error::check_range("viscous_rtol", self.viscous_rtol, 1e-14, 1e-2)?;
         if self.viscous_max_iterations == 0 || self.viscous_max_iterations > 100_000_000 {
-            return Err(Error::param(
-                "viscous_max_iterations",
-                self.viscous_max_iterations,
-                "an integer in [1, 1e8]",
-            ));
+            return Err(Error::param("viscous_max_iterations", self.viscous_max_iterations, "an integer in [1, 1e8]"));
         }
         if self.threads == 0 || self.threads > 1024 {
-            return Err(Error::param(
-                "threads",
-                self.threads,
-                "an integer in [1, 1024]",
-            ));
+            return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
         }
         Ok(())
     }

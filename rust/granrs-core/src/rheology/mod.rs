@@ -83,10 +83,7 @@ impl RheologyLaw {
 
     /// Whether the yield stress depends on the pressure.
     pub fn pressure_dependent(&self) -> bool {
-        matches!(
-            self,
-            RheologyLaw::DruckerPrager { .. } | RheologyLaw::MuI { .. }
-        )
+        matches!(self, RheologyLaw::DruckerPrager { .. } | RheologyLaw::MuI { .. })
     }
 
     /// Yield stress of the pure dense phase at pressure `p` (before the H_ε(Φ) factor).
@@ -95,9 +92,7 @@ impl RheologyLaw {
         match *self {
             RheologyLaw::Newtonian => 0.0,
             RheologyLaw::Bingham { yield_stress } => yield_stress,
-            RheologyLaw::DruckerPrager { friction_angle } => {
-                friction_angle.to_radians().tan() * p.max(0.0)
-            }
+            RheologyLaw::DruckerPrager { friction_angle } => friction_angle.to_radians().tan() * p.max(0.0),
             RheologyLaw::MuI { mu_s, .. } => mu_s * p.max(0.0),
         }
     }
@@ -107,13 +102,7 @@ impl RheologyLaw {
     #[inline]
     pub fn extra_viscosity(&self, d_norm: f64, p: f64) -> f64 {
         match *self {
-            RheologyLaw::MuI {
-                mu_s,
-                mu_2,
-                i0,
-                grain_diameter,
-                grain_density,
-            } => {
+            RheologyLaw::MuI { mu_s, mu_2, i0, grain_diameter, grain_density } => {
                 let p = p.max(0.0);
                 let den = 2.0 * d_norm + (i0 / grain_diameter) * (p / grain_density).sqrt();
                 if den > 0.0 {
@@ -130,34 +119,18 @@ impl RheologyLaw {
     pub fn validate(&self) -> Result<()> {
         match *self {
             RheologyLaw::Newtonian => Ok(()),
-            RheologyLaw::Bingham { yield_stress } => {
-                crate::error::check_non_negative("yield_stress", yield_stress)
-            }
+            RheologyLaw::Bingham { yield_stress } => crate::error::check_non_negative("yield_stress", yield_stress),
             RheologyLaw::DruckerPrager { friction_angle } => {
                 if friction_angle.is_finite() && friction_angle > 0.0 && friction_angle < 90.0 {
                     Ok(())
                 } else {
-                    Err(Error::param(
-                        "friction_angle",
-                        friction_angle,
-                        "an angle in degrees in (0, 90)",
-                    ))
+                    Err(Error::param("friction_angle", friction_angle, "an angle in degrees in (0, 90)"))
                 }
             }
-            RheologyLaw::MuI {
-                mu_s,
-                mu_2,
-                i0,
-                grain_diameter,
-                grain_density,
-            } => {
+            RheologyLaw::MuI { mu_s, mu_2, i0, grain_diameter, grain_density } => {
                 crate::error::check_non_negative("mu_s", mu_s)?;
                 if !(mu_2.is_finite() && mu_2 > mu_s) {
-                    return Err(Error::param(
-                        "mu_2",
-                        mu_2,
-                        &format!("a finite number > mu_s = {mu_s}"),
-                    ));
+                    return Err(Error::param("mu_2", mu_2, &format!("a finite number > mu_s = {mu_s}")));
                 }
                 check_positive("i0", i0)?;
                 check_positive("grain_diameter", grain_diameter)?;
@@ -176,8 +149,7 @@ impl RheologyLaw {
 /// tan(α) H_ε(Φ) yields although the material is below its friction angle. On a slope θ < α
 /// the part of the band where H_ε(Φ) < tan θ / tan α slides (about the upper half of the band
 /// at θ = 20°, α = 27°), and in a tongue decelerated by basal friction (tan α_b / tan α = 0.53
-/// in the paper's column) the upper half of the band cannot be decelerated with the rest and
-/// runs ahead: about ε/2 of granular thickness, a large share of a tongue a few cells thick.
+/// in the paper's column) the upper half of the band cannot be decelerated with the rest.
 /// Measured on the paper's column (docs/validation.md): at ny = 32 / 64 the fluidised run-out
 /// is 2.03 / 2.12 m with `Paper` and 1.66 / 1.98 m with `GranularSide`. The paper's form stays
 /// the default until the column's grid convergence decides between them.
@@ -232,11 +204,7 @@ impl YieldTreatment {
             YieldTreatment::Papanastasiou { m } => {
                 let x = m * d_norm;
                 // (1 − e^{−x})/x → 1 as x → 0: τ m / 2
-                let f = if x > 1e-8 {
-                    -(-x).exp_m1() / x
-                } else {
-                    1.0 - 0.5 * x
-                };
+                let f = if x > 1e-8 { -(-x).exp_m1() / x } else { 1.0 - 0.5 * x };
                 0.5 * tau * m * f
             }
             YieldTreatment::BiViscous { yield_viscosity } => {
@@ -292,10 +260,7 @@ impl Default for RheologyConfig {
 impl RheologyConfig {
     /// A configuration with `law` and the default numerics.
     pub fn new(law: RheologyLaw) -> Self {
-        RheologyConfig {
-            law,
-            ..Default::default()
-        }
+        RheologyConfig { law, ..Default::default() }
     }
 
     /// Whether the bi-projection (Picard loop) runs: a yield stress with the projection
@@ -317,17 +282,11 @@ impl RheologyConfig {
         match self.treatment {
             YieldTreatment::Projection => {}
             YieldTreatment::Papanastasiou { m } => check_positive("regularisation", m)?,
-            YieldTreatment::BiViscous { yield_viscosity } => {
-                check_positive("regularisation", yield_viscosity)?
-            }
+            YieldTreatment::BiViscous { yield_viscosity } => check_positive("regularisation", yield_viscosity)?,
         }
         if let Some(a) = self.wall_friction_angle {
             if !(a.is_finite() && (0.0..90.0).contains(&a)) {
-                return Err(Error::param(
-                    "wall_friction_angle",
-                    a,
-                    "an angle in degrees in [0, 90)",
-                ));
+                return Err(Error::param("wall_friction_angle", a, "an angle in degrees in [0, 90)"));
             }
         }
         if let Some(r) = self.r {
@@ -341,11 +300,7 @@ impl RheologyConfig {
         }
         check_range("picard_tol", self.picard_tol, 1e-15, 0.5)?;
         if self.picard_max_iterations == 0 || self.picard_max_iterations > 1_000_000 {
-            return Err(Error::param(
-                "picard_max_iterations",
-                self.picard_max_iterations,
-                "an integer in [1, 1e6]",
-            ));
+            return Err(Error::param("picard_max_iterations", self.picard_max_iterations, "an integer in [1, 1e6]"));
         }
         Ok(())
     }

@@ -2,7 +2,8 @@
 //! their place in the step):
 //!
 //! - [`TwoPhaseModel::rheology_stage`] (before the predictor): yield stress τ(Φ) = τ(p^n) H_ε(Φ)
-//!   (shifted by ε to the air side with [`super::InterfaceYield::GranularSide`]) at centres and nodes, wall friction τ_b, the lagged viscosity of variable-viscosity laws
+//!   (shifted by ε to the air side with [`super::InterfaceYield::GranularSide`]) at centres and
+//!   nodes, wall friction τ_b, the lagged viscosity of variable-viscosity laws
 //!   (μ(I) eq. 5, Papanastasiou, bi-viscous) from D(u^n), blended with the light phase by the
 //!   harmonic mean as in `properties`, and the projection parameters r, r_b;
 //! - [`TwoPhaseModel::momentum_solve`] (the end of the predictor, paper step 4, eq. 12): either
@@ -14,15 +15,12 @@ use super::{RheologyConfig, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
-use crate::levelset::heaviside;
 use crate::models::TwoPhaseModel;
-use crate::operators::{
-    cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate,
-    strain_rate_norm_centre, BcMode,
-};
+use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate, strain_rate_norm_centre, BcMode};
 use crate::projection::fill_pressure_ghosts;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
+use crate::levelset::heaviside;
 use crate::walls::{default_r_wall, CoulombWalls};
 
 /// Stall safeguard of the Picard loop: every `PICARD_STALL_WINDOW` iterations, if the increment
@@ -109,9 +107,7 @@ impl TwoPhaseModel {
     /// Rheology stage (before the predictor): τ, τ_b, lagged variable viscosity, r and r_b.
     /// `a0_over_dt` is a₀/δt of the BDF step.
     pub(crate) fn rheology_stage(&mut self, a0_over_dt: f64, exec: Exec) -> Result<()> {
-        let Some(rs) = self.rheology.as_mut() else {
-            return Ok(());
-        };
+        let Some(rs) = self.rheology.as_mut() else { return Ok(()) };
         let cfg = &self.config;
         let rc = cfg.rheology;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
@@ -126,18 +122,9 @@ impl TwoPhaseModel {
         cell_to_node(&self.phi, &mut rs.phi_n, exec);
         let law = rc.law;
         let iy = rc.interface_yield;
-        let hv = |phi: f64| {
-            if two_phase {
-                heaviside(iy.shift(phi, eps), eps)
-            } else {
-                1.0
-            }
-        };
+        let hv = |phi: f64| if two_phase { heaviside(iy.shift(phi, eps), eps) } else { 1.0 };
         // yield stress τ(Φ) = τ(p) H_ε(Φ) (or H_ε(Φ + ε)) at centres and nodes
-        for (tau, p, phi) in [
-            (&mut rs.plastic.tau_c, &self.p, &self.phi),
-            (&mut rs.plastic.tau_n, &rs.p_n, &rs.phi_n),
-        ] {
+        for (tau, p, phi) in [(&mut rs.plastic.tau_c, &self.p, &self.phi), (&mut rs.plastic.tau_n, &rs.p_n, &rs.phi_n)] {
             let (ps, fs, st) = (p.slice(), phi.slice(), p.stride());
             let n = tau.nx;
             for_each_interior_row(exec, tau, |j, row| {
@@ -151,15 +138,7 @@ impl TwoPhaseModel {
         rs.plastic.tau_max = rs.plastic.tau_c.max_abs().max(rs.plastic.tau_n.max_abs());
         // lagged viscosity of variable-viscosity laws, from D(u^n)
         if rc.variable_viscosity() {
-            strain_rate(
-                &self.u,
-                &self.v,
-                grid,
-                &mut rs.dxx,
-                &mut rs.dyy,
-                &mut rs.dxy,
-                exec,
-            );
+            strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
             strain_rate_norm_centre(&rs.dxx, &rs.dyy, &rs.dxy, &mut rs.dnorm_c, exec);
             rs.dxx.extrapolate_ghosts_constant();
             rs.dyy.extrapolate_ghosts_constant();
@@ -171,9 +150,7 @@ impl TwoPhaseModel {
                     let j = j as isize;
                     let (b0, b1, bn) = (base(dxx, j - 1), base(dxx, j), base(dxy, j));
                     for i in 0..n {
-                        let avg = |s: &[f64]| {
-                            0.25 * (s[b0 + i] + s[b0 + i - 1] + s[b1 + i] + s[b1 + i - 1])
-                        };
+                        let avg = |s: &[f64]| 0.25 * (s[b0 + i] + s[b0 + i - 1] + s[b1 + i] + s[b1 + i - 1]);
                         let (xx, yy, xy) = (avg(a), avg(b), c[bn + i]);
                         row[HALO + i] = (0.5 * (xx * xx + yy * yy) + xy * xy).sqrt();
                     }
@@ -182,9 +159,7 @@ impl TwoPhaseModel {
             let treatment = rc.treatment;
             let eta = |d: f64, p: f64, phi: f64| {
                 let tau = law.yield_stress(p);
-                let ed = dense.viscosity
-                    + law.extra_viscosity(d, p)
-                    + treatment.regularised_viscosity(tau, d, dense.viscosity);
+                let ed = dense.viscosity + law.extra_viscosity(d, p) + treatment.regularised_viscosity(tau, d, dense.viscosity);
                 if two_phase {
                     let h = heaviside(phi, eps);
                     1.0 / (h / ed + (1.0 - h) / light.viscosity)
@@ -193,10 +168,7 @@ impl TwoPhaseModel {
                 }
             };
             let wk = &mut self.work;
-            for (out, d, p, phi) in [
-                (&mut wk.eta_c, &rs.dnorm_c, &self.p, &self.phi),
-                (&mut wk.eta_n, &rs.dnorm_n, &rs.p_n, &rs.phi_n),
-            ] {
+            for (out, d, p, phi) in [(&mut wk.eta_c, &rs.dnorm_c, &self.p, &self.phi), (&mut wk.eta_n, &rs.dnorm_n, &rs.p_n, &rs.phi_n)] {
                 let (ds, ps, fs, st) = (d.slice(), p.slice(), phi.slice(), d.stride());
                 let n = out.nx;
                 for_each_interior_row(exec, out, |j, row| {
@@ -211,26 +183,13 @@ impl TwoPhaseModel {
         // parameters of the projections
         if rs.projection {
             let wk = &self.work;
-            rs.r = rs.plastic.set_r(
-                rc.r, rc.theta, &wk.eta_c, &wk.rho_u, &wk.rho_v, a0_over_dt, grid, exec,
-            );
+            rs.r = rs.plastic.set_r(rc.r, rc.theta, &wk.eta_c, &wk.rho_u, &wk.rho_v, a0_over_dt, grid, exec);
         }
         if rs.walls.is_active() {
             let tan_b = rc.wall_friction_angle.unwrap_or(0.0).to_radians().tan();
-            rs.walls.set_friction(
-                &self.p,
-                &self.phi,
-                tan_b,
-                two_phase.then_some(eps),
-                rc.interface_yield,
-                grid,
-            );
+            rs.walls.set_friction(&self.p, &self.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
             rs.r_wall = rc.r_wall.unwrap_or_else(|| {
-                default_r_wall(
-                    rc.theta,
-                    rs.walls
-                        .max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid),
-                )
+                default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid))
             });
         }
         Ok(())
@@ -243,35 +202,14 @@ impl TwoPhaseModel {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let wk = &self.work;
-        let sys = ViscousSystem {
-            c_u: &wk.c_u,
-            c_v: &wk.c_v,
-            eta_c: &wk.eta_c,
-            eta_n: &wk.eta_n,
-            grid,
-            bc,
-        };
+        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
         let explicit = cfg.viscous == ViscousScheme::Explicit;
         let Some(rs) = self.rheology.as_mut().filter(|r| r.picard) else {
             let info = if explicit {
-                self.momentum.solve_explicit(
-                    &sys,
-                    &mut self.u,
-                    &mut self.v,
-                    &wk.rhs_u,
-                    &wk.rhs_v,
-                    exec,
-                );
+                self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec);
                 SolveInfo::default()
             } else {
-                self.momentum.solve_implicit(
-                    &sys,
-                    &mut self.u,
-                    &mut self.v,
-                    &wk.rhs_u,
-                    &wk.rhs_v,
-                    exec,
-                )?
+                self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec)?
             };
             return Ok((info, PicardInfo::default()));
         };
@@ -300,20 +238,10 @@ impl TwoPhaseModel {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let wk = &self.work;
-        let sys = ViscousSystem {
-            c_u: &wk.c_u,
-            c_v: &wk.c_v,
-            eta_c: &wk.eta_c,
-            eta_n: &wk.eta_n,
-            grid,
-            bc,
-        };
+        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
         let explicit = cfg.viscous == ViscousScheme::Explicit;
         let rc = cfg.rheology;
-        let rs = self
-            .rheology
-            .as_mut()
-            .expect("picard_loop runs with a rheology state");
+        let rs = self.rheology.as_mut().expect("picard_loop runs with a rheology state");
         let mut total = SolveInfo::default();
         let mut inc = f64::INFINITY;
         rs.history.clear();
@@ -324,48 +252,23 @@ impl TwoPhaseModel {
             rs.rhs_u.assign(&wk.rhs_u);
             rs.rhs_v.assign(&wk.rhs_v);
             if rs.projection {
-                rs.plastic
-                    .add_force(grid, &mut rs.rhs_u, &mut rs.rhs_v, exec);
+                rs.plastic.add_force(grid, &mut rs.rhs_u, &mut rs.rhs_v, exec);
             }
             rs.walls.add_force(&mut rs.rhs_u, &mut rs.rhs_v, grid);
             if explicit {
                 self.u.assign(&rs.ustar_u);
                 self.v.assign(&rs.ustar_v);
-                self.momentum.solve_explicit(
-                    &sys,
-                    &mut self.u,
-                    &mut self.v,
-                    &rs.rhs_u,
-                    &rs.rhs_v,
-                    exec,
-                );
+                self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &rs.rhs_u, &rs.rhs_v, exec);
             } else {
                 // A solve that stalls within 1000× of the tightened tolerance (or below 1e-7) is
                 // accepted: the Picard test below judges the result. CG stalls near 1e-9 and then
                 // drifts when round-off variations along an open side meet the asymmetry of the
                 // viscous operator there (see `MomentumSolver::diagonal`).
-                let info = match self.momentum.solve_implicit(
-                    &sys,
-                    &mut self.u,
-                    &mut self.v,
-                    &rs.rhs_u,
-                    &rs.rhs_v,
-                    exec,
-                ) {
+                let info = match self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &rs.rhs_u, &rs.rhs_v, exec) {
                     Ok(info) => info,
-                    Err(crate::Error::NotConverged {
-                        iterations,
-                        residual,
-                        tolerance,
-                        ..
-                    }) if residual <= (1e3 * tolerance).max(1e-7) => {
+                    Err(crate::Error::NotConverged { iterations, residual, tolerance, .. }) if residual <= (1e3 * tolerance).max(1e-7) => {
                         fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
-                        SolveInfo {
-                            iterations,
-                            residual,
-                            initial_residual: 0.0,
-                            rhs_mean_removed: 0.0,
-                        }
+                        SolveInfo { iterations, residual, initial_residual: 0.0, rhs_mean_removed: 0.0 }
                     }
                     Err(e) => return Err(e),
                 };
@@ -378,15 +281,7 @@ impl TwoPhaseModel {
             // Σ^{k+1}, s^{k+1} from ũ^{k+1} (ghosts filled by the solve)
             inc = 0.0;
             if rs.projection {
-                strain_rate(
-                    &self.u,
-                    &self.v,
-                    grid,
-                    &mut rs.dxx,
-                    &mut rs.dyy,
-                    &mut rs.dxy,
-                    exec,
-                );
+                strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
                 inc = rs.plastic.update(&rs.dxx, &rs.dyy, &rs.dxy, rc.theta, exec);
             }
             if rs.walls.is_active() {
@@ -401,24 +296,11 @@ impl TwoPhaseModel {
             }
             if inc <= rc.picard_tol {
                 rs.plastic.trial_norm_centre(&mut rs.trial_norm, exec);
-                return Ok((
-                    total,
-                    PicardInfo {
-                        iterations: k,
-                        increment: inc,
-                        r: rs.r,
-                        r_wall: rs.r_wall,
-                        r_halvings: halvings,
-                    },
-                ));
+                return Ok((total, PicardInfo { iterations: k, increment: inc, r: rs.r, r_wall: rs.r_wall, r_halvings: halvings }));
             }
             if k % PICARD_STALL_WINDOW == 0 {
                 // only the default (contraction-bound) parameters adapt; a user's r is kept
-                if rc.theta > 0.0
-                    && inc > 0.95 * window_start
-                    && halvings < PICARD_MAX_HALVINGS
-                    && (rc.r.is_none() || rc.r_wall.is_none())
-                {
+                if rc.theta > 0.0 && inc > 0.95 * window_start && halvings < PICARD_MAX_HALVINGS && (rc.r.is_none() || rc.r_wall.is_none()) {
                     if rc.r.is_none() {
                         rs.plastic.scale_r(0.5);
                         rs.r *= 0.5;
@@ -431,22 +313,12 @@ impl TwoPhaseModel {
                 window_start = inc;
             }
         }
-        Err(not_converged(
-            inc,
-            rc.picard_max_iterations,
-            rc.picard_tol,
-            rs.r,
-            rc.theta,
-            self.step_count + 1,
-            self.time,
-        ))
+        Err(not_converged(inc, rc.picard_max_iterations, rc.picard_tol, rs.r, rc.theta, self.step_count + 1, self.time))
     }
 
     /// The plastic tensor (Σ_xx at centres, Σ_xy at nodes), if the rheology has one.
     pub fn plastic_tensor(&self) -> Option<(&Field, &Field)> {
-        self.rheology
-            .as_ref()
-            .map(|r| (&r.plastic.sigma_xx, &r.plastic.sigma_xy))
+        self.rheology.as_ref().map(|r| (&r.plastic.sigma_xx, &r.plastic.sigma_xy))
     }
 
     /// |Σ + r D_dev + θ(Σ^n − Σ)| (the argument of the plastic projection) at cell centres after
@@ -459,10 +331,7 @@ impl TwoPhaseModel {
     /// Increments max |τ(Σ^{k+1} − Σ^k)|/τ_max (and of the wall stress) of the Picard iterations
     /// of the last step (empty without plastic stress or wall friction).
     pub fn picard_history(&self) -> &[f64] {
-        self.rheology
-            .as_ref()
-            .map(|r| &r.history[..])
-            .unwrap_or(&[])
+        self.rheology.as_ref().map(|r| &r.history[..]).unwrap_or(&[])
     }
 
     /// The yield stress τ(Φ) at cell centres of the last step.
@@ -480,3 +349,4 @@ impl TwoPhaseModel {
 fn base(f: &Field, j: isize) -> usize {
     ((j + HALO as isize) as usize) * f.stride() + HALO
 }
+

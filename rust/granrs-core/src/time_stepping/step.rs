@@ -23,13 +23,13 @@
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
-use crate::levelset::{blend, blend_harmonic};
 use crate::models::{ConvectionScheme, TwoPhaseModel};
 use crate::operators::{
-    cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts,
-    for_each_interior_row, for_each_interior_row2, gradient, max_speed, BcMode,
+    cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
+    BcMode,
 };
 use crate::projection::fill_pressure_ghosts;
+use crate::levelset::{blend, blend_harmonic};
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
@@ -66,13 +66,7 @@ impl TwoPhaseModel {
     /// Advances the model by one step (stages in the order of this file's header).
     pub fn step(&mut self) -> Result<StepInfo> {
         let exec = self.exec();
-        let pool = std::mem::replace(
-            &mut self.pool,
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(1)
-                .build()
-                .unwrap(),
-        );
+        let pool = std::mem::replace(&mut self.pool, rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap());
         let out = pool.install(|| self.step_stages(exec));
         self.pool = pool;
         out
@@ -106,15 +100,12 @@ impl TwoPhaseModel {
         let rho_ref = cfg.reference_density();
         if rho_ref != 0.0 {
             // (1 − ρ_f/ρ) g: the ambient hydrostatic pressure is not part of p
-            for (f, rho, gc) in [
-                (&mut wk.rhs_u, &wk.rho_u, gx),
-                (&mut wk.rhs_v, &wk.rho_v, gy),
-            ] {
+            for (f, rho) in [(&mut wk.rhs_u, &wk.rho_u), (&mut wk.rhs_v, &wk.rho_v)] {
                 let (rs, st, n) = (rho.slice(), f.stride(), f.nx);
                 for_each_interior_row(exec, f, |j, row| {
                     let b = (j + HALO) * st;
                     for i in HALO..HALO + n {
-                        row[i] = gc * (1.0 - rho_ref / rs[b + i]);
+                        row[i] *= 1.0 - rho_ref / rs[b + i];
                     }
                 });
             }
@@ -123,10 +114,7 @@ impl TwoPhaseModel {
             // the pore-pressure force −∇p_f/ρ is balanced as well
             pore.pf.extrapolate_ghosts_constant();
             gradient(&pore.pf, &cfg.grid, &mut wk.gx, &mut wk.gy, exec);
-            for (f, gr, rho) in [
-                (&mut wk.rhs_u, &wk.gx, &wk.rho_u),
-                (&mut wk.rhs_v, &wk.gy, &wk.rho_v),
-            ] {
+            for (f, gr, rho) in [(&mut wk.rhs_u, &wk.gx, &wk.rho_u), (&mut wk.rhs_v, &wk.gy, &wk.rho_v)] {
                 let (gs, rs, st, n) = (gr.slice(), rho.slice(), f.stride(), f.nx);
                 for_each_interior_row(exec, f, |j, row| {
                     let b = (j + HALO) * st;
@@ -136,29 +124,13 @@ impl TwoPhaseModel {
                 });
             }
         }
-        fill_velocity_ghosts(
-            &mut wk.rhs_u,
-            &mut wk.rhs_v,
-            &cfg.bc,
-            &cfg.grid,
-            BcMode::Homogeneous,
-        );
+        fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Homogeneous);
         self.p.fill(0.0);
         if self.projection_stale {
             self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
             self.projection_stale = false;
         }
-        let info = self.projection.project(
-            &mut wk.rhs_u,
-            &mut wk.rhs_v,
-            &mut self.p,
-            &wk.rho_u,
-            &wk.rho_v,
-            1.0,
-            &cfg.grid,
-            &cfg.bc,
-            exec,
-        );
+        let info = self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, exec);
         self.projection.reset_increment();
         self.gauge_pressure();
         info
@@ -254,37 +226,18 @@ impl TwoPhaseModel {
             Some(prev) => 0.5 * dt / prev,
             None => 0.0,
         };
-        for (x, xn, xm) in [
-            (&mut wk.rhs_u, &self.u, &self.u_prev),
-            (&mut wk.rhs_v, &self.v, &self.v_prev),
-        ] {
+        for (x, xn, xm) in [(&mut wk.rhs_u, &self.u, &self.u_prev), (&mut wk.rhs_v, &self.v, &self.v_prev)] {
             let (ns, ms) = (xn.slice(), xm.slice());
             for (k, o) in x.slice_mut().iter_mut().enumerate() {
                 *o = (1.0 + half) * ns[k] - half * ms[k];
             }
         }
-        fill_velocity_ghosts(
-            &mut wk.rhs_u,
-            &mut wk.rhs_v,
-            &cfg.bc,
-            &cfg.grid,
-            BcMode::Full,
-        );
-        let r = self.levelset.transport.advect(
-            &mut self.phi,
-            &wk.rhs_u,
-            &wk.rhs_v,
-            &cfg.grid,
-            dt,
-            exec,
-        );
+        fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Full);
+        let r = self.levelset.transport.advect(&mut self.phi, &wk.rhs_u, &wk.rhs_v, &cfg.grid, dt, exec);
         r.map_err(|e| self.at_step(e))?;
         let n = self.step_count + 1;
         if cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0 {
-            let r = self
-                .levelset
-                .redistancer
-                .redistance(&mut self.phi, &cfg.grid, exec);
+            let r = self.levelset.redistancer.redistance(&mut self.phi, &cfg.grid, exec);
             r.map_err(|e| self.at_step(e))?;
         }
         if cfg.mass_correction {
@@ -306,22 +259,13 @@ impl TwoPhaseModel {
             return;
         }
         let eps = 1.5 * grid.h();
-        let length: f64 = self
-            .phi
-            .interior()
-            .iter()
-            .map(|&p| crate::levelset::dirac(p, eps))
-            .sum::<f64>()
-            * grid.dx
-            * grid.dy;
+        let length: f64 = self.phi.interior().iter().map(|&p| crate::levelset::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
         if length <= 0.0 {
             return;
         }
         let shift = |phi: &mut Field, d: f64| {
             let n = phi.nx;
-            for_each_interior_row(exec, phi, |_, row| {
-                row[HALO..HALO + n].iter_mut().for_each(|x| *x += d)
-            });
+            for_each_interior_row(exec, phi, |_, row| row[HALO..HALO + n].iter_mut().for_each(|x| *x += d));
         };
         let (mut d_prev, mut a_prev) = (0.0, a0);
         let mut d = (target - a0) / length;
@@ -339,9 +283,7 @@ impl TwoPhaseModel {
 
     /// Stage 3 (paper step 2): material properties from the level set.
     fn properties(&mut self, exec: Exec) {
-        if self.properties_current
-            && (self.config.light.is_none() || !self.config.transport_interface)
-        {
+        if self.properties_current && (self.config.light.is_none() || !self.config.transport_interface) {
             return;
         }
         let cfg = &self.config;
@@ -392,55 +334,23 @@ impl TwoPhaseModel {
     fn pore_pressure(&mut self, dt: f64, coeffs: (f64, f64, f64, f64), exec: Exec) -> Result<()> {
         let first = self.dt_prev.is_none();
         let eps = self.config.interface_width * self.config.grid.h();
-        let Some(pore) = self.pore.as_mut() else {
-            return Ok(());
-        };
-        fill_velocity_ghosts(
-            &mut self.u,
-            &mut self.v,
-            &self.config.bc,
-            &self.config.grid,
-            BcMode::Full,
-        );
+        let Some(pore) = self.pore.as_mut() else { return Ok(()) };
+        fill_velocity_ghosts(&mut self.u, &mut self.v, &self.config.bc, &self.config.grid, BcMode::Full);
         self.phi.extrapolate_ghosts_linear();
-        let r = pore.advance(
-            &self.phi,
-            &self.u,
-            &self.v,
-            &self.config.grid,
-            dt,
-            coeffs,
-            first,
-            eps,
-            exec,
-        );
+        let r = pore.advance(&self.phi, &self.u, &self.v, &self.config.grid, dt, coeffs, first, eps, exec);
         match r {
             Ok(_) => Ok(()),
             // an unstable or non-finite p_f: the room names the cell, the step and time are added here
-            Err(Error::Simulation { what, location, .. }) => Err(Error::Simulation {
-                what,
-                step: self.step_count + 1,
-                time: self.time + dt,
-                location,
-            }),
-            Err(e) => Err(self.at_step(Error::SolverFailure {
-                solver: "pore-pressure solve".into(),
-                message: e.to_string(),
-            })),
+            Err(Error::Simulation { what, location, .. }) => {
+                Err(Error::Simulation { what, step: self.step_count + 1, time: self.time + dt, location })
+            }
+            Err(e) => Err(self.at_step(Error::SolverFailure { solver: "pore-pressure solve".into(), message: e.to_string() })),
         }
     }
 
     /// Stage 5 (paper step 4): the momentum predictor ũ^{n+1}.
     #[allow(clippy::too_many_arguments)]
-    fn predictor(
-        &mut self,
-        dt: f64,
-        a0: f64,
-        a1: f64,
-        a2: f64,
-        w: f64,
-        exec: Exec,
-    ) -> Result<(SolveInfo, PicardInfo)> {
+    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let [gxv, gyv] = cfg.gravity;
@@ -450,12 +360,8 @@ impl TwoPhaseModel {
         let wk = &mut self.work;
         if cfg.convection {
             match cfg.convection_scheme {
-                ConvectionScheme::Centred => {
-                    convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec)
-                }
-                ConvectionScheme::Weno5 => {
-                    convection_weno5(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec)
-                }
+                ConvectionScheme::Centred => convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec),
+                ConvectionScheme::Weno5 => convection_weno5(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec),
             }
         } else {
             // Stokes flow (Re = 0), or a flow whose convection vanishes identically (x-invariant
@@ -483,42 +389,15 @@ impl TwoPhaseModel {
         };
         gradient(ptot, grid, &mut wk.gx, &mut wk.gy, exec);
         let first = self.dt_prev.is_none();
-        // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N*] + (ρ − ρ_ref) g − ∇pⁿ ;  c = a₀ρ/δt
-        // (ρ_ref = ρ_f with `ambient_hydrostatic`, else 0)
+        // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ρ_ref g − ∇pⁿ ;  c = a₀ρ/δt
+        // (ρ_ref = ρ_f with `ambient_hydrostatic`, else 0: the same floating-point result)
         for (rhs, c, rho, un, um, nn, nm, gp, gcomp) in [
-            (
-                &mut wk.rhs_u,
-                &mut wk.c_u,
-                &wk.rho_u,
-                &self.u,
-                &self.u_prev,
-                &wk.conv_u,
-                &self.conv_prev_u,
-                &wk.gx,
-                gxv,
-            ),
-            (
-                &mut wk.rhs_v,
-                &mut wk.c_v,
-                &wk.rho_v,
-                &self.v,
-                &self.v_prev,
-                &wk.conv_v,
-                &self.conv_prev_v,
-                &wk.gy,
-                gyv,
-            ),
+            (&mut wk.rhs_u, &mut wk.c_u, &wk.rho_u, &self.u, &self.u_prev, &wk.conv_u, &self.conv_prev_u, &wk.gx, gxv),
+            (&mut wk.rhs_v, &mut wk.c_v, &wk.rho_v, &self.v, &self.v_prev, &wk.conv_v, &self.conv_prev_v, &wk.gy, gyv),
         ] {
             let st = rhs.stride();
             let n = rhs.nx;
-            let (rs, uns, ums, nns, nms, gps) = (
-                rho.slice(),
-                un.slice(),
-                um.slice(),
-                nn.slice(),
-                nm.slice(),
-                gp.slice(),
-            );
+            let (rs, uns, ums, nns, nms, gps) = (rho.slice(), un.slice(), um.slice(), nn.slice(), nm.slice(), gp.slice());
             let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
             for_each_interior_row(exec, c, |j, row| {
                 let b = (j + HALO) * st + HALO;
@@ -531,19 +410,14 @@ impl TwoPhaseModel {
                 for i in 0..n {
                     let k = b + i;
                     let nstar = we * nns[k] - wm * nms[k];
-                    row[HALO + i] = rs[k] * ((a1 * uns[k] - a2 * ums[k]) / dt - nstar + gcomp)
-                        - rho_ref * gcomp
-                        - gps[k];
+                    row[HALO + i] = rs[k] * ((a1 * uns[k] - a2 * ums[k]) / dt - nstar + gcomp) - rho_ref * gcomp - gps[k];
                 }
             });
         }
         // history: u_prev ← uⁿ, u ← initial guess u* = (1+ω)uⁿ − ω uⁿ⁻¹ (in place: the
         // buffers of u, v, p, Φ never move, Python holds views of them)
         let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
-        for (x, xm) in [
-            (&mut self.u, &mut self.u_prev),
-            (&mut self.v, &mut self.v_prev),
-        ] {
+        for (x, xm) in [(&mut self.u, &mut self.u_prev), (&mut self.v, &mut self.v_prev)] {
             let st = x.stride();
             let n = x.nx;
             for_each_interior_row2(exec, x, xm, |_, row, rowm| {
@@ -567,15 +441,8 @@ impl TwoPhaseModel {
         if umax.is_finite() && vmax.is_finite() {
             return Ok(());
         }
-        let (fu, fv) = (
-            self.u.max_abs_with_location(),
-            self.v.max_abs_with_location(),
-        );
-        let (which, loc) = if !fu.0.is_finite() {
-            ("u", fu.1)
-        } else {
-            ("v", fv.1)
-        };
+        let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
+        let (which, loc) = if !fu.0.is_finite() { ("u", fu.1) } else { ("v", fv.1) };
         Err(Error::Simulation {
             what: format!("non-finite velocity ({which} is NaN or inf) after the momentum predictor (blow-up)"),
             step: self.step_count + 1,
@@ -592,45 +459,21 @@ impl TwoPhaseModel {
             self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
             self.projection_stale = false;
         }
-        let r = self.projection.project(
-            &mut self.u,
-            &mut self.v,
-            &mut self.p,
-            &wk.rho_u,
-            &wk.rho_v,
-            dt_over_a0,
-            &cfg.grid,
-            &cfg.bc,
-            exec,
-        );
+        let r = self.projection.project(&mut self.u, &mut self.v, &mut self.p, &wk.rho_u, &wk.rho_v, dt_over_a0, &cfg.grid, &cfg.bc, exec);
         self.gauge_pressure();
         r.map_err(|e| self.at_step(e))
     }
 
     /// Stage 7: checks and bookkeeping.
-    fn checks(
-        &mut self,
-        dt: f64,
-        viscous: SolveInfo,
-        pressure: SolveInfo,
-        picard: PicardInfo,
-        exec: Exec,
-    ) -> Result<StepInfo> {
+    fn checks(&mut self, dt: f64, viscous: SolveInfo, pressure: SolveInfo, picard: PicardInfo, exec: Exec) -> Result<StepInfo> {
         let cfg = &self.config;
         let g = &cfg.grid;
         fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, g, BcMode::Full);
         let (umax, vmax) = max_speed(&self.u, &self.v, exec);
         let next_time = self.time + dt;
         if !(umax.is_finite() && vmax.is_finite()) {
-            let (fu, fv) = (
-                self.u.max_abs_with_location(),
-                self.v.max_abs_with_location(),
-            );
-            let (which, loc) = if !fu.0.is_finite() {
-                ("u", fu.1)
-            } else {
-                ("v", fv.1)
-            };
+            let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
+            let (which, loc) = if !fu.0.is_finite() { ("u", fu.1) } else { ("v", fv.1) };
             return Err(Error::Simulation {
                 what: format!("non-finite velocity ({which} is NaN or inf) after the projection"),
                 step: self.step_count + 1,
@@ -640,15 +483,8 @@ impl TwoPhaseModel {
         }
         let cfl = dt * (umax / g.dx + vmax / g.dy);
         if cfl > cfg.time.cfl_abort {
-            let (fu, fv) = (
-                self.u.max_abs_with_location(),
-                self.v.max_abs_with_location(),
-            );
-            let loc = if fu.0 / g.dx >= fv.0 / g.dy {
-                fu.1
-            } else {
-                fv.1
-            };
+            let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
+            let loc = if fu.0 / g.dx >= fv.0 / g.dy { fu.1 } else { fv.1 };
             return Err(Error::Simulation {
                 what: format!(
                     "CFL number {cfl:.3} exceeds the limit cfl_abort = {} (δt = {dt:.3e} s, max|u| = {umax:.3e}, max|v| = {vmax:.3e} m/s)",

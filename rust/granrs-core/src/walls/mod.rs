@@ -30,8 +30,8 @@
 //! The loops here run over one row of faces per side (O(nx + ny) work) and are serial.
 
 use crate::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
-use crate::levelset::heaviside;
 use crate::operators::unknown_face_range;
+use crate::levelset::heaviside;
 use crate::rheology::InterfaceYield;
 use std::ops::Range;
 
@@ -62,23 +62,11 @@ impl CoulombWalls {
                     continue;
                 }
                 let (faces, n) = if side.is_x() {
-                    (
-                        unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), grid.ny),
-                        grid.ny + 1,
-                    )
+                    (unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), grid.ny), grid.ny + 1)
                 } else {
-                    (
-                        unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx),
-                        grid.nx + 1,
-                    )
+                    (unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx), grid.nx + 1)
                 };
-                sides.push(WallSide {
-                    side,
-                    faces,
-                    s: vec![0.0; n],
-                    s_n: vec![0.0; n],
-                    tau_b: vec![0.0; n],
-                });
+                sides.push(WallSide { side, faces, s: vec![0.0; n], s_n: vec![0.0; n], tau_b: vec![0.0; n] });
             }
         }
         CoulombWalls { sides }
@@ -100,15 +88,7 @@ impl CoulombWalls {
     /// and Φ extrapolated linearly to the wall and averaged over the two cells beside the face;
     /// `eps` None: a single-phase model (H = 1); `iy` places the smoothed jump (H_ε(Φ + ε) with
     /// [`InterfaceYield::GranularSide`]).
-    pub fn set_friction(
-        &mut self,
-        p: &Field,
-        phi: &Field,
-        tan_alpha_b: f64,
-        eps: Option<f64>,
-        iy: InterfaceYield,
-        grid: &Grid,
-    ) {
+    pub fn set_friction(&mut self, p: &Field, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
         let hv = |x: f64| eps.map_or(1.0, |e| heaviside(iy.shift(x, e), e));
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
         // value extrapolated to the wall from cell (i, j) inward
@@ -123,10 +103,7 @@ impl CoulombWalls {
         for w in &mut self.sides {
             let ncells = if w.side.is_x() { ny } else { nx };
             for f in w.faces.clone() {
-                let (k0, k1) = (
-                    (f as isize - 1).clamp(0, ncells - 1),
-                    (f as isize).clamp(0, ncells - 1),
-                );
+                let (k0, k1) = ((f as isize - 1).clamp(0, ncells - 1), (f as isize).clamp(0, ncells - 1));
                 let pw = 0.5 * (wall(p, w.side, k0) + wall(p, w.side, k1));
                 let hw = 0.5 * (hv(wall(phi, w.side, k0)) + hv(wall(phi, w.side, k1)));
                 w.tau_b[f] = tan_alpha_b * pw.max(0.0) * hw;
@@ -174,11 +151,7 @@ impl CoulombWalls {
     /// τ_b = 0 keep s = 0.
     pub fn update(&mut self, u: &Field, v: &Field, r_b: f64, theta: f64, grid: &Grid) -> f64 {
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
-        let tau_ref = self
-            .sides
-            .iter()
-            .flat_map(|w| w.tau_b.iter())
-            .fold(0.0f64, |a, &b| a.max(b));
+        let tau_ref = self.sides.iter().flat_map(|w| w.tau_b.iter()).fold(0.0f64, |a, &b| a.max(b));
         let scale = if tau_ref > 0.0 { 1.0 / tau_ref } else { 0.0 };
         let mut inc = 0.0f64;
         for w in &mut self.sides {
@@ -190,11 +163,7 @@ impl CoulombWalls {
                     Side::Left => v.at(0, fi),
                     Side::Right => v.at(nx - 1, fi),
                 };
-                let new = if w.tau_b[f] > 0.0 {
-                    (w.s[f] - r_b * ut + theta * (w.s_n[f] - w.s[f])).clamp(-1.0, 1.0)
-                } else {
-                    0.0
-                };
+                let new = if w.tau_b[f] > 0.0 { (w.s[f] - r_b * ut + theta * (w.s_n[f] - w.s[f])).clamp(-1.0, 1.0) } else { 0.0 };
                 let d = (new - w.s[f]).abs() * w.tau_b[f] * scale;
                 inc = if d.is_nan() { f64::NAN } else { inc.max(d) };
                 w.s[f] = new;
@@ -216,10 +185,7 @@ impl CoulombWalls {
     /// The friction direction s and coefficient τ_b of one side along its faces (None if the side
     /// has no friction): (s, τ_b).
     pub fn side(&self, side: Side) -> Option<(&[f64], &[f64])> {
-        self.sides
-            .iter()
-            .find(|w| w.side == side)
-            .map(|w| (&w.s[..], &w.tau_b[..]))
+        self.sides.iter().find(|w| w.side == side).map(|w| (&w.s[..], &w.tau_b[..]))
     }
 }
 
