@@ -38,7 +38,7 @@ def test_material_and_numerics_errors_name_the_parameter():
     with pytest.raises(ParameterError, match="`slip_length`"):
         granrs.NavierSlip(slip_length=0.0)
     # raised by the Rust binding, with the allowed values
-    with pytest.raises(ParameterError, match="`interface_yield`.*'paper' or 'granular-side'"):
+    with pytest.raises(ParameterError, match="`interface_yield`.*'paper', 'granular-side' or 'density-support'"):
         cavity(numerics=Numerics(interface_yield="sharp"))
     from granrs.cases.column import ColumnCase
     with pytest.raises(ParameterError, match="`interface_yield`"):

@@ -50,3 +50,24 @@ def test_granular_only_agrees_with_kappa_infinity_on_a_collapsing_column():
     # the paper's smoothed κ(Φ) moves the p_f = 0 boundary about ε inside the grains: an O(h)
     # difference (17 % at ny = 32, halving with each refinement: 8.4 % at 64, 4.1 % at 128)
     assert 0.05 < m["pf_rel_l2_difference_kappa-infinity-smoothed"] < 0.3, m
+
+
+def test_fluidised_layer_at_rest_dry_and_flowing_when_fluidised():
+    rec = run_case("fluidised-layer", ny=32, t_end=1.0)
+    m = rec["metrics"]
+    # the bounds: at rest below 1e-8 m/s without pore pressure (measured 1e-13 over 1 s),
+    # flowing with β = 0.95 (measured 0.64 m/s at 0.2 s: g sin θ t = 0.67 for a frictionless layer)
+    assert rec["passed"], m
+    assert m["max_speed_beta_0"] < 1e-8 and m["max_speed_beta_0.95"] > 0.3, m
+    # the needed Coulomb ratio is tan 20° / tan 27° = 0.714, + 3 % from sampling ρ on faces
+    assert abs(m["rest_ratio"] / m["rest_ratio_bound"] - 1.0) < 0.05, m
+    # the paper's band H_ε(Φ) cannot hold the top of the band (ratio > 1): it slides (5.5 mm/s at 1 s)
+    assert m["rest_ratio_paper_band"] > 1.0 and m["max_speed_beta_0_paper_band"] > 1e-4, m
+    # from Σ = 0 the relaxed Picard fixed point (eq. 12) lets the layer fall first (0.67 m/s)
+    assert m["max_speed_beta_0_from_zero_stress"] > 0.1, m
+
+
+def test_balance_plastic_stress_needs_a_projected_yield_stress():
+    m = granrs.Model(granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0))
+    with pytest.raises(granrs.ParameterError, match="`rheology`.*projection"):
+        m.balance_plastic_stress()

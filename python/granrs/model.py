@@ -95,9 +95,11 @@ class Numerics:
     on p, 'mean' otherwise).
     interface_yield: where the smoothed jump of the yield stress τ(Φ) and of the wall friction
     τ_b(Φ) sits across the interface band: 'paper' (default: τ = tan(α) p H_ε(Φ), the paper's
-    §2.4) or 'granular-side' (H_ε(Φ + ε), full strength wherever Φ > 0; with 'paper' the band,
+    §2.4), 'granular-side' (H_ε(Φ + ε), full strength wherever Φ > 0; with 'paper' the band,
     which the density already counts as granular, yields below the friction angle and runs
-    ahead of a decelerating tongue; docs/validation.md, column collapse).
+    ahead of a decelerating tongue; docs/validation.md, column collapse) or 'density-support'
+    (H_ε(Φ + 2ε): full strength wherever the smoothed density carries grains, Φ > −ε; the only
+    form that holds an inclined free surface at rest, docs/validation.md, fluidised layer).
     ambient_hydrostatic: p is the pressure in excess of the light phase's hydrostatic pressure
     ρ_f g·x and the body force is (ρ − ρ_f) g (off by default). For boxes where the air cannot
     balance its weight, as between the open sides of an x-invariant layer on a slope.
@@ -285,6 +287,19 @@ class Model:
             self._rust.set_field(name, np.ascontiguousarray(arr))
         if p is None and balance_pressure:
             self._rust.initialise_pressure()
+
+    def balance_plastic_stress(self) -> dict:
+        """Sets the plastic tensor Σ to the one that holds the current state at rest, column by
+        column: Σ_xx = 0 and τΣ_xy = ∫_y^top f_x dy', with f_x the x-force at rest (weight along
+        the slope and −∂x(p + p_f)). Call after the initial Φ, p_f and balanced pressure. Without
+        it the Picard iteration (paper eq. 12) builds Σ up from 0 over many steps and a layer that
+        should stay at rest moves meanwhile. Exact for states uniform along x (layers on a slope).
+
+        Returns ``max_ratio`` (largest |τΣ_xy|/τ needed; ≤ 1 means the state can stay at rest),
+        ``node`` (its (i, j)), ``clamped`` (nodes where Σ_xy was clamped to ±1, which will
+        yield) and ``x_residual`` (the y-force left unbalanced where the state varies along x,
+        relative to ρ g). Raises ParameterError for a law without a projected yield stress."""
+        return self._rust.balance_plastic_stress()
 
     def set_shape(self, shape, balance_pressure: bool = True) -> None:
         """Sets Φ to the exact signed distance of a :mod:`granrs.shapes` shape (Φ > 0 inside)."""

@@ -78,7 +78,8 @@ class ColumnCase:
     pore_formulation: str = "granular-only"
     # where the smoothed jump of the yield stress and of the basal friction sits across the
     # interface band (granrs.Numerics.interface_yield): the paper's 'paper' (default,
-    # τ = tan(α) p H_ε(Φ)) or 'granular-side' (full strength wherever Φ > 0); docs/validation.md
+    # τ = tan(α) p H_ε(Φ)), 'granular-side' (full strength wherever Φ > 0) or 'density-support'
+    # (full strength wherever the smoothed density carries grains, Φ > −ε); docs/validation.md
     interface_yield: str = "paper"
     length: Optional[float] = None
     height: Optional[float] = None
@@ -118,9 +119,9 @@ class ColumnCase:
         if self.pore_formulation not in ("granular-only", "kappa-infinity", "kappa-infinity-smoothed"):
             raise ParameterError(f"invalid parameter `pore_formulation` = {self.pore_formulation!r}: allowed "
                                  "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")
-        if self.interface_yield not in ("granular-side", "paper"):
+        if self.interface_yield not in ("granular-side", "paper", "density-support"):
             raise ParameterError(f"invalid parameter `interface_yield` = {self.interface_yield!r}: allowed "
-                                 "'granular-side' or 'paper'")
+                                 "'granular-side', 'paper' or 'density-support'")
         if self.model == "granular":
             raise ParameterError("invalid parameter `model` = 'granular': not available yet (reserved for the "
                                  "granular-only model); allowed 'auto', 'two-phase' or 'depth-averaged'")

@@ -23,7 +23,7 @@ CASES: dict[str, tuple[Callable, dict, str]] = {
     "dam-break": (levelset.dam_break, {"n": 32, "mass_correction": True}, "water column under air against Martin & Moyce (1952)"),
     "pore-formulations": (pore_pressure.pore_formulations, {"ny": 32, "t_end": 0.15, "kappa_air": 1e16},
                           "granular-only against kappa-infinity pore pressure on a collapsing column"),
-    "fluidised-layer": (pore_pressure.fluidised_layer, {"ny": 32, "slope_deg": 20.0, "t_end": 0.2},
+    "fluidised-layer": (pore_pressure.fluidised_layer, {"ny": 32, "slope_deg": 20.0, "t_end": 1.0},
                         "granular layer on a slope below its friction angle: at rest dry, flowing when fluidised"),
     "pore-diffusion": (pore_pressure.pore_diffusion, {"n": [16, 32, 64, 128], "dt_factor": 10.0, "formulation": "granular-only"},
                        "pore pressure in a static layer with a basal air flux, exact 1D series"),

@@ -413,3 +413,70 @@ fn ambient_hydrostatic_keeps_the_air_at_rest_between_open_sides() {
     assert!((free / (9.81 * 20f64.to_radians().sin() * 0.1) - 1.0).abs() < 0.01, "free fall {free}");
     assert!(ambient < 1e-6, "ambient {ambient}");
 }
+
+/// `balance_plastic_stress` (rheology/rest.rs) on a D-P layer 0.1 m deep on a 20° slope under
+/// air (α = 27°, ambient hydrostatic reference, x-invariant: 2 columns between fully developed
+/// sides). The Coulomb ratio it needs is tan 20° / tan 27° = 0.714 (to the discretisation), so
+/// with the band at full strength (`DensitySupport`) nothing is clamped and the layer stays at
+/// rest to round-off over 200 steps (0.2 s); with the paper's band H_ε(Φ) the top of the band
+/// needs tan θ / H_ε > 1, is clamped, and slides; from Σ = 0 the layer first falls freely at
+/// g sin θ while eq. (12) builds Σ up.
+#[test]
+fn balanced_plastic_stress_holds_a_layer_on_a_slope_at_rest() {
+    use granrs_core::levelset::Shape;
+    use granrs_core::rheology::InterfaceYield;
+    let th = 20f64.to_radians();
+    let run = |iy: InterfaceYield, balance: bool| {
+        let (nx, ny, ly) = (2, 32, 0.2);
+        let h = ly / ny as f64;
+        let grid = Grid::new(nx, ny, nx as f64 * h, ly).unwrap();
+        let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
+            .with(Side::Bottom, VelocityBc::NoSlip)
+            .with(Side::Top, VelocityBc::Outflow);
+        let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
+        cfg.gravity = [9.81 * th.sin(), -9.81 * th.cos()];
+        cfg.ambient_hydrostatic = true;
+        cfg.rheology.theta = 0.8;
+        cfg.rheology.interface_yield = iy;
+        let mut m = TwoPhaseModel::new(cfg).unwrap();
+        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 1.0, y0: -1.0, y1: 0.1 }).unwrap();
+        m.initialise_pressure().unwrap();
+        let rep = if balance { Some(m.balance_plastic_stress().unwrap()) } else { None };
+        let mut vmax = 0.0f64;
+        for _ in 0..200 {
+            vmax = vmax.max(m.step().unwrap().max_speed);
+        }
+        (rep, vmax)
+    };
+    let bound = th.tan() / 27f64.to_radians().tan();
+    let (rep, rest) = run(InterfaceYield::DensitySupport, true);
+    let rep = rep.unwrap();
+    println!("density-support: ratio {:.4} (bound {bound:.4}), clamped {}, max speed {rest:.2e}", rep.max_ratio, rep.clamped);
+    // the ratio is the continuum tan θ / tan α within the 3 % of ρ_u vs ρ_v sampling at the base
+    assert!((rep.max_ratio / bound - 1.0).abs() < 0.05 && rep.clamped == 0, "{rep:?}");
+    assert!(rep.x_residual < 1e-6, "{rep:?}");
+    assert!(rest < 1e-10, "layer moved: {rest:e}");
+    let (paper, slide) = run(InterfaceYield::Paper, true);
+    let paper = paper.unwrap();
+    println!("paper band: ratio {:.4}, clamped {}, max speed {slide:.2e}", paper.max_ratio, paper.clamped);
+    assert!(paper.max_ratio > 1.0 && paper.clamped > 0, "{paper:?}");
+    assert!(slide > 1e-4, "paper band held: {slide:e}");
+    let (_, fall) = run(InterfaceYield::DensitySupport, false);
+    println!("from Σ = 0: max speed {fall:.3} m/s (free fall {:.3})", 9.81 * th.sin() * 0.2);
+    assert!(fall > 0.1, "from Σ = 0: {fall}");
+}
+
+/// `balance_plastic_stress` needs a projected yield stress: a Newtonian model names `rheology`.
+#[test]
+fn balance_plastic_stress_rejects_a_law_without_yield_stress() {
+    let grid = Grid::new(4, 4, 1.0, 1.0).unwrap();
+    let cfg = ModelConfig::single_phase(grid, BoundaryConditions::uniform(VelocityBc::NoSlip), Material { density: 1.0, viscosity: 1.0 });
+    let mut m = TwoPhaseModel::new(cfg).unwrap();
+    match m.balance_plastic_stress() {
+        Err(Error::InvalidParameter { name, allowed, .. }) => {
+            assert_eq!(name, "rheology");
+            assert!(allowed.contains("projection"), "{allowed}");
+        }
+        other => panic!("expected InvalidParameter, got {other:?}"),
+    }
+}

@@ -420,7 +420,8 @@ impl PyModel {
             interface_yield: match interface_yield {
                 "paper" => InterfaceYield::Paper,
                 "granular-side" => InterfaceYield::GranularSide,
-                other => return Err(param_err("interface_yield", other, "'paper' or 'granular-side'")),
+                "density-support" => InterfaceYield::DensitySupport,
+                other => return Err(param_err("interface_yield", other, "'paper', 'granular-side' or 'density-support'")),
             },
         };
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
@@ -490,6 +491,19 @@ impl PyModel {
         let inner = &mut self.inner;
         let info = py.detach(|| inner.initialise_pressure()).map_err(to_py)?;
         info_dict(py, &info)
+    }
+
+    /// Sets the plastic tensor Σ that holds the current state at rest, column by column
+    /// (`rheology/rest.rs`); returns max_ratio (≤ 1: admissible), node, clamped, x_residual.
+    fn balance_plastic_stress<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let inner = &mut self.inner;
+        let r = py.detach(|| inner.balance_plastic_stress()).map_err(to_py)?;
+        let d = PyDict::new(py);
+        d.set_item("max_ratio", r.max_ratio)?;
+        d.set_item("node", r.node)?;
+        d.set_item("clamped", r.clamped)?;
+        d.set_item("x_residual", r.x_residual)?;
+        Ok(d)
     }
 
     /// Takes one step; returns its diagnostics.

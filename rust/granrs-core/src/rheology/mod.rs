@@ -35,11 +35,13 @@
 //! Coulomb friction walls (paper eq. 8–9) are in [`crate::walls`].
 
 pub mod plastic;
+pub mod rest;
 pub(crate) mod stage;
 
 use crate::error::{check_positive, check_range, Error, Result};
 
 pub use plastic::{PicardInfo, PlasticState};
+pub use rest::RestStress;
 
 /// A constitutive law of the dense phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -161,6 +163,13 @@ pub enum InterfaceYield {
     /// τ(Φ) = τ(p) H_ε(Φ + ε), τ_b likewise: full strength wherever Φ > 0 (the same smoothed
     /// function, shifted by ε to the air side, where p ≈ 0 under the top gauge).
     GranularSide,
+    /// τ(Φ) = τ(p) H_ε(Φ + 2ε), τ_b likewise: full strength on the whole support of the
+    /// smoothed density (Φ > −ε, where the band carries granular weight), so that the Coulomb
+    /// ratio is tan α wherever there is granular weight to hold; H_ε rises to it over the air
+    /// cells −3ε < Φ < −ε, where p ≈ 0 under the top gauge and there is no weight. The only
+    /// form with which an inclined free surface can be at rest (the band's required ratio is
+    /// tan θ at every depth of it: `granrs validate fluidised-layer`, docs/validation.md).
+    DensitySupport,
 }
 
 impl InterfaceYield {
@@ -170,6 +179,7 @@ impl InterfaceYield {
         match self {
             InterfaceYield::Paper => phi,
             InterfaceYield::GranularSide => phi + eps,
+            InterfaceYield::DensitySupport => phi + 2.0 * eps,
         }
     }
 }

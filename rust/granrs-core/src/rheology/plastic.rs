@@ -137,6 +137,12 @@ impl PlasticState {
         }
     }
 
+    /// The boundary-node holds (left, right, bottom, top): Σ_xy = 0 on free-slip and Coulomb
+    /// sides.
+    pub(crate) fn zero_tangential(&self) -> [bool; 4] {
+        self.zero_tangential
+    }
+
     /// Start of a step: Σ^n ← Σ (the iteration starts from Σ^{n+1,0} = Σ^n).
     pub fn begin_step(&mut self) {
         self.sigma_xx_n.assign(&self.sigma_xx);
@@ -263,7 +269,7 @@ impl PlasticState {
 /// Whether the node (i, j) of an `nxn` × `nyn` node array lies on a side whose tangential
 /// stress is not carried by Σ (flags in the order left, right, bottom, top).
 #[inline]
-fn node_held(z: &[bool; 4], i: usize, j: usize, nxn: usize, nyn: usize) -> bool {
+pub(crate) fn node_held(z: &[bool; 4], i: usize, j: usize, nxn: usize, nyn: usize) -> bool {
     (i == 0 && z[0]) || (i + 1 == nxn && z[1]) || (j == 0 && z[2]) || (j + 1 == nyn && z[3])
 }
 

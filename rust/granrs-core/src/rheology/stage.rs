@@ -103,6 +103,13 @@ impl RheologyState {
     }
 }
 
+impl RheologyState {
+    /// Whether Σ is iterated (a yield stress treated by projection).
+    pub fn has_plastic_tensor(&self) -> bool {
+        self.projection
+    }
+}
+
 impl TwoPhaseModel {
     /// Rheology stage (before the predictor): τ, τ_b, lagged variable viscosity, r and r_b.
     /// `a0_over_dt` is a₀/δt of the BDF step.

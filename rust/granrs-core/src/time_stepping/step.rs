@@ -282,7 +282,7 @@ impl TwoPhaseModel {
     }
 
     /// Stage 3 (paper step 2): material properties from the level set.
-    fn properties(&mut self, exec: Exec) {
+    pub(crate) fn properties(&mut self, exec: Exec) {
         if self.properties_current && (self.config.light.is_none() || !self.config.transport_interface) {
             return;
         }
