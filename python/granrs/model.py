@@ -103,6 +103,11 @@ class Numerics:
     ambient_hydrostatic: p is the pressure in excess of the light phase's hydrostatic pressure
     ρ_f g·x and the body force is (ρ − ρ_f) g (off by default). For boxes where the air cannot
     balance its weight, as between the open sides of an x-invariant layer on a slope.
+    proximal_restarts: per step, how many times the anchor Σ^n of the paper's eq. (12) may be
+    reset to the relaxed fixed point before the iteration goes on (0, default: the paper's
+    iteration). Eq. (12) converges to Σ = P(Σ + rD + θ(Σ^n − Σ)), whose rigid zones deform like
+    an elastic body (wave speed ≈ 0.22 h/δt at θ = 0.8); the restarts approach eq. (11) itself,
+    slowly (docs/validation.md, fluidised layer).
     """
 
     cfl: float = 0.5
@@ -132,6 +137,7 @@ class Numerics:
     pressure_gauge: str = "auto"
     interface_yield: str = "paper"
     ambient_hydrostatic: bool = False
+    proximal_restarts: int = 0
 
 
 class Model:
@@ -180,7 +186,7 @@ class Model:
             n.pressure_max_iterations, threads, rheology.spec(), n.plastic, n.regularisation, n.r, n.r_wall,
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
-            n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic)
+            n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

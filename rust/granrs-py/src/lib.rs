@@ -274,7 +274,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -315,6 +315,7 @@ impl PyModel {
         viscous_max_iterations: i64,
         interface_yield: &str,
         ambient_hydrostatic: bool,
+        proximal_restarts: i64,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -422,6 +423,10 @@ impl PyModel {
                 "granular-side" => InterfaceYield::GranularSide,
                 "density-support" => InterfaceYield::DensitySupport,
                 other => return Err(param_err("interface_yield", other, "'paper', 'granular-side' or 'density-support'")),
+            },
+            proximal_restarts: match proximal_restarts {
+                0..=1_000_000 => proximal_restarts as usize,
+                other => return Err(param_err("proximal_restarts", other, "an integer in [0, 1000000]")),
             },
         };
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;

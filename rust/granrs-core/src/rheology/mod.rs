@@ -249,6 +249,14 @@ pub struct RheologyConfig {
     pub picard_max_iterations: usize,
     /// Where the smoothed jump of τ(Φ) and τ_b(Φ) sits (two-phase models only).
     pub interface_yield: InterfaceYield,
+    /// Proximal restarts of the anchor of eq. (12) per step (0: the paper's iteration). Eq. (12)
+    /// converges to Σ = P(Σ + rD + θ(Σ^n − Σ)), not to eq. (11): a rigid zone deforms at
+    /// D = θ(Σ − Σ^n)/r, an elastic body of shear modulus τr/(θδt). After each converged
+    /// relaxed iteration whose Σ still differs from its anchor by more than `picard_tol`, the
+    /// anchor is set to it (Σ^n ← Σ, s^n ← s) and the iteration goes on: a proximal-point
+    /// iteration whose fixed point is eq. (11) itself. Iterations count against
+    /// `picard_max_iterations`.
+    pub proximal_restarts: usize,
 }
 
 impl Default for RheologyConfig {
@@ -263,6 +271,7 @@ impl Default for RheologyConfig {
             picard_tol: 1e-9,
             picard_max_iterations: 1000,
             interface_yield: InterfaceYield::default(),
+            proximal_restarts: 0,
         }
     }
 }

@@ -63,6 +63,8 @@ pub struct PicardInfo {
     pub r_wall: f64,
     /// Times r and r_b were halved because the increment stalled (see `PICARD_STALL_WINDOW`).
     pub r_halvings: usize,
+    /// Proximal restarts of the anchor in the step (`RheologyConfig::proximal_restarts`).
+    pub restarts: usize,
 }
 
 /// P: orthogonal projection on the unit ball of symmetric traceless 2×2 tensors, on the pair
@@ -141,6 +143,12 @@ impl PlasticState {
     /// sides.
     pub(crate) fn zero_tangential(&self) -> [bool; 4] {
         self.zero_tangential
+    }
+
+    /// max |τ(Σ − Σ^n)|/τ_max: how far Σ is from the anchor of eq. (12).
+    pub fn anchor_distance(&self, exec: Exec) -> f64 {
+        weighted_max_abs_diff(&self.sigma_xx, &self.sigma_xx_n, &self.tau_c, self.tau_max, exec)
+            .max(weighted_max_abs_diff(&self.sigma_xy, &self.sigma_xy_n, &self.tau_n, self.tau_max, exec))
     }
 
     /// Start of a step: Σ^n ← Σ (the iteration starts from Σ^{n+1,0} = Σ^n).

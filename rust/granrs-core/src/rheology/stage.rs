@@ -254,6 +254,7 @@ impl TwoPhaseModel {
         rs.history.clear();
         let mut window_start = f64::INFINITY;
         let mut halvings = 0usize;
+        let mut restarts = 0usize;
         for k in 1..=rc.picard_max_iterations {
             // rhs + div(τΣ^k) + wall friction τ_b s^k / h
             rs.rhs_u.assign(&wk.rhs_u);
@@ -301,9 +302,21 @@ impl TwoPhaseModel {
             if inc.is_nan() {
                 break;
             }
+            if inc <= rc.picard_tol && restarts < rc.proximal_restarts {
+                // proximal restart: the relaxed fixed point becomes the anchor (see
+                // `RheologyConfig::proximal_restarts`)
+                let moved = if rs.projection { rs.plastic.anchor_distance(exec) } else { 0.0 }.max(rs.walls.anchor_distance());
+                if moved > rc.picard_tol {
+                    rs.plastic.begin_step();
+                    rs.walls.begin_step();
+                    restarts += 1;
+                    window_start = f64::INFINITY;
+                    continue;
+                }
+            }
             if inc <= rc.picard_tol {
                 rs.plastic.trial_norm_centre(&mut rs.trial_norm, exec);
-                return Ok((total, PicardInfo { iterations: k, increment: inc, r: rs.r, r_wall: rs.r_wall, r_halvings: halvings }));
+                return Ok((total, PicardInfo { iterations: k, increment: inc, r: rs.r, r_wall: rs.r_wall, r_halvings: halvings, restarts }));
             }
             if k % PICARD_STALL_WINDOW == 0 {
                 // only the default (contraction-bound) parameters adapt; a user's r is kept

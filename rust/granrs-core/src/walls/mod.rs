@@ -84,6 +84,11 @@ impl CoulombWalls {
         }
     }
 
+    /// max |s − s^n| over the faces with friction: how far s is from the anchor of eq. (12).
+    pub fn anchor_distance(&self) -> f64 {
+        self.sides.iter().flat_map(|w| w.s.iter().zip(&w.s_n).zip(&w.tau_b)).filter(|(_, &t)| t > 0.0).map(|((a, b), _)| (a - b).abs()).fold(0.0, f64::max)
+    }
+
     /// τ_b = tan(α_b) p_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side, with p
     /// and Φ extrapolated linearly to the wall and averaged over the two cells beside the face;
     /// `eps` None: a single-phase model (H = 1); `iy` places the smoothed jump (H_ε(Φ + ε) with
