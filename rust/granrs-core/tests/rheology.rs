@@ -380,20 +380,25 @@ fn interface_yield_sets_the_coulomb_ratio_of_the_band() {
 /// gravity is tilted by 20°, nothing can balance the air's weight along x, and the air falls
 /// freely (u = g sin θ t); with the ambient hydrostatic pressure removed from p (body force
 /// (ρ − ρ_f) g) it stays at rest. A heavy Newtonian layer at the bottom, no-slip base.
+/// A box 0.2 m high of `nx` × `ny` square cells on a 20° slope: fully developed sides, no-slip
+/// base, `top` above; gravity tilted by the slope.
+fn slope_box(nx: usize, ny: usize, top: VelocityBc) -> (Grid, BoundaryConditions, [f64; 2]) {
+    let ly = 0.2;
+    let grid = Grid::new(nx, ny, nx as f64 * ly / ny as f64, ly).unwrap();
+    let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped).with(Side::Bottom, VelocityBc::NoSlip).with(Side::Top, top);
+    let th = 20f64.to_radians();
+    (grid, bc, [9.81 * th.sin(), -9.81 * th.cos()])
+}
+
 #[test]
 fn ambient_hydrostatic_keeps_the_air_at_rest_between_open_sides() {
     use granrs_core::levelset::Shape;
     let run = |ambient: bool| -> f64 {
-        let (nx, ny, ly) = (4, 16, 0.2);
-        let h = ly / ny as f64;
-        let grid = Grid::new(nx, ny, nx as f64 * h, ly).unwrap();
-        let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
-            .with(Side::Bottom, VelocityBc::NoSlip)
-            .with(Side::Top, VelocityBc::FreeSlip);
+        let ny = 16;
+        let (grid, bc, gravity) = slope_box(4, ny, VelocityBc::FreeSlip);
         let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1450.0, viscosity: 1e3 });
         cfg.light = Some(Material { density: 1.0, viscosity: 2e-5 });
-        let th = 20f64.to_radians();
-        cfg.gravity = [9.81 * th.sin(), -9.81 * th.cos()];
+        cfg.gravity = gravity;
         cfg.convection = false;
         cfg.time.fixed_dt = Some(1e-3);
         cfg.ambient_hydrostatic = ambient;
@@ -427,14 +432,9 @@ fn balanced_plastic_stress_holds_a_layer_on_a_slope_at_rest() {
     use granrs_core::rheology::InterfaceYield;
     let th = 20f64.to_radians();
     let run_r = |iy: InterfaceYield, balance: bool, restarts: usize| {
-        let (nx, ny, ly) = (2, 32, 0.2);
-        let h = ly / ny as f64;
-        let grid = Grid::new(nx, ny, nx as f64 * h, ly).unwrap();
-        let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
-            .with(Side::Bottom, VelocityBc::NoSlip)
-            .with(Side::Top, VelocityBc::Outflow);
+        let (grid, bc, gravity) = slope_box(2, 32, VelocityBc::Outflow);
         let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
-        cfg.gravity = [9.81 * th.sin(), -9.81 * th.cos()];
+        cfg.gravity = gravity;
         cfg.ambient_hydrostatic = true;
         cfg.rheology.theta = 0.8;
         cfg.rheology.interface_yield = iy;

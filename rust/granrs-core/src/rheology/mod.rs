@@ -9,7 +9,8 @@
 //! traceless tensors, and, in the two-phase model, τ(Φ) = τ H_ε(Φ + s ε) (only the dense phase
 //! yields), with the shift s of [`InterfaceYield`]: 0 is the paper's τ(Φ) = tan(α) p H_ε(Φ)
 //! (§2.4, the default), 1 puts the whole smoothed jump on the air side, so that every cell the
-//! density counts as granular (Φ > 0) has its full Coulomb ratio τ/p = tan α.
+//! density counts as granular (Φ > 0) has its full Coulomb ratio τ/p = tan α, and 2 gives it to
+//! the whole band that carries granular weight (Φ > −ε).
 //!
 //! | law | yield stress τ | viscosity η of the dense phase |
 //! |---|---|---|

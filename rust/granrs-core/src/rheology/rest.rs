@@ -30,8 +30,8 @@ use super::plastic::node_held;
 use crate::error::{Error, Result};
 use crate::grid::HALO;
 use crate::models::TwoPhaseModel;
-use crate::operators::gradient;
 use crate::projection::fill_pressure_ghosts;
+use crate::time_stepping::step::pressure_gradient;
 
 /// What [`TwoPhaseModel::balance_plastic_stress`] found.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -67,16 +67,8 @@ impl TwoPhaseModel {
         let rho_ref = cfg.reference_density();
         let wk = &mut self.work;
         // ∂_x(p + p_f) on the u-faces, as in the predictor
-        wk.ptot.assign(&self.p);
-        if let Some(pore) = &mut self.pore {
-            pore.pf.extrapolate_ghosts_constant();
-            let (a, b) = (wk.ptot.slice_mut(), pore.pf.slice());
-            for (x, y) in a.iter_mut().zip(b) {
-                *x += y;
-            }
-        }
-        fill_pressure_ghosts(&mut wk.ptot, &cfg.bc);
-        gradient(&wk.ptot, grid, &mut wk.gx, &mut wk.gy, exec);
+        fill_pressure_ghosts(&mut self.p, &cfg.bc);
+        pressure_gradient(&self.p, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, &cfg.bc, exec);
         let rs = self.rheology.as_mut().expect("checked above");
         let pl = &mut rs.plastic;
         pl.sigma_xx.fill(0.0);

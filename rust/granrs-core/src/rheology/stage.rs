@@ -2,7 +2,7 @@
 //! their place in the step):
 //!
 //! - [`TwoPhaseModel::rheology_stage`] (before the predictor): yield stress τ(Φ) = τ(p^n) H_ε(Φ)
-//!   (shifted by ε to the air side with [`super::InterfaceYield::GranularSide`]) at centres and
+//!   (shifted by sε to the air side, s of [`super::InterfaceYield`]) at centres and
 //!   nodes, wall friction τ_b, the lagged viscosity of variable-viscosity laws
 //!   (μ(I) eq. 5, Papanastasiou, bi-viscous) from D(u^n), blended with the light phase by the
 //!   harmonic mean as in `properties`, and the projection parameters r, r_b;

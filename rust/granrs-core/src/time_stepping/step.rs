@@ -7,7 +7,7 @@
 //! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room, implicit BDF2 or explicit forward
 //!    Euler; an explicit step past h²/(4κ) stops here, naming the cell; skipped when not fluidised).
 //! 4b. `rheology_stage` [step 2, continued]: τ^{n+1} = τ(p^n) H_ε(Φ^{n+1}) at centres and nodes
-//!    (H_ε(Φ^{n+1} + ε) with `InterfaceYield::GranularSide`),
+//!    (H_ε(Φ^{n+1} + sε) with the shift s = 0, 1, 2 of `InterfaceYield`),
 //!    τ_b^{n+1} on Coulomb walls, the lagged viscosity of μ(I) and regularised laws, r and r_b
 //!    (`rheology/stage.rs`).
 //! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection, the body force
@@ -370,24 +370,7 @@ impl TwoPhaseModel {
             wk.conv_u.fill(0.0);
             wk.conv_v.fill(0.0);
         }
-        // ∇(pⁿ + p_f^{n+1}): the pore pressure pushes the grains apart (eq. 10b)
-        let ptot: &Field = match &mut self.pore {
-            Some(pore) => {
-                pore.pf.extrapolate_ghosts_constant();
-                wk.ptot.assign(&self.p);
-                let (st, n, pfs) = (wk.ptot.stride(), wk.ptot.nx, pore.pf.slice());
-                for_each_interior_row(exec, &mut wk.ptot, |j, row| {
-                    let b = (j + HALO) * st;
-                    for i in HALO..HALO + n {
-                        row[i] += pfs[b + i];
-                    }
-                });
-                fill_pressure_ghosts(&mut wk.ptot, bc);
-                &wk.ptot
-            }
-            None => &self.p,
-        };
-        gradient(ptot, grid, &mut wk.gx, &mut wk.gy, exec);
+        pressure_gradient(&self.p, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
         let first = self.dt_prev.is_none();
         // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ρ_ref g − ∇pⁿ ;  c = a₀ρ/δt
         // (ρ_ref = ρ_f with `ambient_hydrostatic`, else 0: the same floating-point result)
@@ -532,4 +515,28 @@ impl TwoPhaseModel {
 /// Copies the interior of `src` into a row-major buffer.
 pub fn interior_to_vec(src: &Field) -> Vec<f64> {
     src.interior().iter().copied().collect()
+}
+
+/// ∇(p + p_f) on the faces into `gx`, `gy` (the predictor's pressure force, paper eq. 10b: the
+/// pore pressure pushes the grains apart); `p` with its ghosts filled, `ptot` a work field.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn pressure_gradient(
+    p: &Field, pore: Option<&mut crate::pore_pressure::PorePressure>, ptot: &mut Field, gx: &mut Field, gy: &mut Field, grid: &crate::grid::Grid,
+    bc: &crate::grid::BoundaryConditions, exec: Exec,
+) {
+    let Some(pore) = pore else {
+        gradient(p, grid, gx, gy, exec);
+        return;
+    };
+    pore.pf.extrapolate_ghosts_constant();
+    ptot.assign(p);
+    let (st, n, pfs) = (ptot.stride(), ptot.nx, pore.pf.slice());
+    for_each_interior_row(exec, ptot, |j, row| {
+        let b = (j + HALO) * st;
+        for i in HALO..HALO + n {
+            row[i] += pfs[b + i];
+        }
+    });
+    fill_pressure_ghosts(ptot, bc);
+    gradient(ptot, grid, gx, gy, exec);
 }

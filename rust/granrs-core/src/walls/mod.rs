@@ -6,7 +6,7 @@
 //!
 //!   σ_t = τ_b s,   s = P_b(s − r_b u_t)   (r_b > 0),   τ_b(Φ) = tan(α_b) (−σ_n)⁺ H_ε(Φ),
 //!
-//! (H_ε(Φ + ε) with `InterfaceYield::GranularSide`, see [`crate::rheology::InterfaceYield`]),
+//! (H_ε(Φ + sε) with the shift s of [`crate::rheology::InterfaceYield`]),
 //!
 //! where P_b clamps to [−1, 1] (the unit ball of the 1D tangent space): s = −u_t/|u_t| while the
 //! material slides, |s| ≤ 1 when it sticks. Picard update, in the same loop as Σ (eq. 12):
@@ -91,8 +91,8 @@ impl CoulombWalls {
 
     /// τ_b = tan(α_b) p_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side, with p
     /// and Φ extrapolated linearly to the wall and averaged over the two cells beside the face;
-    /// `eps` None: a single-phase model (H = 1); `iy` places the smoothed jump (H_ε(Φ + ε) with
-    /// [`InterfaceYield::GranularSide`]).
+    /// `eps` None: a single-phase model (H = 1); `iy` places the smoothed jump
+    /// ([`InterfaceYield::shift`]).
     pub fn set_friction(&mut self, p: &Field, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
         let hv = |x: f64| eps.map_or(1.0, |e| heaviside(iy.shift(x, e), e));
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
