@@ -89,7 +89,7 @@ def _run(args, parser) -> int:
         case = ColumnCase(aspect_ratio=args.aspect_ratio, width=args.width, fluidised=args.fluidised,
                           pore_pressure_ratio=args.pore_pressure_ratio, ny=args.ny if args.ny is not None else 32,
                           t_end=args.t_end, rheology=args.rheology, cfl=args.cfl, threads=args.threads,
-                          length=args.length, model=args.model)
+                          length=args.length, model=args.model, active_region=args.active_region)
         summary = run_column(case, Path(args.out), progress=not args.quiet,
                              compare_with=Path(args.compare_with) if args.compare_with else None)
         keys = ("model", "model_reason", "runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error",
@@ -148,6 +148,9 @@ def main(argv=None) -> int:
                    help="column: the two-phase model (default), the depth-averaged one, or auto: the depth-averaged "
                         "model only where it was measured within 5%% of the two-phase run-out (docs/models.md)")
     r.add_argument("--cfl", type=float, default=0.5)
+    r.add_argument("--active-region", dest="active_region", type=int, metavar="BAND",
+                   help="column: run each step on a window around the granular phase with BAND cells of air "
+                        "(docs/models.md, active region); default: the whole domain")
     r.add_argument("--length", type=float, help="domain length in m (default L_c + 5.125 H_c)")
     r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -98,6 +98,11 @@ KEYS: tuple[Key, ...] = (
     Key("numerics", "interface_yield", "choice", _D["interface_yield"], "",
         "where the smoothed jump of the yield stress and basal friction sits: the paper's H_ε(Φ), H_ε(Φ + ε) or H_ε(Φ + 2ε)",
         choices=("paper", "granular-side", "density-support")),
+    Key("numerics", "active_region", "int", 0, "cells",
+        "run each step on a window around the granular phase with this many (≥ 2) cells of air; 0: the whole domain", 0, 100000),
+    Key("numerics", "wall_normal_stress", "choice", _D["wall_normal_stress"], "",
+        "normal stress of the Coulomb base and back wall: the pressure p, or the paper's total stress p − T_nn",
+        choices=("pressure", "total")),
     Key("numerics", "mass_correction", "bool", _D["mass_correction"], "",
         "global mass correction of the level set (dense area kept at its initial value)"),
     Key("output", "dir", "str", "out/run", "path", "output folder, relative to the current directory"),
@@ -303,4 +308,4 @@ def column_case(cfg: Config) -> ColumnCase:
                       pore_pressure_ratio=c["pore_pressure_ratio"], rheology=c["rheology"], ny=g["ny"],
                       length=g["length"], t_end=n["t_end"], cfl=n["cfl"], threads=n["threads"],
                       picard_tol=n["picard_tol"], theta=n["theta"], mass_correction=n["mass_correction"],
-                      interface_yield=n["interface_yield"], **m)
+                      interface_yield=n["interface_yield"], wall_normal_stress=n["wall_normal_stress"], active_region=n["active_region"] or None, **m)

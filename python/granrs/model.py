@@ -108,6 +108,16 @@ class Numerics:
     iteration). Eq. (12) converges to Σ = P(Σ + rD + θ(Σ^n − Σ)), whose rigid zones deform like
     an elastic body (wave speed ≈ 0.22 h/δt at θ = 0.8); the restarts approach eq. (11) itself,
     slowly (docs/validation.md, fluidised layer).
+    wall_normal_stress: the normal stress −σ_n of the Coulomb walls' τ_b = tan(α_b)(−σ_n)⁺:
+    'pressure' (default: −σ_n = p) or 'total' (the paper's total stress of the granular phase,
+    −σ_n = p − T_nn with T = 2ηD(u) + τΣ, lagged by one step; a spreading layer presses harder
+    on the base; docs/validation.md, column collapse).
+    active_region: None (default: every step on the whole domain) or a band in cells: each step
+    runs on a window anchored at the lower-left corner that holds the dense phase (Φ > 0) and at
+    least that many cells of light phase to its right and above; outside it the light phase is
+    at rest (docs/models.md, active region). Needs a light phase, right and top sides that are
+    walls and the 'top' pressure gauge. active_region_align: the window's sizes are multiples of
+    this many cells (default 8, for the multigrid).
     """
 
     cfl: float = 0.5
@@ -138,6 +148,9 @@ class Numerics:
     interface_yield: str = "paper"
     ambient_hydrostatic: bool = False
     proximal_restarts: int = 0
+    wall_normal_stress: str = "pressure"
+    active_region: Optional[int] = None
+    active_region_align: int = 8
 
 
 class Model:
@@ -177,6 +190,9 @@ class Model:
             raise ParameterError(f"invalid parameter `pore_pressure` = {pore_pressure!r}: allowed a granrs.PorePressure or None")
         self.pore_pressure = pore_pressure
         n = self.numerics
+        for name, lo, hi, val in (("active_region", 2, 100000, n.active_region), ("active_region_align", 1, 4096, n.active_region_align)):
+            if val is not None and (not isinstance(val, int) or isinstance(val, bool) or not lo <= val <= hi):
+                raise ParameterError(f"invalid parameter `{name}` = {val!r}: allowed None or an integer in [{lo}, {hi}] (cells)")
         self._rust = _granrs.RustModel(
             grid.nx, grid.ny, float(grid.lx), float(grid.ly), self.bc.spec(),
             (dense.density, dense.viscosity),
@@ -186,7 +202,8 @@ class Model:
             n.pressure_max_iterations, threads, rheology.spec(), n.plastic, n.regularisation, n.r, n.r_wall,
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
-            n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts)
+            n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
+            n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align))
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}
@@ -263,6 +280,13 @@ class Model:
     def yield_stress(self) -> np.ndarray:
         """Yield stress τ(Φ) at cell centres of the last step [Pa], shape (ny, nx), read-only live view."""
         return self._plastic("yield_stress")
+
+    @property
+    def active_window(self):
+        """(nx, ny) of the active window the last step ran on (``Numerics.active_region``), or
+        None (the whole domain, or no step taken yet)."""
+        w = self._rust.active_window()
+        return None if w is None else tuple(w)
 
     def picard_history(self) -> np.ndarray:
         """Increments max |τ(Σ^{k+1} − Σ^k)|/τ_max of the Picard iterations of the last step."""

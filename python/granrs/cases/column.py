@@ -81,6 +81,12 @@ class ColumnCase:
     # τ = tan(α) p H_ε(Φ)), 'granular-side' (full strength wherever Φ > 0) or 'density-support'
     # (full strength wherever the smoothed density carries grains, Φ > −ε); docs/validation.md
     interface_yield: str = "paper"
+    # the normal stress of the Coulomb base and back wall (granrs.Numerics.wall_normal_stress):
+    # 'pressure' (default, −σ_n = p) or 'total' (the paper's −σ_n = p − T_nn); docs/validation.md
+    wall_normal_stress: str = "pressure"
+    # active region (granrs.Numerics.active_region): None (whole domain) or the band of air
+    # cells kept around the granular phase; each step then runs on that window (docs/models.md)
+    active_region: Optional[int] = None
     length: Optional[float] = None
     height: Optional[float] = None
     # Picard iteration of the plastic projection: stress-weighted increment tolerance and
@@ -122,6 +128,13 @@ class ColumnCase:
         if self.interface_yield not in ("granular-side", "paper", "density-support"):
             raise ParameterError(f"invalid parameter `interface_yield` = {self.interface_yield!r}: allowed "
                                  "'granular-side', 'paper' or 'density-support'")
+        if self.active_region is not None and (not isinstance(self.active_region, int) or isinstance(self.active_region, bool)
+                                               or not 2 <= self.active_region <= 100000):
+            raise ParameterError(f"invalid parameter `active_region` = {self.active_region!r}: allowed None or an "
+                                 "integer in [2, 100000] (cells of air around the granular phase)")
+        if self.wall_normal_stress not in ("pressure", "total"):
+            raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
+                                 "'pressure' or 'total'")
         if self.model == "granular":
             raise ParameterError("invalid parameter `model` = 'granular': not available yet (reserved for the "
                                  "granular-only model); allowed 'auto', 'two-phase' or 'depth-averaged'")
@@ -187,7 +200,8 @@ def build_model(case: ColumnCase) -> Model:
                                         bottom=Coulomb(case.wall_friction_angle), top=FreeSlip()),
                   numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta,
                                     picard_max_iterations=1000, convection_scheme="weno5",
-                                    mass_correction=case.mass_correction, interface_yield=case.interface_yield),
+                                    mass_correction=case.mass_correction, interface_yield=case.interface_yield,
+                                    wall_normal_stress=case.wall_normal_stress, active_region=case.active_region),
                   threads=case.threads, pore_pressure=pore,
                   **_rheology_kwargs(case))
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
@@ -331,7 +345,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "nx": grid.nx, "ny": grid.ny, "cells": grid.cells, "h_m": grid.dy, "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
-        "interface_yield": case.interface_yield, "threads": case.threads, "version": __version__,
+        "interface_yield": case.interface_yield, "wall_normal_stress": case.wall_normal_stress,
+        "active_region": case.active_region, "threads": case.threads, "version": __version__,
         "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
                                                               if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,

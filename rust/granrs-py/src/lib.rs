@@ -5,9 +5,9 @@
 use granrs_core::exec::Exec;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
-use granrs_core::models::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};
+use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
-use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, YieldTreatment};
+use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, WallNormalStress, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
 use granrs_core::Error;
@@ -274,7 +274,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -316,6 +316,8 @@ impl PyModel {
         interface_yield: &str,
         ambient_hydrostatic: bool,
         proximal_restarts: i64,
+        wall_normal_stress: &str,
+        active_region: Option<(i64, i64)>,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -428,6 +430,15 @@ impl PyModel {
                 0..=1_000_000 => proximal_restarts as usize,
                 other => return Err(param_err("proximal_restarts", other, "an integer in [0, 1000000]")),
             },
+            wall_normal_stress: match wall_normal_stress {
+                "pressure" => WallNormalStress::Pressure,
+                "total" => WallNormalStress::Total,
+                other => return Err(param_err("wall_normal_stress", other, "'pressure' or 'total'")),
+            },
+        };
+        cfg.active_region = match active_region {
+            None => None,
+            Some((band, align)) => Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)? }),
         };
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
         Ok(PyModel { inner })
@@ -642,6 +653,11 @@ impl PyModel {
     /// Increments of the Picard iterations of the last step.
     fn picard_history(&self) -> Vec<f64> {
         self.inner.picard_history().to_vec()
+    }
+
+    /// (nx, ny) of the active window the last step ran on, or None (whole domain).
+    fn active_window(&self) -> Option<(usize, usize)> {
+        self.inner.active_window()
     }
 
     /// Number of threads of the model's pool.

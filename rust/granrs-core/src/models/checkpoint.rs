@@ -95,6 +95,7 @@ impl TwoPhaseModel {
         self.properties_current = false;
         self.projection_stale = true;
         self.time_to_land = None;
+        self.window = None;
         Ok(())
     }
 }

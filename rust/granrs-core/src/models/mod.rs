@@ -8,9 +8,11 @@
 //! channel with a depth-averaged pore pressure (`depth_averaged.rs`, docs/models.md).
 
 mod checkpoint;
+pub mod active_region;
 pub mod depth_averaged;
 mod two_phase;
 
+pub use active_region::ActiveRegion;
 pub use checkpoint::StateEntry;
 pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};

@@ -108,6 +108,14 @@ pub struct ModelConfig {
     /// along the slope; the grains' effective pressure then also excludes the ambient one.
     /// Off by default (two-phase models only).
     pub ambient_hydrostatic: bool,
+    /// Run each step on a window around the dense phase ([`super::active_region`]); None: on the
+    /// whole domain.
+    pub active_region: Option<super::active_region::ActiveRegion>,
+    /// Value of the mean pressure over the top row of cells under the `Top` gauge (0: the lid's
+    /// air at p = 0). An active window sets it to the air's hydrostatic pressure at its top row.
+    pub pressure_top_value: f64,
+    /// The `Top` gauge averages the top row over the cells i ≥ this (0: the whole row).
+    pub pressure_top_from: usize,
 }
 
 impl ModelConfig {
@@ -136,6 +144,9 @@ impl ModelConfig {
             viscous_max_iterations: 2000,
             pressure_gauge: PressureGauge::Auto,
             ambient_hydrostatic: false,
+            active_region: None,
+            pressure_top_value: 0.0,
+            pressure_top_from: 0,
         }
     }
 
@@ -193,6 +204,8 @@ impl ModelConfig {
         if self.viscous_max_iterations == 0 || self.viscous_max_iterations > 100_000_000 {
             return Err(Error::param("viscous_max_iterations", self.viscous_max_iterations, "an integer in [1, 1e8]"));
         }
+        TwoPhaseModel::validate_active_region(self)?;
+        check_finite("pressure_top_value", self.pressure_top_value)?;
         if self.threads == 0 || self.threads > 1024 {
             return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
         }
@@ -266,6 +279,9 @@ pub struct TwoPhaseModel {
     pub(crate) time_to_land: Option<f64>,
     /// Dense-phase area the mass correction restores (set when Φ is set).
     pub reference_area: f64,
+    /// The active window's model (with [`ModelConfig::active_region`]; None until the first step
+    /// and after the state was changed from outside, when it is rebuilt from this model's state).
+    pub(crate) window: Option<Box<TwoPhaseModel>>,
 }
 
 impl TwoPhaseModel {
@@ -330,6 +346,7 @@ impl TwoPhaseModel {
             projection_stale: true,
             time_to_land: None,
             reference_area: 0.0,
+            window: None,
             pool,
             config,
         })
@@ -372,6 +389,7 @@ impl TwoPhaseModel {
     /// Tells the model that fields were changed from outside (initial conditions): material
     /// properties are recomputed and the BDF2 history restarts with a first-order step.
     pub fn fields_changed(&mut self) {
+        self.window = None;
         self.properties_current = false;
         self.dt_prev = None;
         self.reference_area = self.dense_area();

@@ -185,6 +185,22 @@ impl InterfaceYield {
     }
 }
 
+/// The normal stress −σ_n that the Coulomb walls' τ_b = tan(α_b)(−σ_n)⁺ H_ε(Φ) uses (eq. 8).
+///
+/// The paper writes −σ_n for the normal component of the granular phase's total stress
+/// σ = T − p I, T = 2ηD(u) + τΣ: −σ_n = p − T_nn. On a wall T_nn = ±T_xx (2D, T traceless: T_yy =
+/// −T_xx on the base and the lid, T_xx on the side walls).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum WallNormalStress {
+    /// −σ_n = p: the pressure alone (T_nn neglected; exact for a layer at rest or in simple
+    /// shear along the wall, where D_nn = 0 and Σ_nn = 0).
+    #[default]
+    Pressure,
+    /// −σ_n = p − T_nn with T_nn = 2η D_nn(u^n) + τ Σ^n_nn, lagged by one step like p^n: a
+    /// spreading layer (D_xx > 0, Σ_yy = −Σ_xx < 0 on the base) presses harder on the base.
+    Total,
+}
+
 /// How the yield stress is imposed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum YieldTreatment {
@@ -258,6 +274,8 @@ pub struct RheologyConfig {
     /// iteration whose fixed point is eq. (11) itself. Iterations count against
     /// `picard_max_iterations`.
     pub proximal_restarts: usize,
+    /// The normal stress of the Coulomb walls' friction (eq. 8).
+    pub wall_normal_stress: WallNormalStress,
 }
 
 impl Default for RheologyConfig {
@@ -273,6 +291,7 @@ impl Default for RheologyConfig {
             picard_max_iterations: 1000,
             interface_yield: InterfaceYield::default(),
             proximal_restarts: 0,
+            wall_normal_stress: WallNormalStress::default(),
         }
     }
 }

@@ -53,6 +53,7 @@ impl TwoPhaseModel {
     /// Φ, p_f and the balanced pressure (`initialise_pressure`) are set. Exact for a state
     /// uniform along x (a layer on a slope); for others, `x_residual` says how far from it.
     pub fn balance_plastic_stress(&mut self) -> Result<RestStress> {
+        self.window = None;
         let exec = self.exec();
         if !self.rheology.as_ref().is_some_and(|r| r.has_plastic_tensor()) {
             return Err(Error::param("rheology", self.config.rheology.law.name(), "a law with a yield stress treated by projection \

@@ -11,7 +11,7 @@
 //!   with the plastic projection of Σ and the friction projection of s.
 
 use super::plastic::{not_converged, PicardInfo, PlasticState};
-use super::{RheologyConfig, YieldTreatment};
+use super::{RheologyConfig, WallNormalStress, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
@@ -194,7 +194,23 @@ impl TwoPhaseModel {
         }
         if rs.walls.is_active() {
             let tan_b = rc.wall_friction_angle.unwrap_or(0.0).to_radians().tan();
-            rs.walls.set_friction(&self.p, &self.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
+            let tnn = if rc.wall_normal_stress == WallNormalStress::Total {
+                // T_xx = 2η D_xx(u^n) + τ Σ^n_xx at centres (into dnorm_c, free here)
+                strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
+                let (d, e, t, sx) = (rs.dxx.slice(), self.work.eta_c.slice(), rs.plastic.tau_c.slice(), rs.plastic.sigma_xx.slice());
+                let (st, n, plastic) = (rs.dxx.stride(), grid.nx, rs.projection);
+                for_each_interior_row(exec, &mut rs.dnorm_c, |j, row| {
+                    let b = (j + HALO) * st + HALO;
+                    for i in 0..n {
+                        let k = b + i;
+                        row[HALO + i] = 2.0 * e[k] * d[k] + if plastic { t[k] * sx[k] } else { 0.0 };
+                    }
+                });
+                Some(&rs.dnorm_c)
+            } else {
+                None
+            };
+            rs.walls.set_friction(&self.p, tnn, &self.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
             rs.r_wall = rc.r_wall.unwrap_or_else(|| {
                 default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid))
             });

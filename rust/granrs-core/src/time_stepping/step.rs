@@ -19,6 +19,9 @@
 //! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp, then the pressure gauge (p = 0 under
 //!    the lid when no side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
+//!
+//! With `ModelConfig::active_region` the step first sizes the window around the dense phase and
+//! runs these same stages on it (`models/active_region.rs`).
 
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -65,6 +68,9 @@ pub struct StepInfo {
 impl TwoPhaseModel {
     /// Advances the model by one step (stages in the order of this file's header).
     pub fn step(&mut self) -> Result<StepInfo> {
+        if let Some(ar) = self.config.active_region {
+            return self.step_active(ar);
+        }
         let exec = self.exec();
         let pool = std::mem::replace(&mut self.pool, rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap());
         let out = pool.install(|| self.step_stages(exec));
@@ -89,6 +95,7 @@ impl TwoPhaseModel {
     /// discrete projection onto divergence-free fields (one pressure solve). A stratified fluid
     /// at rest then stays exactly at rest; any initial velocity is left unchanged.
     pub fn initialise_pressure(&mut self) -> Result<SolveInfo> {
+        self.window = None;
         let exec = self.exec();
         self.properties(exec);
         let cfg = &self.config;
@@ -144,7 +151,8 @@ impl TwoPhaseModel {
             return;
         }
         let (nx, ny) = (self.p.nx as isize, self.p.ny as isize);
-        let mean = (0..nx).map(|i| self.p.at(i, ny - 1)).sum::<f64>() / nx as f64;
+        let from = (self.config.pressure_top_from as isize).min(nx - 1);
+        let mean = (from..nx).map(|i| self.p.at(i, ny - 1)).sum::<f64>() / (nx - from) as f64 - self.config.pressure_top_value;
         if mean == 0.0 || !mean.is_finite() {
             return;
         }

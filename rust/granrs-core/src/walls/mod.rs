@@ -17,7 +17,7 @@
 //! on the left and right) sees a free-slip ghost (no viscous or plastic flux through the wall:
 //! Σ_xy is held at 0 on the wall nodes) and the wall flux τ_b s / h_n as a force per unit volume
 //! (h_n the cell size normal to the wall); u_t is that row's velocity, half a cell from the wall.
-//! The normal stress is taken as −σ_n = p, linearly extrapolated to the wall from the two
+//! The normal stress is taken as −σ_n = p (or p − T_nn, [`crate::rheology::WallNormalStress`]), linearly extrapolated to the wall from the two
 //! adjacent cells (p_wall = 1.5 p₀ − 0.5 p₁, exact for a hydrostatic pressure; the paper takes p
 //! "from the adjacent cell", which is first-order: its O(h/H) error on the friction would show as
 //! a 2–3 % error in the sliding-block acceleration at 32 cells), and Φ likewise.
@@ -89,11 +89,13 @@ impl CoulombWalls {
         self.sides.iter().flat_map(|w| w.s.iter().zip(&w.s_n).zip(&w.tau_b)).filter(|(_, &t)| t > 0.0).map(|((a, b), _)| (a - b).abs()).fold(0.0, f64::max)
     }
 
-    /// τ_b = tan(α_b) p_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side, with p
-    /// and Φ extrapolated linearly to the wall and averaged over the two cells beside the face;
+    /// τ_b = tan(α_b) (p − T_nn)_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side,
+    /// with p, T_nn and Φ extrapolated linearly to the wall and averaged over the two cells beside
+    /// the face; `txx` the centred T_xx of [`crate::rheology::WallNormalStress::Total`] (T_nn = T_xx
+    /// on the left and right sides, −T_xx on the bottom and top), None: −σ_n = p;
     /// `eps` None: a single-phase model (H = 1); `iy` places the smoothed jump
     /// ([`InterfaceYield::shift`]).
-    pub fn set_friction(&mut self, p: &Field, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
+    pub fn set_friction(&mut self, p: &Field, txx: Option<&Field>, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
         let hv = |x: f64| eps.map_or(1.0, |e| heaviside(iy.shift(x, e), e));
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
         // value extrapolated to the wall from cell (i, j) inward
@@ -109,7 +111,11 @@ impl CoulombWalls {
             let ncells = if w.side.is_x() { ny } else { nx };
             for f in w.faces.clone() {
                 let (k0, k1) = ((f as isize - 1).clamp(0, ncells - 1), (f as isize).clamp(0, ncells - 1));
-                let pw = 0.5 * (wall(p, w.side, k0) + wall(p, w.side, k1));
+                let mut pw = 0.5 * (wall(p, w.side, k0) + wall(p, w.side, k1));
+                if let Some(t) = txx {
+                    let tnn = 0.5 * (wall(t, w.side, k0) + wall(t, w.side, k1));
+                    pw -= if w.side.is_x() { tnn } else { -tnn };
+                }
                 let hw = 0.5 * (hv(wall(phi, w.side, k0)) + hv(wall(phi, w.side, k1)));
                 w.tau_b[f] = tan_alpha_b * pw.max(0.0) * hw;
             }
@@ -175,6 +181,17 @@ impl CoulombWalls {
             }
         }
         inc
+    }
+
+    /// Copies s, s^n and τ_b of every side from `other` (a model of the same boundary conditions
+    /// on a grid sharing this one's lower-left corner) over the faces both have.
+    pub(crate) fn copy_prefix_from(&mut self, other: &CoulombWalls) {
+        for (a, b) in self.sides.iter_mut().zip(&other.sides) {
+            let n = a.s.len().min(b.s.len());
+            a.s[..n].copy_from_slice(&b.s[..n]);
+            a.s_n[..n].copy_from_slice(&b.s_n[..n]);
+            a.tau_b[..n].copy_from_slice(&b.tau_b[..n]);
+        }
     }
 
     /// Copies of the friction directions s of every Coulomb side, in side order (checkpoints).
