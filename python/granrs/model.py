@@ -113,8 +113,8 @@ class Numerics:
     −σ_n = p − T_nn with T = 2ηD(u) + τΣ, lagged by one step; a spreading layer presses harder
     on the base; docs/validation.md, column collapse).
     active_region: None (default: every step on the whole domain) or a band in cells: each step
-    runs on a window anchored at the lower-left corner that holds the dense phase (Φ > 0) and at
-    least that many cells of light phase to its right and above; outside it the light phase is
+    runs on a window anchored at the lower-left corner that holds the support of the dense phase
+    (Φ > −3ε) and at least that many cells of light phase to its right and above; outside it the light phase is
     at rest (docs/models.md, active region). Needs a light phase, right and top sides that are
     walls and the 'top' pressure gauge. active_region_align: the window's sizes are multiples of
     this many cells (default 8, for the multigrid).

@@ -128,10 +128,6 @@ class ColumnCase:
         if self.interface_yield not in ("granular-side", "paper", "density-support"):
             raise ParameterError(f"invalid parameter `interface_yield` = {self.interface_yield!r}: allowed "
                                  "'granular-side', 'paper' or 'density-support'")
-        if self.active_region is not None and (not isinstance(self.active_region, int) or isinstance(self.active_region, bool)
-                                               or not 2 <= self.active_region <= 100000):
-            raise ParameterError(f"invalid parameter `active_region` = {self.active_region!r}: allowed None or an "
-                                 "integer in [2, 100000] (cells of air around the granular phase)")
         if self.wall_normal_stress not in ("pressure", "total"):
             raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
                                  "'pressure' or 'total'")

@@ -489,3 +489,38 @@ fn balance_plastic_stress_rejects_a_law_without_yield_stress() {
         other => panic!("expected InvalidParameter, got {other:?}"),
     }
 }
+
+/// The wall normal stress of eq. (8) (`WallNormalStress::Total`, −σ_n = p − T_nn): in a uniform
+/// extension u = a x (D_xx = a = −D_yy) with a uniform pressure P, viscosity η and plastic
+/// stress τΣ_xx = S, T_xx = 2ηa + S is uniform, so the base (T_nn = T_yy = −T_xx) carries
+/// −σ_n = P + T_xx and the back wall (T_nn = T_xx) carries P − T_xx; with `Pressure` both carry
+/// P. The fields are linear, so the walls' linear extrapolation is exact (round-off bound).
+#[test]
+fn total_wall_normal_stress_adds_the_normal_deviatoric_stress() {
+    use granrs_core::grid::{Field, Location};
+    use granrs_core::rheology::InterfaceYield;
+    use granrs_core::walls::{CoulombWalls, NormalStress};
+    let grid = Grid::new(8, 6, 0.8, 0.6).unwrap();
+    let bc = BoundaryConditions::uniform(VelocityBc::FreeSlip).with(Side::Left, VelocityBc::Coulomb).with(Side::Bottom, VelocityBc::Coulomb);
+    let (p0, eta, a, sxx, tau) = (300.0, 0.1, 50.0, 0.4, 100.0);
+    let p = Field::from_fn(&grid, Location::Centre, |_, _| p0);
+    let phi = Field::from_fn(&grid, Location::Centre, |_, _| 1.0);
+    let u = Field::from_fn(&grid, Location::XFace, |x, _| a * x);
+    let eta_c = Field::from_fn(&grid, Location::Centre, |_, _| eta);
+    let tau_c = Field::from_fn(&grid, Location::Centre, |_, _| tau);
+    let sigma = Field::from_fn(&grid, Location::Centre, |_, _| sxx);
+    let tan_b = 15f64.to_radians().tan();
+    let txx = 2.0 * eta * a + tau * sxx;
+    for (total, base, back) in [(false, p0, p0), (true, p0 + txx, p0 - txx)] {
+        let mut walls = CoulombWalls::new(&grid, &bc, true);
+        let tnn = total.then(|| NormalStress { u: &u, eta_c: &eta_c, plastic: Some((&tau_c, &sigma)), dx: grid.dx });
+        walls.set_friction(&p, tnn, &phi, tan_b, None, InterfaceYield::Paper, &grid);
+        for (side, expected) in [(Side::Bottom, base), (Side::Left, back)] {
+            let (_, tau_b) = walls.side(side).unwrap();
+            // the unknown tangential faces (the corner faces are fixed by the other wall)
+            for &t in &tau_b[1..tau_b.len() - 1] {
+                assert!((t - tan_b * expected).abs() < 1e-12 * tan_b * expected, "{side:?} total={total}: {t} vs {}", tan_b * expected);
+            }
+        }
+    }
+}

@@ -67,12 +67,10 @@ impl ActiveRegion {
 }
 
 /// Copies the block of `src` that `dst` covers when both are anchored at the lower-left corner:
-/// `dst`'s whole array (ghosts included), or, with `interior_only`, `dst`'s ghosts at the low
-/// sides and its interior (the window's high ghosts are not state).
-fn copy_block(src: &Field, dst: &mut Field, interior_only: bool) {
-    let (ni, nj) = (dst.nx, dst.ny);
-    let (rows, cols) = if interior_only { (HALO + nj, HALO + ni) } else { (nj + 2 * HALO, ni + 2 * HALO) };
-    dst.data.slice_mut(s![0..rows, 0..cols]).assign(&src.data.slice(s![0..rows, 0..cols]));
+/// `dst`'s whole array, ghosts included.
+fn copy_block(src: &Field, dst: &mut Field) {
+    let (rows, cols) = dst.data.dim();
+    dst.data.assign(&src.data.slice(s![0..rows, 0..cols]));
 }
 
 /// Copies `win`'s interior (low ghosts included) into the same block of `full`.
@@ -195,7 +193,7 @@ impl TwoPhaseModel {
         wc.pressure_top_value = cfg.pressure_top_value + (light - cfg.reference_density()) * (cfg.gravity[0] * dx_top + cfg.gravity[1] * dy_top);
         let mut w = TwoPhaseModel::new(wc)?;
         for (src, dst) in flow_state(self).into_iter().zip(flow_state_mut(&mut w)) {
-            copy_block(src, dst, false);
+            copy_block(src, dst);
         }
         if nyw < g.ny {
             // the window's top side is a wall
@@ -209,12 +207,12 @@ impl TwoPhaseModel {
         copy_flat(self.projection.increment(), g.nx, w.projection.increment_mut(), nxw);
         if let (Some(a), Some(b)) = (&self.pore, &mut w.pore) {
             for (src, dst) in [(&a.pf, &mut b.pf), (&a.pf_prev, &mut b.pf_prev), (&a.adv_prev, &mut b.adv_prev)] {
-                copy_block(src, dst, false);
+                copy_block(src, dst);
             }
         }
         if let (Some(a), Some(b)) = (&self.rheology, &mut w.rheology) {
             for (src, dst) in [(&a.plastic.sigma_xx, &mut b.plastic.sigma_xx), (&a.plastic.sigma_xy, &mut b.plastic.sigma_xy)] {
-                copy_block(src, dst, false);
+                copy_block(src, dst);
             }
             b.walls.copy_prefix_from(&a.walls);
         }

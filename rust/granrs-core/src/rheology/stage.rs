@@ -21,7 +21,7 @@ use crate::projection::fill_pressure_ghosts;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
 use crate::levelset::heaviside;
-use crate::walls::{default_r_wall, CoulombWalls};
+use crate::walls::{default_r_wall, CoulombWalls, NormalStress};
 
 /// Stall safeguard of the Picard loop: every `PICARD_STALL_WINDOW` iterations, if the increment
 /// has not fallen below 95 % of its value at the start of the window (a cycle, not the slow
@@ -130,7 +130,7 @@ impl TwoPhaseModel {
         let law = rc.law;
         let iy = rc.interface_yield;
         let hv = |phi: f64| if two_phase { heaviside(iy.shift(phi, eps), eps) } else { 1.0 };
-        // yield stress τ(Φ) = τ(p) H_ε(Φ) (or H_ε(Φ + ε)) at centres and nodes
+        // yield stress τ(Φ) = τ(p) H_ε(Φ + sε) at centres and nodes
         for (tau, p, phi) in [(&mut rs.plastic.tau_c, &self.p, &self.phi), (&mut rs.plastic.tau_n, &rs.p_n, &rs.phi_n)] {
             let (ps, fs, st) = (p.slice(), phi.slice(), p.stride());
             let n = tau.nx;
@@ -194,22 +194,12 @@ impl TwoPhaseModel {
         }
         if rs.walls.is_active() {
             let tan_b = rc.wall_friction_angle.unwrap_or(0.0).to_radians().tan();
-            let tnn = if rc.wall_normal_stress == WallNormalStress::Total {
-                // T_xx = 2η D_xx(u^n) + τ Σ^n_xx at centres (into dnorm_c, free here)
-                strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
-                let (d, e, t, sx) = (rs.dxx.slice(), self.work.eta_c.slice(), rs.plastic.tau_c.slice(), rs.plastic.sigma_xx.slice());
-                let (st, n, plastic) = (rs.dxx.stride(), grid.nx, rs.projection);
-                for_each_interior_row(exec, &mut rs.dnorm_c, |j, row| {
-                    let b = (j + HALO) * st + HALO;
-                    for i in 0..n {
-                        let k = b + i;
-                        row[HALO + i] = 2.0 * e[k] * d[k] + if plastic { t[k] * sx[k] } else { 0.0 };
-                    }
-                });
-                Some(&rs.dnorm_c)
-            } else {
-                None
-            };
+            let tnn = (rc.wall_normal_stress == WallNormalStress::Total).then(|| NormalStress {
+                u: &self.u,
+                eta_c: &self.work.eta_c,
+                plastic: rs.projection.then_some((&rs.plastic.tau_c, &rs.plastic.sigma_xx)),
+                dx: grid.dx,
+            });
             rs.walls.set_friction(&self.p, tnn, &self.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
             rs.r_wall = rc.r_wall.unwrap_or_else(|| {
                 default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid))

@@ -35,6 +35,25 @@ use crate::levelset::heaviside;
 use crate::rheology::InterfaceYield;
 use std::ops::Range;
 
+/// The normal stress T_xx = 2η D_xx(u) + τ Σ_xx of the granular phase at a cell centre, for
+/// the wall friction of [`crate::rheology::WallNormalStress::Total`]; `plastic` (τ, Σ_xx) None
+/// without a plastic tensor.
+pub struct NormalStress<'a> {
+    pub u: &'a Field,
+    pub eta_c: &'a Field,
+    pub plastic: Option<(&'a Field, &'a Field)>,
+    pub dx: f64,
+}
+
+impl NormalStress<'_> {
+    /// T_xx at cell (i, j).
+    #[inline]
+    pub fn txx(&self, i: isize, j: isize) -> f64 {
+        let viscous = 2.0 * self.eta_c.at(i, j) * (self.u.at(i + 1, j) - self.u.at(i, j)) / self.dx;
+        viscous + self.plastic.map_or(0.0, |(tau, sxx)| tau.at(i, j) * sxx.at(i, j))
+    }
+}
+
 /// One Coulomb side: s, s^n and τ_b on its tangential faces.
 #[derive(Clone, Debug)]
 struct WallSide {
@@ -91,32 +110,35 @@ impl CoulombWalls {
 
     /// τ_b = tan(α_b) (p − T_nn)_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side,
     /// with p, T_nn and Φ extrapolated linearly to the wall and averaged over the two cells beside
-    /// the face; `txx` the centred T_xx of [`crate::rheology::WallNormalStress::Total`] (T_nn = T_xx
-    /// on the left and right sides, −T_xx on the bottom and top), None: −σ_n = p;
-    /// `eps` None: a single-phase model (H = 1); `iy` places the smoothed jump
-    /// ([`InterfaceYield::shift`]).
-    pub fn set_friction(&mut self, p: &Field, txx: Option<&Field>, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
+    /// the face; `tnn` the stress of [`crate::rheology::WallNormalStress::Total`] (T_nn = T_xx on
+    /// the left and right sides, −T_xx on the bottom and top; read only in the two cell rows
+    /// next to each wall), None: −σ_n = p; `eps` None: a single-phase model (H = 1); `iy` places
+    /// the smoothed jump ([`InterfaceYield::shift`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn set_friction(&mut self, p: &Field, tnn: Option<NormalStress>, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
         let hv = |x: f64| eps.map_or(1.0, |e| heaviside(iy.shift(x, e), e));
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
-        // value extrapolated to the wall from cell (i, j) inward
-        let wall = |f: &Field, side: Side, k: isize| -> f64 {
+        // value extrapolated to the wall from the cells (i, j) inward
+        let wall = |at: &dyn Fn(isize, isize) -> f64, side: Side, k: isize| -> f64 {
             match side {
-                Side::Bottom => 1.5 * f.at(k, 0) - 0.5 * f.at(k, 1),
-                Side::Top => 1.5 * f.at(k, ny - 1) - 0.5 * f.at(k, ny - 2),
-                Side::Left => 1.5 * f.at(0, k) - 0.5 * f.at(1, k),
-                Side::Right => 1.5 * f.at(nx - 1, k) - 0.5 * f.at(nx - 2, k),
+                Side::Bottom => 1.5 * at(k, 0) - 0.5 * at(k, 1),
+                Side::Top => 1.5 * at(k, ny - 1) - 0.5 * at(k, ny - 2),
+                Side::Left => 1.5 * at(0, k) - 0.5 * at(1, k),
+                Side::Right => 1.5 * at(nx - 1, k) - 0.5 * at(nx - 2, k),
             }
         };
+        let (pa, fa) = (|i, j| p.at(i, j), |i, j| phi.at(i, j));
         for w in &mut self.sides {
             let ncells = if w.side.is_x() { ny } else { nx };
             for f in w.faces.clone() {
                 let (k0, k1) = ((f as isize - 1).clamp(0, ncells - 1), (f as isize).clamp(0, ncells - 1));
-                let mut pw = 0.5 * (wall(p, w.side, k0) + wall(p, w.side, k1));
-                if let Some(t) = txx {
-                    let tnn = 0.5 * (wall(t, w.side, k0) + wall(t, w.side, k1));
-                    pw -= if w.side.is_x() { tnn } else { -tnn };
+                let mut pw = 0.5 * (wall(&pa, w.side, k0) + wall(&pa, w.side, k1));
+                if let Some(t) = &tnn {
+                    let ta = |i, j| t.txx(i, j);
+                    let txx = 0.5 * (wall(&ta, w.side, k0) + wall(&ta, w.side, k1));
+                    pw -= if w.side.is_x() { txx } else { -txx };
                 }
-                let hw = 0.5 * (hv(wall(phi, w.side, k0)) + hv(wall(phi, w.side, k1)));
+                let hw = 0.5 * (hv(wall(&fa, w.side, k0)) + hv(wall(&fa, w.side, k1)));
                 w.tau_b[f] = tan_alpha_b * pw.max(0.0) * hw;
             }
         }
