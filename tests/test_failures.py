@@ -80,6 +80,24 @@ def test_picard_non_convergence_is_reported_with_its_cap():
     assert info.value.step == 1
 
 
+def test_picard_failure_names_where_and_is_retaken_then_undone():
+    # adaptive δt, a cap of 2 Picard iterations that no step size meets: the step is retaken twice
+    # with δt halved, the error names the node where Σ moved most and how often it was retaken, and
+    # the model is left at its last accepted state (t = 0, at rest)
+    m = _cavity(viscosity=1.0, rheology=granrs.Bingham(5.0), convection=False, picard_max_iterations=2,
+                picard_tol=1e-12, step_retries=2)
+    with pytest.raises(SimulationError, match=r"largest increment .* in Sigma_x[xy] at (node|cell) \(i=\d+, j=\d+\).*"
+                                              r"retaken 2 times with δt halved") as info:
+        m.advance(max_steps=2)
+    assert info.value.step == 1
+    assert m.time == 0.0 and np.all(m.u == 0.0)
+    log = _cavity(viscosity=1.0, rheology=granrs.Bingham(5.0), convection=False, picard_tol=1e-9).advance(max_steps=2)
+    assert list(log["step_retries"]) == [0.0, 0.0]
+    for bad in (-1, 21):
+        with pytest.raises(granrs.ParameterError, match="`step_retries`"):
+            _cavity(step_retries=bad)
+
+
 # ---- explicit pore-pressure diffusion -------------------------------------------------------
 def test_explicit_pore_pressure_past_its_limit_is_detected_and_names_the_limit():
     # 2 × h²/(4κ): the checkerboard grows by |1 − 4| = 3 per step; the 1e-9 seed excites it at once

@@ -68,7 +68,9 @@ class Numerics:
 
     cfl: CFL number of the adaptive step; dt: a fixed step instead (s); max_dt: cap on the step;
     max_growth: largest δt_n/δt_{n−1}; cfl_abort: the run stops with an error above this CFL
-    number; viscous: 'implicit' or 'explicit'; pressure_solver: 'multigrid-cg' or 'direct';
+    number; step_retries: with the adaptive step, how many times a step whose Picard iteration
+    does not converge is rejected and retaken with δt halved (default 3, 0: stop at once); the
+    ceiling δt/2 then recovers by 1 % per accepted step (``time_stepping/clock.rs``); viscous: 'implicit' or 'explicit'; pressure_solver: 'multigrid-cg' or 'direct';
     pressure_rtol: relative residual of the pressure solve; interface_width: ε/h of the smoothed
     Heaviside; redistance_every: level-set redistancing frequency in steps (0: never);
     transport_interface: False freezes the interface; mass_correction: shift Φ by a constant after
@@ -125,6 +127,7 @@ class Numerics:
     max_dt: float = math.inf
     max_growth: float = 1.2
     cfl_abort: float = 1.0
+    step_retries: int = 3
     viscous: str = "implicit"
     pressure_solver: str = "multigrid-cg"
     pressure_rtol: float = 1e-8
@@ -203,7 +206,8 @@ class Model:
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
-            n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align))
+            n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align),
+            n.step_retries)
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

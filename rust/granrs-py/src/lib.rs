@@ -117,6 +117,7 @@ fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>>
     pic.set_item("increment", s.picard_increment)?;
     pic.set_item("r_halvings", s.picard_r_halvings)?;
     d.set_item("picard", pic)?;
+    d.set_item("retries", s.retries)?;
     Ok(d)
 }
 
@@ -274,7 +275,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -318,6 +319,7 @@ impl PyModel {
         proximal_restarts: i64,
         wall_normal_stress: &str,
         active_region: Option<(i64, i64)>,
+        step_retries: i64,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -373,6 +375,7 @@ impl PyModel {
         cfg.time.max_dt = max_dt;
         cfg.time.max_growth = max_growth;
         cfg.time.cfl_abort = cfl_abort;
+        cfg.time.step_retries = pos("step_retries", step_retries)?;
         cfg.pressure_solver.kind = match pressure_solver {
             "multigrid-cg" => PressureSolverKind::MultigridCg,
             "direct" => PressureSolverKind::Direct,
@@ -532,7 +535,7 @@ impl PyModel {
     /// Takes steps until `t_end` (the last step is shortened to land on it) or `max_steps`
     /// steps, with the GIL released. Returns per-step arrays: time, dt, max_speed, cfl,
     /// pressure_iterations, viscous_iterations, divergence, picard_iterations, picard_increment,
-    /// picard_r_halvings.
+    /// picard_r_halvings, step_retries.
     #[pyo3(signature = (t_end=None, max_steps=None))]
     fn advance<'py>(&mut self, py: Python<'py>, t_end: Option<f64>, max_steps: Option<u64>) -> PyResult<Bound<'py, PyDict>> {
         if t_end.is_none() && max_steps.is_none() {
@@ -578,6 +581,7 @@ impl PyModel {
         d.set_item("picard_iterations", log.iter().map(|s| s.picard_iterations).collect::<Vec<_>>())?;
         d.set_item("picard_increment", log.iter().map(|s| s.picard_increment).collect::<Vec<_>>())?;
         d.set_item("picard_r_halvings", log.iter().map(|s| s.picard_r_halvings as f64).collect::<Vec<_>>())?;
+        d.set_item("step_retries", log.iter().map(|s| s.retries as f64).collect::<Vec<_>>())?;
         if let Some(e) = err {
             // the steps taken before the failure travel with the exception
             let pyerr = to_py(e);

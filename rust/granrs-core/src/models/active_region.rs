@@ -268,6 +268,7 @@ fn copy_clock(src: &TwoPhaseModel, dst: &mut TwoPhaseModel) {
     dst.dt_prev = src.dt_prev;
     dst.reference_area = src.reference_area;
     dst.last = src.last;
+    dst.dt_ceiling = src.dt_ceiling;
 }
 
 fn flow_state_mut(m: &mut TwoPhaseModel) -> [&mut Field; 8] {

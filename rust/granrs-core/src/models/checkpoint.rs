@@ -18,8 +18,23 @@ pub type StateEntry = (String, Vec<f64>);
 impl TwoPhaseModel {
     /// The model's state as named flat arrays (see the module docs).
     pub fn checkpoint(&self) -> Vec<StateEntry> {
-        let mut out: Vec<StateEntry> = Vec::new();
-        let mut f = |name: &str, data: &[f64]| out.push((name.to_string(), data.to_vec()));
+        let mut out = Vec::new();
+        self.checkpoint_into(&mut out);
+        out
+    }
+
+    /// [`TwoPhaseModel::checkpoint`] into `out`, reusing its buffers when it already holds a
+    /// checkpoint of this model (no allocation then: the snapshot of every step with retries).
+    pub fn checkpoint_into(&self, out: &mut Vec<StateEntry>) {
+        let mut k = 0usize;
+        let mut f = |name: &str, data: &[f64]| {
+            match out.get_mut(k) {
+                Some((n, d)) if n == name && d.len() == data.len() => d.copy_from_slice(data),
+                Some(e) => *e = (name.to_string(), data.to_vec()),
+                None => out.push((name.to_string(), data.to_vec())),
+            }
+            k += 1;
+        };
         f("u", self.u.slice());
         f("v", self.v.slice());
         f("u_prev", self.u_prev.slice());
@@ -46,7 +61,7 @@ impl TwoPhaseModel {
         f("step_count", &[self.step_count as f64]);
         f("dt_prev", &[self.dt_prev.unwrap_or(f64::NAN)]);
         f("reference_area", &[self.reference_area]);
-        out
+        out.truncate(k);
     }
 
     /// Restores a state exported by [`TwoPhaseModel::checkpoint`] from a model built with the same

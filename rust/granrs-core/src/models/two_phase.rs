@@ -282,6 +282,13 @@ pub struct TwoPhaseModel {
     /// The active window's model (with [`ModelConfig::active_region`]; None until the first step
     /// and after the state was changed from outside, when it is rebuilt from this model's state).
     pub(crate) window: Option<Box<TwoPhaseModel>>,
+    /// Ceiling on δt lowered by a rejected step (`TimeConfig::step_retries`), recovering by
+    /// [`crate::time_stepping::DT_CEILING_RECOVERY`] per accepted step (∞: none).
+    pub dt_ceiling: f64,
+    /// δt of the step in progress (the one a rejection halves).
+    pub(crate) dt_attempt: f64,
+    /// The state before the step in progress (reused buffers; only with step retries).
+    pub(crate) step_snapshot: Vec<crate::models::checkpoint::StateEntry>,
 }
 
 impl TwoPhaseModel {
@@ -347,6 +354,9 @@ impl TwoPhaseModel {
             time_to_land: None,
             reference_area: 0.0,
             window: None,
+            dt_ceiling: f64::INFINITY,
+            dt_attempt: 0.0,
+            step_snapshot: Vec::new(),
             pool,
             config,
         })

@@ -111,6 +111,11 @@ pub struct PlasticState {
     /// friction (free-slip, Coulomb). On open sides (outflow, fully developed) Σ_xy is projected
     /// like inside: their ghosts give ∂u_t/∂n = 0, not a zero stress. Order left, right, bottom, top.
     zero_tangential: [bool; 4],
+    /// When set, [`PlasticState::update`] also records where Σ changed most (`last_largest`);
+    /// the Picard loop sets it for its last allowed iteration, to say where it failed.
+    pub locate: bool,
+    /// (weighted increment, location (centre: Σ_xx, node: Σ_xy), i, j) of the last located update.
+    pub last_largest: Option<(f64, Location, usize, usize)>,
 }
 
 impl PlasticState {
@@ -136,6 +141,8 @@ impl PlasticState {
             stress_c: c(),
             stress_n: n(),
             zero_tangential: Side::ALL.map(zero),
+            locate: false,
+            last_largest: None,
         }
     }
 
@@ -259,6 +266,21 @@ impl PlasticState {
         let tau_ref = self.tau_max;
         let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec)
             .max(weighted_max_abs_diff(&self.new_n, &self.sigma_xy, &self.tau_n, tau_ref, exec));
+        if self.locate {
+            let mut best: Option<(f64, Location, usize, usize)> = None;
+            for (new, old, w, loc) in [(&self.new_c, &self.sigma_xx, &self.tau_c, Location::Centre), (&self.new_n, &self.sigma_xy, &self.tau_n, Location::Node)] {
+                for j in 0..new.ny {
+                    for i in 0..new.nx {
+                        let (ii, jj) = (i as isize, j as isize);
+                        let d = (new.at(ii, jj) - old.at(ii, jj)).abs() * w.at(ii, jj);
+                        if best.is_none_or(|b| d > b.0 || (d.is_nan() && !b.0.is_nan())) {
+                            best = Some((d, loc, i, j));
+                        }
+                    }
+                }
+            }
+            self.last_largest = best.map(|(d, l, i, j)| (if tau_ref > 0.0 { d / tau_ref } else { 0.0 }, l, i, j));
+        }
         self.sigma_xx.assign(&self.new_c);
         self.sigma_xy.assign(&self.new_n);
         inc
@@ -399,15 +421,32 @@ impl PlasticState {
     }
 }
 
-/// The error of a Picard iteration that reached its cap.
-pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta: f64, step: u64, time: f64) -> Error {
+/// Where the last Picard iteration changed the stresses most: the plastic tensor at a cell
+/// centre (Σ_xx) or node (Σ_xy), or the friction direction s on a wall face.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum IncrementSite {
+    Plastic { location: Location, i: usize, j: usize, increment: f64 },
+    Wall { side: Side, face: usize, increment: f64 },
+}
+
+/// The error of a Picard iteration that reached its cap, naming where the largest increment was.
+#[allow(clippy::too_many_arguments)]
+pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta: f64, step: u64, time: f64, site: Option<IncrementSite>) -> Error {
+    let (place, location) = match site {
+        Some(IncrementSite::Plastic { location, i, j, increment }) => {
+            let what = if location == Location::Node { "Sigma_xy at node" } else { "Sigma_xx at cell" };
+            (format!("; largest increment {increment:.3e} in {what} (i={i}, j={j})"), None)
+        }
+        Some(IncrementSite::Wall { side, face, increment }) => (format!("; largest increment {increment:.3e} in the wall friction of the {side:?} side, face {face}"), None),
+        None => (String::new(), None),
+    };
     Error::Simulation {
         what: format!(
             "Picard iteration of the plastic projection did not converge: increment {increment:.3e} after {iterations} iterations \
-             (picard_tol = {tol:.1e}, r = {r:.3e} (smallest), theta = {theta}); raise picard_max_iterations or theta, or lower r"
+             (picard_tol = {tol:.1e}, r = {r:.3e} (smallest), theta = {theta}){place}; raise picard_max_iterations or theta, or lower r"
         ),
         step,
         time,
-        location: None,
+        location,
     }
 }

@@ -10,7 +10,7 @@
 //!   the single predictor solve, or the Picard loop of the bi-projection coupling the predictor
 //!   with the plastic projection of Σ and the friction projection of s.
 
-use super::plastic::{not_converged, PicardInfo, PlasticState};
+use super::plastic::{not_converged, IncrementSite, PicardInfo, PlasticState};
 use super::{RheologyConfig, WallNormalStress, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
@@ -294,6 +294,8 @@ impl TwoPhaseModel {
             }
             // Σ^{k+1}, s^{k+1} from ũ^{k+1} (ghosts filled by the solve)
             inc = 0.0;
+            // where Σ moves most, recorded only when this iteration may be the last
+            rs.plastic.locate = k == rc.picard_max_iterations || (halvings == PICARD_MAX_HALVINGS && k % PICARD_STALL_WINDOW == 0);
             if rs.projection {
                 strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
                 inc = rs.plastic.update(&rs.dxx, &rs.dyy, &rs.dxy, rc.theta, exec);
@@ -326,7 +328,12 @@ impl TwoPhaseModel {
             }
             if k % PICARD_STALL_WINDOW == 0 {
                 // only the default (contraction-bound) parameters adapt; a user's r is kept
-                if rc.theta > 0.0 && inc > 0.95 * window_start && halvings < PICARD_MAX_HALVINGS && (rc.r.is_none() || rc.r_wall.is_none()) {
+                let stalled = rc.theta > 0.0 && inc > 0.95 * window_start && (rc.r.is_none() || rc.r_wall.is_none());
+                if stalled && halvings == PICARD_MAX_HALVINGS {
+                    // a cycle that r/64 did not break: give up now rather than at the cap
+                    return Err(self.picard_failure(inc, k));
+                }
+                if stalled {
                     if rc.r.is_none() {
                         rs.plastic.scale_r(0.5);
                         rs.r *= 0.5;
@@ -339,7 +346,22 @@ impl TwoPhaseModel {
                 window_start = inc;
             }
         }
-        Err(not_converged(inc, rc.picard_max_iterations, rc.picard_tol, rs.r, rc.theta, self.step_count + 1, self.time))
+        Err(self.picard_failure(inc, rc.picard_max_iterations))
+    }
+
+    /// The non-convergence error after `iterations`, naming where the stresses moved most.
+    fn picard_failure(&mut self, inc: f64, iterations: usize) -> crate::Error {
+        let rc = self.config.rheology;
+        let rs = self.rheology.as_mut().expect("picard_loop runs with a rheology state");
+        rs.plastic.locate = false;
+        let plastic = rs.plastic.last_largest.filter(|_| rs.projection).map(|(increment, location, i, j)| IncrementSite::Plastic { location, i, j, increment });
+        let wall = rs.walls.last_largest.filter(|_| rs.walls.is_active()).map(|(increment, side, face)| IncrementSite::Wall { side, face, increment });
+        let site = match (plastic, wall) {
+            (Some(IncrementSite::Plastic { increment: a, .. }), Some(IncrementSite::Wall { increment: b, .. })) if b > a => wall,
+            (None, w) => w,
+            (p, _) => p,
+        };
+        not_converged(inc, iterations, rc.picard_tol, rs.r, rc.theta, self.step_count + 1, self.time, site)
     }
 
     /// The plastic tensor (Σ_xx at centres, Σ_xy at nodes), if the rheology has one.

@@ -5,6 +5,6 @@ pub mod clock;
 pub mod momentum;
 pub mod step;
 
-pub use clock::{bdf_coefficients, stable_dt, TimeConfig};
+pub use clock::{bdf_coefficients, stable_dt, TimeConfig, DT_CEILING_RECOVERY};
 pub use momentum::{MomentumSolver, ViscousScheme};
 pub use step::StepInfo;

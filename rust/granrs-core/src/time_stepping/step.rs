@@ -20,6 +20,9 @@
 //!    the lid when no side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
 //!
+//! A step whose Picard iteration does not converge is rejected and retaken with δt halved
+//! (`TimeConfig::step_retries`, `time_stepping/clock.rs`): the state before it is restored first.
+//!
 //! With `ModelConfig::active_region` the step first sizes the window around the dense phase and
 //! runs these same stages on it (`models/active_region.rs`).
 
@@ -63,14 +66,59 @@ pub struct StepInfo {
     pub picard_increment: f64,
     /// Times the Picard stall safeguard halved r and r_b in the step.
     pub picard_r_halvings: usize,
+    /// Times the step was rejected (Picard non-convergence) and retaken with δt halved.
+    pub retries: usize,
 }
 
 impl TwoPhaseModel {
     /// Advances the model by one step (stages in the order of this file's header).
+    /// With the adaptive rule, a step whose Picard iteration does not converge is rejected and
+    /// retaken with δt halved, at most `TimeConfig::step_retries` times (the window of an active
+    /// region does this itself). With retries enabled, a step that fails for good leaves the model
+    /// in its state before the step (the last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
         if let Some(ar) = self.config.active_region {
             return self.step_active(ar);
         }
+        let retries = if self.config.time.fixed_dt.is_none() { self.config.time.step_retries } else { 0 };
+        if retries > 0 {
+            let mut snapshot = std::mem::take(&mut self.step_snapshot);
+            self.checkpoint_into(&mut snapshot);
+            self.step_snapshot = snapshot;
+        }
+        let land = self.time_to_land;
+        let mut attempt = 0usize;
+        loop {
+            match self.step_pooled() {
+                Ok(mut info) => {
+                    info.retries = attempt;
+                    self.last.retries = attempt;
+                    self.dt_ceiling *= crate::time_stepping::DT_CEILING_RECOVERY;
+                    return Ok(info);
+                }
+                Err(e) if attempt < retries && is_rejectable(&e) => {
+                    let snapshot = std::mem::take(&mut self.step_snapshot);
+                    self.restore(&snapshot)?;
+                    self.step_snapshot = snapshot;
+                    self.time_to_land = land;
+                    self.dt_ceiling = 0.5 * self.dt_attempt;
+                    attempt += 1;
+                }
+                Err(e) => {
+                    if retries > 0 {
+                        // the model is left as it was before the failed step
+                        let snapshot = std::mem::take(&mut self.step_snapshot);
+                        self.restore(&snapshot)?;
+                        self.step_snapshot = snapshot;
+                        self.time_to_land = land;
+                    }
+                    return Err(if attempt > 0 { with_retries(e, attempt) } else { e });
+                }
+            }
+        }
+    }
+
+    fn step_pooled(&mut self) -> Result<StepInfo> {
         let exec = self.exec();
         let pool = std::mem::replace(&mut self.pool, rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap());
         let out = pool.install(|| self.step_stages(exec));
@@ -80,6 +128,7 @@ impl TwoPhaseModel {
 
     fn step_stages(&mut self, exec: Exec) -> Result<StepInfo> {
         let dt = self.choose_dt(exec)?;
+        self.dt_attempt = dt;
         self.interface(dt, exec)?;
         self.properties(exec);
         let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
@@ -206,7 +255,7 @@ impl TwoPhaseModel {
             // in about 13 steps
             None => dt *= 0.1,
         }
-        let dt = land(dt);
+        let dt = land(dt.min(self.dt_ceiling));
         if !dt.is_finite() {
             return Err(Error::Simulation {
                 what: "no finite time step: the fluid is at rest with no forcing; set `dt` or `max_dt`".into(),
@@ -502,6 +551,7 @@ impl TwoPhaseModel {
             picard_iterations: picard.iterations,
             picard_increment: picard.increment,
             picard_r_halvings: picard.r_halvings,
+            retries: 0,
         };
         Ok(self.last)
     }
@@ -521,6 +571,22 @@ impl TwoPhaseModel {
 }
 
 /// Copies the interior of `src` into a row-major buffer.
+/// Whether a step that failed with `e` may be retaken with a smaller δt: the Picard iteration
+/// of the bi-projection did not converge (its contraction degrades as δt grows).
+fn is_rejectable(e: &Error) -> bool {
+    matches!(e, Error::Simulation { what, .. } if what.starts_with("Picard iteration"))
+}
+
+/// `e` with the number of rejected attempts before it in its message.
+fn with_retries(e: Error, attempts: usize) -> Error {
+    match e {
+        Error::Simulation { what, step, time, location } => {
+            Error::Simulation { what: format!("{what} (the step was retaken {attempts} times with δt halved each time)"), step, time, location }
+        }
+        e => e,
+    }
+}
+
 pub fn interior_to_vec(src: &Field) -> Vec<f64> {
     src.interior().iter().copied().collect()
 }

@@ -69,6 +69,8 @@ struct WallSide {
 #[derive(Clone, Debug, Default)]
 pub struct CoulombWalls {
     sides: Vec<WallSide>,
+    /// Where the last [`CoulombWalls::update`] changed s most: (weighted increment, side, face).
+    pub last_largest: Option<(f64, Side, usize)>,
 }
 
 impl CoulombWalls {
@@ -88,7 +90,7 @@ impl CoulombWalls {
                 sides.push(WallSide { side, faces, s: vec![0.0; n], s_n: vec![0.0; n], tau_b: vec![0.0; n] });
             }
         }
-        CoulombWalls { sides }
+        CoulombWalls { sides, last_largest: None }
     }
 
     /// Whether any side has friction.
@@ -187,6 +189,7 @@ impl CoulombWalls {
         let tau_ref = self.sides.iter().flat_map(|w| w.tau_b.iter()).fold(0.0f64, |a, &b| a.max(b));
         let scale = if tau_ref > 0.0 { 1.0 / tau_ref } else { 0.0 };
         let mut inc = 0.0f64;
+        let mut largest = None;
         for w in &mut self.sides {
             for f in w.faces.clone() {
                 let fi = f as isize;
@@ -198,10 +201,14 @@ impl CoulombWalls {
                 };
                 let new = if w.tau_b[f] > 0.0 { (w.s[f] - r_b * ut + theta * (w.s_n[f] - w.s[f])).clamp(-1.0, 1.0) } else { 0.0 };
                 let d = (new - w.s[f]).abs() * w.tau_b[f] * scale;
+                if largest.is_none_or(|(m, _, _): (f64, Side, usize)| d > m || (d.is_nan() && !m.is_nan())) {
+                    largest = Some((d, w.side, f));
+                }
                 inc = if d.is_nan() { f64::NAN } else { inc.max(d) };
                 w.s[f] = new;
             }
         }
+        self.last_largest = largest;
         inc
     }
 

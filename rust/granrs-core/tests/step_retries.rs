@@ -1,0 +1,98 @@
+//! Rejected steps (`TimeConfig::step_retries`, time_stepping/clock.rs): a step whose Picard
+//! iteration does not converge is undone and retaken with δt halved.
+
+use granrs_core::grid::{BoundaryConditions, Grid, Side, VelocityBc};
+use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
+use granrs_core::rheology::{RheologyConfig, RheologyLaw};
+use granrs_core::Error;
+
+/// Bingham plane Poiseuille flow started from rest by the body force G = 1 (channel 0 < y < 2,
+/// ρ = 1, μ = 0.01, τ_y = 0.2, outflow sides), adaptive δt growing 2× per step, and a constant
+/// r = 0.5 above the contraction bound of the larger steps (rτk ≤ 2(1 − θ) holds for
+/// δt ≲ 0.04 here, k = 2S/(a₀ρ/δt + 4μS)): the Picard iteration slows as δt grows.
+fn accelerating_channel(cap: usize, retries: usize, fixed_dt: Option<f64>) -> TwoPhaseModel {
+    let n = 16;
+    let dy = 2.0 / n as f64;
+    let grid = Grid::new(4, n, 4.0 * dy, 2.0).unwrap();
+    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Left, VelocityBc::Outflow).with(Side::Right, VelocityBc::Outflow);
+    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 0.01 });
+    cfg.gravity = [1.0, 0.0];
+    cfg.time.fixed_dt = fixed_dt;
+    cfg.time.cfl = 1.0;
+    cfg.time.max_growth = 2.0;
+    cfg.time.cfl_abort = 100.0;
+    cfg.time.step_retries = retries;
+    cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 0.2 });
+    cfg.rheology.theta = 0.5;
+    cfg.rheology.picard_tol = 1e-8;
+    cfg.rheology.picard_max_iterations = cap;
+    cfg.rheology.r = Some(0.5);
+    TwoPhaseModel::new(cfg).unwrap()
+}
+
+/// A step that fails only at the larger δt is retaken at half of it, and the retaken step is
+/// bit for bit the step a model without retries takes when given that δt.
+#[test]
+fn a_rejected_step_is_retaken_with_half_the_step() {
+    // without a cap the 4th step (δt = 0.251) needs 96 iterations, the others 19–34: a cap of 60
+    // rejects it, and the retaken step at δt = 0.125 converges
+    let mut a = accelerating_channel(60, 3, None);
+    let mut dts = Vec::new();
+    let mut retried = None;
+    for n in 0..8 {
+        let s = a.step().unwrap();
+        dts.push(s.dt);
+        if s.retries > 0 {
+            retried = Some((n, s));
+            break;
+        }
+    }
+    let (n, s) = retried.expect("a step was retaken");
+    assert_eq!(s.retries, 1);
+    assert!(s.picard_iterations <= 60);
+    // the ceiling is half the rejected δt, grown once by the recovery factor
+    assert!((a.dt_ceiling - s.dt * granrs_core::time_stepping::DT_CEILING_RECOVERY).abs() < 1e-15 * s.dt);
+    assert!(s.dt < 0.6 * 2.0 * dts[n - 1], "δt {} after {}", s.dt, dts[n - 1]);
+    // the same history without retries: the same steps, then that step fails at the full δt
+    let mut b = accelerating_channel(60, 0, None);
+    for _ in 0..n {
+        b.step().unwrap();
+    }
+    let before = b.checkpoint();
+    match b.step() {
+        Err(Error::Simulation { what, .. }) => assert!(what.starts_with("Picard iteration") && !what.contains("retaken"), "{what}"),
+        other => panic!("expected the Picard failure, got {other:?}"),
+    }
+    // given the halved step, a model without retries takes exactly the retaken step
+    let mut c = accelerating_channel(60, 0, None);
+    c.restore(&before).unwrap();
+    c.dt_ceiling = s.dt;
+    let sc = c.step().unwrap();
+    assert_eq!(sc.dt.to_bits(), s.dt.to_bits());
+    assert_eq!(c.u.slice(), a.u.slice());
+    assert_eq!(c.v.slice(), a.v.slice());
+    assert_eq!(c.p.slice(), a.p.slice());
+    assert_eq!(c.plastic_tensor().unwrap().1.slice(), a.plastic_tensor().unwrap().1.slice());
+    assert_eq!(c.time.to_bits(), a.time.to_bits());
+}
+
+/// When every attempt fails, the error says how often the step was retaken and the model is left
+/// at its last accepted step; a fixed δt is never retaken.
+#[test]
+fn a_step_that_fails_at_every_step_size_is_reported_and_undone() {
+    let mut m = accelerating_channel(2, 2, None);
+    match m.step() {
+        Err(Error::Simulation { what, step, .. }) => {
+            assert_eq!(step, 1);
+            assert!(what.contains("after 2 iterations") && what.ends_with("(the step was retaken 2 times with δt halved each time)"), "{what}");
+        }
+        other => panic!("expected the Picard failure, got {other:?}"),
+    }
+    assert_eq!((m.step_count, m.time, m.dt_prev), (0, 0.0, None));
+    assert!(m.u.slice().iter().all(|&x| x == 0.0), "the failed step was not undone");
+    let mut f = accelerating_channel(2, 2, Some(0.05));
+    match f.step() {
+        Err(Error::Simulation { what, .. }) => assert!(what.contains("after 2 iterations") && !what.contains("retaken"), "{what}"),
+        other => panic!("expected the Picard failure, got {other:?}"),
+    }
+}
