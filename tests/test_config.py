@@ -94,6 +94,7 @@ MALFORMED = [
     ("[output]\nfields_every_s = -0.1", "`output.fields_every_s`", "(s)"),
     ("[output]\nfields_every_s = 0.0\nanimation = true", "`output.animation`", "fields_every_s > 0"),
     ('[output]\ndir = ""', "`output.dir`", "non-empty string"),
+    ("[numerics]\nstep_retries = 21", "`numerics.step_retries`", "[0, 20]"),
     ("numerics = 3", "`numerics`", "a table"),
     ("[numerics.extra]\na = 1", "`numerics.extra`", "unknown key"),
     ("[numerics]\ncfl = ", "", "not valid TOML"),
