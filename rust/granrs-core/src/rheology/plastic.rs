@@ -273,7 +273,7 @@ impl PlasticState {
                     for i in 0..new.nx {
                         let (ii, jj) = (i as isize, j as isize);
                         let d = (new.at(ii, jj) - old.at(ii, jj)).abs() * w.at(ii, jj);
-                        if best.is_none_or(|b| d > b.0 || (d.is_nan() && !b.0.is_nan())) {
+                        if best.is_none_or(|b| exceeds(d, b.0)) {
                             best = Some((d, loc, i, j));
                         }
                     }
@@ -421,6 +421,13 @@ impl PlasticState {
     }
 }
 
+/// Whether the increment `d` beats the largest so far, `m` (a NaN beats any number: it is
+/// where a blow-up starts).
+#[inline]
+pub(crate) fn exceeds(d: f64, m: f64) -> bool {
+    d > m || (d.is_nan() && !m.is_nan())
+}
+
 /// Where the last Picard iteration changed the stresses most: the plastic tensor at a cell
 /// centre (Σ_xx) or node (Σ_xy), or the friction direction s on a wall face.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -429,24 +436,36 @@ pub enum IncrementSite {
     Wall { side: Side, face: usize, increment: f64 },
 }
 
+impl IncrementSite {
+    /// The weighted increment there.
+    pub fn increment(&self) -> f64 {
+        match *self {
+            IncrementSite::Plastic { increment, .. } | IncrementSite::Wall { increment, .. } => increment,
+        }
+    }
+}
+
+/// How the message of a Picard non-convergence begins (the time stepper retakes such steps).
+pub const PICARD_FAILURE: &str = "Picard iteration of the plastic projection did not converge";
+
 /// The error of a Picard iteration that reached its cap, naming where the largest increment was.
 #[allow(clippy::too_many_arguments)]
 pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta: f64, step: u64, time: f64, site: Option<IncrementSite>) -> Error {
-    let (place, location) = match site {
+    let place = match site {
         Some(IncrementSite::Plastic { location, i, j, increment }) => {
             let what = if location == Location::Node { "Sigma_xy at node" } else { "Sigma_xx at cell" };
-            (format!("; largest increment {increment:.3e} in {what} (i={i}, j={j})"), None)
+            format!("; largest increment {increment:.3e} in {what} (i={i}, j={j})")
         }
-        Some(IncrementSite::Wall { side, face, increment }) => (format!("; largest increment {increment:.3e} in the wall friction of the {side:?} side, face {face}"), None),
-        None => (String::new(), None),
+        Some(IncrementSite::Wall { side, face, increment }) => format!("; largest increment {increment:.3e} in the wall friction of the {side:?} side, face {face}"),
+        None => String::new(),
     };
     Error::Simulation {
         what: format!(
-            "Picard iteration of the plastic projection did not converge: increment {increment:.3e} after {iterations} iterations \
+            "{PICARD_FAILURE}: increment {increment:.3e} after {iterations} iterations \
              (picard_tol = {tol:.1e}, r = {r:.3e} (smallest), theta = {theta}){place}; raise picard_max_iterations or theta, or lower r"
         ),
         step,
         time,
-        location,
+        location: None,
     }
 }

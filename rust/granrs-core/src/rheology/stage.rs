@@ -356,11 +356,7 @@ impl TwoPhaseModel {
         rs.plastic.locate = false;
         let plastic = rs.plastic.last_largest.filter(|_| rs.projection).map(|(increment, location, i, j)| IncrementSite::Plastic { location, i, j, increment });
         let wall = rs.walls.last_largest.filter(|_| rs.walls.is_active()).map(|(increment, side, face)| IncrementSite::Wall { side, face, increment });
-        let site = match (plastic, wall) {
-            (Some(IncrementSite::Plastic { increment: a, .. }), Some(IncrementSite::Wall { increment: b, .. })) if b > a => wall,
-            (None, w) => w,
-            (p, _) => p,
-        };
+        let site = plastic.into_iter().chain(wall).reduce(|a, b| if b.increment() > a.increment() { b } else { a });
         not_converged(inc, iterations, rc.picard_tol, rs.r, rc.theta, self.step_count + 1, self.time, site)
     }
 

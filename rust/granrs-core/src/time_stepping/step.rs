@@ -97,25 +97,28 @@ impl TwoPhaseModel {
                     return Ok(info);
                 }
                 Err(e) if attempt < retries && is_rejectable(&e) => {
-                    let snapshot = std::mem::take(&mut self.step_snapshot);
-                    self.restore(&snapshot)?;
-                    self.step_snapshot = snapshot;
-                    self.time_to_land = land;
+                    self.undo_step(land)?;
                     self.dt_ceiling = 0.5 * self.dt_attempt;
                     attempt += 1;
                 }
                 Err(e) => {
                     if retries > 0 {
                         // the model is left as it was before the failed step
-                        let snapshot = std::mem::take(&mut self.step_snapshot);
-                        self.restore(&snapshot)?;
-                        self.step_snapshot = snapshot;
-                        self.time_to_land = land;
+                        self.undo_step(land)?;
                     }
                     return Err(if attempt > 0 { with_retries(e, attempt) } else { e });
                 }
             }
         }
+    }
+
+    /// Restores the state saved before the step in progress (and its landing target).
+    fn undo_step(&mut self, land: Option<f64>) -> Result<()> {
+        let snapshot = std::mem::take(&mut self.step_snapshot);
+        let out = self.restore(&snapshot);
+        self.step_snapshot = snapshot;
+        self.time_to_land = land;
+        out
     }
 
     fn step_pooled(&mut self) -> Result<StepInfo> {
@@ -570,11 +573,10 @@ impl TwoPhaseModel {
     }
 }
 
-/// Copies the interior of `src` into a row-major buffer.
 /// Whether a step that failed with `e` may be retaken with a smaller δt: the Picard iteration
 /// of the bi-projection did not converge (its contraction degrades as δt grows).
 fn is_rejectable(e: &Error) -> bool {
-    matches!(e, Error::Simulation { what, .. } if what.starts_with("Picard iteration"))
+    matches!(e, Error::Simulation { what, .. } if what.starts_with(crate::rheology::plastic::PICARD_FAILURE))
 }
 
 /// `e` with the number of rejected attempts before it in its message.
@@ -587,6 +589,7 @@ fn with_retries(e: Error, attempts: usize) -> Error {
     }
 }
 
+/// Copies the interior of `src` into a row-major buffer.
 pub fn interior_to_vec(src: &Field) -> Vec<f64> {
     src.interior().iter().copied().collect()
 }

@@ -201,7 +201,7 @@ impl CoulombWalls {
                 };
                 let new = if w.tau_b[f] > 0.0 { (w.s[f] - r_b * ut + theta * (w.s_n[f] - w.s[f])).clamp(-1.0, 1.0) } else { 0.0 };
                 let d = (new - w.s[f]).abs() * w.tau_b[f] * scale;
-                if largest.is_none_or(|(m, _, _): (f64, Side, usize)| d > m || (d.is_nan() && !m.is_nan())) {
+                if largest.is_none_or(|(m, _, _): (f64, Side, usize)| crate::rheology::plastic::exceeds(d, m)) {
                     largest = Some((d, w.side, f));
                 }
                 inc = if d.is_nan() { f64::NAN } else { inc.max(d) };
