@@ -21,7 +21,7 @@ def _validate(args) -> int:
         return 0
     params = {}
     for key in ("n", "re", "steps", "period", "redistance_every", "cfl", "ny", "t_end",
-                "tau_y", "bn", "geometry", "regularised", "slope", "dt", "theta"):
+                "tau_y", "bn", "geometry", "regularised", "slope", "dt", "theta", "air"):
         val = getattr(args, key)
         if val is not None:
             params[key] = val[0] if isinstance(val, list) and len(val) == 1 else val
@@ -125,6 +125,8 @@ def main(argv=None) -> int:
     v.add_argument("--slope", type=float, help="slope in degrees (sliding-block, heap-at-rest)")
     v.add_argument("--dt", type=float, action="append", help="time step (cessation; repeat for a convergence study)")
     v.add_argument("--theta", type=float, action="append", help="pseudo-relaxation (picard-ratio; repeat)")
+    v.add_argument("--air", choices=["resolved", "free-surface"],
+                   help="dam-break: the two-phase model (resolved, default) or the granular-only model's free surface")
     v.add_argument("--threads", type=int, default=1)
     v.add_argument("--json", help="write the JSON record to this file")
 
@@ -144,9 +146,10 @@ def main(argv=None) -> int:
     r.add_argument("--ny", type=int, help="cells over the domain height (column; 256 is the paper's grid)")
     r.add_argument("--t-end", dest="t_end", type=float, default=3.0, help="end time in s (column)")
     r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], default="drucker-prager")
-    r.add_argument("--model", default="two-phase", metavar="auto|two-phase|depth-averaged",
-                   help="column: the two-phase model (default), the depth-averaged one, or auto: the depth-averaged "
-                        "model only where it was measured within 5%% of the two-phase run-out (docs/models.md)")
+    r.add_argument("--model", default="two-phase", metavar="auto|two-phase|granular|depth-averaged",
+                   help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
+                        "surface at p = 0), the depth-averaged one, or auto: the depth-averaged model only where it was "
+                        "measured within 5%% of the two-phase run-out (docs/models.md)")
     r.add_argument("--cfl", type=float, default=0.5)
     r.add_argument("--active-region", dest="active_region", type=int, metavar="BAND",
                    help="column: run each step on a window around the granular phase with BAND cells of air "

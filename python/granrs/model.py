@@ -163,12 +163,21 @@ class Model:
     Φ < 0. ``gravity`` is (g_x, g_y) in m s⁻². ``threads`` sets the size of the Rust thread pool.
     ``rheology`` is the law of the dense phase (``granrs.Bingham(...)``, ``granrs.DruckerPrager(...)``,
     ``granrs.MuI(...)``; default Newtonian), whose viscous part is ``dense.viscosity``.
+    ``air``: ``"resolved"`` (default: the two-phase model, Navier–Stokes in both phases) or
+    ``"free-surface"`` (the granular-only model: the light phase is not resolved, the dense phase
+    has a free surface at p = 0 and its velocity is extended into the light phase to move Φ; p is
+    then the whole pressure above the ambient one). ``light`` is still needed: it marks where the
+    dense phase is not.
     """
 
     def __init__(self, grid: Grid, dense: Material, light: Optional[Material] = None,
                  bc: Optional[BoundaryConditions] = None, gravity=(0.0, 0.0),
                  numerics: Optional[Numerics] = None, threads: int = 1, rheology=None,
-                 pore_pressure: Optional[PorePressure] = None):
+                 pore_pressure: Optional[PorePressure] = None, air: str = "resolved"):
+        if air not in ("resolved", "free-surface"):
+            raise ParameterError(f"invalid parameter `air` = {air!r}: allowed 'resolved' (two-phase) or 'free-surface' (granular-only)")
+        if air == "free-surface" and light is None:
+            raise ParameterError("invalid parameter `air` = 'free-surface': allowed only with a light material (the surface is Φ = 0)")
         if not isinstance(grid, Grid):
             raise ParameterError(f"invalid parameter `grid` = {grid!r}: allowed a granrs.Grid")
         if not isinstance(dense, Material):
@@ -207,7 +216,8 @@ class Model:
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
             n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align),
-            n.step_retries)
+            n.step_retries, air)
+        self.air = air
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}

@@ -19,10 +19,11 @@ Rest criterion (documented): the run stops when the largest velocity in the gran
 ``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
 
 Models (``ColumnCase.model``, ``granrs run column --model``): ``two-phase`` (the paper's model,
-the default), ``depth-averaged`` (Savage–Hutter shallow layer with a depth-averaged pore pressure,
-``granrs.depth_averaged``; seconds instead of minutes) and ``auto``, which takes the depth-averaged
-model only where its measured run-out is within 5 % of the two-phase one (docs/models.md,
-:func:`choose_model`). ``granular`` is reserved. Both models write the same outputs.
+the default), ``granular`` (the same 2D model with the air not resolved: the granular phase has a
+free surface at p = 0, ``Model(air='free-surface')``), ``depth-averaged`` (Savage–Hutter shallow
+layer with a depth-averaged pore pressure, ``granrs.depth_averaged``; seconds instead of minutes)
+and ``auto``, which takes the depth-averaged model only where its measured run-out is within 5 %
+of the two-phase one (docs/models.md, :func:`choose_model`). All models write the same outputs.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ from ..simulation import Callback, Simulation
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
 PAPER_RUNOUT_EXP = 1.8443
-MODELS = ("auto", "two-phase", "depth-averaged")
+MODELS = ("auto", "two-phase", "granular", "depth-averaged")
 
 
 @dataclass
@@ -105,7 +106,8 @@ class ColumnCase:
     rest_speed: float = 5e-3
     rest_duration: float = 0.05
     profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
-    # which model: "two-phase" (default), "depth-averaged", "auto" (see choose_model); "granular" is reserved
+    # which model: "two-phase" (default), "granular" (the air not resolved: a free surface at p = 0),
+    # "depth-averaged", "auto" (see choose_model)
     model: str = "two-phase"
     # depth-averaged model only: earth-pressure coefficient k ("savage-hutter": the active
     # coefficient from friction_angle and wall_friction_angle, reduced by the pore pressure; or a
@@ -134,11 +136,9 @@ class ColumnCase:
         if self.wall_normal_stress not in ("pressure", "total"):
             raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
                                  "'pressure' or 'total'")
-        if self.model == "granular":
-            raise ParameterError("invalid parameter `model` = 'granular': not available yet (reserved for the "
-                                 "granular-only model); allowed 'auto', 'two-phase' or 'depth-averaged'")
         if self.model not in MODELS:
-            raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase' or 'depth-averaged'")
+            raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase', 'granular' or "
+                                 "'depth-averaged'")
         if self.earth_pressure != "savage-hutter" and (not isinstance(self.earth_pressure, (int, float))
                                                         or isinstance(self.earth_pressure, bool)
                                                         or not 0.01 <= self.earth_pressure <= 100.0):
@@ -184,7 +184,8 @@ class ColumnCase:
 
 
 def build_model(case: ColumnCase) -> Model:
-    """The two-phase model of the column case, with its initial condition."""
+    """The two-phase model of the column case (or, with ``model='granular'``, the granular-only
+    model: the same 2D model with the air not resolved), with its initial condition."""
     case.validate()
     grid = case.grid()
     hc, lc = case.column_height, case.width
@@ -202,6 +203,7 @@ def build_model(case: ColumnCase) -> Model:
                                     mass_correction=case.mass_correction, interface_yield=case.interface_yield,
                                     wall_normal_stress=case.wall_normal_stress, active_region=case.active_region),
                   threads=case.threads, pore_pressure=pore,
+                  air="free-surface" if case.model == "granular" else "resolved",
                   **_rheology_kwargs(case))
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
     if pore is not None:
@@ -280,7 +282,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     if model_name == "depth-averaged":
         if callbacks or prepare is not None:
             raise ParameterError("invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
-                                 "restart: allowed only with the two-phase model")
+                                 "restart: allowed only with the 2D models ('two-phase', 'granular')")
         return run_column_depth_averaged(case, out, progress=progress, compare_with=compare_with,
                                          extra_summary=extra_summary, reason=model_reason)
     out.mkdir(parents=True, exist_ok=True)
@@ -353,7 +355,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
         "dt_median_s": float(np.median(hist["dt"])) if "time" in hist else 0.0,
         "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
-        "model": "two-phase", "model_reason": model_reason,
+        "model": model_name, "model_reason": model_reason,
         "case": asdict(case),
     }
     for key in ("picard_iterations",):

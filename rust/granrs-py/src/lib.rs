@@ -275,7 +275,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -320,6 +320,7 @@ impl PyModel {
         wall_normal_stress: &str,
         active_region: Option<(i64, i64)>,
         step_retries: i64,
+        air: &str,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -442,6 +443,11 @@ impl PyModel {
         cfg.active_region = match active_region {
             None => None,
             Some((band, align)) => Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)? }),
+        };
+        cfg.free_surface = match air {
+            "resolved" => false,
+            "free-surface" => true,
+            other => return Err(param_err("air", other, "'resolved' (the two-phase model) or 'free-surface' (the granular-only model)")),
         };
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
         Ok(PyModel { inner })

@@ -36,6 +36,13 @@
 //! pressure on the granular surface are small, but not zero; `band` sets the distance to the
 //! walls that stand in for it. The run-out change is measured against the whole-domain run in
 //! docs/models.md (active region).
+//!
+//! **Granular-only model** (`ModelConfig::free_surface`): there is no light phase to freeze.
+//! The window's walls meet only faces beyond the velocity extension (EXTENSION_LAYERS < band
+//! faces from the dense phase), which are zero in the whole-domain step as well, and the
+//! surface pressure is p = 0 in both; the window then differs from the whole domain only by
+//! the pressure solve's tolerance (its multigrid hierarchy is the window's) and by the
+//! redistancing far from the surface. No pressure gauge is involved.
 
 use super::two_phase::TwoPhaseModel;
 use crate::error::{Error, Result};
@@ -121,7 +128,7 @@ impl TwoPhaseModel {
                 ));
             }
         }
-        if cfg.resolved_pressure_gauge() != Some(PressureGauge::Top) {
+        if !cfg.free_surface && cfg.resolved_pressure_gauge() != Some(PressureGauge::Top) {
             return Err(Error::param("active_region", "with this pressure gauge", "the 'top' pressure gauge (pressure_gauge 'top', or 'auto' with a pressure-dependent law)"));
         }
         Ok(())
@@ -204,7 +211,7 @@ impl TwoPhaseModel {
             let us = &mut w.u;
             us.data.slice_mut(s![.., HALO + nxw]).fill(0.0);
         }
-        copy_flat(self.projection.increment(), g.nx, w.projection.increment_mut(), nxw);
+        copy_flat(self.pressure_increment(), g.nx, w.pressure_increment_mut(), nxw);
         if let (Some(a), Some(b)) = (&self.pore, &mut w.pore) {
             for (src, dst) in [(&a.pf, &mut b.pf), (&a.pf_prev, &mut b.pf_prev), (&a.adv_prev, &mut b.adv_prev)] {
                 copy_block(src, dst);
@@ -228,7 +235,8 @@ impl TwoPhaseModel {
             copy_back(src, dst);
         }
         copy_back(&w.work.eta_c, &mut self.work.eta_c);
-        copy_flat(w.projection.increment(), w.config.grid.nx, self.projection.increment_mut(), self.config.grid.nx);
+        let nx = self.config.grid.nx;
+        copy_flat(w.pressure_increment(), w.config.grid.nx, self.pressure_increment_mut(), nx);
         if let (Some(a), Some(b)) = (&w.pore, &mut self.pore) {
             for (src, dst) in [(&a.pf, &mut b.pf), (&a.pf_prev, &mut b.pf_prev), (&a.adv_prev, &mut b.adv_prev)] {
                 copy_back(src, dst);

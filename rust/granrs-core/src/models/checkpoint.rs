@@ -43,7 +43,7 @@ impl TwoPhaseModel {
         f("conv_prev_v", self.conv_prev_v.slice());
         f("p", self.p.slice());
         f("phi", self.phi.slice());
-        f("pressure_increment", self.projection.increment());
+        f("pressure_increment", self.pressure_increment());
         if let Some(pore) = &self.pore {
             f("pf", pore.pf.slice());
             f("pf_prev", pore.pf_prev.slice());
@@ -89,7 +89,7 @@ impl TwoPhaseModel {
         self.conv_prev_v.slice_mut().copy_from_slice(get("conv_prev_v"));
         self.p.slice_mut().copy_from_slice(get("p"));
         self.phi.slice_mut().copy_from_slice(get("phi"));
-        self.projection.increment_mut().copy_from_slice(get("pressure_increment"));
+        self.pressure_increment_mut().copy_from_slice(get("pressure_increment"));
         if let Some(pore) = &mut self.pore {
             pore.pf.slice_mut().copy_from_slice(get("pf"));
             pore.pf_prev.slice_mut().copy_from_slice(get("pf_prev"));

@@ -8,6 +8,7 @@ use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
 use crate::levelset::{dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
+use crate::projection::free_surface::FreeSurfaceProjection;
 use crate::projection::PressureProjection;
 use crate::rheology::stage::RheologyState;
 use crate::rheology::{RheologyConfig, RheologyLaw};
@@ -116,6 +117,10 @@ pub struct ModelConfig {
     pub pressure_top_value: f64,
     /// The `Top` gauge averages the top row over the cells i ≥ this (0: the whole row).
     pub pressure_top_from: usize,
+    /// The granular-only model: the light phase is not resolved; the dense phase has a free
+    /// surface at p = 0 (ghost-fluid Dirichlet), its velocity is extended into the light phase
+    /// to transport Φ (`projection/free_surface.rs`). False: the two-phase model (default).
+    pub free_surface: bool,
 }
 
 impl ModelConfig {
@@ -147,6 +152,7 @@ impl ModelConfig {
             active_region: None,
             pressure_top_value: 0.0,
             pressure_top_from: 0,
+            free_surface: false,
         }
     }
 
@@ -162,7 +168,7 @@ impl ModelConfig {
     /// `Auto` resolved (see [`PressureGauge::Auto`]).
     pub fn resolved_pressure_gauge(&self) -> Option<PressureGauge> {
         use crate::grid::{PressureBc, Side};
-        if [Side::Left, Side::Right, Side::Bottom, Side::Top].iter().any(|&s| self.bc.pressure(s) == PressureBc::Dirichlet) {
+        if self.free_surface || [Side::Left, Side::Right, Side::Bottom, Side::Top].iter().any(|&s| self.bc.pressure(s) == PressureBc::Dirichlet) {
             return None;
         }
         Some(match self.pressure_gauge {
@@ -203,6 +209,9 @@ impl ModelConfig {
         crate::error::check_range("viscous_rtol", self.viscous_rtol, 1e-14, 1e-2)?;
         if self.viscous_max_iterations == 0 || self.viscous_max_iterations > 100_000_000 {
             return Err(Error::param("viscous_max_iterations", self.viscous_max_iterations, "an integer in [1, 1e8]"));
+        }
+        if self.free_surface && self.light.is_none() {
+            return Err(Error::param("free_surface", "true", "false for a single-phase model (the free surface is the interface Φ = 0 with a light phase)"));
         }
         TwoPhaseModel::validate_active_region(self)?;
         check_finite("pressure_top_value", self.pressure_top_value)?;
@@ -261,6 +270,8 @@ pub struct TwoPhaseModel {
     /// Pore gas pressure (None when not fluidised).
     pub pore: Option<PorePressure>,
     pub(crate) projection: PressureProjection,
+    /// The free-surface projection of the granular-only model (with `ModelConfig::free_surface`).
+    pub(crate) free_surface: Option<FreeSurfaceProjection>,
     pub(crate) momentum: MomentumSolver,
     /// Plastic tensor, wall friction and their work arrays (None: Newtonian without friction).
     pub(crate) rheology: Option<RheologyState>,
@@ -303,6 +314,7 @@ impl TwoPhaseModel {
         let mut phi = c();
         phi.fill(1.0);
         let projection = PressureProjection::new(g, &config.bc, config.pressure_solver)?;
+        let free_surface = if config.free_surface { Some(FreeSurfaceProjection::new(g, &config.bc, config.pressure_solver)?) } else { None };
         let mut momentum = MomentumSolver::new(g);
         momentum.rtol = config.viscous_rtol;
         momentum.max_iterations = config.viscous_max_iterations;
@@ -343,6 +355,7 @@ impl TwoPhaseModel {
             work,
             pore,
             projection,
+            free_surface,
             momentum,
             rheology,
             time: 0.0,
@@ -360,6 +373,22 @@ impl TwoPhaseModel {
             pool,
             config,
         })
+    }
+
+    /// The last pressure increment δp of whichever projection the model uses (row-major, the
+    /// warm start of the next one), for checkpoints and the active window.
+    pub(crate) fn pressure_increment(&self) -> &[f64] {
+        match &self.free_surface {
+            Some(fs) => fs.increment(),
+            None => self.projection.increment(),
+        }
+    }
+
+    pub(crate) fn pressure_increment_mut(&mut self) -> &mut [f64] {
+        match &mut self.free_surface {
+            Some(fs) => fs.increment_mut(),
+            None => self.projection.increment_mut(),
+        }
     }
 
     /// Makes the next steps land exactly on a target time `remaining` ahead: a step longer than

@@ -11,6 +11,8 @@
 //! δp warm-started from the previous step's increment. Homogeneous Neumann on walls and
 //! prescribed-velocity sides, δp = 0 on outflow sides.
 
+pub mod free_surface;
+
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, PressureBc, Side, HALO};

@@ -69,7 +69,7 @@ impl TwoPhaseModel {
         let wk = &mut self.work;
         // ∂_x(p + p_f) on the u-faces, as in the predictor
         fill_pressure_ghosts(&mut self.p, &cfg.bc);
-        pressure_gradient(&self.p, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, &cfg.bc, exec);
+        pressure_gradient(Some(&self.p), self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, &cfg.bc, exec);
         let rs = self.rheology.as_mut().expect("checked above");
         let pl = &mut rs.plastic;
         pl.sigma_xx.fill(0.0);

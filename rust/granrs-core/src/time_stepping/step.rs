@@ -20,6 +20,13 @@
 //!    the lid when no side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
 //!
+//! The granular-only model (`ModelConfig::free_surface`) runs the same stages with three
+//! changes (`projection/free_surface.rs`): the face density is ρ_s on every face beside a
+//! granular cell (stage 3); the predictor's ∇pⁿ reads pⁿ = 0 on the surface Φ^{n+1} = 0
+//! (ghost values, stage 5); stage 6 is the free-surface projection with δp = 0 on Φ = 0,
+//! followed by the extension of the velocity into the air; the divergence of stage 7 is
+//! measured over the granular cells.
+//!
 //! A step whose Picard iteration does not converge is rejected and retaken with δt halved
 //! (`TimeConfig::step_retries`, `time_stepping/clock.rs`): the state before it is restored first.
 //!
@@ -40,6 +47,11 @@ use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
 use crate::time_stepping::momentum::ViscousScheme;
+
+/// Weight of the Dirichlet rows that hold the light phase's faces in the granular-only model's
+/// predictor (c = FROZEN_FACE a₀ρ_s/δt): a node's stress moves such a face by 1e-8 of what it
+/// moves a granular face.
+const FROZEN_FACE: f64 = 1e8;
 
 /// What one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -185,6 +197,12 @@ impl TwoPhaseModel {
         }
         fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Homogeneous);
         self.p.fill(0.0);
+        if let Some(fs) = self.free_surface.as_mut() {
+            self.phi.extrapolate_ghosts_linear();
+            let info = fs.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &self.phi, cfg.dense.density, 1.0, &cfg.grid, &cfg.bc, exec);
+            fs.increment_mut().fill(0.0);
+            return info;
+        }
         if self.projection_stale {
             self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
             self.projection_stale = false;
@@ -351,6 +369,10 @@ impl TwoPhaseModel {
         let dense = cfg.dense;
         let light = cfg.light.unwrap_or(dense);
         let rho = |phi: f64| blend(phi, eps, dense.density, light.density);
+        let free_surface = cfg.free_surface;
+        // granular-only model: ρ_s on every face beside a granular cell (the free-surface
+        // projection's density), the light phase's elsewhere (those faces are extended, not solved)
+        let rho_face = |a: f64, b: f64| if !free_surface { rho(0.5 * (a + b)) } else if a > 0.0 || b > 0.0 { dense.density } else { light.density };
         let eta = |phi: f64| blend_harmonic(phi, eps, dense.viscosity, light.viscosity);
         self.phi.extrapolate_ghosts_linear();
         let w = &mut self.work;
@@ -362,13 +384,13 @@ impl TwoPhaseModel {
         for_each_interior_row(exec, &mut w.rho_u, |j, row| {
             let b = (j + HALO) * st + HALO;
             for i in 0..nxu {
-                row[HALO + i] = rho(0.5 * (ps[b + i] + ps[b + i - 1]));
+                row[HALO + i] = rho_face(ps[b + i], ps[b + i - 1]);
             }
         });
         for_each_interior_row(exec, &mut w.rho_v, |j, row| {
             let (b0, b1) = ((j + HALO - 1) * st + HALO, (j + HALO) * st + HALO);
             for i in 0..nxc {
-                row[HALO + i] = rho(0.5 * (ps[b0 + i] + ps[b1 + i]));
+                row[HALO + i] = rho_face(ps[b0 + i], ps[b1 + i]);
             }
         });
         // viscosity at centres (with ghosts) and nodes
@@ -430,7 +452,14 @@ impl TwoPhaseModel {
             wk.conv_u.fill(0.0);
             wk.conv_v.fill(0.0);
         }
-        pressure_gradient(&self.p, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
+        if self.free_surface.is_some() {
+            // granular-only model: ∇p_f, then ∇pⁿ with pⁿ = 0 on the surface Φ^{n+1} = 0
+            pressure_gradient(None, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
+            self.phi.extrapolate_ghosts_linear();
+            crate::projection::free_surface::FreeSurfaceProjection::add_pressure_gradient(&self.p, &self.phi, &mut wk.gx, &mut wk.gy, grid);
+        } else {
+            pressure_gradient(Some(&self.p), self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
+        }
         let first = self.dt_prev.is_none();
         // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ρ_ref g − ∇pⁿ ;  c = a₀ρ/δt
         // (ρ_ref = ρ_f with `ambient_hydrostatic`, else 0: the same floating-point result)
@@ -456,6 +485,29 @@ impl TwoPhaseModel {
                     row[HALO + i] = rs[k] * ((a1 * uns[k] - a2 * ums[k]) / dt - nstar + gcomp) - rho_ref * gcomp - gps[k];
                 }
             });
+        }
+        if self.free_surface.is_some() {
+            // granular-only model: the faces with no granular cell beside them are not unknowns;
+            // they keep their BDF history value (a₁uⁿ − a₂uⁿ⁻¹)/a₀ of the extended velocity (a
+            // Dirichlet row: c ← FROZEN c, rhs ← c u), so that the stresses of the nodes on the
+            // surface act on the grains only and no light-phase dynamics enters the predictor
+            let rho_s = cfg.dense.density;
+            let phi = &self.phi;
+            for (rhs, c, un, um, horizontal) in [(&mut wk.rhs_u, &mut wk.c_u, &self.u, &self.u_prev, true), (&mut wk.rhs_v, &mut wk.c_v, &self.v, &self.v_prev, false)] {
+                let (mx, my) = (rhs.nx, rhs.ny);
+                for j in 0..my {
+                    for i in 0..mx {
+                        let (ii, jj) = (i as isize, j as isize);
+                        let (a, b) = if horizontal { (phi.at(ii - 1, jj), phi.at(ii, jj)) } else { (phi.at(ii, jj - 1), phi.at(ii, jj)) };
+                        if a > 0.0 || b > 0.0 {
+                            continue;
+                        }
+                        let cf = FROZEN_FACE * a0 * rho_s / dt;
+                        c.set(i, j, cf);
+                        rhs.set(i, j, cf * (a1 * un.at(ii, jj) - a2 * um.at(ii, jj)) / a0);
+                    }
+                }
+            }
         }
         // history: u_prev ← uⁿ, u ← initial guess u* = (1+ω)uⁿ − ω uⁿ⁻¹ (in place: the
         // buffers of u, v, p, Φ never move, Python holds views of them)
@@ -498,6 +550,11 @@ impl TwoPhaseModel {
     fn projection_stage(&mut self, dt_over_a0: f64, exec: Exec) -> Result<SolveInfo> {
         let cfg = &self.config;
         let wk = &self.work;
+        if let Some(fs) = self.free_surface.as_mut() {
+            self.phi.extrapolate_ghosts_linear();
+            let r = fs.project(&mut self.u, &mut self.v, &mut self.p, &self.phi, cfg.dense.density, dt_over_a0, &cfg.grid, &cfg.bc, exec);
+            return r.map_err(|e| self.at_step(e));
+        }
         if self.projection_stale {
             self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
             self.projection_stale = false;
@@ -538,7 +595,11 @@ impl TwoPhaseModel {
                 location: Some(loc),
             });
         }
-        let divergence = divergence_max_abs(&self.u, &self.v, g, exec);
+        let divergence = if self.free_surface.is_some() {
+            crate::projection::free_surface::divergence_max_abs_granular(&self.u, &self.v, &self.phi, g)
+        } else {
+            divergence_max_abs(&self.u, &self.v, g, exec)
+        };
         self.time = next_time;
         self.step_count += 1;
         self.dt_prev = Some(dt);
@@ -595,25 +656,34 @@ pub fn interior_to_vec(src: &Field) -> Vec<f64> {
 }
 
 /// ∇(p + p_f) on the faces into `gx`, `gy` (the predictor's pressure force, paper eq. 10b: the
-/// pore pressure pushes the grains apart); `p` with its ghosts filled, `ptot` a work field.
+/// pore pressure pushes the grains apart); `p` with its ghosts filled (None: p left out, as in
+/// the free-surface model's predictor), `ptot` a work field.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn pressure_gradient(
-    p: &Field, pore: Option<&mut crate::pore_pressure::PorePressure>, ptot: &mut Field, gx: &mut Field, gy: &mut Field, grid: &crate::grid::Grid,
+    p: Option<&Field>, pore: Option<&mut crate::pore_pressure::PorePressure>, ptot: &mut Field, gx: &mut Field, gy: &mut Field, grid: &crate::grid::Grid,
     bc: &crate::grid::BoundaryConditions, exec: Exec,
 ) {
-    let Some(pore) = pore else {
-        gradient(p, grid, gx, gy, exec);
-        return;
-    };
-    pore.pf.extrapolate_ghosts_constant();
-    ptot.assign(p);
-    let (st, n, pfs) = (ptot.stride(), ptot.nx, pore.pf.slice());
-    for_each_interior_row(exec, ptot, |j, row| {
-        let b = (j + HALO) * st;
-        for i in HALO..HALO + n {
-            row[i] += pfs[b + i];
+    match (p, pore) {
+        (Some(p), None) => gradient(p, grid, gx, gy, exec),
+        (None, None) => {
+            gx.fill(0.0);
+            gy.fill(0.0);
         }
-    });
-    fill_pressure_ghosts(ptot, bc);
-    gradient(ptot, grid, gx, gy, exec);
+        (p, Some(pore)) => {
+            pore.pf.extrapolate_ghosts_constant();
+            match p {
+                Some(p) => ptot.assign(p),
+                None => ptot.fill(0.0),
+            }
+            let (st, n, pfs) = (ptot.stride(), ptot.nx, pore.pf.slice());
+            for_each_interior_row(exec, ptot, |j, row| {
+                let b = (j + HALO) * st;
+                for i in HALO..HALO + n {
+                    row[i] += pfs[b + i];
+                }
+            });
+            fill_pressure_ghosts(ptot, bc);
+            gradient(ptot, grid, gx, gy, exec);
+        }
+    }
 }
