@@ -48,8 +48,11 @@ def test_one_and_two_threads_give_the_same_fields():
         assert np.max(np.abs(x - y)) <= 1e-12 * np.max(np.abs(x)), np.max(np.abs(x - y))
 
 
-def test_dam_break_front_speed_and_mass_at_16():
-    rec = run_case("dam-break", n=16)
+@pytest.mark.parametrize("air", ["resolved", "free-surface"])
+def test_dam_break_front_speed_and_mass_at_16(air):
+    # the two-phase model, and the granular-only model's free surface (air not resolved)
+    rec = run_case("dam-break", n=16, air=air)
     m = rec["metrics"]
     # Martin & Moyce 1952: dZ/dT over T in [1.5, 3] within 10 %; area within 1 % (mass correction on)
     assert abs(m["front_speed_rel_error"]) <= 0.10 and m["area_rel_change_max"] <= 0.01, m
+    assert m["air"] == air
