@@ -20,10 +20,11 @@
 //!    the lid when no side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
 //!
-//! The granular-only model (`ModelConfig::free_surface`) runs the same stages with three
+//! The granular-only model (`ModelConfig::free_surface`) runs the same stages with these
 //! changes (`projection/free_surface.rs`): the face density is ρ_s on every face beside a
 //! granular cell (stage 3); the predictor's ∇pⁿ reads pⁿ = 0 on the surface Φ^{n+1} = 0
-//! (ghost values, stage 5); stage 6 is the free-surface projection with δp = 0 on Φ = 0,
+//! (ghost values) and the faces with no granular cell beside them are Dirichlet rows holding
+//! their history value (stage 5); stage 6 is the free-surface projection with δp = 0 on Φ = 0,
 //! followed by the extension of the velocity into the air; the divergence of stage 7 is
 //! measured over the granular cells.
 //!
