@@ -13,38 +13,25 @@
 //! 4. A single-phase configuration is refused, naming `free_surface`.
 
 use granrs_core::error::Error;
-use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
-use granrs_core::levelset::Shape;
-use granrs_core::models::{ActiveRegion, Material, ModelConfig, TwoPhaseModel};
+use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, VelocityBc};
+use granrs_core::models::{ActiveRegion, ModelConfig, TwoPhaseModel};
 use granrs_core::projection::free_surface::EXTENSION_LAYERS;
-use granrs_core::rheology::{RheologyConfig, RheologyLaw};
 
-const AIR: Material = Material { density: 1.2, viscosity: 1.8e-5 };
-const BEADS: Material = Material { density: 1450.0, viscosity: 0.1 };
+mod common;
+use common::{column_config, released_column, AIR, BEADS};
 
-/// The column case in miniature with the air not resolved (as in tests/active_region.rs).
+/// The column case in miniature (tests/common) with the air not resolved (or resolved, for
+/// comparison).
 fn column(nx: usize, ny: usize, threads: usize, active: Option<ActiveRegion>) -> TwoPhaseModel {
     column_with(nx, ny, threads, active, true)
 }
 
 fn column_with(nx: usize, ny: usize, threads: usize, active: Option<ActiveRegion>, free_surface: bool) -> TwoPhaseModel {
-    let (lx, ly) = (nx as f64 * 0.45 / ny as f64, 0.45);
-    let grid = Grid::new(nx, ny, lx, ly).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::FreeSlip).with(Side::Left, VelocityBc::Coulomb).with(Side::Bottom, VelocityBc::Coulomb);
-    let mut cfg = ModelConfig::single_phase(grid, bc, BEADS);
-    cfg.light = Some(AIR);
+    let mut cfg = column_config(nx, ny);
     cfg.free_surface = free_surface;
-    cfg.gravity = [0.0, -9.81];
-    cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager { friction_angle: 27.0 });
-    cfg.rheology.wall_friction_angle = Some(15.0);
-    cfg.rheology.picard_tol = 1e-3;
-    cfg.rheology.theta = 0.8;
     cfg.threads = threads;
     cfg.active_region = active;
-    let mut m = TwoPhaseModel::new(cfg).unwrap();
-    m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 0.1, y0: -1.0, y1: 0.2 }).unwrap();
-    m.initialise_pressure().unwrap();
-    m
+    released_column(cfg)
 }
 
 #[test]

@@ -42,6 +42,7 @@ pub mod diagnostics;
 pub mod heaviside;
 pub mod redistance;
 pub mod shapes;
+pub mod subcell;
 pub mod transport;
 pub mod validation;
 pub mod weno5;
@@ -54,6 +55,7 @@ pub use heaviside::{
 };
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};
+pub use subcell::{interface_faces, interface_fraction, THETA_MIN};
 pub use transport::{cfl_number, max_transport_rate, stable_dt, LevelSetTransport, DEFAULT_CFL};
 pub use validation::{single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics};
 pub use weno5::WenoWeights;

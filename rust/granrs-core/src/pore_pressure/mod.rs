@@ -55,7 +55,7 @@ use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, PressureBc, HALO};
 use crate::operators::for_each_interior_row;
 use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
-use crate::levelset::heaviside;
+use crate::levelset::{heaviside, interface_faces};
 
 /// What p_f does outside the granular phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -468,22 +468,4 @@ impl PorePressure {
         self.pf_prev.assign(&self.pf);
         self.adv_prev.fill(0.0);
     }
-}
-
-/// The faces of granular cell (i, j) (Φ > 0) that cross the interface, for the sub-cell
-/// Dirichlet condition p_f = 0 there (Gibou, Fedkiw, Cheng & Kang 2002, *J. Comput. Phys.* 176):
-/// (θ, h) with θ = Φ_c/(Φ_c − Φ_n) ≥ 1e-3 the fraction of the centre-to-centre distance h at which
-/// the interface lies; the diagonal gains κ/(θ h²) per face. Domain sides are not interface faces.
-fn interface_faces(phi: &Field, i: usize, j: usize, dx: f64, dy: f64) -> [Option<(f64, f64)>; 4] {
-    let (ii, jj) = (i as isize, j as isize);
-    let pc = phi.at(ii, jj);
-    let face = |pn: f64, h: f64, is_domain_face: bool| {
-        (!is_domain_face && !(pn > 0.0)).then(|| ((pc / (pc - pn)).max(1e-3), h))
-    };
-    [
-        face(phi.at(ii - 1, jj), dx, i == 0),
-        face(phi.at(ii + 1, jj), dx, i + 1 == phi.nx),
-        face(phi.at(ii, jj - 1), dy, j == 0),
-        face(phi.at(ii, jj + 1), dy, j + 1 == phi.ny),
-    ]
 }

@@ -7,8 +7,8 @@
 //! hence div((1/ρ_s) ∇p) = (a₀/δt) div ũ in Ω_s, with the Dirichlet condition imposed at the
 //! surface's sub-cell position by the ghost-fluid method of Gibou, Fedkiw, Cheng & Kang (2002,
 //! *J. Comput. Phys.* 176, 205–227): a face between a granular cell c and an air cell a, crossed
-//! by Φ = 0 at the fraction θ = Φ_c/(Φ_c − Φ_a) of the centre distance h (θ ≥ 1e-3, as in the
-//! pore-pressure room), sees the ghost value p_g = p_c(1 − 1/θ), i.e. the flux −β p_c/(θh); the
+//! by Φ = 0 at the fraction θ = Φ_c/(Φ_c − Φ_a) of the centre distance h (`levelset/subcell.rs`,
+//! shared with the pore-pressure room), sees the ghost value p_g = p_c(1 − 1/θ), i.e. the flux −β p_c/(θh); the
 //! face leaves the operator and the diagonal gains β/(θh²). Air cells carry the trivial row
 //! p = 0. The same ghost value corrects the surface faces' velocity.
 //!
@@ -38,6 +38,7 @@
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Side};
+use crate::levelset::{interface_faces, interface_fraction};
 use crate::operators::{divergence, unknown_face_range};
 use crate::projection::fill_pressure_ghosts;
 use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
@@ -45,16 +46,8 @@ use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
 /// Layers of faces the velocity is extended into the air (see the module header).
 pub const EXTENSION_LAYERS: usize = 6;
 
-/// Smallest interface fraction θ of the ghost-fluid Dirichlet condition.
-const THETA_MIN: f64 = 1e-3;
-
 fn inside(phi: f64) -> bool {
     phi > 0.0
-}
-
-/// θ = Φ_in/(Φ_in − Φ_out): where Φ = 0 lies between a granular centre and an air centre.
-fn fraction(phi_in: f64, phi_out: f64) -> f64 {
-    (phi_in / (phi_in - phi_out)).max(THETA_MIN)
 }
 
 /// ∂p/∂n on the face between centres L and R (distance h) with p = 0 on the surface: the
@@ -62,8 +55,8 @@ fn fraction(phi_in: f64, phi_out: f64) -> f64 {
 fn surface_gradient(pl: f64, pr: f64, fl: f64, fr: f64, h: f64) -> Option<f64> {
     match (inside(fl), inside(fr)) {
         (true, true) => Some((pr - pl) / h),
-        (true, false) => Some(-pl / (fraction(fl, fr) * h)),
-        (false, true) => Some(pr / (fraction(fr, fl) * h)),
+        (true, false) => Some(-pl / (interface_fraction(fl, fr) * h)),
+        (false, true) => Some(pr / (interface_fraction(fr, fl) * h)),
         (false, false) => None,
     }
 }
@@ -130,7 +123,6 @@ impl FreeSurfaceProjection {
         }
         divergence(u, v, grid, &mut self.div, exec);
         let scale = 1.0 / dt_over_a0;
-        let (dx2, dy2) = (grid.dx * grid.dx, grid.dy * grid.dy);
         let mut any_inside = false;
         for j in 0..ny {
             for i in 0..nx {
@@ -143,14 +135,8 @@ impl FreeSurfaceProjection {
                     continue;
                 }
                 any_inside = true;
-                let mut sigma = 0.0;
-                let neighbours = [(-1isize, 0isize, dx2, i == 0), (1, 0, dx2, i + 1 == nx), (0, -1, dy2, j == 0), (0, 1, dy2, j + 1 == ny)];
-                for (di, dj, h2, domain_side) in neighbours {
-                    let pn = phi.at(i as isize + di, j as isize + dj);
-                    if !domain_side && !inside(pn) {
-                        sigma += beta / (fraction(pc, pn) * h2);
-                    }
-                }
+                // ghost-fluid Dirichlet δp = 0 where a face crosses the surface
+                let sigma: f64 = interface_faces(phi, i, j, grid.dx, grid.dy).into_iter().flatten().map(|(theta, h)| beta / (theta * h * h)).sum();
                 self.shift[k] = sigma;
                 self.rhs[k] = scale * self.div.at(i as isize, j as isize);
             }

@@ -455,8 +455,8 @@ impl TwoPhaseModel {
         }
         if self.free_surface.is_some() {
             // granular-only model: ∇p_f, then ∇pⁿ with pⁿ = 0 on the surface Φ^{n+1} = 0
+            // (Φ's ghosts were filled by `properties` this step; Φ has not changed since)
             pressure_gradient(None, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
-            self.phi.extrapolate_ghosts_linear();
             crate::projection::free_surface::FreeSurfaceProjection::add_pressure_gradient(&self.p, &self.phi, &mut wk.gx, &mut wk.gy, grid);
         } else {
             pressure_gradient(Some(&self.p), self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
@@ -552,7 +552,6 @@ impl TwoPhaseModel {
         let cfg = &self.config;
         let wk = &self.work;
         if let Some(fs) = self.free_surface.as_mut() {
-            self.phi.extrapolate_ghosts_linear();
             let r = fs.project(&mut self.u, &mut self.v, &mut self.p, &self.phi, cfg.dense.density, dt_over_a0, &cfg.grid, &cfg.bc, exec);
             return r.map_err(|e| self.at_step(e));
         }
