@@ -2,7 +2,9 @@
 model or method variant granrs offers.
 
     python examples/work_precision.py                          # ny = 16, 32, 64 (+ 128 if present)
-    python examples/work_precision.py --ny 16 32 64 128        # the fine reference run too (≈ 1 h)
+    python examples/work_precision.py --ny 16 32 64 128        # the fine reference runs too (hours)
+    python examples/work_precision.py --ny 128 --variants "D-P (default)" "granular (no air)"
+    python examples/work_precision.py                          # then the rest; stored runs are reused
     python examples/work_precision.py --plot-only              # redraw from the stored CSV
 
 Each run is the paper's column (``granrs run column``, validation-data.md §1) to t = 3 s, one
@@ -44,6 +46,11 @@ VARIANTS = {
     # width in proportion (ColumnCase.da_resolution is left at its default: its run-out changes by
     # < 1 % with Δx/2)
     "depth-averaged": {"model": "depth-averaged"},
+    # the granular-only rung: no air, a free surface at p = 0 (docs/models.md)
+    "granular (no air)": {"model": "granular"},
+    # the active region (docs/models.md): the work restricted to the grains and a band of 8 cells
+    "D-P, active region 8": {"active_region": 8},
+    "granular, active region 8": {"model": "granular", "active_region": 8},
 }
 BASELINE = "D-P (default)"
 
@@ -156,14 +163,16 @@ def main() -> None:
                 r = run_or_load(v, VARIANTS[v], ny, fl, out, allow_run=True)
                 if r is not None:
                     runs[(v, ny, fl)] = r
-    # finest baseline grid that has both runs, plus any finer stored baseline runs
-    stored = sorted({int(p.name.split("-")[1]) for p in folder_of(out, BASELINE).glob("*-*") if (p / "summary.json").exists()})
-    for ny in stored:
-        for fl in (True, False):
-            if (BASELINE, ny, fl) not in runs:
-                r = run_or_load(BASELINE, {}, ny, fl, out, allow_run=False)
-                if r is not None:
-                    runs[(BASELINE, ny, fl)] = r
+    # plus any runs stored in OUT on other grids (e.g. ny = 128 runs made by an earlier call with
+    # --ny 128 --variants ...): the finest baseline grid that has both runs is the reference
+    for v in [BASELINE] + [v for v in args.variants if v != BASELINE]:
+        stored = sorted({int(p.name.split("-")[1]) for p in folder_of(out, v).glob("*-*") if (p / "summary.json").exists()})
+        for ny in stored:
+            for fl in (True, False):
+                if (v, ny, fl) not in runs:
+                    r = run_or_load(v, VARIANTS[v], ny, fl, out, allow_run=False)
+                    if r is not None:
+                        runs[(v, ny, fl)] = r
     finest = max(ny for (v, ny, fl) in runs if v == BASELINE and (BASELINE, ny, not fl) in runs)
     rows = []
     for (v, ny, fl), r in sorted(runs.items(), key=lambda kv: (kv[0][0], kv[0][1], not kv[0][2])):

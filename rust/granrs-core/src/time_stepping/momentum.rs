@@ -14,7 +14,7 @@
 //! δt ≲ ρh²/(4η), see `clock.rs`).
 
 use crate::error::{Error, Result};
-use crate::exec::Exec;
+use crate::exec::{Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
 use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, BcMode};
 use crate::solvers::SolveInfo;
@@ -135,9 +135,8 @@ impl MomentumSolver {
     /// of a flow that is invariant along the normal vary along it and excite that asymmetry: CG
     /// then stalls near 1e-10 (seen on the x-invariant Poiseuille channel). With the interior
     /// value such flows stay in the invariant subspace, where the operator is symmetric.
-    fn diagonal(&mut self, sys: &ViscousSystem) {
+    fn diagonal(&mut self, sys: &ViscousSystem, exec: Exec) {
         let g = sys.grid;
-        let (nx, ny) = (g.nx as isize, g.ny as isize);
         let (idx2, idy2) = (1.0 / (g.dx * g.dx), 1.0 / (g.dy * g.dy));
         // tangential ghost factor a of each side; open sides get the interior value (factor 0)
         let factor = |side: Side, h: f64| {
@@ -152,31 +151,36 @@ impl MomentumSolver {
         let (al, ar) = (factor(Side::Left, g.dx), factor(Side::Right, g.dx));
         let (ru, rv) = ranges(g, sys.bc);
         let (ec, en) = (sys.eta_c, sys.eta_n);
-        for j in 0..ny {
+        // row by row on the raw slices (elementwise: serial == parallel); rows outside the
+        // unknown range are untouched
+        let (cu, cv, ecs, ens) = (sys.c_u.slice(), sys.c_v.slice(), ec.slice(), en.slice());
+        let (scu, scv, sec, sen) = (sys.c_u.stride(), sys.c_v.stride(), ec.stride(), en.stride());
+        let h = HALO;
+        for_each_interior_row(exec, &mut self.diag_u, |j, row| {
+            if j >= g.ny {
+                return;
+            }
+            // ∂u/∂x at the cells on each side (interior value also on open boundary faces)
+            let (fr, fl) = (1.0, 1.0);
+            let ft = if j + 1 == g.ny { 1.0 - at } else { 1.0 };
+            let fb = if j == 0 { 1.0 - ab } else { 1.0 };
+            let (bc, be, bn, bn1) = ((j + h) * scu + h, (j + h) * sec + h, (j + h) * sen + h, (j + 1 + h) * sen + h);
             for i in ru.clone() {
-                let i = i as isize;
-                // ∂u/∂x at the cells on each side (interior value also on open boundary faces)
-                let (fr, fl) = (1.0, 1.0);
-                let ft = if j == ny - 1 { 1.0 - at } else { 1.0 };
-                let fb = if j == 0 { 1.0 - ab } else { 1.0 };
-                let d = sys.c_u.at(i, j)
-                    + 2.0 * idx2 * (fr * ec.at(i, j) + fl * ec.at(i - 1, j))
-                    + idy2 * (ft * en.at(i, j + 1) + fb * en.at(i, j));
-                self.diag_u.set(i as usize, j as usize, d);
+                row[h + i] = cu[bc + i] + 2.0 * idx2 * (fr * ecs[be + i] + fl * ecs[be + i - 1]) + idy2 * (ft * ens[bn1 + i] + fb * ens[bn + i]);
             }
-        }
-        for j in rv.clone() {
-            let j = j as isize;
-            for i in 0..nx {
-                let (ft, fb) = (1.0, 1.0);
-                let fr = if i == nx - 1 { 1.0 - ar } else { 1.0 };
+        });
+        for_each_interior_row(exec, &mut self.diag_v, |j, row| {
+            if !rv.contains(&j) {
+                return;
+            }
+            let (ft, fb) = (1.0, 1.0);
+            let (bc, be, be1, bn) = ((j + h) * scv + h, (j + h) * sec + h, (j + h - 1) * sec + h, (j + h) * sen + h);
+            for i in 0..g.nx {
+                let fr = if i + 1 == g.nx { 1.0 - ar } else { 1.0 };
                 let fl = if i == 0 { 1.0 - al } else { 1.0 };
-                let d = sys.c_v.at(i, j)
-                    + 2.0 * idy2 * (ft * ec.at(i, j) + fb * ec.at(i, j - 1))
-                    + idx2 * (fr * en.at(i + 1, j) + fl * en.at(i, j));
-                self.diag_v.set(i as usize, j as usize, d);
+                row[h + i] = cv[bc + i] + 2.0 * idy2 * (ft * ecs[be + i] + fb * ecs[be1 + i]) + idx2 * (fr * ens[bn + i + 1] + fl * ens[bn + i]);
             }
-        }
+        });
     }
 
     /// Solves A ũ = rhs on the unknown faces by Jacobi-preconditioned CG. On entry `u`, `v` hold
@@ -192,7 +196,7 @@ impl MomentumSolver {
     ) -> Result<SolveInfo> {
         let (ru, rv) = ranges(sys.grid, sys.bc);
         fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
-        self.diagonal(sys);
+        self.diagonal(sys, exec);
         Self::apply(sys, u, v, &mut self.qu, &mut self.qv, exec);
         // r = rhs − A u, z = r / diag, d = z (zero off the unknown faces)
         let mut bnorm2 = 0.0;
@@ -201,19 +205,32 @@ impl MomentumSolver {
             (&mut self.rv, &self.qv, rhs_v, &mut self.zv, &mut self.dv, &self.diag_v, 0..sys.grid.nx, rv.clone()),
         ] {
             bnorm2 += dot(rhs, rhs, &ri, &rj, exec);
-            r.fill(0.0);
-            z.fill(0.0);
-            d.fill(0.0);
-            for j in rj.clone() {
-                for i in ri.clone() {
-                    let (ii, jj) = (i as isize, j as isize);
-                    let rr = rhs.at(ii, jj) - q.at(ii, jj);
-                    r.set(i, j, rr);
-                    let zz = rr / diag.at(ii, jj);
-                    z.set(i, j, zz);
-                    d.set(i, j, zz);
-                }
+            // zero everywhere but on the unknown faces, where r = rhs − A u, z = d = r / diag:
+            // the halo rows here, the interior rows row by row (elementwise: serial == parallel)
+            let st = r.stride();
+            let nyf = r.ny;
+            for buf in [r.slice_mut(), z.slice_mut(), d.slice_mut()] {
+                buf[..HALO * st].fill(0.0);
+                buf[(nyf + HALO) * st..].fill(0.0);
             }
+            let (qs, bs, dg) = (q.slice(), rhs.slice(), diag.slice());
+            let (i0, i1) = (HALO + ri.start, HALO + ri.end);
+            rows3(exec, st, 0..nyf, r.slice_mut(), z.slice_mut(), d.slice_mut(), |j, rr_, zr, dr| {
+                rr_.fill(0.0);
+                zr.fill(0.0);
+                dr.fill(0.0);
+                if !rj.contains(&j) {
+                    return;
+                }
+                let base = (j + HALO) * st;
+                for c in i0..i1 {
+                    let res = bs[base + c] - qs[base + c];
+                    rr_[c] = res;
+                    let zz = res / dg[base + c];
+                    zr[c] = zz;
+                    dr[c] = zz;
+                }
+            });
         }
         let bnorm = bnorm2.sqrt();
         let rnorm0 = (dot(&self.ru, &self.ru, &ru, &(0..sys.grid.ny), exec)
@@ -252,8 +269,9 @@ impl MomentumSolver {
                 let st = x.stride();
                 let (ds, qs, dg) = (d.slice(), q.slice(), diag.slice());
                 let (i0, i1) = (ri.start, ri.end);
-                // x += α d, r −= α q, z = r / diag, row by row (elementwise: serial == parallel)
-                rows3(exec, st, rj.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), |j, xr, rr_, zr| {
+                // x += α d, r −= α q, z = r / diag, row by row (elementwise: serial == parallel),
+                // with r·z and r·r summed in the same pass (the block order of `dot`)
+                let (a, b) = rows3_dots(exec, st, rj.clone(), HALO + i0..HALO + i1, x.slice_mut(), r.slice_mut(), z.slice_mut(), |j, xr, rr_, zr| {
                     let base = (j + HALO) * st;
                     for c in HALO + i0..HALO + i1 {
                         xr[c] += alpha * ds[base + c];
@@ -261,8 +279,8 @@ impl MomentumSolver {
                         zr[c] = rr_[c] / dg[base + c];
                     }
                 });
-                rz_new += dot(r, z, &ri, &rj, exec);
-                rr += dot(r, r, &ri, &rj, exec);
+                rz_new += a;
+                rr += b;
             }
             res = rr.sqrt() / scale;
             let beta = rz_new / rz;
@@ -313,6 +331,48 @@ impl MomentumSolver {
 
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
 /// with the same stride, in parallel when `exec` says so; rows are whole (ghosts included).
+/// [`rows3`] over `rows`, then per row Σ r·z and Σ r·r over the columns `cols` of the updated
+/// rows: row partials added in row order within blocks of [`ROW_BLOCK`] rows, blocks added in
+/// order — the summation order of [`dot`] (`Exec::sum_rows`), so the sums are bit for bit those
+/// of two `dot` calls after the update, serial or parallel, with one pass over the rows and one
+/// parallel region instead of three.
+#[allow(clippy::too_many_arguments)]
+fn rows3_dots<F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, cols: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], f: F) -> (f64, f64)
+where
+    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
+{
+    let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
+    let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
+    let block = |b: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64]| -> (f64, f64) {
+        let (mut rz, mut rr) = (0.0, 0.0);
+        for (k, ((xr, rrow), zr)) in xb.chunks_mut(st).zip(rb.chunks_mut(st)).zip(zb.chunks_mut(st)).enumerate() {
+            f(rows.start + b * ROW_BLOCK + k, xr, rrow, zr);
+            let (rc, zc) = (&rrow[cols.clone()], &zr[cols.clone()]);
+            rz += rc.iter().zip(zc).fold(0.0, |s, (p, q)| s + p * q);
+            rr += rc.iter().zip(rc).fold(0.0, |s, (p, q)| s + p * q);
+        }
+        (rz, rr)
+    };
+    let blk = st * ROW_BLOCK;
+    let partial: Vec<(f64, f64)> = if exec.use_parallel(x.len()) {
+        use rayon::prelude::*;
+        x.par_chunks_mut(blk)
+            .zip(r.par_chunks_mut(blk))
+            .zip(z.par_chunks_mut(blk))
+            .enumerate()
+            .map(|(b, ((xb, rb), zb))| block(b, xb, rb, zb))
+            .collect()
+    } else {
+        x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).enumerate().map(|(b, ((xb, rb), zb))| block(b, xb, rb, zb)).collect()
+    };
+    let (mut rz, mut rr) = (0.0, 0.0);
+    for (a, b) in partial {
+        rz += a;
+        rr += b;
+    }
+    (rz, rr)
+}
+
 fn rows3<F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], f: F)
 where
     F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
