@@ -38,7 +38,7 @@ bench: install
 	cargo bench -p granrs-core
 
 lint:
-	cargo clippy --workspace --release -- -D warnings
+	cargo clippy --workspace --release --all-targets -- -D warnings
 
 clean:
 	rm -rf $(VENV) target $(OUT)

@@ -50,6 +50,21 @@ def test_outputs_are_complete(coarse_runs):
     assert np.all(np.diff(t) > 0) and t[-1] == pytest.approx(wet["t_end_s"], abs=0.011)
 
 
+def test_front_legend_says_run_out_only_at_rest(coarse_runs):
+    from granrs.cases.column import _front_label
+
+    base, dry, wet = coarse_runs
+    # the coarse runs stop at t_end: the legend gives the front reached then, not a run-out
+    assert wet["stop_reason"] in ("stop_time", "rest")
+    label = _front_label(wet)
+    if wet["stop_reason"] == "rest":
+        assert "run-out" in label and "(at rest)" in label
+    else:
+        assert "not at rest" in label and "run-out" not in label and f"t = {wet['t_end_s']:g} s" in label
+    rested = {**wet, "stop_reason": "rest", "model": "granular", "active_region": 8}
+    assert _front_label(rested).startswith("fluidised, granular-only, active region 8, ny = 32: run-out")
+
+
 def test_mass_is_conserved_with_the_default_correction(coarse_runs):
     # the global correction solves for the area to the secant tolerance (1e-10 in the dam break)
     _, dry, wet = coarse_runs

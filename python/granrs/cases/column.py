@@ -538,7 +538,9 @@ def _label(meta: dict) -> str:
     state = "fluidised" if meta["fluidised"] else "non-fluidised"
     if meta.get("model") == "depth-averaged":
         return f"{state}, depth-averaged ({meta['cells']} cells)"
-    return f"{state}, ny = {meta['ny']}"
+    model = ", granular-only" if meta.get("model") == "granular" else ""
+    window = f", active region {meta['active_region']}" if meta.get("active_region") else ""
+    return f"{state}{model}{window}, ny = {meta['ny']}"
 
 
 def _read_front(path: Path):
@@ -547,6 +549,14 @@ def _read_front(path: Path):
         return np.zeros(0), np.zeros(0), meta
     data = np.genfromtxt(path / "front.csv", delimiter=",", skip_header=1, ndmin=2)
     return data[:, 0], data[:, 1], meta
+
+
+def _front_label(meta: dict) -> str:
+    """Legend entry of a run on front.png: a run that came to rest has a run-out; one cut at
+    t_end has only the front it reached then."""
+    if meta.get("stop_reason") == "rest":
+        return _label(meta) + f": run-out {meta['runout_m']:.3f} m (at rest)"
+    return _label(meta) + f": front {meta['runout_m']:.3f} m at t = {meta.get('t_end_s', 0.0):g} s (not at rest)"
 
 
 def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
@@ -559,7 +569,7 @@ def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
     runs = [out] + ([compare_with] if compare_with is not None and (compare_with / "front.csv").exists() else [])
     for k, path in enumerate(runs):
         t, x, meta = _read_front(path)
-        label = _label(meta) + f": run-out {meta['runout_m']:.3f} m"
+        label = _front_label(meta)
         ax.plot(t, x, f"C{k}-", lw=2, label=label)
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation: {PAPER_RUNOUT_SIM} m")
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"paper, experiment: {PAPER_RUNOUT_EXP} m")

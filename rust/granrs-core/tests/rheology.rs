@@ -80,8 +80,8 @@ fn unit_ball_projection() {
     let s = unit_ball_scale(3.0, 4.0);
     assert!((s - 0.2).abs() < 1e-15);
     // |Σ|² = Σ_xx² + Σ_xy² is the paper's √(½ Σ λ_ij²) for a symmetric traceless tensor
-    let (xx, xy) = (0.6, 0.8);
-    let paper = (0.5 * (xx * xx + xy * xy + xy * xy + xx * xx) as f64).sqrt();
+    let (xx, xy) = (0.6_f64, 0.8_f64);
+    let paper = (0.5 * (xx * xx + xy * xy + xy * xy + xx * xx)).sqrt();
     assert!((paper - 1.0).abs() < 1e-15);
 }
 
@@ -513,7 +513,7 @@ fn total_wall_normal_stress_adds_the_normal_deviatoric_stress() {
     let txx = 2.0 * eta * a + tau * sxx;
     for (total, base, back) in [(false, p0, p0), (true, p0 + txx, p0 - txx)] {
         let mut walls = CoulombWalls::new(&grid, &bc, true);
-        let tnn = total.then(|| NormalStress { u: &u, eta_c: &eta_c, plastic: Some((&tau_c, &sigma)), dx: grid.dx });
+        let tnn = total.then_some(NormalStress { u: &u, eta_c: &eta_c, plastic: Some((&tau_c, &sigma)), dx: grid.dx });
         walls.set_friction(&p, tnn, &phi, tan_b, None, InterfaceYield::Paper, &grid);
         for (side, expected) in [(Side::Bottom, base), (Side::Left, back)] {
             let (_, tau_b) = walls.side(side).unwrap();

@@ -344,7 +344,7 @@ impl PyModel {
                 let kind: String = t.get_item(0)?.extract()?;
                 let params = t.get_item(1)?;
                 let params = params.cast::<PyDict>().ok();
-                conds = conds.with(side, parse_bc(side.name(), &kind, params.as_deref())?);
+                conds = conds.with(side, parse_bc(side.name(), &kind, params)?);
                 if kind == "coulomb" {
                     if let Some(a) = params.as_ref().and_then(|p| p.get_item("friction_angle").ok().flatten()) {
                         let name = format!("bc.{}.friction_angle", side.name());

@@ -197,10 +197,8 @@ impl BoundaryConditions {
                     }
                     net_inflow += normal * if side.is_x() { ly } else { lx };
                 }
-                VelocityBc::NavierSlip { slip_length } => {
-                    if !(slip_length.is_finite() && slip_length > 0.0) {
-                        return Err(Error::param(&name("slip_length"), slip_length, "a finite length > 0"));
-                    }
+                VelocityBc::NavierSlip { slip_length } if !(slip_length.is_finite() && slip_length > 0.0) => {
+                    return Err(Error::param(&name("slip_length"), slip_length, "a finite length > 0"));
                 }
                 _ => {}
             }

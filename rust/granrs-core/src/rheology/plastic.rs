@@ -335,6 +335,7 @@ impl PlasticState {
         self.r_n.slice_mut().iter_mut().for_each(|v| *v *= f);
     }
 
+    #[allow(clippy::too_many_arguments)]
     pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
         if let Some(r) = r {
             self.r_c.fill(r);

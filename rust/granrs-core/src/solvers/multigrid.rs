@@ -79,6 +79,7 @@ impl Multigrid {
     /// Builds the hierarchy (unit coefficients until [`Multigrid::set_coefficients`]), the work
     /// arrays and the symbolic factorisation of the coarsest level. With `max_levels == 1` the
     /// "cycle" is an exact solve of the fine level.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         nx: usize,
         ny: usize,

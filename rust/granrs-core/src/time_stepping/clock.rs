@@ -51,6 +51,7 @@ impl Default for TimeConfig {
 
 impl TimeConfig {
     /// Checks the parameters, naming the offending one.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // !(x > 0) also refuses NaN
     pub fn validate(&self) -> Result<()> {
         check_range("cfl", self.cfl, 1e-6, 2.0)?;
         if let Some(dt) = self.fixed_dt {

@@ -6,6 +6,7 @@
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1}).
 //! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room, implicit BDF2 or explicit forward
 //!    Euler; an explicit step past h²/(4κ) stops here, naming the cell; skipped when not fluidised).
+//!
 //! 4b. `rheology_stage` [step 2, continued]: τ^{n+1} = τ(p^n) H_ε(Φ^{n+1}) at centres and nodes
 //!    (H_ε(Φ^{n+1} + sε) with the shift s = 0, 1, 2 of `InterfaceYield`),
 //!    τ_b^{n+1} on Coulomb walls, the lagged viscosity of μ(I) and regularised laws, r and r_b
