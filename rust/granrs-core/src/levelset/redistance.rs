@@ -564,54 +564,67 @@ impl Ctx<'_> {
 /// |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice. Returns false (d = ∞) when there
 /// is no interface.
 fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field) -> bool {
-        let (nx, ny) = (grid.nx as isize, grid.ny as isize);
-        let (dx, dy) = (grid.dx, grid.dy);
-        let mut any = false;
+    // on the raw slices (Φ, the sub-cell distances and d are cell fields of one shape); the
+    // arithmetic and the visiting order are those of the per-element version, so d is the same
+    // bit for bit
+    let (nx, ny) = (grid.nx, grid.ny);
+    let (dx, dy) = (grid.dx, grid.dy);
+    let st = d.stride();
+    debug_assert!(phi.stride() == st && sub.iter().all(|f| f.stride() == st));
+    let k = |i: usize, j: usize| (j + HALO) * st + i + HALO;
+    let [s0, s1, s2, s3] = [0, 1, 2, 3].map(|m| sub[m].slice());
+    let at_interface = |c: usize| s0[c].is_finite() || s1[c].is_finite() || s2[c].is_finite() || s3[c].is_finite();
+    let ps = phi.slice();
+    let mut any = false;
+    {
+        let ds = d.slice_mut();
         for j in 0..ny {
             for i in 0..nx {
-                let at_interface = sub.iter().any(|f| f.at(i, j).is_finite());
-                any |= at_interface;
-                d.set(i as usize, j as usize, if at_interface { phi.at(i, j).abs() } else { f64::INFINITY });
+                let c = k(i, j);
+                let f = at_interface(c);
+                any |= f;
+                ds[c] = if f { ps[c].abs() } else { f64::INFINITY };
             }
         }
-        if !any {
-            return false;
-        }
-        let update = |d: &mut Field, i: isize, j: isize| {
-            let get = |ii: isize, jj: isize| if ii < 0 || jj < 0 || ii >= nx || jj >= ny { f64::INFINITY } else { d.at(ii, jj) };
-            let a = get(i - 1, j).min(get(i + 1, j));
-            let b = get(i, j - 1).min(get(i, j + 1));
-            if !a.is_finite() && !b.is_finite() {
-                return;
-            }
-            let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
-            let mut new = lo + hlo;
-            if new > hi {
-                // ((d − a)/dx)² + ((d − b)/dy)² = 1
-                let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
-                let (qa, qb) = (wa + wb, -2.0 * (wa * a + wb * b));
-                let qc = wa * a * a + wb * b * b - 1.0;
-                let disc = qb * qb - 4.0 * qa * qc;
-                if disc >= 0.0 {
-                    new = (-qb + disc.sqrt()) / (2.0 * qa);
-                }
-            }
-            if new < d.at(i, j) {
-                d.set(i as usize, j as usize, new);
-            }
-        };
-        for _ in 0..2 {
-            for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
-                for jj in 0..ny {
-                    let j = if ry { ny - 1 - jj } else { jj };
-                    for ii in 0..nx {
-                        let i = if rx { nx - 1 - ii } else { ii };
-                        if !sub.iter().any(|f| f.at(i, j).is_finite()) {
-                            update(d, i, j);
+    }
+    if !any {
+        return false;
+    }
+    let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
+    let ds = d.slice_mut();
+    for _ in 0..2 {
+        for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
+            for jj in 0..ny {
+                let j = if ry { ny - 1 - jj } else { jj };
+                for ii in 0..nx {
+                    let i = if rx { nx - 1 - ii } else { ii };
+                    let c = k(i, j);
+                    if at_interface(c) {
+                        continue;
+                    }
+                    // Godunov update of |∇d| = 1 from the smaller neighbour on each axis (∞ outside)
+                    let a = (if i > 0 { ds[c - 1] } else { f64::INFINITY }).min(if i + 1 < nx { ds[c + 1] } else { f64::INFINITY });
+                    let b = (if j > 0 { ds[c - st] } else { f64::INFINITY }).min(if j + 1 < ny { ds[c + st] } else { f64::INFINITY });
+                    if !a.is_finite() && !b.is_finite() {
+                        continue;
+                    }
+                    let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
+                    let mut new = lo + hlo;
+                    if new > hi {
+                        // ((d − a)/dx)² + ((d − b)/dy)² = 1
+                        let (qa, qb) = (wa + wb, -2.0 * (wa * a + wb * b));
+                        let qc = wa * a * a + wb * b * b - 1.0;
+                        let disc = qb * qb - 4.0 * qa * qc;
+                        if disc >= 0.0 {
+                            new = (-qb + disc.sqrt()) / (2.0 * qa);
                         }
+                    }
+                    if new < ds[c] {
+                        ds[c] = new;
                     }
                 }
             }
         }
-        true
+    }
+    true
 }
