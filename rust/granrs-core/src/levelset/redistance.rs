@@ -217,14 +217,18 @@ impl Redistancer {
         // (the zero set is frozen), so |Φ| ≤ |Φ⁰| + τ and sign Φ = sign Φ⁰ hold exactly for the
         // continuous equation; cells outside are reset into that range.
         let mut clamped = 0usize;
-        for j in 0..grid.ny as isize {
-            for i in 0..grid.nx as isize {
-                let (f0, v) = (self.phi0.at(i, j), phi.at(i, j));
-                let bound = f0.abs() + tau;
-                let fixed = if v * f0 < 0.0 { f0 } else if v.abs() > bound { bound.copysign(f0) } else { v };
-                if fixed != v {
-                    phi.set(i as usize, j as usize, fixed);
-                    clamped += 1;
+        {
+            let st = phi.stride();
+            let (p0, ps) = (self.phi0.slice(), phi.slice_mut());
+            for j in 0..grid.ny {
+                for c in (j + HALO) * st + HALO..(j + HALO) * st + HALO + grid.nx {
+                    let (f0, v) = (p0[c], ps[c]);
+                    let bound = f0.abs() + tau;
+                    let fixed = if v * f0 < 0.0 { f0 } else if v.abs() > bound { bound.copysign(f0) } else { v };
+                    if fixed != v {
+                        ps[c] = fixed;
+                        clamped += 1;
+                    }
                 }
             }
         }
@@ -236,9 +240,10 @@ impl Redistancer {
         let far = self.far_field(phi, grid, (tau - 2.0 * h).max(h));
         phi.extrapolate_ghosts_linear();
         let prev = &self.prev;
+        let (ps, qs, sp) = (phi.slice(), prev.slice(), phi.stride());
         let last_change = exec.max_rows(grid.ny, grid.cells(), |j| {
-            let j = j as isize;
-            (0..grid.nx as isize).map(|i| (phi.at(i, j) - prev.at(i, j)).abs()).fold(0.0, f64::max)
+            let b = (j + HALO) * sp + HALO;
+            ps[b..b + grid.nx].iter().zip(&qs[b..b + grid.nx]).map(|(a, c)| (a - c).abs()).fold(0.0, f64::max)
         });
         if !last_change.is_finite() {
             let (_, (i, j)) = phi.max_abs_with_location();
@@ -263,19 +268,20 @@ impl Redistancer {
     /// to a sign change of Φ⁰, at their current |Φ|) exceeds `keep`; returns how many cells.
     /// First-order Godunov update of |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice.
     fn far_field(&mut self, phi: &mut Field, grid: &Grid, keep: f64) -> usize {
-        let (nx, ny) = (grid.nx as isize, grid.ny as isize);
         let d = &mut self.phi1;
         if !sweep_distance(phi, &self.sub, grid, d) {
             return 0;
         }
         let mut count = 0;
-        for j in 0..ny {
-            for i in 0..nx {
-                let dist = d.at(i, j);
+        let st = phi.stride();
+        let (ds, p0, ps) = (d.slice(), self.phi0.slice(), phi.slice_mut());
+        for j in 0..grid.ny {
+            for c in (j + HALO) * st + HALO..(j + HALO) * st + HALO + grid.nx {
+                let dist = ds[c];
                 if dist.is_finite() && dist > keep {
-                    let s = self.phi0.at(i, j);
-                    let s = if s != 0.0 { s.signum() } else { phi.at(i, j).signum() };
-                    phi.set(i as usize, j as usize, s * dist);
+                    let s = p0[c];
+                    let s = if s != 0.0 { s.signum() } else { ps[c].signum() };
+                    ps[c] = s * dist;
                     count += 1;
                 }
             }
