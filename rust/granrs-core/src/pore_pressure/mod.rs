@@ -209,7 +209,7 @@ impl PorePressure {
         exec: Exec,
     ) -> Result<SolveInfo> {
         let (a0, a1, a2, w) = coeffs;
-        let (nx, ny) = (grid.nx, grid.ny);
+        let nx = grid.nx;
         let (dx, dy) = (grid.dx, grid.dy);
         // advection A^n = div(uⁿ pⁿ), centred fluxes; boundary normal velocities are zero or prescribed
         self.pf.extrapolate_ghosts_constant();
@@ -232,21 +232,23 @@ impl PorePressure {
         let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
         let kf = self.config.diffusivity;
         let inside = |k: f64| k > 0.0;
-        // coefficients and right-hand side
+        // coefficients and right-hand side, row by row on the raw slices (elementwise: serial ==
+        // parallel)
+        let (ps, sp) = (phi.slice(), phi.stride());
         match self.config.formulation {
             PoreFormulation::GranularOnly => {
-                for j in 0..ny {
+                exec.for_each_row(&mut self.beta_x, nx + 1, |j, row| {
+                    let b = (j + HALO) * sp + HALO;
                     for i in 0..=nx {
-                        let (a, b) = (phi.at(i as isize - 1, j as isize), phi.at(i as isize, j as isize));
-                        self.beta_x[j * (nx + 1) + i] = if inside(a) && inside(b) { kf } else { 0.0 };
+                        row[i] = if inside(ps[b + i - 1]) && inside(ps[b + i]) { kf } else { 0.0 };
                     }
-                }
-                for j in 0..=ny {
+                });
+                exec.for_each_row(&mut self.beta_y, nx, |j, row| {
+                    let b = (j + HALO) * sp + HALO;
                     for i in 0..nx {
-                        let (a, b) = (phi.at(i as isize, j as isize - 1), phi.at(i as isize, j as isize));
-                        self.beta_y[j * nx + i] = if inside(a) && inside(b) { kf } else { 0.0 };
+                        row[i] = if inside(ps[b - sp + i]) && inside(ps[b + i]) { kf } else { 0.0 };
                     }
-                }
+                });
             }
             PoreFormulation::KappaInfinity { kappa_air, smoothed } => {
                 let face = |a: f64, b: f64| -> f64 {
@@ -261,16 +263,18 @@ impl PorePressure {
                         1.0 / (theta / kf + (1.0 - theta) / kappa_air)
                     }
                 };
-                for j in 0..ny {
+                exec.for_each_row(&mut self.beta_x, nx + 1, |j, row| {
+                    let b = (j + HALO) * sp + HALO;
                     for i in 0..=nx {
-                        self.beta_x[j * (nx + 1) + i] = face(phi.at(i as isize - 1, j as isize), phi.at(i as isize, j as isize));
+                        row[i] = face(ps[b + i - 1], ps[b + i]);
                     }
-                }
-                for j in 0..=ny {
+                });
+                exec.for_each_row(&mut self.beta_y, nx, |j, row| {
+                    let b = (j + HALO) * sp + HALO;
                     for i in 0..nx {
-                        self.beta_y[j * nx + i] = face(phi.at(i as isize, j as isize - 1), phi.at(i as isize, j as isize));
+                        row[i] = face(ps[b - sp + i], ps[b + i]);
                     }
-                }
+                });
             }
         }
         let granular_only = self.config.formulation == PoreFormulation::GranularOnly;
@@ -278,15 +282,14 @@ impl PorePressure {
             return self.advance_explicit(phi, grid, dt);
         }
         let basal = self.config.basal_flux;
-        for j in 0..ny {
+        let (pfs, pps, ads, aps, st) = (self.pf.slice(), self.pf_prev.slice(), self.adv.slice(), self.adv_prev.slice(), self.pf.stride());
+        debug_assert!(st == sp);
+        let by = &self.beta_y;
+        exec.for_each_row(&mut self.shift, nx, |j, row| {
+            let b = (j + HALO) * sp + HALO;
             for i in 0..nx {
-                let (ii, jj) = (i as isize, j as isize);
-                let k = j * nx + i;
-                let pc = phi.at(ii, jj);
-                if granular_only && !inside(pc) {
-                    self.shift[k] = 1.0;
-                    self.rhs[k] = 0.0;
-                    self.x[k] = 0.0;
+                if granular_only && !inside(ps[b + i]) {
+                    row[i] = 1.0;
                     continue;
                 }
                 let mut sigma = a0 / dt;
@@ -296,21 +299,35 @@ impl PorePressure {
                         sigma += kf / (theta * h * h);
                     }
                 }
-                self.shift[k] = sigma;
-                let mut r = (a1 * self.pf.at(ii, jj) - a2 * self.pf_prev.at(ii, jj)) / dt
-                    - (we * self.adv.at(ii, jj) - wm * self.adv_prev.at(ii, jj));
-                if let Some(b) = basal {
-                    let xc = grid.xc(ii);
-                    if j == 0 && xc >= b.x_min && xc <= b.x_max && (!granular_only || inside(pc)) {
-                        let kb = if granular_only { kf } else { self.beta_y[i] };
-                        r -= kb * b.gradient / dy;
+                row[i] = sigma;
+            }
+        });
+        exec.for_each_row(&mut self.rhs, nx, |j, row| {
+            let b = (j + HALO) * st + HALO;
+            for i in 0..nx {
+                let pc = ps[b + i];
+                if granular_only && !inside(pc) {
+                    row[i] = 0.0;
+                    continue;
+                }
+                let mut r = (a1 * pfs[b + i] - a2 * pps[b + i]) / dt - (we * ads[b + i] - wm * aps[b + i]);
+                if let Some(bf) = basal {
+                    let xc = grid.xc(i as isize);
+                    if j == 0 && xc >= bf.x_min && xc <= bf.x_max && (!granular_only || inside(pc)) {
+                        let kb = if granular_only { kf } else { by[i] };
+                        r -= kb * bf.gradient / dy;
                     }
                 }
                 // (L − σ) p = −R
-                self.rhs[k] = -r;
-                self.x[k] = self.pf.at(ii, jj);
+                row[i] = -r;
             }
-        }
+        });
+        exec.for_each_row(&mut self.x, nx, |j, row| {
+            let b = (j + HALO) * st + HALO;
+            for i in 0..nx {
+                row[i] = if granular_only && !inside(ps[b + i]) { 0.0 } else { pfs[b + i] };
+            }
+        });
         self.solver.set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
         let info = self.solver.solve(&self.rhs, &mut self.x, exec)?;
         if let Some(k) = self.x.iter().position(|v| !v.is_finite()) {
