@@ -37,9 +37,9 @@
 
 use crate::error::Result;
 use crate::exec::Exec;
-use crate::grid::{BoundaryConditions, Field, Grid, Side};
+use crate::grid::{BoundaryConditions, Field, Grid, Side, HALO};
 use crate::levelset::{interface_faces, interface_fraction};
-use crate::operators::{divergence, unknown_face_range};
+use crate::operators::{divergence, for_each_interior_row, unknown_face_range};
 use crate::projection::fill_pressure_ghosts;
 use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
 
@@ -104,108 +104,126 @@ impl FreeSurfaceProjection {
     ) -> Result<SolveInfo> {
         let (nx, ny) = (grid.nx, grid.ny);
         let beta = 1.0 / rho;
-        let ph = |i: usize, j: usize| phi.at(i as isize, j as isize);
+        // row by row on the raw slices (elementwise: serial == parallel)
+        let (ps, sp) = (phi.slice(), phi.stride());
+        let c = |i: usize, j: usize| (j + HALO) * sp + i + HALO;
         // faces: β between two granular cells, 0 on faces that touch the air; on a domain side β
         // of the cell beside it (used by the solver on Dirichlet sides only)
-        for j in 0..ny {
+        exec.for_each_row(&mut self.beta_x, nx + 1, |j, row| {
             for i in 0..=nx {
-                let a = i == 0 || inside(ph(i - 1, j));
-                let b = i == nx || inside(ph(i, j));
-                self.beta_x[j * (nx + 1) + i] = if a && b { beta } else { 0.0 };
+                let a = i == 0 || inside(ps[c(i - 1, j)]);
+                let b = i == nx || inside(ps[c(i, j)]);
+                row[i] = if a && b { beta } else { 0.0 };
             }
-        }
-        for j in 0..=ny {
+        });
+        exec.for_each_row(&mut self.beta_y, nx, |j, row| {
             for i in 0..nx {
-                let a = j == 0 || inside(ph(i, j - 1));
-                let b = j == ny || inside(ph(i, j));
-                self.beta_y[j * nx + i] = if a && b { beta } else { 0.0 };
+                let a = j == 0 || inside(ps[c(i, j - 1)]);
+                let b = j == ny || inside(ps[c(i, j)]);
+                row[i] = if a && b { beta } else { 0.0 };
             }
-        }
+        });
         divergence(u, v, grid, &mut self.div, exec);
         let scale = 1.0 / dt_over_a0;
-        let mut any_inside = false;
-        for j in 0..ny {
-            for i in 0..nx {
-                let k = j * nx + i;
-                let pc = ph(i, j);
-                if !inside(pc) {
-                    self.shift[k] = 1.0;
-                    self.rhs[k] = 0.0;
-                    self.x[k] = 0.0;
-                    continue;
-                }
-                any_inside = true;
-                // ghost-fluid Dirichlet δp = 0 where a face crosses the surface
-                let sigma: f64 = interface_faces(phi, i, j, grid.dx, grid.dy).into_iter().flatten().map(|(theta, h)| beta / (theta * h * h)).sum();
-                self.shift[k] = sigma;
-                self.rhs[k] = scale * self.div.at(i as isize, j as isize);
-            }
-        }
+        let any_inside = (0..ny).any(|j| (0..nx).any(|i| inside(ps[c(i, j)])));
         if !any_inside {
             p.fill(0.0);
             return Ok(SolveInfo::default());
         }
+        let (dx, dy) = (grid.dx, grid.dy);
+        exec.for_each_row(&mut self.shift, nx, |j, row| {
+            for i in 0..nx {
+                // ghost-fluid Dirichlet δp = 0 where a face crosses the surface; 1 in the air
+                row[i] = if inside(ps[c(i, j)]) {
+                    interface_faces(phi, i, j, dx, dy).into_iter().flatten().map(|(theta, h)| beta / (theta * h * h)).sum()
+                } else {
+                    1.0
+                };
+            }
+        });
+        let ds = self.div.slice();
+        exec.for_each_row(&mut self.rhs, nx, |j, row| {
+            for i in 0..nx {
+                row[i] = if inside(ps[c(i, j)]) { scale * ds[c(i, j)] } else { 0.0 };
+            }
+        });
+        exec.for_each_row(&mut self.x, nx, |j, row| {
+            for i in 0..nx {
+                if !inside(ps[c(i, j)]) {
+                    row[i] = 0.0;
+                }
+            }
+        });
         self.solver.set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
         let info = self.solver.solve(&self.rhs, &mut self.x, exec)?;
         // δp into `div` (a work field with ghosts); p ← p + δp in the granular phase, 0 in the air
-        let dp = &mut self.div;
-        for j in 0..ny {
-            for i in 0..nx {
-                let d = self.x[j * nx + i];
-                dp.set(i, j, d);
-                let inside_c = inside(ph(i, j));
-                p.set(i, j, if inside_c { p.at(i as isize, j as isize) + d } else { 0.0 });
+        let xs = &self.x;
+        crate::operators::for_each_interior_row2(exec, &mut self.div, p, |j, drow, prow| {
+            if j >= ny {
+                return;
             }
-        }
+            for i in 0..nx {
+                let d = xs[j * nx + i];
+                drow[HALO + i] = d;
+                prow[HALO + i] = if inside(ps[c(i, j)]) { prow[HALO + i] + d } else { 0.0 };
+            }
+        });
+        let dp = &mut self.div;
         fill_pressure_ghosts(dp, bc);
         fill_pressure_ghosts(p, bc);
-        let dp = &self.div;
+        let dps = self.div.slice();
         // velocity correction: u ← ũ − (δt/a₀)(1/ρ_s) ∂p, with the ghost value on surface faces
         let k = dt_over_a0 * beta;
         let ru = unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), nx);
-        for j in 0..ny as isize {
+        for_each_interior_row(exec, u, |j, row| {
             for i in ru.clone() {
-                let i = i as isize;
-                if let Some(g) = surface_gradient(dp.at(i - 1, j), dp.at(i, j), phi.at(i - 1, j), phi.at(i, j), grid.dx) {
-                    let val = u.at(i, j) - k * g;
-                    u.set(i as usize, j as usize, val);
+                if let Some(g) = surface_gradient(dps[c(i, j) - 1], dps[c(i, j)], ps[c(i, j) - 1], ps[c(i, j)], dx) {
+                    row[HALO + i] -= k * g;
                 }
             }
-        }
+        });
         let rv = unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), ny);
-        for j in rv {
-            let j = j as isize;
-            for i in 0..nx as isize {
-                if let Some(g) = surface_gradient(dp.at(i, j - 1), dp.at(i, j), phi.at(i, j - 1), phi.at(i, j), grid.dy) {
-                    let val = v.at(i, j) - k * g;
-                    v.set(i as usize, j as usize, val);
+        for_each_interior_row(exec, v, |j, row| {
+            if !rv.contains(&j) {
+                return;
+            }
+            for i in 0..nx {
+                if let Some(g) = surface_gradient(dps[c(i, j) - sp], dps[c(i, j)], ps[c(i, j) - sp], ps[c(i, j)], dy) {
+                    row[HALO + i] -= k * g;
                 }
             }
-        }
+        });
         self.extend(u, v, phi, grid, bc);
         Ok(info)
     }
 
     /// Adds ∇p (p with its ghosts filled) to `gx`, `gy` on the interior faces, with p = 0 on the
     /// surface Φ = 0 (ghost values, module header); nothing on faces between two air cells.
-    pub fn add_pressure_gradient(p: &Field, phi: &Field, gx: &mut Field, gy: &mut Field, grid: &Grid) {
-        let (nx, ny) = (grid.nx as isize, grid.ny as isize);
-        for j in 0..ny {
+    pub fn add_pressure_gradient(p: &Field, phi: &Field, gx: &mut Field, gy: &mut Field, grid: &Grid, exec: Exec) {
+        let (nx, ny) = (grid.nx, grid.ny);
+        let (pp, ps, sp) = (p.slice(), phi.slice(), phi.stride());
+        debug_assert!(p.stride() == sp);
+        let c = |i: usize, j: usize| (j + HALO) * sp + i + HALO;
+        for_each_interior_row(exec, gx, |j, row| {
+            if j >= ny {
+                return;
+            }
             for i in 0..=nx {
-                if let Some(g) = surface_gradient(p.at(i - 1, j), p.at(i, j), phi.at(i - 1, j), phi.at(i, j), grid.dx) {
-                    let val = gx.at(i, j) + g;
-                    gx.set(i as usize, j as usize, val);
+                if let Some(g) = surface_gradient(pp[c(i, j) - 1], pp[c(i, j)], ps[c(i, j) - 1], ps[c(i, j)], grid.dx) {
+                    row[HALO + i] += g;
                 }
             }
-        }
-        for j in 0..=ny {
+        });
+        for_each_interior_row(exec, gy, |j, row| {
+            if j > ny {
+                return;
+            }
             for i in 0..nx {
-                if let Some(g) = surface_gradient(p.at(i, j - 1), p.at(i, j), phi.at(i, j - 1), phi.at(i, j), grid.dy) {
-                    let val = gy.at(i, j) + g;
-                    gy.set(i as usize, j as usize, val);
+                if let Some(g) = surface_gradient(pp[c(i, j) - sp], pp[c(i, j)], ps[c(i, j) - sp], ps[c(i, j)], grid.dy) {
+                    row[HALO + i] += g;
                 }
             }
-        }
+        });
     }
 
     /// The last pressure increment δp (row-major, the next solve's warm start), for checkpoints.
@@ -222,12 +240,14 @@ impl FreeSurfaceProjection {
         let (nx, ny) = (grid.nx, grid.ny);
         let ru = unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), nx);
         let rv = unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), ny);
+        let (ps, sp) = (phi.slice(), phi.stride());
+        let c = |i: usize, j: usize| (j + HALO) * sp + i + HALO;
         // u faces: (nx + 1) × ny, beside cells i − 1 and i
         extend_faces(u, &mut self.known_u, nx + 1, ny, ru, 0..ny, |i, j| {
-            (i > 0 && inside(phi.at(i as isize - 1, j as isize))) || (i < nx && inside(phi.at(i as isize, j as isize)))
+            (i > 0 && inside(ps[c(i - 1, j)])) || (i < nx && inside(ps[c(i, j)]))
         });
         extend_faces(v, &mut self.known_v, nx, ny + 1, 0..nx, rv, |i, j| {
-            (j > 0 && inside(phi.at(i as isize, j as isize - 1))) || (j < ny && inside(phi.at(i as isize, j as isize)))
+            (j > 0 && inside(ps[c(i, j - 1)])) || (j < ny && inside(ps[c(i, j)]))
         });
     }
 }
@@ -245,28 +265,41 @@ fn extend_faces(
             cur[j * mx + i] = fluid(i, j) as u8;
         }
     }
+    // on the raw slice: within a layer only faces known at its start are read and only unknown
+    // ones written, so the order of the visits does not matter
+    let st = f.stride();
+    let fs = f.slice_mut();
+    let at = |i: usize, j: usize| (j + HALO) * st + i + HALO;
     for _ in 0..EXTENSION_LAYERS {
         next.copy_from_slice(cur);
         let mut grew = false;
         for j in rj.clone() {
             for i in ri.clone() {
-                if cur[j * mx + i] != 0 {
+                let k = j * mx + i;
+                if cur[k] != 0 {
                     continue;
                 }
+                // neighbours in the order left, right, below, above (the sum's order)
                 let (mut sum, mut n) = (0.0, 0u32);
-                for (di, dj) in [(-1isize, 0isize), (1, 0), (0, -1), (0, 1)] {
-                    let (a, b) = (i as isize + di, j as isize + dj);
-                    if a < 0 || b < 0 || a >= mx as isize || b >= my as isize {
-                        continue;
-                    }
-                    if cur[b as usize * mx + a as usize] != 0 {
-                        sum += f.at(a, b);
-                        n += 1;
-                    }
+                if i > 0 && cur[k - 1] != 0 {
+                    sum += fs[at(i - 1, j)];
+                    n += 1;
+                }
+                if i + 1 < mx && cur[k + 1] != 0 {
+                    sum += fs[at(i + 1, j)];
+                    n += 1;
+                }
+                if j > 0 && cur[k - mx] != 0 {
+                    sum += fs[at(i, j - 1)];
+                    n += 1;
+                }
+                if j + 1 < my && cur[k + mx] != 0 {
+                    sum += fs[at(i, j + 1)];
+                    n += 1;
                 }
                 if n > 0 {
-                    f.set(i, j, sum / n as f64);
-                    next[j * mx + i] = 1;
+                    fs[at(i, j)] = sum / n as f64;
+                    next[k] = 1;
                     grew = true;
                 }
             }
@@ -279,7 +312,7 @@ fn extend_faces(
     for j in rj {
         for i in ri.clone() {
             if cur[j * mx + i] == 0 {
-                f.set(i, j, 0.0);
+                fs[at(i, j)] = 0.0;
             }
         }
     }

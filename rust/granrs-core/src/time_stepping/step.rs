@@ -458,7 +458,7 @@ impl TwoPhaseModel {
             // granular-only model: ∇p_f, then ∇pⁿ with pⁿ = 0 on the surface Φ^{n+1} = 0
             // (Φ's ghosts were filled by `properties` this step; Φ has not changed since)
             pressure_gradient(None, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
-            crate::projection::free_surface::FreeSurfaceProjection::add_pressure_gradient(&self.p, &self.phi, &mut wk.gx, &mut wk.gy, grid);
+            crate::projection::free_surface::FreeSurfaceProjection::add_pressure_gradient(&self.p, &self.phi, &mut wk.gx, &mut wk.gy, grid, exec);
         } else {
             pressure_gradient(Some(&self.p), self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
         }
