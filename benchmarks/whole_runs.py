@@ -2,7 +2,7 @@
 column collapse, with 1 and 2 threads (median of repeats). Refuses a debug build.
 
     .venv/bin/python benchmarks/whole_runs.py [--quick] [--out benchmarks/results.json]
-    .venv/bin/python benchmarks/whole_runs.py --column [--threads 1 2] [--out benchmarks/column_scaling.json]
+    .venv/bin/python benchmarks/whole_runs.py --column [--threads 1 2] [--model granular] [--repeats R] [--out benchmarks/column_scaling.json]
 
 ``--column``: the two-phase column step of the main job (D-P bi-projection, Coulomb walls, pore
 pressure, WENO5 level set and redistancing: everything a step does) from ny = 23 (4.5 k cells,
@@ -41,16 +41,16 @@ def cavity_cost(n: int, threads: int, steps: int, repeats: int) -> dict:
             "viscous_iterations_median": statistics.median(log["viscous_iterations"])}
 
 
-def column_cost(ny: int, threads: int, steps: int, repeats: int) -> dict:
+def column_cost(ny: int, threads: int, steps: int, repeats: int, model: str = "two-phase") -> dict:
     from granrs.cases.column import ColumnCase, build_model
 
     times, its = [], []
     for _ in range(repeats):
-        m = build_model(ColumnCase(ny=ny, threads=threads))
+        m = build_model(ColumnCase(ny=ny, threads=threads, model=model))
         try:
             m.advance(max_steps=10)
         except granrs.SimulationError as e:  # recorded, not hidden: a grid the default numerics cannot start
-            return {"case": "column-fluidised", "ny": ny, "nx": m.grid.nx, "cells": m.grid.nx * ny, "threads": threads,
+            return {"case": "column-fluidised", "model": model, "ny": ny, "nx": m.grid.nx, "cells": m.grid.nx * ny, "threads": threads,
                     "failed": str(e)}
         t0 = time.perf_counter()
         log = m.advance(max_steps=steps)
@@ -58,7 +58,7 @@ def column_cost(ny: int, threads: int, steps: int, repeats: int) -> dict:
         its.append(statistics.mean(log["picard_iterations"]))
     med = statistics.median(times)
     cells = m.grid.nx * m.grid.ny
-    return {"case": "column-fluidised", "ny": ny, "nx": m.grid.nx, "cells": cells, "threads": threads, "s_per_step": med,
+    return {"case": "column-fluidised", "model": model, "ny": ny, "nx": m.grid.nx, "cells": cells, "threads": threads, "s_per_step": med,
             "cell_steps_per_s": cells / med, "picard_iterations_mean": statistics.mean(its),
             "s_per_picard_iteration": med / max(statistics.mean(its), 1.0),
             "pressure_iterations_median": statistics.median(log["pressure_iterations"]),
@@ -84,12 +84,16 @@ def main() -> None:
     ap.add_argument("--column", action="store_true")
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--ny", type=int, nargs="+", default=[23, 32, 45, 64, 90, 128, 181, 256, 362])
+    ap.add_argument("--model", default="two-phase", choices=["two-phase", "granular"],
+                    help="--column: the 2D model whose step is timed (granular: the granular-only model)")
+    ap.add_argument("--repeats", type=int, default=None, help="--column: repeats per point (default 3 up to ny = 128, else 1)")
     args = ap.parse_args()
     if args.column:
         rows = []
         for threads in args.threads:
             for ny in args.ny:
-                rows.append(column_cost(ny, threads, steps=20, repeats=3 if ny <= 128 else 1))
+                reps = args.repeats or (3 if ny <= 128 else 1)
+                rows.append(column_cost(ny, threads, steps=20, repeats=reps, model=args.model))
                 print(json.dumps(rows[-1]), flush=True)
         fits = {}
         for threads in args.threads:
