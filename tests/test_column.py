@@ -63,6 +63,8 @@ def test_front_legend_says_run_out_only_at_rest(coarse_runs):
         assert "not at rest" in label and "run-out" not in label and f"t = {wet['t_end_s']:g} s" in label
     rested = {**wet, "stop_reason": "rest", "model": "granular", "active_region": 8}
     assert _front_label(rested).startswith("fluidised, granular-only, active region 8, ny = 32: run-out")
+    failed = {**wet, "stop_reason": "error: the granular material reached the far end", "t_end_s": 2.63}
+    assert _front_label(failed).endswith("at t = 2.63 s (stopped by an error)")
 
 
 def test_mass_is_conserved_with_the_default_correction(coarse_runs):

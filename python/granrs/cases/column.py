@@ -554,9 +554,11 @@ def _read_front(path: Path):
 def _front_label(meta: dict) -> str:
     """Legend entry of a run on front.png: a run that came to rest has a run-out; one cut at
     t_end has only the front it reached then."""
-    if meta.get("stop_reason") == "rest":
+    reason = str(meta.get("stop_reason", ""))
+    if reason == "rest":
         return _label(meta) + f": run-out {meta['runout_m']:.3f} m (at rest)"
-    return _label(meta) + f": front {meta['runout_m']:.3f} m at t = {meta.get('t_end_s', 0.0):g} s (not at rest)"
+    why = "stopped by an error" if reason.startswith(("error", "interrupted")) else "not at rest"
+    return _label(meta) + f": front {meta['runout_m']:.3f} m at t = {meta.get('t_end_s', 0.0):g} s ({why})"
 
 
 def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
