@@ -55,7 +55,7 @@ pub use heaviside::{
 };
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};
-pub use subcell::{interface_faces, interface_fraction, THETA_MIN};
+pub use subcell::{interface_diagonal, interface_faces, interface_fraction, THETA_MIN};
 pub use transport::{cfl_number, max_transport_rate, stable_dt, LevelSetTransport, DEFAULT_CFL};
 pub use validation::{single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics};
 pub use weno5::WenoWeights;

@@ -35,3 +35,10 @@ pub fn interface_faces(phi: &Field, i: usize, j: usize, dx: f64, dy: f64) -> [Op
         face(phi.at(ii, jj + 1), dy, j + 1 == phi.ny),
     ]
 }
+
+/// `base` + Σ coef/(θh²) over the interface faces of cell (i, j) (left, right, bottom, top, in
+/// that order): the diagonal that the Dirichlet value 0 on the interface adds to a 5-point
+/// operator with face coefficient `coef`.
+pub fn interface_diagonal(phi: &Field, i: usize, j: usize, dx: f64, dy: f64, coef: f64, base: f64) -> f64 {
+    interface_faces(phi, i, j, dx, dy).into_iter().flatten().fold(base, |s, (theta, h)| s + coef / (theta * h * h))
+}

@@ -54,8 +54,8 @@ use crate::error::{check_positive, Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, PressureBc, HALO};
 use crate::operators::for_each_interior_row;
-use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
-use crate::levelset::{heaviside, interface_faces};
+use crate::solvers::{ShiftedSystem, SolveInfo, SolverSettings};
+use crate::levelset::{heaviside, interface_diagonal};
 
 /// What p_f does outside the granular phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -157,12 +157,8 @@ pub struct PorePressure {
     /// div(u p_f) at t_{n−1}.
     pub(crate) adv_prev: Field,
     adv: Field,
-    solver: PoissonSolver,
-    beta_x: Vec<f64>,
-    beta_y: Vec<f64>,
-    shift: Vec<f64>,
-    rhs: Vec<f64>,
-    x: Vec<f64>,
+    /// The shifted system of the implicit step (face coefficients also used by the explicit one).
+    sys: ShiftedSystem,
     /// The last solve.
     pub last: SolveInfo,
 }
@@ -175,19 +171,13 @@ impl PorePressure {
             PoreFormulation::GranularOnly => [PressureBc::Neumann; 4],
             PoreFormulation::KappaInfinity { .. } => [PressureBc::Neumann, PressureBc::Neumann, PressureBc::Neumann, PressureBc::Dirichlet],
         };
-        let n = grid.cells();
         Ok(PorePressure {
             config,
             pf: Field::zeros(grid, Location::Centre),
             pf_prev: Field::zeros(grid, Location::Centre),
             adv_prev: Field::zeros(grid, Location::Centre),
             adv: Field::zeros(grid, Location::Centre),
-            solver: PoissonSolver::new_shifted(grid.nx, grid.ny, grid.dx, grid.dy, bc, settings)?,
-            beta_x: vec![0.0; grid.ny * (grid.nx + 1)],
-            beta_y: vec![0.0; (grid.ny + 1) * grid.nx],
-            shift: vec![0.0; n],
-            rhs: vec![0.0; n],
-            x: vec![0.0; n],
+            sys: ShiftedSystem::new(grid.nx, grid.ny, grid.dx, grid.dy, bc, settings)?,
             last: SolveInfo::default(),
         })
     }
@@ -237,13 +227,13 @@ impl PorePressure {
         let (ps, sp) = (phi.slice(), phi.stride());
         match self.config.formulation {
             PoreFormulation::GranularOnly => {
-                exec.for_each_row(&mut self.beta_x, nx + 1, |j, row| {
+                exec.for_each_row(&mut self.sys.beta_x, nx + 1, |j, row| {
                     let b = (j + HALO) * sp + HALO;
                     for i in 0..=nx {
                         row[i] = if inside(ps[b + i - 1]) && inside(ps[b + i]) { kf } else { 0.0 };
                     }
                 });
-                exec.for_each_row(&mut self.beta_y, nx, |j, row| {
+                exec.for_each_row(&mut self.sys.beta_y, nx, |j, row| {
                     let b = (j + HALO) * sp + HALO;
                     for i in 0..nx {
                         row[i] = if inside(ps[b - sp + i]) && inside(ps[b + i]) { kf } else { 0.0 };
@@ -263,13 +253,13 @@ impl PorePressure {
                         1.0 / (theta / kf + (1.0 - theta) / kappa_air)
                     }
                 };
-                exec.for_each_row(&mut self.beta_x, nx + 1, |j, row| {
+                exec.for_each_row(&mut self.sys.beta_x, nx + 1, |j, row| {
                     let b = (j + HALO) * sp + HALO;
                     for i in 0..=nx {
                         row[i] = face(ps[b + i - 1], ps[b + i]);
                     }
                 });
-                exec.for_each_row(&mut self.beta_y, nx, |j, row| {
+                exec.for_each_row(&mut self.sys.beta_y, nx, |j, row| {
                     let b = (j + HALO) * sp + HALO;
                     for i in 0..nx {
                         row[i] = face(ps[b - sp + i], ps[b + i]);
@@ -284,25 +274,19 @@ impl PorePressure {
         let basal = self.config.basal_flux;
         let (pfs, pps, ads, aps, st) = (self.pf.slice(), self.pf_prev.slice(), self.adv.slice(), self.adv_prev.slice(), self.pf.stride());
         debug_assert!(st == sp);
-        let by = &self.beta_y;
-        exec.for_each_row(&mut self.shift, nx, |j, row| {
+        let by = &self.sys.beta_y;
+        exec.for_each_row(&mut self.sys.shift, nx, |j, row| {
             let b = (j + HALO) * sp + HALO;
             for i in 0..nx {
                 if granular_only && !inside(ps[b + i]) {
                     row[i] = 1.0;
                     continue;
                 }
-                let mut sigma = a0 / dt;
-                if granular_only {
-                    // sub-cell Dirichlet p_f = 0 where a face crosses the interface
-                    for (theta, h) in interface_faces(phi, i, j, dx, dy).into_iter().flatten() {
-                        sigma += kf / (theta * h * h);
-                    }
-                }
-                row[i] = sigma;
+                // granular-only: sub-cell Dirichlet p_f = 0 where a face crosses the interface
+                row[i] = if granular_only { interface_diagonal(phi, i, j, dx, dy, kf, a0 / dt) } else { a0 / dt };
             }
         });
-        exec.for_each_row(&mut self.rhs, nx, |j, row| {
+        exec.for_each_row(&mut self.sys.rhs, nx, |j, row| {
             let b = (j + HALO) * st + HALO;
             for i in 0..nx {
                 let pc = ps[b + i];
@@ -322,17 +306,16 @@ impl PorePressure {
                 row[i] = -r;
             }
         });
-        exec.for_each_row(&mut self.x, nx, |j, row| {
+        exec.for_each_row(&mut self.sys.x, nx, |j, row| {
             let b = (j + HALO) * st + HALO;
             for i in 0..nx {
                 row[i] = if granular_only && !inside(ps[b + i]) { 0.0 } else { pfs[b + i] };
             }
         });
-        self.solver.set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
-        let info = self.solver.solve(&self.rhs, &mut self.x, exec)?;
-        if let Some(k) = self.x.iter().position(|v| !v.is_finite()) {
+        let info = self.sys.solve(exec)?;
+        if let Some(k) = self.sys.x.iter().position(|v| !v.is_finite()) {
             return Err(Error::Simulation {
-                what: format!("pore pressure p_f is not finite ({}) after the implicit (BDF2) solve", self.x[k]),
+                what: format!("pore pressure p_f is not finite ({}) after the implicit (BDF2) solve", self.sys.x[k]),
                 step: 0,
                 time: 0.0,
                 location: Some((k % nx, k / nx)),
@@ -348,7 +331,7 @@ impl PorePressure {
         let nx = self.pf.nx;
         self.pf_prev.assign(&self.pf);
         std::mem::swap(&mut self.adv, &mut self.adv_prev);
-        let xs = &self.x;
+        let xs = &self.sys.x;
         for_each_interior_row(exec, &mut self.pf, |j, row| {
             row[HALO..HALO + nx].copy_from_slice(&xs[j * nx..(j + 1) * nx]);
         });
@@ -383,7 +366,7 @@ impl PorePressure {
                 let k = j * nx + i;
                 let pc = phi.at(ii, jj);
                 if !inside(pc) {
-                    self.x[k] = 0.0;
+                    self.sys.x[k] = 0.0;
                     continue;
                 }
                 let p = pf.at(ii, jj);
@@ -391,22 +374,19 @@ impl PorePressure {
                 // basal supply is a source below)
                 let mut lap = 0.0;
                 if i > 0 {
-                    lap += self.beta_x[j * (nx + 1) + i] * (pf.at(ii - 1, jj) - p) * idx2;
+                    lap += self.sys.beta_x[j * (nx + 1) + i] * (pf.at(ii - 1, jj) - p) * idx2;
                 }
                 if i + 1 < nx {
-                    lap += self.beta_x[j * (nx + 1) + i + 1] * (pf.at(ii + 1, jj) - p) * idx2;
+                    lap += self.sys.beta_x[j * (nx + 1) + i + 1] * (pf.at(ii + 1, jj) - p) * idx2;
                 }
                 if j > 0 {
-                    lap += self.beta_y[j * nx + i] * (pf.at(ii, jj - 1) - p) * idy2;
+                    lap += self.sys.beta_y[j * nx + i] * (pf.at(ii, jj - 1) - p) * idy2;
                 }
                 if j + 1 < ny {
-                    lap += self.beta_y[(j + 1) * nx + i] * (pf.at(ii, jj + 1) - p) * idy2;
+                    lap += self.sys.beta_y[(j + 1) * nx + i] * (pf.at(ii, jj + 1) - p) * idy2;
                 }
                 // sub-cell Dirichlet p_f = 0 on the interface, taken at n+1 (diagonal)
-                let mut dd = 0.0;
-                for (theta, h) in interface_faces(phi, i, j, grid.dx, grid.dy).into_iter().flatten() {
-                    dd += kf / (theta * h * h);
-                }
+                let dd = interface_diagonal(phi, i, j, grid.dx, grid.dy, kf, 0.0);
                 let mut src = -self.adv.at(ii, jj);
                 if let Some(b) = basal {
                     let xc = grid.xc(ii);
@@ -415,7 +395,7 @@ impl PorePressure {
                     }
                 }
                 let new = (p + dt * (lap + src)) / (1.0 + dt * dd);
-                self.x[k] = new;
+                self.sys.x[k] = new;
                 if !new.is_finite() {
                     non_finite.get_or_insert((new, (i, j)));
                     continue;

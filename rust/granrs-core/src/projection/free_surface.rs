@@ -32,16 +32,17 @@
 //! interface's motion in one step (< 1 cell at CFL < 1) and the redistancing band.
 //!
 //! Work arrays are allocated in [`FreeSurfaceProjection::new`]; a step allocates nothing. The
-//! extension and the coefficient loops are serial and the solve is the project's deterministic
-//! MGCG, so one thread and many give bit-identical results.
+//! coefficient, right-hand-side and correction loops are row-parallel and elementwise, the
+//! extension is serial and the solve is the project's deterministic MGCG, so one thread and
+//! many give bit-identical results.
 
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Side, HALO};
-use crate::levelset::{interface_faces, interface_fraction};
+use crate::levelset::{interface_diagonal, interface_fraction};
 use crate::operators::{divergence, for_each_interior_row, unknown_face_range};
 use crate::projection::fill_pressure_ghosts;
-use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
+use crate::solvers::{ShiftedSystem, SolveInfo, SolverSettings};
 
 /// Layers of faces the velocity is extended into the air (see the module header).
 pub const EXTENSION_LAYERS: usize = 6;
@@ -63,13 +64,9 @@ fn surface_gradient(pl: f64, pr: f64, fl: f64, fr: f64, h: f64) -> Option<f64> {
 
 /// The free-surface projection: owns its shifted Poisson solver and work arrays.
 pub struct FreeSurfaceProjection {
-    solver: PoissonSolver,
-    beta_x: Vec<f64>,
-    beta_y: Vec<f64>,
-    shift: Vec<f64>,
-    rhs: Vec<f64>,
-    /// The pressure increment δp (the next solve's warm start).
-    x: Vec<f64>,
+    /// The shifted system; its solution `x` is the pressure increment δp (the next solve's
+    /// warm start).
+    sys: ShiftedSystem,
     div: Field,
     /// Known-face flags of the extension (current and next layer), for u and v.
     known_u: [Vec<u8>; 2],
@@ -80,14 +77,8 @@ impl FreeSurfaceProjection {
     /// Work arrays and solver for `grid` with the pressure conditions implied by `bc`.
     pub fn new(grid: &Grid, bc: &BoundaryConditions, settings: SolverSettings) -> Result<Self> {
         let (nx, ny) = (grid.nx, grid.ny);
-        let n = grid.cells();
         Ok(FreeSurfaceProjection {
-            solver: PoissonSolver::new_shifted(nx, ny, grid.dx, grid.dy, bc.pressure_all(), settings)?,
-            beta_x: vec![0.0; ny * (nx + 1)],
-            beta_y: vec![0.0; (ny + 1) * nx],
-            shift: vec![1.0; n],
-            rhs: vec![0.0; n],
-            x: vec![0.0; n],
+            sys: ShiftedSystem::new(nx, ny, grid.dx, grid.dy, bc.pressure_all(), settings)?,
             div: Field::zeros(grid, crate::Location::Centre),
             known_u: [vec![0; ny * (nx + 1)], vec![0; ny * (nx + 1)]],
             known_v: [vec![0; (ny + 1) * nx], vec![0; (ny + 1) * nx]],
@@ -109,14 +100,14 @@ impl FreeSurfaceProjection {
         let c = |i: usize, j: usize| (j + HALO) * sp + i + HALO;
         // faces: β between two granular cells, 0 on faces that touch the air; on a domain side β
         // of the cell beside it (used by the solver on Dirichlet sides only)
-        exec.for_each_row(&mut self.beta_x, nx + 1, |j, row| {
+        exec.for_each_row(&mut self.sys.beta_x, nx + 1, |j, row| {
             for i in 0..=nx {
                 let a = i == 0 || inside(ps[c(i - 1, j)]);
                 let b = i == nx || inside(ps[c(i, j)]);
                 row[i] = if a && b { beta } else { 0.0 };
             }
         });
-        exec.for_each_row(&mut self.beta_y, nx, |j, row| {
+        exec.for_each_row(&mut self.sys.beta_y, nx, |j, row| {
             for i in 0..nx {
                 let a = j == 0 || inside(ps[c(i, j - 1)]);
                 let b = j == ny || inside(ps[c(i, j)]);
@@ -131,33 +122,28 @@ impl FreeSurfaceProjection {
             return Ok(SolveInfo::default());
         }
         let (dx, dy) = (grid.dx, grid.dy);
-        exec.for_each_row(&mut self.shift, nx, |j, row| {
+        exec.for_each_row(&mut self.sys.shift, nx, |j, row| {
             for i in 0..nx {
                 // ghost-fluid Dirichlet δp = 0 where a face crosses the surface; 1 in the air
-                row[i] = if inside(ps[c(i, j)]) {
-                    interface_faces(phi, i, j, dx, dy).into_iter().flatten().map(|(theta, h)| beta / (theta * h * h)).sum()
-                } else {
-                    1.0
-                };
+                row[i] = if inside(ps[c(i, j)]) { interface_diagonal(phi, i, j, dx, dy, beta, 0.0) } else { 1.0 };
             }
         });
         let ds = self.div.slice();
-        exec.for_each_row(&mut self.rhs, nx, |j, row| {
+        exec.for_each_row(&mut self.sys.rhs, nx, |j, row| {
             for i in 0..nx {
                 row[i] = if inside(ps[c(i, j)]) { scale * ds[c(i, j)] } else { 0.0 };
             }
         });
-        exec.for_each_row(&mut self.x, nx, |j, row| {
+        exec.for_each_row(&mut self.sys.x, nx, |j, row| {
             for i in 0..nx {
                 if !inside(ps[c(i, j)]) {
                     row[i] = 0.0;
                 }
             }
         });
-        self.solver.set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
-        let info = self.solver.solve(&self.rhs, &mut self.x, exec)?;
+        let info = self.sys.solve(exec)?;
         // δp into `div` (a work field with ghosts); p ← p + δp in the granular phase, 0 in the air
-        let xs = &self.x;
+        let xs = &self.sys.x;
         crate::operators::for_each_interior_row2(exec, &mut self.div, p, |j, drow, prow| {
             if j >= ny {
                 return;
@@ -228,11 +214,11 @@ impl FreeSurfaceProjection {
 
     /// The last pressure increment δp (row-major, the next solve's warm start), for checkpoints.
     pub fn increment_mut(&mut self) -> &mut [f64] {
-        &mut self.x
+        &mut self.sys.x
     }
 
     pub fn increment(&self) -> &[f64] {
-        &self.x
+        &self.sys.x
     }
 
     /// Extends the velocity from the faces beside a granular cell into the air (module header).

@@ -423,6 +423,41 @@ fn check_coefficients(name: &str, beta: &[f64], stride: usize) -> Result<()> {
     }
 }
 
+/// A shifted system (L_β − σ) x = rhs on `nx × ny` cells with its coefficient and work arrays
+/// (row-major: β_x on the (nx + 1) × ny x-faces, β_y on the nx × (ny + 1) y-faces, σ, rhs and x
+/// per cell). The pore pressure and the free-surface projection fill the arrays and call
+/// [`ShiftedSystem::solve`]; `x` holds the warm start on entry and the solution after.
+#[derive(Debug)]
+pub struct ShiftedSystem {
+    solver: PoissonSolver,
+    pub beta_x: Vec<f64>,
+    pub beta_y: Vec<f64>,
+    pub shift: Vec<f64>,
+    pub rhs: Vec<f64>,
+    pub x: Vec<f64>,
+}
+
+impl ShiftedSystem {
+    /// The solver ([`PoissonSolver::new_shifted`]) and zeroed arrays.
+    pub fn new(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: SolverSettings) -> Result<Self> {
+        let n = nx * ny;
+        Ok(ShiftedSystem {
+            solver: PoissonSolver::new_shifted(nx, ny, dx, dy, bc, settings)?,
+            beta_x: vec![0.0; ny * (nx + 1)],
+            beta_y: vec![0.0; (ny + 1) * nx],
+            shift: vec![0.0; n],
+            rhs: vec![0.0; n],
+            x: vec![0.0; n],
+        })
+    }
+
+    /// Sets the coefficients from the arrays and solves into `x`.
+    pub fn solve(&mut self, exec: Exec) -> Result<SolveInfo> {
+        self.solver.set_coefficients_with_shift(&self.beta_x, &self.beta_y, &self.shift, exec)?;
+        self.solver.solve(&self.rhs, &mut self.x, exec)
+    }
+}
+
 /// Checks that every coefficient is finite and ≥ 0 (a shifted operator may decouple cells).
 fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<()> {
     match beta.iter().position(|&b| !(b.is_finite() && b >= 0.0)) {

@@ -493,22 +493,24 @@ impl TwoPhaseModel {
             // they keep their BDF history value (a₁uⁿ − a₂uⁿ⁻¹)/a₀ of the extended velocity (a
             // Dirichlet row: c ← FROZEN c, rhs ← c u), so that the stresses of the nodes on the
             // surface act on the grains only and no light-phase dynamics enters the predictor
-            let rho_s = cfg.dense.density;
-            let phi = &self.phi;
+            let cf = FROZEN_FACE * a0 * cfg.dense.density / dt;
+            let (ps, sp) = (self.phi.slice(), self.phi.stride());
             for (rhs, c, un, um, horizontal) in [(&mut wk.rhs_u, &mut wk.c_u, &self.u, &self.u_prev, true), (&mut wk.rhs_v, &mut wk.c_v, &self.v, &self.v_prev, false)] {
-                let (mx, my) = (rhs.nx, rhs.ny);
-                for j in 0..my {
+                let (mx, st) = (rhs.nx, rhs.stride());
+                let (us, ums) = (un.slice(), um.slice());
+                // the cell before the face: left (u) or below (v); row by row (elementwise)
+                let back = if horizontal { 1 } else { sp };
+                for_each_interior_row2(exec, rhs, c, |j, rrow, crow| {
                     for i in 0..mx {
-                        let (ii, jj) = (i as isize, j as isize);
-                        let (a, b) = if horizontal { (phi.at(ii - 1, jj), phi.at(ii, jj)) } else { (phi.at(ii, jj - 1), phi.at(ii, jj)) };
-                        if a > 0.0 || b > 0.0 {
+                        let k = (j + HALO) * sp + i + HALO;
+                        if ps[k - back] > 0.0 || ps[k] > 0.0 {
                             continue;
                         }
-                        let cf = FROZEN_FACE * a0 * rho_s / dt;
-                        c.set(i, j, cf);
-                        rhs.set(i, j, cf * (a1 * un.at(ii, jj) - a2 * um.at(ii, jj)) / a0);
+                        let f = (j + HALO) * st + i + HALO;
+                        crow[HALO + i] = cf;
+                        rrow[HALO + i] = cf * (a1 * us[f] - a2 * ums[f]) / a0;
                     }
-                }
+                });
             }
         }
         // history: u_prev ← uⁿ, u ← initial guess u* = (1+ω)uⁿ − ω uⁿ⁻¹ (in place: the
