@@ -1,0 +1,161 @@
+"""How predictable is the column's run-out? An ensemble of runs perturbed at round-off level.
+
+    python examples/runout_ensemble.py --ny 32 --members 8                 # about 2 min
+    python examples/runout_ensemble.py --ny 64 --members 4                 # about 12 min
+    python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8
+    python examples/runout_ensemble.py --ny 32 --members 8 --model granular --out out/ensemble-g32
+
+Member k runs the paper's column (`granrs run column`, fluidised unless ``--dry``) with the column
+width multiplied by 1 + k·ε (ε = 1e-12 by default: a relative change of the size of the
+floating-point round-off of the grid's coordinates) and the channel's length and height held at
+the unperturbed values, so that every member has the same grid and differs only in the initial
+level set and the extent of the basal gas inflow, by about 1e-13 m. Member 0 is the case itself.
+
+The question it answers: to how many digits is one run's run-out a property of the model, and
+from when on do round-off differences (another build, another thread count on another machine,
+an active region, a different multigrid hierarchy) become visible in the front? docs/validation.md
+("Predictability of the late run-out") reports what it measured; the spread it prints is the
+floor below which two runs cannot be said to disagree.
+
+What it writes into ``OUT`` (each member in ``OUT/member-K/``, reused when run again):
+
+* ``ensemble.csv``: per member the perturbation, run-out, largest front, front at 0.5 / 1.0 /
+  1.5 / 2.0 s, steps and wall time;
+* ``ensemble_summary.json``: mean, standard deviation, min, max and relative spread of the
+  run-out and the largest front, and ``divergence_time_s``: the first time at which the members'
+  fronts differ by more than 1 % of their mean;
+* ``ensemble_fronts.png``: every member's front against time, with the band min–max.
+
+Run time on the 2-core development machine, one thread per member: about 13 s per member at
+ny = 32 (two-phase), 8 s granular-only; about 3 min at ny = 64 (two-phase), 1 min with
+``--active-region 8``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column
+
+#: Fronts of the members are said to have diverged once their range exceeds this fraction of
+#: their mean.
+DIVERGENCE = 0.01
+#: Times at which the front is tabulated.
+TIMES = (0.5, 1.0, 1.5, 2.0)
+
+
+def member_case(base: ColumnCase, k: int, eps: float) -> ColumnCase:
+    """Member k: the base case with the column width scaled by 1 + k·eps, on the base's grid."""
+    length, height = base.domain()
+    kw = {f: getattr(base, f) for f in base.__dataclass_fields__}
+    kw.update(width=base.width * (1.0 + k * eps), length=length, height=height)
+    return ColumnCase(**kw)
+
+
+def read_front(folder: Path) -> tuple[np.ndarray, np.ndarray]:
+    data = np.genfromtxt(folder / "front.csv", delimiter=",", names=True)
+    return np.atleast_1d(data["t_s"]), np.atleast_1d(data["front_m"])
+
+
+def divergence_time(curves: list[tuple[np.ndarray, np.ndarray]], threshold: float = DIVERGENCE) -> float | None:
+    """First time at which the members' fronts, interpolated on the first member's times, span
+    more than ``threshold`` of their mean; None if they never do."""
+    t0 = curves[0][0]
+    t_common = t0[t0 <= min(t[-1] for t, _ in curves)]
+    fronts = np.array([np.interp(t_common, t, f) for t, f in curves])
+    mean = fronts.mean(axis=0)
+    spread = fronts.max(axis=0) - fronts.min(axis=0)
+    hit = np.nonzero((mean > 0) & (spread > threshold * np.abs(mean)))[0]
+    return float(t_common[hit[0]]) if hit.size else None
+
+
+def statistics(values: list[float]) -> dict:
+    v = np.asarray(values, dtype=float)
+    mean = float(v.mean())
+    return {"mean": mean, "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "min": float(v.min()),
+            "max": float(v.max()), "relative_spread": float((v.max() - v.min()) / mean) if mean else float("nan"),
+            "n": int(v.size)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--ny", type=int, default=32)
+    ap.add_argument("--members", type=int, default=8)
+    ap.add_argument("--eps", type=float, default=1e-12, help="relative perturbation of the width per member")
+    ap.add_argument("--model", default="two-phase", choices=["two-phase", "granular"])
+    ap.add_argument("--active-region", type=int, default=None)
+    ap.add_argument("--dry", action="store_true")
+    ap.add_argument("--t-end", type=float, default=None)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    if args.members < 2:
+        raise SystemExit("invalid parameter `--members` = %d: allowed an integer >= 2" % args.members)
+    tag = f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
+    out = Path(args.out or f"out/ensemble-{tag}")
+    out.mkdir(parents=True, exist_ok=True)
+
+    extra = {"t_end": args.t_end} if args.t_end is not None else {}
+    base = ColumnCase(ny=args.ny, fluidised=not args.dry, model=args.model, active_region=args.active_region,
+                      threads=args.threads, **extra)
+    rows, curves = [], []
+    for k in range(args.members):
+        folder = out / f"member-{k}"
+        if not (folder / "summary.json").exists():
+            print(f"member {k} of {args.members} ({tag}) ...", flush=True)
+            run_column(member_case(base, k, args.eps), folder, progress=False)
+        s = json.loads((folder / "summary.json").read_text())
+        t, f = read_front(folder)
+        curves.append((t, f))
+        row = {"member": k, "width_rel_perturbation": k * args.eps, "runout_m": s["runout_m"],
+               "max_front_m": s.get("max_front_m", float(np.max(f))), "steps": s["steps"], "wall_s": s["wall_s"]}
+        for tt in TIMES:
+            row[f"front_{tt:g}s_m"] = float(np.interp(tt, t, f)) if t[-1] >= tt else float("nan")
+        rows.append(row)
+
+    with open(out / "ensemble.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    summary = {"case": tag, "eps": args.eps, "runout_m": statistics([r["runout_m"] for r in rows]),
+               "max_front_m": statistics([r["max_front_m"] for r in rows]),
+               "divergence_threshold": DIVERGENCE, "divergence_time_s": divergence_time(curves)}
+    for tt in TIMES:
+        vals = [r[f"front_{tt:g}s_m"] for r in rows if np.isfinite(r[f"front_{tt:g}s_m"])]
+        if len(vals) > 1:
+            summary[f"front_{tt:g}s_m"] = statistics(vals)
+    (out / "ensemble_summary.json").write_text(json.dumps(summary, indent=2))
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    t_common = curves[0][0][curves[0][0] <= min(t[-1] for t, _ in curves)]
+    fronts = np.array([np.interp(t_common, t, f) for t, f in curves])
+    ax.fill_between(t_common, fronts.min(axis=0), fronts.max(axis=0), color="0.85", label="range of the members")
+    for k, (t, f) in enumerate(curves):
+        ax.plot(t, f, lw=0.9, label=f"member {k}: run-out {rows[k]['runout_m']:.3f} m" if k < 8 else None)
+    ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=0.8, label=f"paper, simulation {PAPER_RUNOUT_SIM} m")
+    ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=0.8, label=f"paper, experiment {PAPER_RUNOUT_EXP} m")
+    td = summary["divergence_time_s"]
+    if td is not None:
+        ax.axvline(td, color="r", lw=0.8, label=f"fronts differ by > {DIVERGENCE:.0%} from t = {td:.2f} s")
+    r = summary["runout_m"]
+    ax.set_title(f"{tag}: {len(rows)} members, width × (1 + k·{args.eps:g}); run-out {r['mean']:.3f} ± {r['std']:.3f} m "
+                 f"(range {r['relative_spread']:.1%})", fontsize=9)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("front from the gate (m)")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "ensemble_fronts.png", dpi=130)
+    print(json.dumps({"out": str(out), "runout_m": summary["runout_m"], "divergence_time_s": td}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
