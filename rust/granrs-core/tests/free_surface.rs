@@ -141,7 +141,9 @@ fn the_area_drift_without_mass_correction_stays_within_one_percent() {
 
 #[test]
 fn one_thread_and_two_and_a_full_window_agree_bit_for_bit() {
-    let (nx, ny) = (48, 16);
+    // 128 × 32 cells: at least `PARALLEL_MIN_CELLS` (4096) cells and faces, so that every
+    // row-parallel loop (the velocity extension's layers included) takes its parallel path
+    let (nx, ny) = (128, 32);
     let mut a = column(nx, ny, 1, None);
     let mut b = column(nx, ny, 2, None);
     let mut c = column(nx, ny, 1, Some(ActiveRegion { band: 1000, align: 8 }));

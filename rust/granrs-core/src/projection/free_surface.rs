@@ -32,9 +32,10 @@
 //! interface's motion in one step (< 1 cell at CFL < 1) and the redistancing band.
 //!
 //! Work arrays are allocated in [`FreeSurfaceProjection::new`]; a step allocates nothing. The
-//! coefficient, right-hand-side and correction loops are row-parallel and elementwise, the
-//! extension is serial and the solve is the project's deterministic MGCG, so one thread and
-//! many give bit-identical results.
+//! coefficient, right-hand-side and correction loops are row-parallel and elementwise, so is
+//! each layer of the extension (a face's new value is the mean of faces known when the layer
+//! starts, summed in a fixed order), and the solve is the project's deterministic MGCG, so one
+//! thread and many give bit-identical results.
 
 use crate::error::Result;
 use crate::exec::Exec;
@@ -42,7 +43,8 @@ use crate::grid::{BoundaryConditions, Field, Grid, Side, HALO};
 use crate::levelset::{interface_diagonal, interface_fraction};
 use crate::operators::{divergence, for_each_interior_row, unknown_face_range};
 use crate::projection::fill_pressure_ghosts;
-use crate::solvers::{ShiftedSystem, SolveInfo, SolverSettings};
+use crate::solvers::{par::SharedMut, ShiftedSystem, SolveInfo, SolverSettings};
+use rayon::prelude::*;
 
 /// Layers of faces the velocity is extended into the air (see the module header).
 pub const EXTENSION_LAYERS: usize = 6;
@@ -179,7 +181,7 @@ impl FreeSurfaceProjection {
                 }
             }
         });
-        self.extend(u, v, phi, grid, bc);
+        self.extend(u, v, phi, grid, bc, exec);
         Ok(info)
     }
 
@@ -222,17 +224,17 @@ impl FreeSurfaceProjection {
     }
 
     /// Extends the velocity from the faces beside a granular cell into the air (module header).
-    pub fn extend(&mut self, u: &mut Field, v: &mut Field, phi: &Field, grid: &Grid, bc: &BoundaryConditions) {
+    pub fn extend(&mut self, u: &mut Field, v: &mut Field, phi: &Field, grid: &Grid, bc: &BoundaryConditions, exec: Exec) {
         let (nx, ny) = (grid.nx, grid.ny);
         let ru = unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), nx);
         let rv = unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), ny);
         let (ps, sp) = (phi.slice(), phi.stride());
         let c = |i: usize, j: usize| (j + HALO) * sp + i + HALO;
         // u faces: (nx + 1) × ny, beside cells i − 1 and i
-        extend_faces(u, &mut self.known_u, nx + 1, ny, ru, 0..ny, |i, j| {
+        extend_faces(u, &mut self.known_u, nx + 1, ny, ru, 0..ny, exec, |i, j| {
             (i > 0 && inside(ps[c(i - 1, j)])) || (i < nx && inside(ps[c(i, j)]))
         });
-        extend_faces(v, &mut self.known_v, nx, ny + 1, 0..nx, rv, |i, j| {
+        extend_faces(v, &mut self.known_v, nx, ny + 1, 0..nx, rv, exec, |i, j| {
             (j > 0 && inside(ps[c(i, j - 1)])) || (j < ny && inside(ps[c(i, j)]))
         });
     }
@@ -240,65 +242,92 @@ impl FreeSurfaceProjection {
 
 /// Layered extension on one staggered grid of `mx × my` faces: faces with `fluid(i, j)` are the
 /// sources; the unknown faces in `ri × rj` (the others are boundary faces with prescribed
-/// values) are filled layer by layer, the rest set to 0.
+/// values) are filled layer by layer, the rest set to 0. Each layer is row-parallel under
+/// `exec`: a row writes only its own unknown faces and reads only faces known when the layer
+/// starts, which no row writes during the layer.
+#[allow(clippy::too_many_arguments)]
 fn extend_faces(
     f: &mut Field, known: &mut [Vec<u8>; 2], mx: usize, my: usize, ri: std::ops::Range<usize>, rj: std::ops::Range<usize>,
-    fluid: impl Fn(usize, usize) -> bool,
+    exec: Exec, fluid: impl Fn(usize, usize) -> bool + Sync,
 ) {
     let [cur, next] = known;
-    for j in 0..my {
-        for i in 0..mx {
-            cur[j * mx + i] = fluid(i, j) as u8;
+    let parallel = exec.use_parallel(mx * my);
+    let mark = |j: usize, row: &mut [u8]| {
+        for (i, k) in row.iter_mut().enumerate() {
+            *k = fluid(i, j) as u8;
         }
+    };
+    if parallel {
+        cur.par_chunks_mut(mx).enumerate().for_each(|(j, row)| mark(j, row));
+    } else {
+        cur.chunks_mut(mx).enumerate().for_each(|(j, row)| mark(j, row));
     }
-    // on the raw slice: within a layer only faces known at its start are read and only unknown
-    // ones written, so the order of the visits does not matter
     let st = f.stride();
-    let fs = f.slice_mut();
-    let at = |i: usize, j: usize| (j + HALO) * st + i + HALO;
+    let fs = SharedMut(f.slice_mut().as_mut_ptr());
+    let at = move |i: usize, j: usize| (j + HALO) * st + i + HALO;
     for _ in 0..EXTENSION_LAYERS {
         next.copy_from_slice(cur);
-        let mut grew = false;
-        for j in rj.clone() {
+        let known_now: &[u8] = cur;
+        // one row of the layer: new values of its unknown faces; whether any face was filled
+        let layer_row = |j: usize, next_row: &mut [u8]| -> bool {
+            if !rj.contains(&j) {
+                return false;
+            }
+            let mut grew = false;
             for i in ri.clone() {
                 let k = j * mx + i;
-                if cur[k] != 0 {
+                if known_now[k] != 0 {
                     continue;
                 }
-                // neighbours in the order left, right, below, above (the sum's order)
-                let (mut sum, mut n) = (0.0, 0u32);
-                if i > 0 && cur[k - 1] != 0 {
-                    sum += fs[at(i - 1, j)];
-                    n += 1;
-                }
-                if i + 1 < mx && cur[k + 1] != 0 {
-                    sum += fs[at(i + 1, j)];
-                    n += 1;
-                }
-                if j > 0 && cur[k - mx] != 0 {
-                    sum += fs[at(i, j - 1)];
-                    n += 1;
-                }
-                if j + 1 < my && cur[k + mx] != 0 {
-                    sum += fs[at(i, j + 1)];
-                    n += 1;
-                }
-                if n > 0 {
-                    fs[at(i, j)] = sum / n as f64;
-                    next[k] = 1;
-                    grew = true;
+                // SAFETY: `at` indexes inside the field's buffer (HALO ≥ 1 surrounds the
+                // mx × my faces). Reads are of faces known at the layer's start, which no row
+                // writes in this layer; the write is to face (i, j), unknown at the start, which
+                // only this row touches.
+                unsafe {
+                    let base = fs.get();
+                    // neighbours in the order left, right, below, above (the sum's order)
+                    let (mut sum, mut n) = (0.0, 0u32);
+                    if i > 0 && known_now[k - 1] != 0 {
+                        sum += *base.add(at(i - 1, j));
+                        n += 1;
+                    }
+                    if i + 1 < mx && known_now[k + 1] != 0 {
+                        sum += *base.add(at(i + 1, j));
+                        n += 1;
+                    }
+                    if j > 0 && known_now[k - mx] != 0 {
+                        sum += *base.add(at(i, j - 1));
+                        n += 1;
+                    }
+                    if j + 1 < my && known_now[k + mx] != 0 {
+                        sum += *base.add(at(i, j + 1));
+                        n += 1;
+                    }
+                    if n > 0 {
+                        *base.add(at(i, j)) = sum / n as f64;
+                        next_row[i] = 1;
+                        grew = true;
+                    }
                 }
             }
-        }
+            grew
+        };
+        let grew = if parallel {
+            next.par_chunks_mut(mx).enumerate().map(|(j, row)| layer_row(j, row)).reduce(|| false, |a, b| a || b)
+        } else {
+            next.chunks_mut(mx).enumerate().map(|(j, row)| layer_row(j, row)).fold(false, |a, b| a || b)
+        };
         std::mem::swap(cur, next);
         if !grew {
             break;
         }
     }
+    let fs = f.slice_mut();
     for j in rj {
+        let row = &mut fs[at(0, j)..at(0, j) + mx];
         for i in ri.clone() {
             if cur[j * mx + i] == 0 {
-                fs[at(i, j)] = 0.0;
+                row[i] = 0.0;
             }
         }
     }

@@ -66,7 +66,7 @@ mod cg;
 mod direct;
 mod level;
 mod multigrid;
-mod par;
+pub(crate) mod par;
 
 use std::fmt;
 

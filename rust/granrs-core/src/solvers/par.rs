@@ -118,7 +118,8 @@ where
 }
 
 /// A raw pointer to a buffer that several threads update at disjoint locations (the cells of one
-/// colour in a red–black sweep). Only [`super::level::Level::smooth`] uses it.
+/// colour in a red–black sweep, the new faces of one layer of the free surface's velocity
+/// extension). Used by [`super::level::Level::smooth`] and `projection::free_surface`.
 #[derive(Clone, Copy)]
 pub(crate) struct SharedMut(pub(crate) *mut f64);
 
@@ -130,8 +131,8 @@ impl SharedMut {
     }
 }
 
-// SAFETY: the pointer is only dereferenced by the red–black sweep, where threads write disjoint
-// cells and never read a cell that another thread writes in the same phase.
+// SAFETY: the pointer is only dereferenced by the red–black sweep and the extension layers, where
+// threads write disjoint cells and never read a cell that another thread writes in the same phase.
 unsafe impl Send for SharedMut {}
 // SAFETY: as for `Send`: concurrent uses touch disjoint or read-only locations.
 unsafe impl Sync for SharedMut {}
