@@ -315,7 +315,12 @@ fn extend_faces(
         let grew = if parallel {
             next.par_chunks_mut(mx).enumerate().map(|(j, row)| layer_row(j, row)).reduce(|| false, |a, b| a || b)
         } else {
-            next.chunks_mut(mx).enumerate().map(|(j, row)| layer_row(j, row)).fold(false, |a, b| a || b)
+            // every row is visited (no short circuit: the rows write)
+            let mut any = false;
+            for (j, row) in next.chunks_mut(mx).enumerate() {
+                any |= layer_row(j, row);
+            }
+            any
         };
         std::mem::swap(cur, next);
         if !grew {
