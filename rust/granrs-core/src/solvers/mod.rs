@@ -460,6 +460,10 @@ impl ShiftedSystem {
 
 /// Checks that every coefficient is finite and ≥ 0 (a shifted operator may decouple cells).
 fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<()> {
+    // branch-free pass first (vectorises; NaN fails both comparisons), the position only on failure
+    if beta.iter().fold(true, |ok, &b| ok & (0.0..f64::INFINITY).contains(&b)) {
+        return Ok(());
+    }
     match beta.iter().position(|&b| !(b.is_finite() && b >= 0.0)) {
         None => Ok(()),
         Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), beta[k], "a finite number >= 0")),
@@ -468,6 +472,9 @@ fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<(
 
 /// Checks that every value is finite; the error names the array and the cell.
 fn check_finite_array(name: &str, v: &[f64], stride: usize) -> Result<()> {
+    if v.iter().fold(true, |ok, &x| ok & (x.abs() < f64::INFINITY)) {
+        return Ok(());
+    }
     match v.iter().position(|x| !x.is_finite()) {
         None => Ok(()),
         Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), v[k], "a finite number")),
