@@ -19,10 +19,10 @@ floor below which two runs cannot be said to disagree.
 
 What it writes into ``OUT`` (each member in ``OUT/member-K/``, reused when run again):
 
-* ``ensemble.csv``: per member the perturbation, run-out, largest front, front at 0.5 / 1.0 /
-  1.5 / 2.0 s, steps and wall time;
+* ``ensemble.csv``: per member the perturbation, run-out, largest front, the 99 % area quantile
+  of the final deposit (``runout_q99_m``), front at 0.5 / 1.0 / 1.5 / 2.0 s, steps and wall time;
 * ``ensemble_summary.json``: mean, standard deviation, min, max and relative spread of the
-  run-out and the largest front, and ``divergence_time_s``: the first time at which the members'
+  run-out, the largest front and the 99 % quantile, and ``divergence_time_s``: the first time at which the members'
   fronts differ by more than 1 % of their mean;
 * ``ensemble_fronts.png``: every member's front against time, with the band min–max.
 
@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_column
 
 #: Fronts of the members are said to have diverged once their range exceeds this fraction of
 #: their mean.
@@ -60,6 +60,15 @@ def member_case(base: ColumnCase, k: int, eps: float) -> ColumnCase:
 def read_front(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     data = np.genfromtxt(folder / "front.csv", delimiter=",", names=True)
     return np.atleast_1d(data["t_s"]), np.atleast_1d(data["front_m"])
+
+
+def q99(folder: Path) -> float:
+    """The 99 % area quantile of the member's final deposit (``runout_q99_m``), from profiles.csv
+    (so that members run before summary.json had it are read the same way)."""
+    d = np.genfromtxt(folder / "profiles.csv", delimiter=",", names=True)
+    x, h = d["x_from_gate_m"], d["h_final"]
+    dx = float(x[1] - x[0])
+    return deposit_quantile(h, dx, -(float(x[0]) - 0.5 * dx))
 
 
 def divergence_time(curves: list[tuple[np.ndarray, np.ndarray]], threshold: float = DIVERGENCE) -> float | None:
@@ -113,7 +122,8 @@ def main() -> None:
         t, f = read_front(folder)
         curves.append((t, f))
         row = {"member": k, "width_rel_perturbation": k * args.eps, "runout_m": s["runout_m"],
-               "max_front_m": s.get("max_front_m", float(np.max(f))), "steps": s["steps"], "wall_s": s["wall_s"]}
+               "max_front_m": s.get("max_front_m", float(np.max(f))), "runout_q99_m": q99(folder), "steps": s["steps"],
+               "wall_s": s["wall_s"]}
         for tt in TIMES:
             row[f"front_{tt:g}s_m"] = float(np.interp(tt, t, f)) if t[-1] >= tt else float("nan")
         rows.append(row)
@@ -124,6 +134,7 @@ def main() -> None:
         w.writerows(rows)
     summary = {"case": tag, "eps": args.eps, "runout_m": statistics([r["runout_m"] for r in rows]),
                "max_front_m": statistics([r["max_front_m"] for r in rows]),
+               "runout_q99_m": statistics([r["runout_q99_m"] for r in rows]),
                "divergence_threshold": DIVERGENCE, "divergence_time_s": divergence_time(curves)}
     for tt in TIMES:
         vals = [r[f"front_{tt:g}s_m"] for r in rows if np.isfinite(r[f"front_{tt:g}s_m"])]

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from granrs import ParameterError, SimulationError
-from granrs.cases.column import (PAPER_RUNOUT_SIM, ColumnCase, farthest_material, front_position, run_column)
+from granrs.cases.column import (PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, farthest_material, front_position,
+                                 run_column)
 
 
 def _run_cli(out: Path, *args: str) -> dict:
@@ -48,6 +49,14 @@ def test_outputs_are_complete(coarse_runs):
     assert rows[0][:2] == ["t_s", "front_m"]
     t = np.array([float(r[0]) for r in rows[1:]])
     assert np.all(np.diff(t) > 0) and t[-1] == pytest.approx(wet["t_end_s"], abs=0.011)
+
+
+def test_deposit_quantile_run_out_is_reported(coarse_runs):
+    # the 99 % area quantile of the final deposit lies beyond the gate and behind the farthest
+    # material (droplets included)
+    _, dry, wet = coarse_runs
+    for s in (dry, wet):
+        assert 0.0 < s["runout_q99_m"] <= s["farthest_material_m"] + 1e-9
 
 
 def test_front_legend_says_run_out_only_at_rest(coarse_runs):
@@ -109,6 +118,20 @@ def test_front_position_bridges_small_gaps_and_ignores_droplets():
     x = front_position(phi, dx)
     assert 0.145 < x < 0.16
     assert farthest_material(phi, dx) == pytest.approx(0.32)
+
+
+def test_deposit_quantile_of_a_triangle_is_exact():
+    # h = H (1 − x/L) on [0, L]: the area behind x is H (x − x²/2L), so the fraction q lies
+    # behind x_q = L (1 − √(1 − q)); cell-wise linear location: error below one cell
+    L, n = 2.0, 1000
+    dx = L / n
+    x = (np.arange(n) + 0.5) * dx
+    h = 0.1 * (1 - x / L)
+    for q in (0.5, 0.9, 0.99):
+        assert deposit_quantile(h, dx, 0.2, q) == pytest.approx(L * (1 - np.sqrt(1 - q)) - 0.2, abs=dx)
+    assert deposit_quantile(np.zeros(5), dx, 0.0) == 0.0
+    with pytest.raises(ParameterError, match="`q`"):
+        deposit_quantile(h, dx, 0.0, 1.5)
 
 
 def test_far_end_is_an_error_with_outputs_kept(tmp_path):

@@ -251,6 +251,29 @@ def farthest_material(phi: np.ndarray, dx: float) -> float:
     return float((cols[-1] + 1) * dx) if cols.size else 0.0
 
 
+#: Fraction of the deposit's area behind ``runout_q99_m`` (summary.json).
+DEPOSIT_QUANTILE = 0.99
+
+
+def deposit_quantile(h: np.ndarray, dx: float, x_gate: float, q: float = DEPOSIT_QUANTILE) -> float:
+    """Distance from the gate behind which the fraction ``q`` of the deposit's area lies: the
+    cumulative area of the profile h (cell i spans [i dx, (i + 1) dx]) reaches q of the total,
+    located linearly inside the cell where it does. Unlike the front, it does not jump when a
+    thin piece of the tongue drops below the front's threshold (docs/validation.md,
+    "Predictability of the late run-out")."""
+    if not 0.0 < q <= 1.0:
+        raise ParameterError(f"invalid parameter `q` = {q!r}: allowed a fraction in (0, 1]")
+    h = np.clip(np.asarray(h, dtype=float), 0.0, None)
+    cum = np.cumsum(h) * dx
+    if cum.size == 0 or cum[-1] <= 0.0:
+        return 0.0
+    target = q * cum[-1]
+    i = int(np.searchsorted(cum, target))
+    before = cum[i - 1] if i > 0 else 0.0
+    frac = (target - before) / (h[i] * dx) if h[i] > 0 else 1.0
+    return float((i + frac) * dx - x_gate)
+
+
 def surface_profile(phi: np.ndarray, dy: float) -> np.ndarray:
     """Height h(x) of the granular surface in each column: the highest zero crossing of Φ."""
     ny, nx = phi.shape
@@ -342,6 +365,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     area = np.array(rec["area"])
     summary = {
         "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
+        "runout_q99_m": deposit_quantile(profiles["final"], grid.dx, lc),
         "farthest_material_m": farthest_material(model.phi, grid.dx) - lc, "t_end_s": model.time, "steps": model.step_count,
         "nx": grid.nx, "ny": grid.ny, "cells": grid.cells, "h_m": grid.dy, "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
@@ -515,6 +539,7 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
     summary = {
         "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
         "runout_thin_m": m.front(1e-3 * hc) - lc, "farthest_material_m": m.front(1e-6 * hc) - lc,
+        "runout_q99_m": deposit_quantile(profiles["final"], m.dx, lc),
         "front_depth_m": threshold, "t_end_s": m.time, "steps": m.step_count,
         "nx": m.cells, "ny": case.ny, "cells": m.cells, "h_m": m.dx, "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - mass0)) / mass0) if area.size else 0.0,
