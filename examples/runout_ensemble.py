@@ -2,7 +2,7 @@
 
     python examples/runout_ensemble.py --ny 32 --members 8                 # about 2 min
     python examples/runout_ensemble.py --ny 64 --members 4                 # about 12 min
-    python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8
+    python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8 --compare-with out/ensemble-two-phase-fluidised-64
     python examples/runout_ensemble.py --ny 32 --members 8 --model granular --out out/ensemble-g32
 
 Member k runs the paper's column (`granrs run column`, fluidised unless ``--dry``) with the column
@@ -24,7 +24,10 @@ What it writes into ``OUT`` (each member in ``OUT/member-K/``, reused when run a
 * ``ensemble_summary.json``: mean, standard deviation, min, max and relative spread of the
   run-out, the largest front and the 99 % quantile, and ``divergence_time_s``: the first time at which the members'
   fronts differ by more than 1 % of their mean;
-* ``ensemble_fronts.png``: every member's front against time, with the band min–max.
+* ``ensemble_fronts.png``: every member's front against time, with the band min–max;
+* with ``--compare-with DIR`` (another ensemble's folder), ``comparison.json``: for every
+  statistic, the difference of the means relative to the other ensemble's, and the standard error
+  of that difference (the "± " of the active-region and model comparisons in docs/models.md).
 
 Run time on the 2-core development machine, one thread per member: about 13 s per member at
 ny = 32 (two-phase), 8 s granular-only; about 3 min at ny = 64 (two-phase), 1 min with
@@ -36,6 +39,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -91,6 +95,21 @@ def statistics(values: list[float]) -> dict:
             "n": int(v.size)}
 
 
+def compare(summary: dict, other: dict) -> dict:
+    """Differences of this ensemble's means against another's (``--compare-with``), relative to the
+    other's mean, with the standard error of the difference √(s₁²/n₁ + s₂²/n₂) in the same units:
+    how the docs compare an active region with the whole domain, or two models."""
+    out = {"against": other.get("case"), "this": summary.get("case")}
+    for key, a in summary.items():
+        b = other.get(key)
+        if not (isinstance(a, dict) and isinstance(b, dict) and "mean" in a and "mean" in b) or not b["mean"]:
+            continue
+        se = math.sqrt(a["std"] ** 2 / a["n"] + b["std"] ** 2 / b["n"])
+        out[key] = {"difference": a["mean"] - b["mean"], "relative_difference": a["mean"] / b["mean"] - 1.0,
+                    "relative_standard_error": se / abs(b["mean"])}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ny", type=int, default=32)
@@ -102,6 +121,8 @@ def main() -> None:
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--compare-with", default=None, metavar="DIR",
+                    help="another ensemble's output folder: writes comparison.json (differences of the means, ± standard error)")
     args = ap.parse_args()
     if args.members < 2:
         raise SystemExit("invalid parameter `--members` = %d: allowed an integer >= 2" % args.members)
@@ -165,7 +186,13 @@ def main() -> None:
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(out / "ensemble_fronts.png", dpi=130)
-    print(json.dumps({"out": str(out), "runout_m": summary["runout_m"], "divergence_time_s": td}, indent=1))
+    report = {"out": str(out), "runout_m": summary["runout_m"], "divergence_time_s": td}
+    if args.compare_with:
+        other = json.loads((Path(args.compare_with) / "ensemble_summary.json").read_text())
+        comparison = compare(summary, other)
+        (out / "comparison.json").write_text(json.dumps(comparison, indent=2))
+        report["comparison_runout"] = comparison.get("runout_m")
+    print(json.dumps(report, indent=1))
 
 
 if __name__ == "__main__":

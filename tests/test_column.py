@@ -245,8 +245,9 @@ def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
     fronts = {}
     for eps in (1e-12, 1e-2):
         out = tmp_path / f"eps{eps:g}"
+        compare = ["--compare-with", str(tmp_path / "eps1e-12")] if eps == 1e-2 else []
         subprocess.run([sys.executable, str(script), "--ny", "16", "--members", "2", "--t-end", "0.4",
-                        "--eps", repr(eps), "--out", str(out)], check=True, capture_output=True, text=True)
+                        "--eps", repr(eps), "--out", str(out), *compare], check=True, capture_output=True, text=True)
         s0, s1 = (json.loads((out / f"member-{k}" / "summary.json").read_text()) for k in (0, 1))
         assert (s0["nx"], s0["ny"]) == (s1["nx"], s1["ny"]), "the members share the grid"
         summary = json.loads((out / "ensemble_summary.json").read_text())
@@ -259,3 +260,10 @@ def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
             assert summary["divergence_time_s"] is None
     assert fronts[1e-12] < 1e-6
     assert fronts[1e-2] > 1e-3
+    # --compare-with: the difference of the means relative to the other ensemble's, ± the
+    # standard error of the difference, from the two ensemble_summary.json files
+    a, b = (json.loads((tmp_path / f"eps{e}" / "ensemble_summary.json").read_text())["max_front_m"] for e in ("0.01", "1e-12"))
+    c = json.loads((tmp_path / "eps0.01" / "comparison.json").read_text())["max_front_m"]
+    assert c["relative_difference"] == pytest.approx(a["mean"] / b["mean"] - 1)
+    assert c["relative_standard_error"] == pytest.approx(np.hypot(a["std"] / np.sqrt(a["n"]), b["std"] / np.sqrt(b["n"])) / b["mean"])
+    assert c["relative_difference"] != 0.0 and c["relative_standard_error"] > 0.0
