@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -56,9 +57,7 @@ TIMES = (0.5, 1.0, 1.5, 2.0)
 def member_case(base: ColumnCase, k: int, eps: float) -> ColumnCase:
     """Member k: the base case with the column width scaled by 1 + k·eps, on the base's grid."""
     length, height = base.domain()
-    kw = {f: getattr(base, f) for f in base.__dataclass_fields__}
-    kw.update(width=base.width * (1.0 + k * eps), length=length, height=height)
-    return ColumnCase(**kw)
+    return dataclasses.replace(base, width=base.width * (1.0 + k * eps), length=length, height=height)
 
 
 def read_front(folder: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -75,12 +74,17 @@ def q99(folder: Path) -> float:
     return deposit_quantile(h, dx, -(float(x[0]) - 0.5 * dx))
 
 
-def divergence_time(curves: list[tuple[np.ndarray, np.ndarray]], threshold: float = DIVERGENCE) -> float | None:
-    """First time at which the members' fronts, interpolated on the first member's times, span
-    more than ``threshold`` of their mean; None if they never do."""
+def common_fronts(curves: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """The members' fronts interpolated on the first member's times up to the shortest run:
+    (times, array members × times)."""
     t0 = curves[0][0]
     t_common = t0[t0 <= min(t[-1] for t, _ in curves)]
-    fronts = np.array([np.interp(t_common, t, f) for t, f in curves])
+    return t_common, np.array([np.interp(t_common, t, f) for t, f in curves])
+
+
+def divergence_time(t_common: np.ndarray, fronts: np.ndarray, threshold: float = DIVERGENCE) -> float | None:
+    """First time at which the members' fronts (:func:`common_fronts`) span more than
+    ``threshold`` of their mean; None if they never do."""
     mean = fronts.mean(axis=0)
     spread = fronts.max(axis=0) - fronts.min(axis=0)
     hit = np.nonzero((mean > 0) & (spread > threshold * np.abs(mean)))[0]
@@ -119,6 +123,7 @@ def main() -> None:
     ap.add_argument("--active-region", type=int, default=None)
     ap.add_argument("--dry", action="store_true")
     ap.add_argument("--t-end", type=float, default=None)
+    ap.add_argument("--theta", type=float, default=None, help="the Picard relaxation θ of eq. (12) (ColumnCase.theta; default 0.8)")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default=None)
     ap.add_argument("--compare-with", default=None, metavar="DIR",
@@ -126,11 +131,12 @@ def main() -> None:
     args = ap.parse_args()
     if args.members < 2:
         raise SystemExit("invalid parameter `--members` = %d: allowed an integer >= 2" % args.members)
-    tag = f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
+    tag = (f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
+           + (f"-theta{args.theta:g}" if args.theta is not None else ""))
     out = Path(args.out or f"out/ensemble-{tag}")
     out.mkdir(parents=True, exist_ok=True)
 
-    extra = {"t_end": args.t_end} if args.t_end is not None else {}
+    extra = {k: v for k, v in (("t_end", args.t_end), ("theta", args.theta)) if v is not None}
     base = ColumnCase(ny=args.ny, fluidised=not args.dry, model=args.model, active_region=args.active_region,
                       threads=args.threads, **extra)
     rows, curves = [], []
@@ -153,10 +159,11 @@ def main() -> None:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    t_common, fronts = common_fronts(curves)
     summary = {"case": tag, "eps": args.eps, "runout_m": statistics([r["runout_m"] for r in rows]),
                "max_front_m": statistics([r["max_front_m"] for r in rows]),
                "runout_q99_m": statistics([r["runout_q99_m"] for r in rows]),
-               "divergence_threshold": DIVERGENCE, "divergence_time_s": divergence_time(curves)}
+               "divergence_threshold": DIVERGENCE, "divergence_time_s": divergence_time(t_common, fronts)}
     for tt in TIMES:
         vals = [r[f"front_{tt:g}s_m"] for r in rows if np.isfinite(r[f"front_{tt:g}s_m"])]
         if len(vals) > 1:
@@ -167,8 +174,6 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
-    t_common = curves[0][0][curves[0][0] <= min(t[-1] for t, _ in curves)]
-    fronts = np.array([np.interp(t_common, t, f) for t, f in curves])
     ax.fill_between(t_common, fronts.min(axis=0), fronts.max(axis=0), color="0.85", label="range of the members")
     for k, (t, f) in enumerate(curves):
         ax.plot(t, f, lw=0.9, label=f"member {k}: run-out {rows[k]['runout_m']:.3f} m" if k < 8 else None)

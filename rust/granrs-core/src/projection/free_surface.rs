@@ -315,12 +315,8 @@ fn extend_faces(
         let grew = if parallel {
             next.par_chunks_mut(mx).enumerate().map(|(j, row)| layer_row(j, row)).reduce(|| false, |a, b| a || b)
         } else {
-            // every row is visited (no short circuit: the rows write)
-            let mut any = false;
-            for (j, row) in next.chunks_mut(mx).enumerate() {
-                any |= layer_row(j, row);
-            }
-            any
+            // `|`, not `||`: every row is visited (the rows write)
+            next.chunks_mut(mx).enumerate().map(|(j, row)| layer_row(j, row)).fold(false, |a, b| a | b)
         };
         std::mem::swap(cur, next);
         if !grew {

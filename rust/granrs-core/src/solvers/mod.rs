@@ -411,16 +411,22 @@ fn check_len(name: &str, len: usize, shape: &[usize]) -> Result<()> {
     }
 }
 
+/// Checks `ok(v)` for every value of a row-major array with rows of `stride`; the error names the
+/// array, the row and column of the first failure, and `allowed`. A branch-free pass runs first
+/// (it vectorises: these checks run on every solve), the search for the position only on failure.
+fn check_array(name: &str, v: &[f64], stride: usize, ok: impl Fn(f64) -> bool, allowed: &str) -> Result<()> {
+    if v.iter().fold(true, |all, &x| all & ok(x)) {
+        return Ok(());
+    }
+    match v.iter().position(|&x| !ok(x)) {
+        None => Ok(()),
+        Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), v[k], allowed)),
+    }
+}
+
 /// Checks that every coefficient is finite and > 0; the error names the array and the face.
 fn check_coefficients(name: &str, beta: &[f64], stride: usize) -> Result<()> {
-    match beta.iter().position(|&b| !(b.is_finite() && b > 0.0)) {
-        None => Ok(()),
-        Some(k) => Err(Error::param(
-            &format!("{name}[j={}, i={}]", k / stride, k % stride),
-            beta[k],
-            "a finite number > 0 (β = 1/ρ on every face)",
-        )),
-    }
+    check_array(name, beta, stride, |b| b > 0.0 && b < f64::INFINITY, "a finite number > 0 (β = 1/ρ on every face)")
 }
 
 /// A shifted system (L_β − σ) x = rhs on `nx × ny` cells with its coefficient and work arrays
@@ -460,23 +466,11 @@ impl ShiftedSystem {
 
 /// Checks that every coefficient is finite and ≥ 0 (a shifted operator may decouple cells).
 fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<()> {
-    // branch-free pass first (vectorises; NaN fails both comparisons), the position only on failure
-    if beta.iter().fold(true, |ok, &b| ok & (0.0..f64::INFINITY).contains(&b)) {
-        return Ok(());
-    }
-    match beta.iter().position(|&b| !(b.is_finite() && b >= 0.0)) {
-        None => Ok(()),
-        Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), beta[k], "a finite number >= 0")),
-    }
+    // NaN fails both comparisons
+    check_array(name, beta, stride, |b| (0.0..f64::INFINITY).contains(&b), "a finite number >= 0")
 }
 
 /// Checks that every value is finite; the error names the array and the cell.
 fn check_finite_array(name: &str, v: &[f64], stride: usize) -> Result<()> {
-    if v.iter().fold(true, |ok, &x| ok & (x.abs() < f64::INFINITY)) {
-        return Ok(());
-    }
-    match v.iter().position(|x| !x.is_finite()) {
-        None => Ok(()),
-        Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), v[k], "a finite number")),
-    }
+    check_array(name, v, stride, |x| x.abs() < f64::INFINITY, "a finite number")
 }
