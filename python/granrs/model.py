@@ -110,6 +110,14 @@ class Numerics:
     iteration). Eq. (12) converges to Σ = P(Σ + rD + θ(Σ^n − Σ)), whose rigid zones deform like
     an elastic body (wave speed ≈ 0.22 h/δt at θ = 0.8); the restarts approach eq. (11) itself,
     slowly (docs/validation.md, fluidised layer).
+    anderson_depth: depth m of the Anderson acceleration of the Picard iteration (0, default: the
+        plain iteration; at most 20). Same fixed point, fewer predictor solves where the plain
+        iteration crawls: Uzawa (θ = 0), fine grids, proximal restarts (docs/validation.md,
+        Bingham cavity).
+    pressure_update: 'standard' (default: p^{n+1} = p^n + δp) or 'rotational' (p^{n+1} = p^n + δp
+        − η div ũ; Timmermans et al. 1996): the rotational form reaches Stokes-dominated steady
+        states (ηδt/(ρh²) ≫ 1, e.g. the Bingham cavity) in tens of steps instead of thousands.
+        Two-phase models only.
     wall_normal_stress: the normal stress −σ_n of the Coulomb walls' τ_b = tan(α_b)(−σ_n)⁺:
     'pressure' (default: −σ_n = p) or 'total' (the paper's total stress of the granular phase,
     −σ_n = p − T_nn with T = 2ηD(u) + τΣ, lagged by one step; a spreading layer presses harder
@@ -151,6 +159,8 @@ class Numerics:
     interface_yield: str = "paper"
     ambient_hydrostatic: bool = False
     proximal_restarts: int = 0
+    anderson_depth: int = 0
+    pressure_update: str = "standard"
     wall_normal_stress: str = "pressure"
     active_region: Optional[int] = None
     active_region_align: int = 8
@@ -216,7 +226,7 @@ class Model:
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
             n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align),
-            n.step_retries, air)
+            n.step_retries, air, n.anderson_depth, n.pressure_update)
         self.air = air
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())

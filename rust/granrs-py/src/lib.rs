@@ -275,7 +275,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved"))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -321,6 +321,8 @@ impl PyModel {
         active_region: Option<(i64, i64)>,
         step_retries: i64,
         air: &str,
+        anderson_depth: i64,
+        pressure_update: &str,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -393,6 +395,11 @@ impl PyModel {
             "weno5" => ConvectionScheme::Weno5,
             other => return Err(param_err("convection_scheme", other, "'centred' or 'weno5'")),
         };
+        cfg.rotational_pressure = match pressure_update {
+            "standard" => false,
+            "rotational" => true,
+            other => return Err(param_err("pressure_update", other, "'standard' or 'rotational'")),
+        };
         cfg.pressure_gauge = match pressure_gauge {
             "auto" => PressureGauge::Auto,
             "mean" => PressureGauge::Mean,
@@ -433,6 +440,10 @@ impl PyModel {
             proximal_restarts: match proximal_restarts {
                 0..=1_000_000 => proximal_restarts as usize,
                 other => return Err(param_err("proximal_restarts", other, "an integer in [0, 1000000]")),
+            },
+            anderson_depth: match anderson_depth {
+                0..=20 => anderson_depth as usize,
+                other => return Err(param_err("anderson_depth", other, "an integer in [0, 20]")),
             },
             wall_normal_stress: match wall_normal_stress {
                 "pressure" => WallNormalStress::Pressure,

@@ -102,6 +102,11 @@ pub struct ModelConfig {
     pub viscous_max_iterations: usize,
     /// How the pressure's constant is fixed when no side is an outflow (see [`PressureGauge`]).
     pub pressure_gauge: PressureGauge,
+    /// The pressure update of the projection: `false` (default) the standard incremental form
+    /// p^{n+1} = p^n + δp, `true` the rotational form p^{n+1} = p^n + δp − η div ũ
+    /// (Timmermans, Minev & Van De Vosse 1996; Guermond, Minev & Shen 2006 §3.4), see
+    /// `projection/mod.rs`. Two-phase projection only.
+    pub rotational_pressure: bool,
     /// p is the pressure in excess of the light phase's hydrostatic pressure ρ_f g·x (the
     /// ambient air at rest): the body force becomes (ρ(Φ) − ρ_f) g. Needed where the light
     /// phase cannot be in hydrostatic balance in the box, as between the open sides of an
@@ -148,6 +153,7 @@ impl ModelConfig {
             viscous_rtol: 1e-10,
             viscous_max_iterations: 2000,
             pressure_gauge: PressureGauge::Auto,
+            rotational_pressure: false,
             ambient_hydrostatic: false,
             active_region: None,
             pressure_top_value: 0.0,
@@ -212,6 +218,9 @@ impl ModelConfig {
         }
         if self.free_surface && self.light.is_none() {
             return Err(Error::param("free_surface", "true", "false for a single-phase model (the free surface is the interface Φ = 0 with a light phase)"));
+        }
+        if self.free_surface && self.rotational_pressure {
+            return Err(Error::param("pressure_update", "rotational", "'standard' with the granular-only model (its free-surface projection has the standard update only)"));
         }
         TwoPhaseModel::validate_active_region(self)?;
         check_finite("pressure_top_value", self.pressure_top_value)?;

@@ -7,6 +7,15 @@
 //! hence div((1/ρ) ∇δp) = (a₀/δt) div ũ, then u^{n+1} = ũ − (δt/a₀)(1/ρ)∇δp and p^{n+1} = p^n + δp
 //! (incremental projection, standard form; Guermond, Minev & Shen 2006, *CMAME* 195).
 //!
+//! Rotational form (optional, `ModelConfig::rotational_pressure`): p^{n+1} = p^n + δp − η div ũ
+//! (Timmermans, Minev & Van De Vosse 1996, *Int. J. Numer. Meth. Fluids* 22; Guermond, Minev &
+//! Shen 2006 §3.4), with η the cell viscosity of the predictor. For a Stokes-dominated step
+//! (ηδt/(a₀ρh²) ≫ 1) the standard update reduces a pressure error of wavenumber k only by the
+//! factor ηk²/(a₀ρ/δt + ηk²) per step — close to 1 for the grid-scale modes of corner
+//! singularities, so steady states are reached over thousands of steps — while the rotational
+//! term supplies the missing ηk² part of the Schur complement (exact for a periodic mode of
+//! constant η). Its steady states are those of the standard form (div ũ = 0 there).
+//!
 //! Discretely: β = 1/ρ on faces, the 5-point operator of [`crate::solvers::PoissonSolver`],
 //! δp warm-started from the previous step's increment. Homogeneous Neumann on walls and
 //! prescribed-velocity sides, δp = 0 on outflow sides.
@@ -92,7 +101,8 @@ impl PressureProjection {
     }
 
     /// Projects ũ (in `u`, `v`, boundary values already set) onto discretely divergence-free
-    /// fields and adds the increment to `p`. `dt_over_a0` is δt/a₀.
+    /// fields and adds the increment to `p`. `dt_over_a0` is δt/a₀. With `rotational` (the
+    /// cell viscosity η, ghosts not read), p also receives −η div ũ (the rotational form).
     #[allow(clippy::too_many_arguments, clippy::neg_cmp_op_on_partial_ord)] // !(warm < ‖b‖) also catches NaN
     pub fn project(
         &mut self,
@@ -104,6 +114,7 @@ impl PressureProjection {
         dt_over_a0: f64,
         grid: &Grid,
         bc: &BoundaryConditions,
+        rotational: Option<&Field>,
         exec: Exec,
     ) -> Result<SolveInfo> {
         let nx = grid.nx;
@@ -123,6 +134,15 @@ impl PressureProjection {
         let rhs_norm = self.rhs.iter().map(|x| x * x).sum::<f64>().sqrt();
         if rhs_norm <= floor {
             return Ok(SolveInfo { iterations: 0, residual: 0.0, initial_residual: 0.0, rhs_mean_removed: 0.0 });
+        }
+        if let Some(eta) = rotational {
+            let (es, ds, st) = (eta.slice(), self.div.slice(), eta.stride());
+            for_each_interior_row(exec, p, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..nx {
+                    row[HALO + i] -= es[b + i] * ds[b + i];
+                }
+            });
         }
         // Warm start from the last increment only when it beats the zero guess (after a large
         // increment, e.g. the pressure initialisation, it would leave a residual far above a

@@ -35,6 +35,7 @@
 //!
 //! Coulomb friction walls (paper eq. 8–9) are in [`crate::walls`].
 
+pub mod anderson;
 pub mod plastic;
 pub mod rest;
 pub(crate) mod stage;
@@ -274,6 +275,10 @@ pub struct RheologyConfig {
     /// iteration whose fixed point is eq. (11) itself. Iterations count against
     /// `picard_max_iterations`.
     pub proximal_restarts: usize,
+    /// Depth m of the Anderson acceleration of the Picard iteration (0: the plain iteration of
+    /// eq. 12; [`anderson`]). Same fixed point, fewer predictor solves where the plain
+    /// iteration crawls (θ → 0, fine grids, proximal restarts).
+    pub anderson_depth: usize,
     /// The normal stress of the Coulomb walls' friction (eq. 8).
     pub wall_normal_stress: WallNormalStress,
 }
@@ -291,6 +296,7 @@ impl Default for RheologyConfig {
             picard_max_iterations: 1000,
             interface_yield: InterfaceYield::default(),
             proximal_restarts: 0,
+            anderson_depth: 0,
             wall_normal_stress: WallNormalStress::default(),
         }
     }
@@ -340,6 +346,9 @@ impl RheologyConfig {
         check_range("picard_tol", self.picard_tol, 1e-15, 0.5)?;
         if self.picard_max_iterations == 0 || self.picard_max_iterations > 1_000_000 {
             return Err(Error::param("picard_max_iterations", self.picard_max_iterations, "an integer in [1, 1e6]"));
+        }
+        if self.anderson_depth > anderson::MAX_ANDERSON_DEPTH {
+            return Err(Error::param("anderson_depth", self.anderson_depth, &format!("an integer in [0, {}]", anderson::MAX_ANDERSON_DEPTH)));
         }
         Ok(())
     }

@@ -10,6 +10,7 @@
 //!   the single predictor solve, or the Picard loop of the bi-projection coupling the predictor
 //!   with the plastic projection of Σ and the friction projection of s.
 
+use super::anderson::Anderson;
 use super::plastic::{not_converged, IncrementSite, PicardInfo, PlasticState};
 use super::{RheologyConfig, WallNormalStress, YieldTreatment};
 use crate::error::Result;
@@ -67,6 +68,8 @@ pub struct RheologyState {
     /// r of the current step (a user's constant r, or the smallest local r), and r_b.
     pub r: f64,
     pub r_wall: f64,
+    /// Anderson mixing of Σ (`RheologyConfig::anderson_depth` > 0 with a projected yield stress).
+    anderson: Option<Anderson>,
 }
 
 impl RheologyState {
@@ -79,8 +82,11 @@ impl RheologyState {
         }
         let c = || Field::zeros(grid, Location::Centre);
         let n = || Field::zeros(grid, Location::Node);
+        let plastic = PlasticState::new(grid, bc);
+        let projection = cfg.law.has_yield_stress() && cfg.treatment == YieldTreatment::Projection;
+        let anderson = (projection && cfg.anderson_depth > 0).then(|| Anderson::new(cfg.anderson_depth, &plastic));
         Some(RheologyState {
-            plastic: PlasticState::new(grid, bc),
+            plastic,
             walls,
             dxx: c(),
             dyy: c(),
@@ -96,9 +102,10 @@ impl RheologyState {
             trial_norm: c(),
             history: Vec::with_capacity(cfg.picard_max_iterations.min(100_000)),
             picard: cfg.needs_picard(coulomb),
-            projection: cfg.law.has_yield_stress() && cfg.treatment == YieldTreatment::Projection,
+            projection,
             r: 0.0,
             r_wall: 0.0,
+            anderson,
         })
     }
 }
@@ -261,6 +268,9 @@ impl TwoPhaseModel {
         let mut window_start = f64::INFINITY;
         let mut halvings = 0usize;
         let mut restarts = 0usize;
+        if let Some(a) = rs.anderson.as_mut() {
+            a.reset();
+        }
         for k in 1..=rc.picard_max_iterations {
             // rhs + div(τΣ^k) + wall friction τ_b s^k / h
             rs.rhs_u.assign(&wk.rhs_u);
@@ -298,6 +308,9 @@ impl TwoPhaseModel {
             rs.plastic.locate = k == rc.picard_max_iterations || (halvings == PICARD_MAX_HALVINGS && k % PICARD_STALL_WINDOW == 0);
             if rs.projection {
                 strain_rate(&self.u, &self.v, grid, &mut rs.dxx, &mut rs.dyy, &mut rs.dxy, exec);
+                if let Some(a) = rs.anderson.as_mut() {
+                    a.save_iterate(&rs.plastic);
+                }
                 inc = rs.plastic.update(&rs.dxx, &rs.dyy, &rs.dxy, rc.theta, exec);
             }
             if rs.walls.is_active() {
@@ -317,6 +330,9 @@ impl TwoPhaseModel {
                 if moved > rc.picard_tol {
                     rs.plastic.begin_step();
                     rs.walls.begin_step();
+                    if let Some(a) = rs.anderson.as_mut() {
+                        a.reset();
+                    }
                     restarts += 1;
                     window_start = f64::INFINITY;
                     continue;
@@ -325,6 +341,9 @@ impl TwoPhaseModel {
             if inc <= rc.picard_tol {
                 rs.plastic.trial_norm_centre(&mut rs.trial_norm, exec);
                 return Ok((total, PicardInfo { iterations: k, increment: inc, r: rs.r, r_wall: rs.r_wall, r_halvings: halvings, restarts }));
+            }
+            if let (true, Some(a)) = (rs.projection, rs.anderson.as_mut()) {
+                a.mix(&mut rs.plastic);
             }
             if k % PICARD_STALL_WINDOW == 0 {
                 // only the default (contraction-bound) parameters adapt; a user's r is kept
@@ -337,6 +356,9 @@ impl TwoPhaseModel {
                     if rc.r.is_none() {
                         rs.plastic.scale_r(0.5);
                         rs.r *= 0.5;
+                        if let Some(a) = rs.anderson.as_mut() {
+                            a.reset();
+                        }
                     }
                     if rc.r_wall.is_none() {
                         rs.r_wall *= 0.5;

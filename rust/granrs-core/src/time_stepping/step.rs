@@ -17,8 +17,9 @@
 //!    couples it with the plastic projection of Σ and the friction projection of s
 //!    (`momentum_solve` in `rheology/stage.rs`).
 //!    `check_predictor`: a non-finite ũ (blow-up) stops the step here, naming the cell.
-//! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp, then the pressure gauge (p = 0 under
-//!    the lid when no side is open; `ModelConfig::pressure_gauge`).
+//! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp (− η div ũ in the rotational form,
+//!    `ModelConfig::rotational_pressure`), then the pressure gauge (p = 0 under the lid when no
+//!    side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
 //!
 //! The granular-only model (`ModelConfig::free_surface`) runs the same stages with these
@@ -209,7 +210,7 @@ impl TwoPhaseModel {
             self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
             self.projection_stale = false;
         }
-        let info = self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, exec);
+        let info = self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, None, exec);
         self.projection.reset_increment();
         self.gauge_pressure();
         info
@@ -562,7 +563,8 @@ impl TwoPhaseModel {
             self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
             self.projection_stale = false;
         }
-        let r = self.projection.project(&mut self.u, &mut self.v, &mut self.p, &wk.rho_u, &wk.rho_v, dt_over_a0, &cfg.grid, &cfg.bc, exec);
+        let rotational = cfg.rotational_pressure.then_some(&wk.eta_c);
+        let r = self.projection.project(&mut self.u, &mut self.v, &mut self.p, &wk.rho_u, &wk.rho_v, dt_over_a0, &cfg.grid, &cfg.bc, rotational, exec);
         self.gauge_pressure();
         r.map_err(|e| self.at_step(e))
     }

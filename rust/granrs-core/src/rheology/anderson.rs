@@ -1,0 +1,235 @@
+//! Anderson acceleration of the Picard iteration of the plastic projection (Aravena et al.
+//! eq. 11–12; Anderson 1965, *J. ACM* 12, 547–560; Walker & Ni 2011, *SIAM J. Numer. Anal.* 49,
+//! 1715–1735, "Type II" in the difference form of their Algorithm AA).
+//!
+//! The Picard iteration of eq. (12) is a fixed-point map x ↦ G(x) on the plastic tensor
+//! x = (Σ_xx at centres, Σ_xy at nodes): solve the predictor with the force div(τ x), then
+//! G(x) = P(x + r D_dev(ũ) + θ(Σ^n − x)). With θ = 0 (Uzawa) its fixed point is eq. (11) itself,
+//! but the plain iteration only contracts like 1 − O(h²) on fine grids; with θ > 0 it contracts
+//! like 1 − θ towards the *relaxed* fixed point, whose rigid zones are elastic (see
+//! [`super::RheologyConfig::proximal_restarts`]). Anderson mixing of depth m replaces
+//! x_{k+1} = G(x_k) by
+//!
+//!   f_k = G(x_k) − x_k,   γ = argmin_γ ‖f_k − ΔF_k γ‖_w,   x_{k+1} = G(x_k) − ΔG_k γ,
+//!
+//! with ΔF_k, ΔG_k the last m_k ≤ m differences f_{i+1} − f_i, G(x_{i+1}) − G(x_i). The fixed
+//! point is unchanged (f = 0 gives γ = 0), so the converged Σ is the same to the Picard
+//! tolerance; only the number of predictor solves changes. The norm is weighted by the yield
+//! stress, ‖y‖²_w = Σ (τ y / τ_max)², the scale of the force τΣ (and of the Picard increment).
+//!
+//! The small least-squares problem is solved by its normal equations with a relative Tikhonov
+//! shift of 1e-10 (Gaussian elimination with partial pivoting on a stack array). The history is
+//! cleared whenever the map changes (a new step, a proximal restart of the anchor, a halving of
+//! r) and when the mixed residual grows by more than `RESTART_GROWTH` over the smallest seen since
+//! the last clearing (the map is only piecewise smooth: P switches between rigid and yielded
+//! points). Reductions are serial, in a fixed order, so the iterates do not depend on the number
+//! of threads; they cost m + 1 dot products of the length of Σ per iteration, against the
+//! hundreds of stencil products of the predictor solve.
+
+use super::plastic::PlasticState;
+
+/// Largest depth accepted (the normal equations live on the stack).
+pub const MAX_ANDERSON_DEPTH: usize = 20;
+
+/// The history is cleared when ‖f_k‖_w exceeds this factor times the smallest ‖f‖_w since the
+/// last clearing.
+pub const RESTART_GROWTH: f64 = 1e2;
+
+/// Relative Tikhonov shift of the normal equations.
+const TIKHONOV: f64 = 1e-10;
+
+/// Anderson mixing state for the plastic tensor (all buffers allocated once).
+pub struct Anderson {
+    depth: usize,
+    /// Length of Σ_xx's storage (the first block of every vector).
+    n_c: usize,
+    /// The iterate x_k handed to G (saved before each update).
+    x: Vec<f64>,
+    f_prev: Vec<f64>,
+    g_prev: Vec<f64>,
+    /// Ring buffers of ΔF and ΔG columns.
+    df: Vec<Vec<f64>>,
+    dg: Vec<Vec<f64>>,
+    /// Number of valid columns, and the ring position of the next one.
+    count: usize,
+    head: usize,
+    have_prev: bool,
+    best: f64,
+    /// Times the history was cleared by the growth safeguard (cumulative).
+    pub restarts: usize,
+}
+
+impl Anderson {
+    /// Mixing of depth `depth` (1..=[`MAX_ANDERSON_DEPTH`]) for the plastic tensor of `plastic`.
+    pub fn new(depth: usize, plastic: &PlasticState) -> Self {
+        let depth = depth.clamp(1, MAX_ANDERSON_DEPTH);
+        let n_c = plastic.sigma_xx.slice().len();
+        let n = n_c + plastic.sigma_xy.slice().len();
+        Anderson {
+            depth,
+            n_c,
+            x: vec![0.0; n],
+            f_prev: vec![0.0; n],
+            g_prev: vec![0.0; n],
+            df: (0..depth).map(|_| vec![0.0; n]).collect(),
+            dg: (0..depth).map(|_| vec![0.0; n]).collect(),
+            count: 0,
+            head: 0,
+            have_prev: false,
+            best: f64::INFINITY,
+            restarts: 0,
+        }
+    }
+
+    /// Forgets the history (the map changed).
+    pub fn reset(&mut self) {
+        self.count = 0;
+        self.head = 0;
+        self.have_prev = false;
+        self.best = f64::INFINITY;
+    }
+
+    /// Saves x_k = Σ before the update G.
+    pub fn save_iterate(&mut self, p: &PlasticState) {
+        let (xc, xn) = self.x.split_at_mut(self.n_c);
+        xc.copy_from_slice(p.sigma_xx.slice());
+        xn.copy_from_slice(p.sigma_xy.slice());
+    }
+
+    /// After the update (Σ = G(x_k)): replaces Σ by the Anderson iterate x_{k+1}. Returns the
+    /// number of history columns used (0: plain Picard step).
+    pub fn mix(&mut self, p: &mut PlasticState) -> usize {
+        let n_c = self.n_c;
+        let scale = if p.tau_max > 0.0 { 1.0 / p.tau_max } else { 0.0 };
+        // weights w = (τ/τ_max)² of every entry (centres then nodes)
+        let (tc, tn) = (p.tau_c.slice(), p.tau_n.slice());
+        let weight = |k: usize| {
+            let t = if k < n_c { tc[k] } else { tn[k - n_c] } * scale;
+            t * t
+        };
+        let (gc, gn) = (p.sigma_xx.slice(), p.sigma_xy.slice());
+        let g = |k: usize| if k < n_c { gc[k] } else { gn[k - n_c] };
+        let n = self.x.len();
+        // f_k = g − x (stored in x, which is not needed any more), and the new columns
+        let mut fnorm2 = 0.0;
+        for k in 0..n {
+            let f = g(k) - self.x[k];
+            self.x[k] = f;
+            fnorm2 += weight(k) * f * f;
+        }
+        let fnorm = fnorm2.sqrt();
+        if !fnorm.is_finite() {
+            self.reset();
+            return 0;
+        }
+        if fnorm > RESTART_GROWTH * self.best {
+            self.restarts += 1;
+            self.reset();
+        }
+        self.best = self.best.min(fnorm);
+        if self.have_prev {
+            let (dfh, dgh) = (&mut self.df[self.head], &mut self.dg[self.head]);
+            for k in 0..n {
+                let gk = g(k);
+                dfh[k] = self.x[k] - self.f_prev[k];
+                dgh[k] = gk - self.g_prev[k];
+            }
+            self.head = (self.head + 1) % self.depth;
+            self.count = (self.count + 1).min(self.depth);
+        }
+        for k in 0..n {
+            self.f_prev[k] = self.x[k];
+            self.g_prev[k] = g(k);
+        }
+        self.have_prev = true;
+        let m = self.count;
+        if m == 0 {
+            return 0;
+        }
+        // normal equations (ΔFᵀWΔF + λI) γ = ΔFᵀW f over the valid columns
+        let mut a = [[0.0f64; MAX_ANDERSON_DEPTH + 1]; MAX_ANDERSON_DEPTH];
+        for i in 0..m {
+            for j in 0..=i {
+                let (ci, cj) = (&self.df[i], &self.df[j]);
+                let s: f64 = (0..n).map(|k| weight(k) * ci[k] * cj[k]).sum();
+                a[i][j] = s;
+                a[j][i] = s;
+            }
+            let ci = &self.df[i];
+            a[i][m] = (0..n).map(|k| weight(k) * ci[k] * self.x[k]).sum();
+        }
+        let trace: f64 = (0..m).map(|i| a[i][i]).sum();
+        let shift = TIKHONOV * trace / m as f64;
+        for (i, row) in a.iter_mut().enumerate().take(m) {
+            row[i] += shift;
+        }
+        let Some(gamma) = solve_dense(&mut a, m) else {
+            self.reset();
+            return 0;
+        };
+        // Σ ← g − ΔG γ
+        let (sc, sn) = (p.sigma_xx.slice_mut(), p.sigma_xy.slice_mut());
+        for (i, &gi) in gamma.iter().enumerate().take(m) {
+            let col = &self.dg[i];
+            for (k, s) in sc.iter_mut().enumerate() {
+                *s -= gi * col[k];
+            }
+            for (k, s) in sn.iter_mut().enumerate() {
+                *s -= gi * col[n_c + k];
+            }
+        }
+        m
+    }
+}
+
+/// Solves the m × m system in `a` (augmented with its right-hand side in column m) by Gaussian
+/// elimination with partial pivoting; `None` if it is singular or not finite.
+fn solve_dense(a: &mut [[f64; MAX_ANDERSON_DEPTH + 1]; MAX_ANDERSON_DEPTH], m: usize) -> Option<[f64; MAX_ANDERSON_DEPTH]> {
+    for c in 0..m {
+        let piv = (c..m).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if !(a[piv][c].abs() > 0.0) || !a[piv][c].is_finite() {
+            return None;
+        }
+        a.swap(c, piv);
+        for r in c + 1..m {
+            let f = a[r][c] / a[c][c];
+            for k in c..=m {
+                a[r][k] -= f * a[c][k];
+            }
+        }
+    }
+    let mut x = [0.0f64; MAX_ANDERSON_DEPTH];
+    for r in (0..m).rev() {
+        let s: f64 = (r + 1..m).map(|k| a[r][k] * x[k]).sum();
+        x[r] = (a[r][m] - s) / a[r][r];
+        if !x[r].is_finite() {
+            return None;
+        }
+    }
+    Some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dense_solve_matches_a_known_system() {
+        let mut a = [[0.0; MAX_ANDERSON_DEPTH + 1]; MAX_ANDERSON_DEPTH];
+        // [[0, 2], [3, 1]] x = [4, 5] → x = (1, 2); the zero pivot needs the row swap
+        a[0][0] = 0.0;
+        a[0][1] = 2.0;
+        a[0][2] = 4.0;
+        a[1][0] = 3.0;
+        a[1][1] = 1.0;
+        a[1][2] = 5.0;
+        let x = solve_dense(&mut a, 2).unwrap();
+        assert!((x[0] - 1.0).abs() < 1e-14 && (x[1] - 2.0).abs() < 1e-14);
+        let mut s = [[0.0; MAX_ANDERSON_DEPTH + 1]; MAX_ANDERSON_DEPTH];
+        s[0][0] = 1.0;
+        s[0][1] = 1.0;
+        s[1][0] = 1.0;
+        s[1][1] = 1.0;
+        assert!(solve_dense(&mut s, 2).is_none());
+    }
+}
