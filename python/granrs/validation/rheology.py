@@ -106,15 +106,26 @@ def poiseuille_bingham(tau_y, n, threads: int = 1):
 # ---------------------------------------------------------------------------------------------
 # Lid-driven cavity of a Bingham fluid (Re = 0)
 # ---------------------------------------------------------------------------------------------
-def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_max: float = 40.0, theta: float = 0.5,
-                       steady_tol: float = 1e-6):
+def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_max: float = 40.0, theta: float = 0.05,
+                       steady_tol: float = 1e-5, regularised: float | None = None, anderson_depth: int = 10):
     """Unit cavity, lid speed 1, η = ρ = 1, Stokes flow (no convection), τ_y = Bn; runs until
-    max|Δu| per unit time < steady_tol or t_max."""
+    max|Δu| per unit time < steady_tol or t_max.
+
+    The pressure update is the rotational one (``pressure_update='rotational'``): with the
+    standard incremental update, ηδt/(ρh²) = 51 at n = 32 and δt = 0.05, and the grid-scale
+    pressure modes of the lid corners decay by only ~0.997 per step, so that the runs of
+    sessions 2–10 were still creeping at t = 40 (|ψ|max at Bn = 20 moved from 0.0366 to 0.0377
+    at n = 32 once converged). θ = 0.05 keeps the rigid zones of eq. (12) stiff (their elastic
+    modulus ∝ (1 − θ)/θ), with Anderson mixing (depth 10) for the slow 1 − θ contraction.
+    With ``regularised = m`` the Papanastasiou law with that m replaces the projection: the
+    independent check of the same discretisation."""
     grid = Grid(n, n, 1.0, 1.0)
     rheo = Bingham(bn) if bn > 0 else Newtonian()
+    kw = dict(plastic="papanastasiou", regularisation=float(regularised)) if regularised and bn > 0 else {}
     m = Model(grid, Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)), rheology=rheo, threads=threads,
               numerics=Numerics(dt=dt, cfl_abort=100.0, convection=False, theta=theta, picard_tol=1e-8,
-                                picard_max_iterations=5000))
+                                picard_max_iterations=5000, pressure_update="rotational", anderson_depth=anderson_depth,
+                                viscous_max_iterations=100000, **kw))
     change = math.inf
     while m.time < t_max - 1e-12:
         before = m.u.copy()
@@ -167,7 +178,12 @@ def centreline_u(m) -> tuple[float, float, float]:
     return umin, ymin, y0
 
 
-def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0):
+# Papanastasiou parameter of the regularised cross-check of the cavity: m·γ̇ ≫ 1 wherever the
+# fluid yields; m = 1e3 and 1e4 differ by 0.2 % in the centreline min u at n = 32 and 64 (Bn = 20).
+CAVITY_REGULARISATION = 1e4
+
+
+def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0, regularised_check: bool = True):
     bns = [float(b) for b in (bn if isinstance(bn, (list, tuple)) else [bn])]
     n = int(n)
     rows = []
@@ -180,6 +196,14 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0):
         row = {"bn": b, "psi_max_abs": abs(val), "vortex_x": x, "vortex_y": y, "unyielded_fraction": unyielded,
                "centreline_u_min": umin, "centreline_u_min_y": ymin, "centreline_u_zero_y": y0,
                "steady_change_per_unit_time": change, "t_final": m.time}
+        if b > 0 and regularised_check:
+            mr, change_r = run_cavity_bingham(b, n, threads, t_max=t_max, regularised=CAVITY_REGULARISATION)
+            umin_r, _, y0_r = centreline_u(mr)
+            row.update({"regularised_psi_max_abs": abs(_refine_min(mr.streamfunction(), mr.grid.dx, mr.grid.dy)[0]),
+                        "regularised_centreline_u_min": umin_r, "regularised_centreline_u_zero_y": y0_r,
+                        "regularised_steady_change": change_r})
+            row["projection_vs_regularised_psi"] = abs(row["psi_max_abs"] / row["regularised_psi_max_abs"] - 1)
+            row["projection_vs_regularised_u_min"] = abs(umin / umin_r - 1)
         if b in BLEYER2015_CENTRELINE:
             pu, py, p0 = BLEYER2015_CENTRELINE[b]
             row["bleyer2015_u_min"], row["bleyer2015_u_zero_y"] = pu, p0
@@ -193,21 +217,81 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0):
     metrics["psi_decreases_and_vortex_rises"] = monotone
     passed = monotone
     reference = {"stokes_psi_max_abs": 0.1000, "stokes_vortex_y": 0.765,
-                 "source": "validation-data.md §2 (Stokes cavity, Bn = 0)",
+                 "stokes_centreline_u_min": STOKES_CAVITY_U_MIN,
+                 "source": "validation-data.md §2 (Stokes cavity, Bn = 0); centreline min u of the Stokes cavity: "
+                           "Richardson limit of an independent biharmonic solution (stokes_cavity_biharmonic, n = 32, 64)",
                  "published_bingham": "Bleyer et al. 2015 (CMAME 283) centreline velocity, Bi = 0, 2, 5, 20: "
                                       "min u/U and the height of u = 0 (BLEYER2015_CENTRELINE)",
-                 "acceptance": "|ψ| decreases and the vortex centre rises with Bn; Bn = 0 within 1 % of 0.1000; "
-                               "at n >= 128 the centreline min u and zero height within 2 % of Bleyer et al. 2015"}
+                 "acceptance": "|ψ| decreases and the vortex centre rises with Bn; Bn = 0: |ψ|max within 1 % of 0.1000; "
+                               "at n >= 64 the height of u = 0 within 2 % of Bleyer et al. 2015 and the projection "
+                               "within 5 % of the regularised solution (|ψ|max); the centreline min u against "
+                               "Bleyer et al. is reported, not gated (docs/validation.md: their Newtonian profile is "
+                               "3.4 % below the converged Stokes value)"}
     compared = [r for r in rows if "u_min_rel_diff" in r]
     if compared:
-        metrics["bleyer2015_max_rel_diff"] = max(max(r["u_min_rel_diff"], r["u_zero_y_rel_diff"]) for r in compared)
-        if n >= 128:
-            passed = passed and metrics["bleyer2015_max_rel_diff"] <= 0.02
+        metrics["bleyer2015_max_rel_diff_u_zero_y"] = max(r["u_zero_y_rel_diff"] for r in compared)
+        metrics["bleyer2015_max_rel_diff_u_min"] = max(r["u_min_rel_diff"] for r in compared)
+        if n >= 64:
+            passed = passed and metrics["bleyer2015_max_rel_diff_u_zero_y"] <= 0.02
+    regs = [r for r in rows if "projection_vs_regularised_psi" in r]
+    if regs:
+        metrics["projection_vs_regularised_psi_max"] = max(r["projection_vs_regularised_psi"] for r in regs)
+        metrics["projection_vs_regularised_u_min_max"] = max(r["projection_vs_regularised_u_min"] for r in regs)
+        if n >= 64:
+            passed = passed and metrics["projection_vs_regularised_psi_max"] <= 0.05
     if 0.0 in bns:
         r0 = rows[bns.index(0.0)]
         metrics["stokes_psi_rel_error"] = abs(r0["psi_max_abs"] - 0.1) / 0.1
+        metrics["stokes_u_min_rel_error"] = abs(r0["centreline_u_min"] / STOKES_CAVITY_U_MIN - 1)
         passed = passed and metrics["stokes_psi_rel_error"] <= 0.01
     return metrics, reference, passed
+
+
+def stokes_cavity_biharmonic(n: int) -> tuple[float, float]:
+    """Independent reference for the Stokes cavity: the stream function of ∇⁴ψ = 0 on the unit
+    square, ψ = 0 on the walls, ∂ψ/∂n = 0 except ∂ψ/∂y = 1 under the lid, by the 13-point finite
+    difference stencil on an (n + 1)² node grid with the wall slopes in mirrored ghost nodes
+    (a dense solve: n ≤ 64). Returns (min of u = ∂ψ/∂y on the centreline x = 1/2 from the
+    central differences at the nodes, refined by a parabola, and max |ψ| at the nodes)."""
+    n = int(n)
+    if not 4 <= n <= 64 or n % 2:
+        raise ValueError(f"invalid parameter `n` = {n}: allowed an even integer in [4, 64]")
+    h, N = 1.0 / n, n - 1
+    A = np.zeros((N * N, N * N))
+    b = np.zeros(N * N)
+    stencil = {(0, 0): 20.0, (1, 0): -8.0, (-1, 0): -8.0, (0, 1): -8.0, (0, -1): -8.0, (1, 1): 2.0, (1, -1): 2.0,
+               (-1, 1): 2.0, (-1, -1): 2.0, (2, 0): 1.0, (-2, 0): 1.0, (0, 2): 1.0, (0, -2): 1.0}
+    for j in range(1, n):
+        for i in range(1, n):
+            row = (j - 1) * N + (i - 1)
+            for (di, dj), c in stencil.items():
+                ii, jj = i + di, j + dj
+                if jj == n + 1:      # above the lid: ψ(n + 1) = ψ(n − 1) + 2h·1
+                    b[row] -= c * 2.0 * h
+                    jj = n - 1
+                elif jj == -1:
+                    jj = 1
+                if ii == -1:
+                    ii = 1
+                elif ii == n + 1:
+                    ii = n - 1
+                if 1 <= ii <= n - 1 and 1 <= jj <= n - 1:
+                    A[row, (jj - 1) * N + (ii - 1)] += c
+    P = np.zeros((n + 1, n + 1))
+    P[1:n, 1:n] = np.linalg.solve(A, b).reshape(N, N)
+    u = (P[2:, n // 2] - P[:-2, n // 2]) / (2 * h)
+    k = int(np.argmin(u))
+    umin = float(u[k])
+    if 0 < k < len(u) - 1:
+        den = u[k - 1] - 2 * u[k] + u[k + 1]
+        if den > 0:
+            umin = float(u[k] - 0.125 * (u[k - 1] - u[k + 1]) ** 2 / den)
+    return umin, float(np.abs(P).max())
+
+
+# The Stokes cavity's centreline min u: Richardson extrapolation (second order) of
+# stokes_cavity_biharmonic at n = 32 and 64 (-0.20616, -0.20735; tests/test_rheology.py recomputes it).
+STOKES_CAVITY_U_MIN = -0.20775
 
 
 # ---------------------------------------------------------------------------------------------
