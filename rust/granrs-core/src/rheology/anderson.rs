@@ -98,6 +98,7 @@ impl Anderson {
 
     /// After the update (Σ = G(x_k)): replaces Σ by the Anderson iterate x_{k+1}. Returns the
     /// number of history columns used (0: plain Picard step).
+    #[allow(clippy::needless_range_loop)] // the symmetric fill of the small normal matrix
     pub fn mix(&mut self, p: &mut PlasticState) -> usize {
         let n_c = self.n_c;
         let scale = if p.tau_max > 0.0 { 1.0 / p.tau_max } else { 0.0 };
@@ -187,14 +188,16 @@ impl Anderson {
 fn solve_dense(a: &mut [[f64; MAX_ANDERSON_DEPTH + 1]; MAX_ANDERSON_DEPTH], m: usize) -> Option<[f64; MAX_ANDERSON_DEPTH]> {
     for c in 0..m {
         let piv = (c..m).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
-        if !(a[piv][c].abs() > 0.0) || !a[piv][c].is_finite() {
+        let p = a[piv][c];
+        if p == 0.0 || !p.is_finite() {
             return None;
         }
         a.swap(c, piv);
-        for r in c + 1..m {
-            let f = a[r][c] / a[c][c];
-            for k in c..=m {
-                a[r][k] -= f * a[c][k];
+        let pivot_row = a[c];
+        for row in a.iter_mut().take(m).skip(c + 1) {
+            let f = row[c] / pivot_row[c];
+            for (x, &y) in row.iter_mut().zip(&pivot_row).take(m + 1).skip(c) {
+                *x -= f * y;
             }
         }
     }
