@@ -178,6 +178,8 @@ def test_rotational_update_and_anderson_depth_are_checked():
         Model(grid, Material(1.0, 1.0), bc=bc, numerics=Numerics(pressure_update="bogus"))
     with pytest.raises(ParameterError, match=r"`anderson_depth`.*\[0, 20\]"):
         Model(grid, Material(1.0, 1.0), bc=bc, rheology=Bingham(1.0), numerics=Numerics(anderson_depth=21))
+    with pytest.raises(ParameterError, match="`picard_solve_max_iterations`"):
+        Model(grid, Material(1.0, 1.0), bc=bc, rheology=Bingham(1.0), numerics=Numerics(picard_solve_max_iterations=0))
 
 
 @pytest.mark.slow

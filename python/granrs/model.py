@@ -114,6 +114,9 @@ class Numerics:
         plain iteration; at most 20). Same fixed point, fewer predictor solves where the plain
         iteration crawls: Uzawa (θ = 0), fine grids, proximal restarts (docs/validation.md,
         Bingham cavity).
+    picard_solve_max_iterations: iteration cap of each viscous solve inside the Picard loop
+        (default 500; fine creeping grids need more from a cold start, e.g. the Bingham cavity at
+        n = 128).
     pressure_update: 'standard' (default: p^{n+1} = p^n + δp) or 'rotational' (p^{n+1} = p^n + δp
         − η div ũ; Timmermans et al. 1996): the rotational form reaches Stokes-dominated steady
         states (ηδt/(ρh²) ≫ 1, e.g. the Bingham cavity) in tens of steps instead of thousands.
@@ -160,6 +163,7 @@ class Numerics:
     ambient_hydrostatic: bool = False
     proximal_restarts: int = 0
     anderson_depth: int = 0
+    picard_solve_max_iterations: int = 500
     pressure_update: str = "standard"
     wall_normal_stress: str = "pressure"
     active_region: Optional[int] = None
@@ -226,7 +230,7 @@ class Model:
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
             n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align),
-            n.step_retries, air, n.anderson_depth, n.pressure_update)
+            n.step_retries, air, n.anderson_depth, n.pressure_update, n.picard_solve_max_iterations)
         self.air = air
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())

@@ -125,7 +125,7 @@ def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_
     m = Model(grid, Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)), rheology=rheo, threads=threads,
               numerics=Numerics(dt=dt, cfl_abort=100.0, convection=False, theta=theta, picard_tol=1e-8,
                                 picard_max_iterations=5000, pressure_update="rotational", anderson_depth=anderson_depth,
-                                viscous_max_iterations=100000, **kw))
+                                viscous_max_iterations=100000, picard_solve_max_iterations=100000, **kw))
     change = math.inf
     while m.time < t_max - 1e-12:
         before = m.u.copy()

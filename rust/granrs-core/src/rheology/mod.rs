@@ -265,6 +265,11 @@ pub struct RheologyConfig {
     pub picard_tol: f64,
     /// Reaching this many iterations without convergence is an error.
     pub picard_max_iterations: usize,
+    /// Iteration cap of each viscous solve inside the Picard loop (default
+    /// [`stage::PICARD_SOLVE_MAX_ITERATIONS`]; the overall `viscous_max_iterations` still
+    /// applies). Fine creeping grids need more from a cold start (the Bingham cavity at
+    /// n = 128: over 500 at its first step).
+    pub picard_solve_max_iterations: usize,
     /// Where the smoothed jump of τ(Φ) and τ_b(Φ) sits (two-phase models only).
     pub interface_yield: InterfaceYield,
     /// Proximal restarts of the anchor of eq. (12) per step (0: the paper's iteration). Eq. (12)
@@ -294,6 +299,7 @@ impl Default for RheologyConfig {
             theta: 0.5,
             picard_tol: 1e-9,
             picard_max_iterations: 1000,
+            picard_solve_max_iterations: stage::PICARD_SOLVE_MAX_ITERATIONS,
             interface_yield: InterfaceYield::default(),
             proximal_restarts: 0,
             anderson_depth: 0,
@@ -346,6 +352,9 @@ impl RheologyConfig {
         check_range("picard_tol", self.picard_tol, 1e-15, 0.5)?;
         if self.picard_max_iterations == 0 || self.picard_max_iterations > 1_000_000 {
             return Err(Error::param("picard_max_iterations", self.picard_max_iterations, "an integer in [1, 1e6]"));
+        }
+        if self.picard_solve_max_iterations == 0 || self.picard_solve_max_iterations > 100_000_000 {
+            return Err(Error::param("picard_solve_max_iterations", self.picard_solve_max_iterations, "an integer in [1, 1e8]"));
         }
         if self.anderson_depth > anderson::MAX_ANDERSON_DEPTH {
             return Err(Error::param("anderson_depth", self.anderson_depth, &format!("an integer in [0, {}]", anderson::MAX_ANDERSON_DEPTH)));

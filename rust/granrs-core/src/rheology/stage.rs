@@ -242,12 +242,13 @@ impl TwoPhaseModel {
         // The inner solves must be more accurate than the fixed point sought: without θ nothing
         // damps their error in the directions of Σ the velocity does not see, and the increment
         // stalls at the level of the solver tolerance (seen: 5e-10 with rtol = 1e-10).
-        // Each inner solve is capped at PICARD_SOLVE_MAX_ITERATIONS: on open sides CG reaches
+        // Each inner solve is capped at `picard_solve_max_iterations` (default
+        // PICARD_SOLVE_MAX_ITERATIONS): on open sides CG reaches
         // ~1e-9 and then drifts (see below), and a warm-started solve inside the loop needs far
         // fewer iterations than that otherwise.
         let (rtol_outer, cap_outer) = (self.momentum.rtol, self.momentum.max_iterations);
         self.momentum.rtol = rtol_outer.min(1e-2 * cfg.rheology.picard_tol).max(1e-12);
-        self.momentum.max_iterations = cap_outer.min(PICARD_SOLVE_MAX_ITERATIONS);
+        self.momentum.max_iterations = cap_outer.min(cfg.rheology.picard_solve_max_iterations);
         let result = self.picard_loop(exec);
         self.momentum.rtol = rtol_outer;
         self.momentum.max_iterations = cap_outer;
