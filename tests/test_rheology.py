@@ -127,10 +127,15 @@ def test_advance_log_reports_picard_iterations_and_increment():
 
 
 # ---- cavity ----------------------------------------------------------------------------------
-def test_cavity_vortex_weakens_and_rises_with_bn():
-    rec = run_case("cavity-bingham", bn=[0.0, 5.0, 20.0], n=16)
-    rows = rec["metrics"]["rows"]
-    assert rec["metrics"]["psi_decreases_and_vortex_rises"], rows
+@pytest.fixture(scope="module")
+def cavity16():
+    """The Bingham cavity at n = 16 for Bn = 0, 5, 20 (projection and regularised runs), shared."""
+    return run_case("cavity-bingham", bn=[0.0, 5.0, 20.0], n=16)
+
+
+def test_cavity_vortex_weakens_and_rises_with_bn(cavity16):
+    rows = cavity16["metrics"]["rows"]
+    assert cavity16["metrics"]["psi_decreases_and_vortex_rises"], rows
     # Bn = 0: Stokes |ψ|max = 0.1000 (validation-data §2); 2 % at 16 cells
     assert abs(rows[0]["psi_max_abs"] - 0.1) < 0.002, rows
     assert rows[2]["unyielded_fraction"] > rows[1]["unyielded_fraction"] > 0, rows
@@ -141,13 +146,13 @@ def test_cavity_vortex_weakens_and_rises_with_bn():
         assert r["u_zero_y_rel_diff"] < 0.02, r
 
 
-def test_cavity_projection_agrees_with_the_regularised_law():
+def test_cavity_projection_agrees_with_the_regularised_law(cavity16):
     # the same Bingham problem on the same MAC grid by the regularised law (Papanastasiou
     # m = 1e4, whose own error is 0.2 % in the centreline min u, validation/rheology.py): the
     # difference is the projection's discretisation, |ψ|max 1.2 % at n = 16 (measured); 5 %
     # is the acceptance of the n >= 64 case
-    rec = run_case("cavity-bingham", bn=[5.0], n=16)
-    r = rec["metrics"]["rows"][0]
+    r = cavity16["metrics"]["rows"][1]
+    assert r["bn"] == 5.0
     assert r["projection_vs_regularised_psi"] < 0.05, r
     assert r["steady_change_per_unit_time"] < 1e-4, r
 

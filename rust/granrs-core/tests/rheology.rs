@@ -138,17 +138,7 @@ fn bad_parameters_name_themselves() {
 /// Bingham cavity (Stokes) with a given θ: fitted geometric ratio of the Picard increments of the
 /// third step.
 fn cavity_ratio(theta: f64) -> f64 {
-    let grid = Grid::new(32, 32, 1.0, 1.0).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Top, VelocityBc::Velocity { normal: 0.0, tangential: 1.0 });
-    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 1.0 });
-    cfg.convection = false;
-    cfg.time.fixed_dt = Some(0.05);
-    cfg.time.cfl_abort = 100.0;
-    cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 5.0 });
-    cfg.rheology.theta = theta;
-    cfg.rheology.picard_tol = 1e-11;
-    cfg.rheology.picard_max_iterations = 5000;
-    let mut m = TwoPhaseModel::new(cfg).unwrap();
+    let mut m = bingham_cavity(32, 0.05, theta, 0, false, 1);
     for _ in 0..3 {
         m.step().unwrap();
     }

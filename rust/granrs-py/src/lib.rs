@@ -443,10 +443,7 @@ impl PyModel {
                 0..=1_000_000 => proximal_restarts as usize,
                 other => return Err(param_err("proximal_restarts", other, "an integer in [0, 1000000]")),
             },
-            anderson_depth: match anderson_depth {
-                0..=20 => anderson_depth as usize,
-                other => return Err(param_err("anderson_depth", other, "an integer in [0, 20]")),
-            },
+            anderson_depth: pos("anderson_depth", anderson_depth)?,
             wall_normal_stress: match wall_normal_stress {
                 "pressure" => WallNormalStress::Pressure,
                 "total" => WallNormalStress::Total,

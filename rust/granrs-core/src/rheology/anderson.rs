@@ -23,8 +23,9 @@
 //! r) and when the mixed residual grows by more than `RESTART_GROWTH` over the smallest seen since
 //! the last clearing (the map is only piecewise smooth: P switches between rigid and yielded
 //! points). Reductions are serial, in a fixed order, so the iterates do not depend on the number
-//! of threads; they cost m + 1 dot products of the length of Σ per iteration, against the
-//! hundreds of stencil products of the predictor solve.
+//! of threads; the normal matrix is kept by ring slot, so an iteration costs 2m + 1 dot products
+//! of the length of Σ (the new column's row, the right-hand side, ‖f‖), against the hundreds of
+//! stencil products of the predictor solve.
 
 use super::plastic::PlasticState;
 
@@ -43,20 +44,29 @@ pub struct Anderson {
     depth: usize,
     /// Length of Σ_xx's storage (the first block of every vector).
     n_c: usize,
-    /// The iterate x_k handed to G (saved before each update).
+    /// Weights (τ/τ_max)² of the entries, set at the start of each step ([`Anderson::begin_step`]).
+    w: Vec<f64>,
+    /// The iterate x_k handed to G (saved before each update), then f_k = G(x_k) − x_k.
     x: Vec<f64>,
     f_prev: Vec<f64>,
     g_prev: Vec<f64>,
-    /// Ring buffers of ΔF and ΔG columns.
+    /// Ring buffers of ΔF and ΔG columns; the valid slots are 0..count.
     df: Vec<Vec<f64>>,
     dg: Vec<Vec<f64>>,
-    /// Number of valid columns, and the ring position of the next one.
+    /// ⟨ΔF_i, ΔF_j⟩_w by ring slot (a new column only adds its own row).
+    gram: [[f64; MAX_ANDERSON_DEPTH]; MAX_ANDERSON_DEPTH],
+    /// Number of valid columns, and the ring slot of the next one.
     count: usize,
     head: usize,
     have_prev: bool,
     best: f64,
     /// Times the history was cleared by the growth safeguard (cumulative).
     pub restarts: usize,
+}
+
+/// ⟨a, b⟩_w in a fixed (serial) order.
+fn wdot(w: &[f64], a: &[f64], b: &[f64]) -> f64 {
+    w.iter().zip(a).zip(b).map(|((w, a), b)| w * a * b).sum()
 }
 
 impl Anderson {
@@ -68,17 +78,28 @@ impl Anderson {
         Anderson {
             depth,
             n_c,
+            w: vec![0.0; n],
             x: vec![0.0; n],
             f_prev: vec![0.0; n],
             g_prev: vec![0.0; n],
             df: (0..depth).map(|_| vec![0.0; n]).collect(),
             dg: (0..depth).map(|_| vec![0.0; n]).collect(),
+            gram: [[0.0; MAX_ANDERSON_DEPTH]; MAX_ANDERSON_DEPTH],
             count: 0,
             head: 0,
             have_prev: false,
             best: f64::INFINITY,
             restarts: 0,
         }
+    }
+
+    /// Start of a step's Picard loop: the weights from this step's yield stress τ, no history.
+    pub fn begin_step(&mut self, p: &PlasticState) {
+        let scale = if p.tau_max > 0.0 { 1.0 / p.tau_max } else { 0.0 };
+        for (w, t) in self.w.iter_mut().zip(p.tau_c.slice().iter().chain(p.tau_n.slice())) {
+            *w = (t * scale) * (t * scale);
+        }
+        self.reset();
     }
 
     /// Forgets the history (the map changed).
@@ -98,25 +119,13 @@ impl Anderson {
 
     /// After the update (Σ = G(x_k)): replaces Σ by the Anderson iterate x_{k+1}. Returns the
     /// number of history columns used (0: plain Picard step).
-    #[allow(clippy::needless_range_loop)] // the symmetric fill of the small normal matrix
     pub fn mix(&mut self, p: &mut PlasticState) -> usize {
-        let n_c = self.n_c;
-        let scale = if p.tau_max > 0.0 { 1.0 / p.tau_max } else { 0.0 };
-        // weights w = (τ/τ_max)² of every entry (centres then nodes)
-        let (tc, tn) = (p.tau_c.slice(), p.tau_n.slice());
-        let weight = |k: usize| {
-            let t = if k < n_c { tc[k] } else { tn[k - n_c] } * scale;
-            t * t
-        };
-        let (gc, gn) = (p.sigma_xx.slice(), p.sigma_xy.slice());
-        let g = |k: usize| if k < n_c { gc[k] } else { gn[k - n_c] };
-        let n = self.x.len();
-        // f_k = g − x (stored in x, which is not needed any more), and the new columns
+        // f_k = g − x (in x, which is not needed any more) and ‖f_k‖_w
+        let g = p.sigma_xx.slice().iter().chain(p.sigma_xy.slice());
         let mut fnorm2 = 0.0;
-        for k in 0..n {
-            let f = g(k) - self.x[k];
-            self.x[k] = f;
-            fnorm2 += weight(k) * f * f;
+        for ((x, g), w) in self.x.iter_mut().zip(g).zip(&self.w) {
+            *x = g - *x;
+            fnorm2 += w * *x * *x;
         }
         let fnorm = fnorm2.sqrt();
         if !fnorm.is_finite() {
@@ -128,56 +137,53 @@ impl Anderson {
             self.reset();
         }
         self.best = self.best.min(fnorm);
+        let Anderson { w, x, f_prev, g_prev, df, dg, gram, .. } = self;
+        // the new columns ΔF, ΔG in slot `head` (from the second iteration on); f, g become the
+        // previous ones
+        let g = p.sigma_xx.slice().iter().chain(p.sigma_xy.slice());
+        let slot = self.head;
         if self.have_prev {
-            let (dfh, dgh) = (&mut self.df[self.head], &mut self.dg[self.head]);
-            for k in 0..n {
-                let gk = g(k);
-                dfh[k] = self.x[k] - self.f_prev[k];
-                dgh[k] = gk - self.g_prev[k];
+            let (dfs, dgs) = (&mut df[slot], &mut dg[slot]);
+            for (k, &g) in g.enumerate() {
+                dfs[k] = x[k] - f_prev[k];
+                dgs[k] = g - g_prev[k];
+                f_prev[k] = x[k];
+                g_prev[k] = g;
             }
             self.head = (self.head + 1) % self.depth;
             self.count = (self.count + 1).min(self.depth);
+            for j in 0..self.count {
+                let v = wdot(w, &df[slot], &df[j]);
+                gram[slot][j] = v;
+                gram[j][slot] = v;
+            }
+        } else {
+            for ((fp, gp), (&f, &g)) in f_prev.iter_mut().zip(g_prev.iter_mut()).zip(x.iter().zip(g)) {
+                *fp = f;
+                *gp = g;
+            }
+            self.have_prev = true;
         }
-        for k in 0..n {
-            self.f_prev[k] = self.x[k];
-            self.g_prev[k] = g(k);
-        }
-        self.have_prev = true;
         let m = self.count;
         if m == 0 {
             return 0;
         }
-        // normal equations (ΔFᵀWΔF + λI) γ = ΔFᵀW f over the valid columns
+        // normal equations (ΔFᵀWΔF + λI) γ = ΔFᵀW f over the valid slots
         let mut a = [[0.0f64; MAX_ANDERSON_DEPTH + 1]; MAX_ANDERSON_DEPTH];
-        for i in 0..m {
-            for j in 0..=i {
-                let (ci, cj) = (&self.df[i], &self.df[j]);
-                let s: f64 = (0..n).map(|k| weight(k) * ci[k] * cj[k]).sum();
-                a[i][j] = s;
-                a[j][i] = s;
-            }
-            let ci = &self.df[i];
-            a[i][m] = (0..n).map(|k| weight(k) * ci[k] * self.x[k]).sum();
-        }
-        let trace: f64 = (0..m).map(|i| a[i][i]).sum();
-        let shift = TIKHONOV * trace / m as f64;
+        let shift = TIKHONOV * (0..m).map(|i| gram[i][i]).sum::<f64>() / m as f64;
         for (i, row) in a.iter_mut().enumerate().take(m) {
+            row[..m].copy_from_slice(&gram[i][..m]);
             row[i] += shift;
+            row[m] = wdot(w, &df[i], x);
         }
         let Some(gamma) = solve_dense(&mut a, m) else {
             self.reset();
             return 0;
         };
         // Σ ← g − ΔG γ
-        let (sc, sn) = (p.sigma_xx.slice_mut(), p.sigma_xy.slice_mut());
-        for (i, &gi) in gamma.iter().enumerate().take(m) {
-            let col = &self.dg[i];
-            for (k, s) in sc.iter_mut().enumerate() {
-                *s -= gi * col[k];
-            }
-            for (k, s) in sn.iter_mut().enumerate() {
-                *s -= gi * col[n_c + k];
-            }
+        let sigma = p.sigma_xx.slice_mut().iter_mut().chain(p.sigma_xy.slice_mut().iter_mut());
+        for (k, s) in sigma.enumerate() {
+            *s -= (0..m).map(|i| gamma[i] * dg[i][k]).sum::<f64>();
         }
         m
     }

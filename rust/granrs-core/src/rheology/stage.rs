@@ -270,7 +270,7 @@ impl TwoPhaseModel {
         let mut halvings = 0usize;
         let mut restarts = 0usize;
         if let Some(a) = rs.anderson.as_mut() {
-            a.reset();
+            a.begin_step(&rs.plastic);
         }
         for k in 1..=rc.picard_max_iterations {
             // rhs + div(τΣ^k) + wall friction τ_b s^k / h
