@@ -373,6 +373,15 @@ class Model:
         """Area of the dense phase {Φ > 0} (sub-cell accurate), m²."""
         return self._rust.dense_area()
 
+    def energy_budget(self) -> dict:
+        """The mechanical energy budget since the state was last set, J per metre of width
+        (docs/architecture.md, "Energy budget"): ``kinetic``, ``potential`` (now and ``*_initial``),
+        the works ``gravity_work``, ``plastic_work`` (with its ``plastic_negative_work``: stress
+        given back to the flow, which eq. (11) of the paper forbids), ``viscous_work``,
+        ``wall_work`` by side, the ``residual`` E_k − E_k(0) − W_g + W_pl + W_visc + W_wall that
+        the discretisation added (> 0) or removed (< 0), and the last ``rates`` in W/m."""
+        return self._rust.energy_budget()
+
     # ---- stepping -----------------------------------------------------------------------
     def step(self) -> dict:
         """Takes one step (GIL released); returns its diagnostics."""

@@ -315,7 +315,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     grid = model.grid
     lc = case.width
     area0 = model.dense_area()
-    rec = {"t": [], "front": [], "area": [], "max_granular_speed": []}
+    rec = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
     profiles = {}
     state = {"rest_since": None}
     pending_profiles = sorted(case.profile_times)
@@ -340,6 +340,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         rec["front"].append(xf - lc)
         rec["area"].append(model.dense_area())
         rec["max_granular_speed"].append(speed)
+        rec["energy"].append(model.energy_budget())
         while pending_profiles and t >= pending_profiles[0] - 1e-9:
             profiles[round(pending_profiles.pop(0), 6)] = surface_profile(model.phi, grid.dy)
         if t > 0.1 and speed < case.rest_speed:
@@ -389,9 +390,14 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
     if "step_retries" in hist:
         summary["step_retries_total"] = int(np.sum(hist["step_retries"]))
+    if rec["energy"]:
+        summary["energy"] = energy_summary(rec["energy"][-1])
     summary.update(extra_summary or {})
     xs = (np.arange(grid.nx) + 0.5) * grid.dx - lc
     write_outputs(out, summary, rec, profiles, xs)
+    if rec["energy"]:
+        write_energy(out, rec["t"], rec["energy"])
+        plot_energy(out)
     np.savez(out / "history.npz", **hist)
     plot_front(out, compare_with)
     plot_profiles(out)
@@ -401,6 +407,72 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         kind = SolverError if isinstance(failure, SolverError) else SimulationError
         raise kind(error + f" (outputs written to {out})") from failure
     return summary
+
+
+ENERGY_COLUMNS = ("kinetic", "potential_drop", "gravity_work", "plastic_work", "plastic_negative_work", "viscous_work",
+                  "wall_work", "residual")
+
+
+def _energy_row(b: dict) -> dict:
+    """One row of energy.csv from ``Model.energy_budget()`` (J per metre of width)."""
+    return {"kinetic": b["kinetic"], "potential_drop": b["potential_initial"] - b["potential"],
+            "gravity_work": b["gravity_work"], "plastic_work": b["plastic_work"],
+            "plastic_negative_work": b["plastic_negative_work"], "viscous_work": b["viscous_work"],
+            "wall_work": sum(b["wall_work"].values()), "residual": b["residual"]}
+
+
+def energy_summary(b: dict) -> dict:
+    """Where gravity's work went by the end of the run, as fractions of it (they add up to 1):
+    kinetic energy left, plastic, basal and back-wall friction, viscous, and ``numerical`` (−
+    the residual: what the discretisation dissipated); ``plastic_negative`` is the stress given
+    back to the flow (≤ 0; zero for the paper's eq. 11, docs/validation.md)."""
+    row = _energy_row(b)
+    wg = row["gravity_work"]
+    if not wg > 0:
+        return {"gravity_work_J_per_m": wg}
+    return {"gravity_work_J_per_m": wg, "potential_drop_J_per_m": row["potential_drop"],
+            "kinetic": row["kinetic"] / wg, "plastic": row["plastic_work"] / wg, "wall": row["wall_work"] / wg,
+            "viscous": row["viscous_work"] / wg, "numerical": -row["residual"] / wg,
+            "plastic_negative": row["plastic_negative_work"] / wg}
+
+
+def write_energy(out: Path, times: list, budgets: list) -> None:
+    """energy.csv: the energy budget at the recorded times (J per metre of width)."""
+    with open(out / "energy.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["t_s"] + [c + "_J_m" for c in ENERGY_COLUMNS])
+        for t, b in zip(times, budgets):
+            row = _energy_row(b)
+            w.writerow([f"{t:.6g}"] + [f"{row[c]:.6g}" for c in ENERGY_COLUMNS])
+
+
+def plot_energy(out: Path) -> None:
+    """energy.png: where gravity's work goes against time (from energy.csv)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = np.genfromtxt(out / "energy.csv", delimiter=",", names=True)
+    meta = json.loads((out / "summary.json").read_text())
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    t = d["t_s"]
+    ax.plot(t, d["gravity_work_J_m"], "k", lw=2, label="work of gravity W_g")
+    ax.plot(t, d["potential_drop_J_m"], "k:", lw=1, label="potential energy drop")
+    ax.plot(t, d["plastic_work_J_m"], color="C0", label="plastic work ∫τΣ:D")
+    ax.plot(t, -d["plastic_negative_work_J_m"], color="C0", ls="--", lw=1,
+            label="its negative part (stress given back), sign flipped")
+    ax.plot(t, d["wall_work_J_m"], color="C1", label="Coulomb friction, base and back wall")
+    ax.plot(t, d["kinetic_J_m"], color="C2", label="kinetic energy")
+    ax.plot(t, d["viscous_work_J_m"], color="C4", lw=1, label="viscous work")
+    ax.plot(t, -d["residual_J_m"], color="C3", label="numerical dissipation (− residual)")
+    ax.set(xlabel="t (s)", ylabel="J per metre of width", title=_label(meta) + " column: energy budget")
+    ax.title.set_fontsize(9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.tight_layout()
+    fig.savefig(out / "energy.png", dpi=120)
+    plt.close(fig)
 
 
 def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.ndarray) -> None:
@@ -492,7 +564,7 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
     lc, hc = case.width, case.column_height
     threshold = depth_averaged_front_depth(case)
     mass0 = m.mass()
-    rec = {"t": [], "front": [], "area": [], "max_granular_speed": []}
+    rec = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
     profiles = {}
     pending = sorted(case.profile_times)
     rest_since = None

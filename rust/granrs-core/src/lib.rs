@@ -16,8 +16,10 @@
 //!   projection Σ = P(Σ + r D(u)) and its Picard iteration (the bi-projection scheme);
 //! - [`walls`]: Coulomb friction walls (the friction projection s = P_b(s − r_b u_t));
 //! - [`time_stepping`]: clock, CFL, and `step.rs`, the one ordered list of the stages of a step;
-//! - [`models`]: the two-phase model that owns the state and takes one step.
+//! - [`models`]: the two-phase model that owns the state and takes one step;
+//! - [`diagnostics`]: what is measured on the state, not a stage of the step (the energy budget).
 
+pub mod diagnostics;
 pub mod error;
 pub mod exec;
 pub mod grid;

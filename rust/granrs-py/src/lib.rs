@@ -521,6 +521,39 @@ impl PyModel {
         self.inner.dense_area()
     }
 
+    /// The mechanical energy budget since the state was last set (diagnostics/energy.rs), in
+    /// J per metre of width: energies now and initially, the time integrals of the powers, the
+    /// residual (what the discretisation added, > 0, or removed, < 0), and the last rates [W/m].
+    fn energy_budget<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let b = self.inner.energy_budget();
+        let d = PyDict::new(py);
+        d.set_item("kinetic", b.kinetic)?;
+        d.set_item("kinetic_initial", b.kinetic_initial)?;
+        d.set_item("potential", b.potential)?;
+        d.set_item("potential_initial", b.potential_initial)?;
+        d.set_item("gravity_work", b.gravity_work)?;
+        d.set_item("plastic_work", b.plastic_work)?;
+        d.set_item("plastic_negative_work", b.plastic_negative_work)?;
+        d.set_item("viscous_work", b.viscous_work)?;
+        let sides = ["left", "right", "bottom", "top"];
+        let walls = PyDict::new(py);
+        let rates_walls = PyDict::new(py);
+        for (k, side) in sides.iter().enumerate() {
+            walls.set_item(side, b.wall_work[k])?;
+            rates_walls.set_item(side, b.rates.wall[k])?;
+        }
+        d.set_item("wall_work", walls)?;
+        d.set_item("residual", b.residual)?;
+        let r = PyDict::new(py);
+        r.set_item("gravity", b.rates.gravity)?;
+        r.set_item("plastic", b.rates.plastic)?;
+        r.set_item("plastic_negative", b.rates.plastic_negative)?;
+        r.set_item("viscous", b.rates.viscous)?;
+        r.set_item("wall", rates_walls)?;
+        d.set_item("rates", r)?;
+        Ok(d)
+    }
+
     /// Sets p so that the body force is balanced at rest (one pressure solve).
     fn initialise_pressure<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let inner = &mut self.inner;

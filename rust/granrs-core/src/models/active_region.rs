@@ -169,7 +169,7 @@ impl TwoPhaseModel {
         }
         let w = self.window.as_mut().expect("built above");
         w.time_to_land = self.time_to_land;
-        let out = w.step();
+        let out = w.step_accepted();
         self.copy_from_window();
         out
     }

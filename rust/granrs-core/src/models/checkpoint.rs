@@ -111,6 +111,7 @@ impl TwoPhaseModel {
         self.projection_stale = true;
         self.time_to_land = None;
         self.window = None;
+        self.start_energy_budget();
         Ok(())
     }
 }

@@ -13,6 +13,7 @@ use crate::projection::PressureProjection;
 use crate::rheology::stage::RheologyState;
 use crate::rheology::{RheologyConfig, RheologyLaw};
 use crate::solvers::{SolveInfo, SolverSettings};
+use crate::diagnostics::EnergyLedger;
 use crate::time_stepping::{MomentumSolver, StepInfo, TimeConfig, ViscousScheme};
 
 /// A Newtonian material (or the Newtonian part of a granular one).
@@ -309,6 +310,8 @@ pub struct TwoPhaseModel {
     pub(crate) dt_attempt: f64,
     /// The state before the step in progress (reused buffers; only with step retries).
     pub(crate) step_snapshot: Vec<crate::models::checkpoint::StateEntry>,
+    /// Time integrals of the mechanical energy budget (`diagnostics/energy.rs`).
+    pub(crate) energy: EnergyLedger,
 }
 
 impl TwoPhaseModel {
@@ -351,7 +354,7 @@ impl TwoPhaseModel {
             transport: LevelSetTransport::new(g),
             redistancer: Redistancer::new(g, config.redistance)?,
         };
-        Ok(TwoPhaseModel {
+        let mut model = TwoPhaseModel {
             levelset,
             u: xf(),
             v: yf(),
@@ -379,9 +382,12 @@ impl TwoPhaseModel {
             dt_ceiling: f64::INFINITY,
             dt_attempt: 0.0,
             step_snapshot: Vec::new(),
+            energy: EnergyLedger::default(),
             pool,
             config,
-        })
+        };
+        model.start_energy_budget();
+        Ok(model)
     }
 
     /// The last pressure increment δp of whichever projection the model uses (row-major, the
@@ -441,6 +447,7 @@ impl TwoPhaseModel {
         self.properties_current = false;
         self.dt_prev = None;
         self.reference_area = self.dense_area();
+        self.start_energy_budget();
     }
 
     /// Density on u and v faces as last computed.

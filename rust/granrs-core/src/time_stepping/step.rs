@@ -92,6 +92,12 @@ impl TwoPhaseModel {
     /// region does this itself). With retries enabled, a step that fails for good leaves the model
     /// in its state before the step (the last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
+        let info = self.step_accepted()?;
+        self.account_energy(info.dt);
+        Ok(info)
+    }
+
+    pub(crate) fn step_accepted(&mut self) -> Result<StepInfo> {
         if let Some(ar) = self.config.active_region {
             return self.step_active(ar);
         }
@@ -130,7 +136,9 @@ impl TwoPhaseModel {
     /// Restores the state saved before the step in progress (and its landing target).
     fn undo_step(&mut self, land: Option<f64>) -> Result<()> {
         let snapshot = std::mem::take(&mut self.step_snapshot);
+        let ledger = std::mem::take(&mut self.energy);
         let out = self.restore(&snapshot);
+        self.energy = ledger;
         self.step_snapshot = snapshot;
         self.time_to_land = land;
         out
