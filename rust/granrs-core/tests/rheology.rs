@@ -177,27 +177,32 @@ fn picard_cap_is_a_simulation_error() {
     }
 }
 
-#[test]
-fn sliding_layer_on_coulomb_base_accelerates_at_the_friction_rate() {
-    // single-phase D-P layer (H = 0.1 m), free surface, Coulomb base α_b = 15°, slope 30°:
-    // a = g (sin θ − tan α_b cos θ)
+/// A single-phase D-P layer (H = 0.1 m, 32 cells, α = 27°, φρ_s = 1450, η_s = 0.1) on a slope of
+/// `slope` degrees, periodic along it, on a Coulomb base α_b = 15° with `top` above, δt = `dt`.
+fn sliding_layer(slope: f64, top: VelocityBc, dt: f64) -> ModelConfig {
     let n = 32;
     let h = 0.1;
     let grid = Grid::new(4, n, 4.0 * 8.0 * h / n as f64, h).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
-        .with(Side::Bottom, VelocityBc::Coulomb)
-        .with(Side::Top, VelocityBc::Outflow);
+    let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped).with(Side::Bottom, VelocityBc::Coulomb).with(Side::Top, top);
     let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1450.0, viscosity: 0.1 });
-    let s = 30f64.to_radians();
+    let s = slope.to_radians();
     cfg.gravity = [9.81 * s.sin(), -9.81 * s.cos()];
     cfg.convection = false;
-    cfg.time.fixed_dt = Some(1e-3);
+    cfg.time.fixed_dt = Some(dt);
     cfg.time.cfl_abort = 100.0;
     cfg.pressure_solver.rtol = 1e-12;
     cfg.pressure_solver.max_iterations = 50000;
     cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager { friction_angle: 27.0 });
     cfg.rheology.wall_friction_angle = Some(15.0);
-    let mut m = TwoPhaseModel::new(cfg).unwrap();
+    cfg
+}
+
+#[test]
+fn sliding_layer_on_coulomb_base_accelerates_at_the_friction_rate() {
+    // the layer above on a 30° slope under an open top: a = g (sin θ − tan α_b cos θ)
+    let n = 32;
+    let s = 30f64.to_radians();
+    let mut m = TwoPhaseModel::new(sliding_layer(30.0, VelocityBc::Outflow, 1e-3)).unwrap();
     m.initialise_pressure().unwrap();
     let mean = |m: &TwoPhaseModel| (0..n).map(|j| m.u.at(2, j as isize)).sum::<f64>() / n as f64;
     for _ in 0..100 {
@@ -581,26 +586,11 @@ fn anderson_depth_out_of_range_is_named() {
     }
 }
 
-/// A D-P layer (H = 0.1 m, 32 cells) on a 20° slope between α_b = 15° and α = 27°, started from
+/// The layer of `sliding_layer` on a 20° slope (between α_b = 15° and α = 27°), started from
 /// the balanced plastic tensor, sliding on its Coulomb base for 0.2 s with the step `dt`: its
 /// energy budget.
 fn sliding_layer_budget(dt: f64) -> granrs_core::diagnostics::EnergyBudget {
-    let n = 32;
-    let h = 0.1;
-    let grid = Grid::new(4, n, 4.0 * 8.0 * h / n as f64, h).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
-        .with(Side::Bottom, VelocityBc::Coulomb)
-        .with(Side::Top, VelocityBc::FreeSlip);
-    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1450.0, viscosity: 0.1 });
-    let s = 20f64.to_radians();
-    cfg.gravity = [9.81 * s.sin(), -9.81 * s.cos()];
-    cfg.convection = false;
-    cfg.time.fixed_dt = Some(dt);
-    cfg.time.cfl_abort = 100.0;
-    cfg.pressure_solver.rtol = 1e-12;
-    cfg.pressure_solver.max_iterations = 50000;
-    cfg.rheology = RheologyConfig::new(RheologyLaw::DruckerPrager { friction_angle: 27.0 });
-    cfg.rheology.wall_friction_angle = Some(15.0);
+    let mut cfg = sliding_layer(20.0, VelocityBc::FreeSlip, dt);
     cfg.rheology.picard_tol = 1e-8;
     let mut m = TwoPhaseModel::new(cfg).unwrap();
     m.initialise_pressure().unwrap();

@@ -125,26 +125,6 @@ fn periodicity(model: &TwoPhaseModel) -> (bool, bool) {
 }
 
 impl TwoPhaseModel {
-    /// Face density and the weight of a face in the kinetic energy, from Φ on its two sides:
-    /// (ρ_face, solved) where `solved` is false for the granular-only model's air faces.
-    #[inline]
-    fn face_density_of(&self, a: f64, b: f64) -> (f64, bool) {
-        let cfg = &self.config;
-        let light = cfg.light.unwrap_or(cfg.dense).density;
-        if cfg.free_surface {
-            if a > 0.0 || b > 0.0 {
-                (cfg.dense.density, true)
-            } else {
-                (light, false)
-            }
-        } else {
-            let eps = cfg.interface_width * cfg.grid.h();
-            let phi = 0.5 * (a + b);
-            let h = if cfg.light.is_some() { heaviside(phi, eps) } else { 1.0 };
-            (cfg.dense.density * h + light * (1.0 - h), true)
-        }
-    }
-
     /// Kinetic energy ½ Σ ρ_face u² h² over the solved faces, and the potential energy
     /// Σ (ρ − ρ_light)(−g·x) h² over the cells [J m⁻¹].
     fn kinetic_potential(&self, partials: &mut Vec<[f64; 4]>) -> (f64, f64) {
@@ -180,9 +160,8 @@ impl TwoPhaseModel {
                 for i in 0..=nxu {
                     // Φ beside the u face (the wall faces take the inner cell twice)
                     let (a, b) = (ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]);
-                    let (rho, solved) = self.face_density_of(a, b);
-                    if solved {
-                        out[0] += 0.5 * rho * us[bu + i] * us[bu + i];
+                    if cfg.face_is_solved(a, b) {
+                        out[0] += 0.5 * cfg.face_density(a, b) * us[bu + i] * us[bu + i];
                     }
                 }
                 let y = g.yc(ji);
@@ -192,9 +171,9 @@ impl TwoPhaseModel {
             }
             let (b0, b1, bv) = (base(phi, (ji - 1).max(0)), base(phi, ji.min(ny as isize - 1)), base(v, ji));
             for i in 0..if j <= nyv { nx } else { 0 } {
-                let (rho, solved) = self.face_density_of(ps[b0 + i], ps[b1 + i]);
-                if solved {
-                    out[0] += 0.5 * rho * vs[bv + i] * vs[bv + i];
+                let (a, b) = (ps[b0 + i], ps[b1 + i]);
+                if cfg.face_is_solved(a, b) {
+                    out[0] += 0.5 * cfg.face_density(a, b) * vs[bv + i] * vs[bv + i];
                 }
             }
             out
@@ -222,8 +201,12 @@ impl TwoPhaseModel {
         let (eta_c, eta_n) = (&self.work.eta_c, &self.work.eta_n);
         let (ec, en) = (eta_c.slice(), eta_n.slice());
         let plastic = self.rheology.as_ref().map(|r| (&r.plastic.tau_c, &r.plastic.tau_n, &r.plastic.sigma_xx, &r.plastic.sigma_xy));
-        let this = &*self;
-        let per = periodicity(this);
+        // the face densities of the step just taken (stage 3 of `step.rs`; `start_energy_budget`
+        // computes them for the initial state)
+        let (rho_u, rho_v) = (&self.work.rho_u, &self.work.rho_v);
+        let (ru, rv) = (rho_u.slice(), rho_v.slice());
+        let cfg = &self.config;
+        let per = periodicity(self);
         let (nxu, nyv) = (if per.0 { nx - 1 } else { nx }, if per.1 { ny - 1 } else { ny });
         // rows 0..=ny: centres and u faces of row j < ny, v faces and nodes of row j
         let s = self.pool.install(|| sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
@@ -231,11 +214,10 @@ impl TwoPhaseModel {
             let ji = j as isize;
             if j < ny {
                 let (bp, bu, bv0, bv1) = (base(phi, ji), base(u, ji), base(v, ji), base(v, ji + 1));
+                let bru = base(rho_u, ji);
                 for i in 0..=nxu {
-                    let (a, b) = (ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]);
-                    let (rho, solved) = this.face_density_of(a, b);
-                    if solved {
-                        out[0] += (rho - rho_ref) * gx * us[bu + i];
+                    if cfg.face_is_solved(ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]) {
+                        out[0] += (ru[bru + i] - rho_ref) * gx * us[bu + i];
                     }
                 }
                 let bc = base(eta_c, ji);
@@ -255,10 +237,10 @@ impl TwoPhaseModel {
                 }
             }
             let (b0, b1, bv) = (base(phi, (ji - 1).max(0)), base(phi, ji.min(ny as isize - 1)), base(v, ji));
+            let brv = base(rho_v, ji);
             for i in 0..if j <= nyv { nx } else { 0 } {
-                let (rho, solved) = this.face_density_of(ps[b0 + i], ps[b1 + i]);
-                if solved {
-                    out[0] += (rho - rho_ref) * gy * vs[bv + i];
+                if cfg.face_is_solved(ps[b0 + i], ps[b1 + i]) {
+                    out[0] += (rv[brv + i] - rho_ref) * gy * vs[bv + i];
                 }
             }
             // nodes (i, j), i = 0..=nx: D_xy from the faces around the node (ghosts at walls)
@@ -288,14 +270,14 @@ impl TwoPhaseModel {
             for (k, side) in Side::ALL.iter().enumerate() {
                 if let Some((sdir, tau_b)) = r.walls.side(*side) {
                     let mut p = 0.0;
+                    // s and τ_b run along the side's tangential faces (the row beside the wall)
                     for f in 0..sdir.len() {
                         let fi = f as isize;
                         let (ut, len) = match side {
-                            Side::Bottom if f <= nx => (self.u.at(fi, 0), g.dx),
-                            Side::Top if f <= nx => (self.u.at(fi, ny as isize - 1), g.dx),
-                            Side::Left if f <= ny => (self.v.at(0, fi), g.dy),
-                            Side::Right if f <= ny => (self.v.at(nx as isize - 1, fi), g.dy),
-                            _ => continue,
+                            Side::Bottom => (self.u.at(fi, 0), g.dx),
+                            Side::Top => (self.u.at(fi, ny as isize - 1), g.dx),
+                            Side::Left => (self.v.at(0, fi), g.dy),
+                            Side::Right => (self.v.at(nx as isize - 1, fi), g.dy),
                         };
                         p -= tau_b[f] * sdir[f] * ut * len;
                     }

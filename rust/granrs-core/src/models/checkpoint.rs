@@ -66,7 +66,16 @@ impl TwoPhaseModel {
 
     /// Restores a state exported by [`TwoPhaseModel::checkpoint`] from a model built with the same
     /// configuration. Every entry must be present with its length; nothing is changed otherwise.
+    /// The energy budget starts again from the restored state.
     pub fn restore(&mut self, state: &[StateEntry]) -> Result<()> {
+        self.restore_state(state)?;
+        self.start_energy_budget();
+        Ok(())
+    }
+
+    /// [`TwoPhaseModel::restore`] without restarting the energy budget (a rejected step is undone
+    /// inside the budget's step).
+    pub(crate) fn restore_state(&mut self, state: &[StateEntry]) -> Result<()> {
         let expected = self.checkpoint();
         for (name, data) in &expected {
             match state.iter().find(|(n, _)| n == name) {
@@ -111,7 +120,6 @@ impl TwoPhaseModel {
         self.projection_stale = true;
         self.time_to_land = None;
         self.window = None;
-        self.start_energy_budget();
         Ok(())
     }
 }

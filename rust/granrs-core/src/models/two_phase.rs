@@ -6,7 +6,7 @@
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
-use crate::levelset::{dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
+use crate::levelset::{blend, dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::free_surface::FreeSurfaceProjection;
 use crate::projection::PressureProjection;
@@ -161,6 +161,28 @@ impl ModelConfig {
             pressure_top_from: 0,
             free_surface: false,
         }
+    }
+
+    /// Density of a face between cells whose level set is `a` and `b` (step 2 of the paper):
+    /// ρ(Φ) of Φ averaged to the face; in the granular-only model ρ_s on every face beside a
+    /// granular cell (the free-surface projection's density), the light phase's elsewhere.
+    #[inline]
+    pub(crate) fn face_density(&self, a: f64, b: f64) -> f64 {
+        let light = self.light.unwrap_or(self.dense);
+        if !self.free_surface {
+            blend(0.5 * (a + b), self.interface_width * self.grid.h(), self.dense.density, light.density)
+        } else if Self::face_is_solved(self, a, b) {
+            self.dense.density
+        } else {
+            light.density
+        }
+    }
+
+    /// Whether the momentum of a face between cells `a` and `b` is solved for: always, except
+    /// the granular-only model's faces with no granular cell beside them (extended, not solved).
+    #[inline]
+    pub(crate) fn face_is_solved(&self, a: f64, b: f64) -> bool {
+        !self.free_surface || a > 0.0 || b > 0.0
     }
 
     /// The reference density of the body force: ρ_f with `ambient_hydrostatic`, else 0.

@@ -45,7 +45,7 @@ use crate::operators::{
     BcMode,
 };
 use crate::projection::fill_pressure_ghosts;
-use crate::levelset::{blend, blend_harmonic};
+use crate::levelset::blend_harmonic;
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
@@ -136,9 +136,7 @@ impl TwoPhaseModel {
     /// Restores the state saved before the step in progress (and its landing target).
     fn undo_step(&mut self, land: Option<f64>) -> Result<()> {
         let snapshot = std::mem::take(&mut self.step_snapshot);
-        let ledger = std::mem::take(&mut self.energy);
-        let out = self.restore(&snapshot);
-        self.energy = ledger;
+        let out = self.restore_state(&snapshot);
         self.step_snapshot = snapshot;
         self.time_to_land = land;
         out
@@ -379,11 +377,7 @@ impl TwoPhaseModel {
         let eps = cfg.interface_width * cfg.grid.h();
         let dense = cfg.dense;
         let light = cfg.light.unwrap_or(dense);
-        let rho = |phi: f64| blend(phi, eps, dense.density, light.density);
-        let free_surface = cfg.free_surface;
-        // granular-only model: ρ_s on every face beside a granular cell (the free-surface
-        // projection's density), the light phase's elsewhere (those faces are extended, not solved)
-        let rho_face = |a: f64, b: f64| if !free_surface { rho(0.5 * (a + b)) } else if a > 0.0 || b > 0.0 { dense.density } else { light.density };
+        let rho_face = |a: f64, b: f64| cfg.face_density(a, b);
         let eta = |phi: f64| blend_harmonic(phi, eps, dense.viscosity, light.viscosity);
         self.phi.extrapolate_ghosts_linear();
         let w = &mut self.work;
