@@ -40,6 +40,8 @@ def test_material_and_numerics_errors_name_the_parameter():
     # raised by the Rust binding, with the allowed values
     with pytest.raises(ParameterError, match="`interface_yield`.*'paper', 'granular-side' or 'density-support'"):
         cavity(numerics=Numerics(interface_yield="sharp"))
+    with pytest.raises(ParameterError, match="`yield_pressure`.*'absolute' or 'surface-air'"):
+        cavity(numerics=Numerics(yield_pressure="gauge"))
     with pytest.raises(ParameterError, match=r"`proximal_restarts` = -1: allowed an integer in \[0, 1000000\]"):
         cavity(numerics=Numerics(proximal_restarts=-1))
     from granrs.cases.column import ColumnCase

@@ -103,6 +103,9 @@ KEYS: tuple[Key, ...] = (
     Key("numerics", "wall_normal_stress", "choice", _D["wall_normal_stress"], "",
         "normal stress of the Coulomb base and back wall: the pressure p, or the paper's total stress p − T_nn",
         choices=("pressure", "total")),
+    Key("numerics", "yield_pressure", "choice", _D["yield_pressure"], "",
+        "pressure of the yield stress and the walls' normal stress: the paper's p, or p minus the mean air pressure on the surface",
+        choices=("absolute", "surface-air")),
     Key("numerics", "step_retries", "int", _D["step_retries"], "1",
         "rejections of a step whose Picard iteration does not converge (retaken with δt halved); 0: stop at once", 0, 20),
     Key("numerics", "mass_correction", "bool", _D["mass_correction"], "",
@@ -310,5 +313,6 @@ def column_case(cfg: Config) -> ColumnCase:
                       pore_pressure_ratio=c["pore_pressure_ratio"], rheology=c["rheology"], ny=g["ny"],
                       length=g["length"], t_end=n["t_end"], cfl=n["cfl"], threads=n["threads"],
                       picard_tol=n["picard_tol"], theta=n["theta"], mass_correction=n["mass_correction"],
-                      interface_yield=n["interface_yield"], wall_normal_stress=n["wall_normal_stress"], active_region=n["active_region"] or None,
+                      interface_yield=n["interface_yield"], wall_normal_stress=n["wall_normal_stress"],
+                      yield_pressure=n["yield_pressure"], active_region=n["active_region"] or None,
                       step_retries=n["step_retries"], **m)

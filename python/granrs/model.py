@@ -125,6 +125,11 @@ class Numerics:
     'pressure' (default: −σ_n = p) or 'total' (the paper's total stress of the granular phase,
     −σ_n = p − T_nn with T = 2ηD(u) + τΣ, lagged by one step; a spreading layer presses harder
     on the base; docs/validation.md, column collapse).
+    yield_pressure: the pressure of the yield stress τ = tan(α) p⁺ and of the walls' −σ_n = p:
+    'absolute' (default, the paper's: p itself) or 'surface-air' (p − p_s, with p_s the mean
+    pressure of the air on the granular surface, taken each step over the air cells just
+    outside the smoothed band: the granular pressure starts from zero at the surface whatever
+    the pressure gauge; two-phase models only; docs/models.md, active region).
     active_region: None (default: every step on the whole domain) or a band in cells: each step
     runs on a window anchored at the lower-left corner that holds the support of the dense phase
     (Φ > −3ε) and at least that many cells of light phase to its right and above; outside it the light phase is
@@ -166,6 +171,7 @@ class Numerics:
     picard_solve_max_iterations: int = 500
     pressure_update: str = "standard"
     wall_normal_stress: str = "pressure"
+    yield_pressure: str = "absolute"
     active_region: Optional[int] = None
     active_region_align: int = 8
 
@@ -230,7 +236,7 @@ class Model:
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
             n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align),
-            n.step_retries, air, n.anderson_depth, n.pressure_update, n.picard_solve_max_iterations)
+            n.step_retries, air, n.anderson_depth, n.pressure_update, n.picard_solve_max_iterations, n.yield_pressure)
         self.air = air
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())

@@ -85,6 +85,10 @@ class ColumnCase:
     # the normal stress of the Coulomb base and back wall (granrs.Numerics.wall_normal_stress):
     # 'pressure' (default, −σ_n = p) or 'total' (the paper's −σ_n = p − T_nn); docs/validation.md
     wall_normal_stress: str = "pressure"
+    # the pressure of the yield stress and the walls' normal stress (granrs.Numerics.yield_pressure):
+    # 'absolute' (default, the paper's p) or 'surface-air' (p minus the mean air pressure on the
+    # granular surface: independent of the pressure gauge; docs/models.md, active region)
+    yield_pressure: str = "absolute"
     # active region (granrs.Numerics.active_region): None (whole domain) or the band of air
     # cells kept around the granular phase; each step then runs on that window (docs/models.md)
     active_region: Optional[int] = None
@@ -136,6 +140,9 @@ class ColumnCase:
         if self.wall_normal_stress not in ("pressure", "total"):
             raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
                                  "'pressure' or 'total'")
+        if self.yield_pressure not in ("absolute", "surface-air"):
+            raise ParameterError(f"invalid parameter `yield_pressure` = {self.yield_pressure!r}: allowed "
+                                 "'absolute' or 'surface-air'")
         if self.model not in MODELS:
             raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase', 'granular' or "
                                  "'depth-averaged'")
@@ -201,7 +208,8 @@ def build_model(case: ColumnCase) -> Model:
                   numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta,
                                     picard_max_iterations=1000, convection_scheme="weno5", step_retries=case.step_retries,
                                     mass_correction=case.mass_correction, interface_yield=case.interface_yield,
-                                    wall_normal_stress=case.wall_normal_stress, active_region=case.active_region),
+                                    wall_normal_stress=case.wall_normal_stress, yield_pressure=case.yield_pressure,
+                                    active_region=case.active_region),
                   threads=case.threads, pore_pressure=pore,
                   air="free-surface" if case.model == "granular" else "resolved",
                   **_rheology_kwargs(case))
@@ -372,6 +380,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
         "interface_yield": case.interface_yield, "wall_normal_stress": case.wall_normal_stress,
+        "yield_pressure": case.yield_pressure,
         "active_region": case.active_region, "threads": case.threads, "version": __version__,
         "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
                                                               if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),

@@ -509,7 +509,7 @@ fn total_wall_normal_stress_adds_the_normal_deviatoric_stress() {
     for (total, base, back) in [(false, p0, p0), (true, p0 + txx, p0 - txx)] {
         let mut walls = CoulombWalls::new(&grid, &bc, true);
         let tnn = total.then_some(NormalStress { u: &u, eta_c: &eta_c, plastic: Some((&tau_c, &sigma)), dx: grid.dx });
-        walls.set_friction(&p, tnn, &phi, tan_b, None, InterfaceYield::Paper, &grid);
+        walls.set_friction(&p, 0.0, tnn, &phi, tan_b, None, InterfaceYield::Paper, &grid);
         for (side, expected) in [(Side::Bottom, base), (Side::Left, back)] {
             let (_, tau_b) = walls.side(side).unwrap();
             // the unknown tangential faces (the corner faces are fixed by the other wall)
@@ -619,4 +619,56 @@ fn energy_budget_of_a_sliding_layer_closes() {
         assert!(x.plastic_negative_work < 0.0, "the relaxed stress gives energy back");
         assert!(x.residual.abs() < 2e-3 * x.gravity_work, "residual {} of W_g {}", x.residual, x.gravity_work);
     }
+}
+
+/// `YieldPressure::SurfaceAir`: the yield stress and the base's friction read p − p_s, p_s the
+/// mean air pressure just outside the band, so a uniform shift of pⁿ (another gauge) leaves τ
+/// and τ_b unchanged to round-off; with the paper's `Absolute` they move by tan(α) × the shift
+/// where the material is wholly granular. The layer of `interface_yield_sets_the_coulomb_ratio_of_the_band`.
+#[test]
+fn surface_air_yield_pressure_does_not_depend_on_the_gauge() {
+    use granrs_core::levelset::Shape;
+    use granrs_core::rheology::YieldPressure;
+    let (nx, ny, ly) = (4, 32, 0.08);
+    let h = ly / ny as f64;
+    let shift = 50.0; // Pa, against p ≈ 1450 × 9.81 × 0.02 ≈ 280 Pa at the base
+    let run = |yp: YieldPressure, c: f64| {
+        let grid = Grid::new(nx, ny, nx as f64 * h, ly).unwrap();
+        let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
+            .with(Side::Bottom, VelocityBc::Coulomb)
+            .with(Side::Top, VelocityBc::FreeSlip);
+        let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
+        cfg.rheology.wall_friction_angle = Some(15.0);
+        cfg.rheology.yield_pressure = yp;
+        let mut m = TwoPhaseModel::new(cfg).unwrap();
+        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 1.0, y0: -1.0, y1: 8.3 * h }).unwrap();
+        m.initialise_pressure().unwrap();
+        for j in 0..ny {
+            for i in 0..nx {
+                let v = m.p.at(i as isize, j as isize) + c;
+                m.p.set(i, j, v);
+            }
+        }
+        m.step().unwrap();
+        let tau: Vec<f64> = (0..ny as isize).map(|j| m.yield_stress().unwrap().at(1, j)).collect();
+        let (_, tau_b) = m.wall_friction(Side::Bottom).unwrap();
+        (tau, tau_b[2], m.phi.at(1, 0))
+    };
+    let tan_a = 27f64.to_radians().tan();
+    let (t0, b0, _) = run(YieldPressure::SurfaceAir, 0.0);
+    let (t1, b1, _) = run(YieldPressure::SurfaceAir, shift);
+    let scale = t0.iter().fold(0.0f64, |a, &b| a.max(b));
+    let diff = t0.iter().zip(&t1).map(|(a, b)| (a - b).abs()).fold(0.0f64, f64::max);
+    println!("surface-air: max |Δτ| = {diff:.2e} Pa of {scale:.1} Pa; τ_b {b0:.6} / {b1:.6}");
+    assert!(diff < 1e-9 * scale, "τ moved by {diff} Pa under a {shift} Pa gauge shift");
+    assert!((b0 - b1).abs() < 1e-9 * b0, "τ_b {b0} against {b1}");
+    // the paper's form: τ at the base moves by tan α × 50 Pa = 25.5 Pa
+    let (a0, ab0, _) = run(YieldPressure::Absolute, 0.0);
+    let (a1, ab1, _) = run(YieldPressure::Absolute, shift);
+    assert!(((a1[0] - a0[0]) - tan_a * shift).abs() < 1e-6 * scale, "absolute: Δτ at the base {}", a1[0] - a0[0]);
+    assert!(ab1 > ab0 + 0.2 * shift, "absolute: τ_b {ab0} → {ab1}");
+    // under the top gauge the air under the lid is at p = 0 and at the surface at its own weight
+    // above (ρ_f g × at most ly = 0.78 Pa): both forms differ by at most tan α times that
+    let d = t0.iter().zip(&a0).map(|(a, b)| (a - b).abs()).fold(0.0f64, f64::max);
+    assert!(d > 0.0 && d < tan_a * 1.0 * 9.81 * ly, "surface-air and absolute differ by {d} Pa at the top gauge");
 }

@@ -7,7 +7,7 @@ use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
 use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
-use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, WallNormalStress, YieldTreatment};
+use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, WallNormalStress, YieldPressure, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
 use granrs_core::Error;
@@ -275,7 +275,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -324,6 +324,7 @@ impl PyModel {
         anderson_depth: i64,
         pressure_update: &str,
         picard_solve_max_iterations: i64,
+        yield_pressure: &str,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -448,6 +449,11 @@ impl PyModel {
                 "pressure" => WallNormalStress::Pressure,
                 "total" => WallNormalStress::Total,
                 other => return Err(param_err("wall_normal_stress", other, "'pressure' or 'total'")),
+            },
+            yield_pressure: match yield_pressure {
+                "absolute" => YieldPressure::Absolute,
+                "surface-air" => YieldPressure::SurfaceAir,
+                other => return Err(param_err("yield_pressure", other, "'absolute' or 'surface-air'")),
             },
         };
         cfg.active_region = match active_region {

@@ -202,6 +202,38 @@ pub enum WallNormalStress {
     Total,
 }
 
+/// Which pressure the yield stress τ = τ(p) and the walls' −σ_n = p use (two-phase models only).
+///
+/// In the level-set formulation (eq. 10b) one pressure p serves the air and the granular phase,
+/// and it is continuous across the smoothed interface: the granular pressure at the surface is
+/// the air's pressure there, not zero. Its value depends on the gauge (the whole domain fixes
+/// the mean of its top row; an active window fixes its own top row, docs/models.md) and on the
+/// air's dynamic pressure (suction over the collapsing column, −5 Pa against +0.6 Pa far away at
+/// ny = 32). Under a 1 cm tongue the yield stress is tan(α) × 140 Pa, so a few pascals of gauge
+/// are a few per cent of it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum YieldPressure {
+    /// p itself (the paper's τ(Φ) = tan(α) p H_ε(Φ)).
+    #[default]
+    Absolute,
+    /// p − p_s, with p_s the mean pressure of the air on the granular surface: the air cells
+    /// −ε − h ≤ Φ < −ε just outside the smoothed band (h = max(dx, dy)), one per surface
+    /// column, averaged with equal weights at each step from pⁿ. The granular pressure then
+    /// starts from zero at the surface whatever the gauge: a uniform shift of p changes nothing.
+    /// Local variations of the air's pressure along the surface still enter.
+    SurfaceAir,
+}
+
+impl YieldPressure {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            YieldPressure::Absolute => "absolute",
+            YieldPressure::SurfaceAir => "surface-air",
+        }
+    }
+}
+
 /// How the yield stress is imposed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum YieldTreatment {
@@ -286,6 +318,8 @@ pub struct RheologyConfig {
     pub anderson_depth: usize,
     /// The normal stress of the Coulomb walls' friction (eq. 8).
     pub wall_normal_stress: WallNormalStress,
+    /// The pressure of the yield stress and of the walls' normal stress (two-phase models only).
+    pub yield_pressure: YieldPressure,
 }
 
 impl Default for RheologyConfig {
@@ -304,6 +338,7 @@ impl Default for RheologyConfig {
             proximal_restarts: 0,
             anderson_depth: 0,
             wall_normal_stress: WallNormalStress::default(),
+            yield_pressure: YieldPressure::default(),
         }
     }
 }

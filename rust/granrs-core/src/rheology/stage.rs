@@ -12,7 +12,7 @@
 
 use super::anderson::Anderson;
 use super::plastic::{not_converged, IncrementSite, PicardInfo, PlasticState};
-use super::{RheologyConfig, WallNormalStress, YieldTreatment};
+use super::{RheologyConfig, WallNormalStress, YieldPressure, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
@@ -68,6 +68,8 @@ pub struct RheologyState {
     /// r of the current step (a user's constant r, or the smallest local r), and r_b.
     pub r: f64,
     pub r_wall: f64,
+    /// p_s of `YieldPressure::SurfaceAir` at the current step (0 with `Absolute`) [Pa].
+    pub p_surface: f64,
     /// Anderson mixing of Σ (`RheologyConfig::anderson_depth` > 0 with a projected yield stress).
     anderson: Option<Anderson>,
 }
@@ -105,6 +107,7 @@ impl RheologyState {
             projection,
             r: 0.0,
             r_wall: 0.0,
+            p_surface: 0.0,
             anderson,
         })
     }
@@ -137,14 +140,17 @@ impl TwoPhaseModel {
         let law = rc.law;
         let iy = rc.interface_yield;
         let hv = |phi: f64| if two_phase { heaviside(iy.shift(phi, eps), eps) } else { 1.0 };
-        // yield stress τ(Φ) = τ(p) H_ε(Φ + sε) at centres and nodes
+        // the pressure the yield stress reads: p, or p − p_s (YieldPressure::SurfaceAir)
+        rs.p_surface = if two_phase && rc.yield_pressure == YieldPressure::SurfaceAir { surface_air_pressure(&self.p, &self.phi, eps, grid.h()) } else { 0.0 };
+        let p_s = rs.p_surface;
+        // yield stress τ(Φ) = τ(p − p_s) H_ε(Φ + sε) at centres and nodes
         for (tau, p, phi) in [(&mut rs.plastic.tau_c, &self.p, &self.phi), (&mut rs.plastic.tau_n, &rs.p_n, &rs.phi_n)] {
             let (ps, fs, st) = (p.slice(), phi.slice(), p.stride());
             let n = tau.nx;
             for_each_interior_row(exec, tau, |j, row| {
                 let b = (j + HALO) * st + HALO;
                 for i in 0..n {
-                    row[HALO + i] = law.yield_stress(ps[b + i]) * hv(fs[b + i]);
+                    row[HALO + i] = law.yield_stress(ps[b + i] - p_s) * hv(fs[b + i]);
                 }
             });
         }
@@ -172,6 +178,7 @@ impl TwoPhaseModel {
             }
             let treatment = rc.treatment;
             let eta = |d: f64, p: f64, phi: f64| {
+                let p = p - p_s;
                 let tau = law.yield_stress(p);
                 let ed = dense.viscosity + law.extra_viscosity(d, p) + treatment.regularised_viscosity(tau, d, dense.viscosity);
                 if two_phase {
@@ -207,7 +214,7 @@ impl TwoPhaseModel {
                 plastic: rs.projection.then_some((&rs.plastic.tau_c, &rs.plastic.sigma_xx)),
                 dx: grid.dx,
             });
-            rs.walls.set_friction(&self.p, tnn, &self.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
+            rs.walls.set_friction(&self.p, p_s, tnn, &self.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
             rs.r_wall = rc.r_wall.unwrap_or_else(|| {
                 default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid))
             });
@@ -417,3 +424,26 @@ fn base(f: &Field, j: isize) -> usize {
     ((j + HALO as isize) as usize) * f.stride() + HALO
 }
 
+
+/// Mean pressure of the air on the granular surface (`YieldPressure::SurfaceAir`): the average of
+/// p over the cells with −ε − h ≤ Φ < −ε (one layer of air cells just outside the smoothed band,
+/// Φ a distance), equal weights; 0 when there is none. A serial sum in a fixed order, so serial and
+/// parallel runs agree bit for bit.
+pub fn surface_air_pressure(p: &Field, phi: &Field, eps: f64, h: f64) -> f64 {
+    let (nx, ny) = (p.nx as isize, p.ny as isize);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for j in 0..ny {
+        for i in 0..nx {
+            let f = phi.at(i, j);
+            if f < -eps && f >= -eps - h {
+                sum += p.at(i, j);
+                count += 1;
+            }
+        }
+    }
+    if count > 0 {
+        sum / count as f64
+    } else {
+        0.0
+    }
+}

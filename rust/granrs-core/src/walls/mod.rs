@@ -110,14 +110,15 @@ impl CoulombWalls {
         self.sides.iter().flat_map(|w| w.s.iter().zip(&w.s_n).zip(&w.tau_b)).filter(|(_, &t)| t > 0.0).map(|((a, b), _)| (a - b).abs()).fold(0.0, f64::max)
     }
 
-    /// τ_b = tan(α_b) (p − T_nn)_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side,
+    /// τ_b = tan(α_b) (p − p_s − T_nn)_wall⁺ H_ε(Φ_wall) on every tangential face of every Coulomb side,
     /// with p, T_nn and Φ extrapolated linearly to the wall and averaged over the two cells beside
     /// the face; `tnn` the stress of [`crate::rheology::WallNormalStress::Total`] (T_nn = T_xx on
     /// the left and right sides, −T_xx on the bottom and top; read only in the two cell rows
     /// next to each wall), None: −σ_n = p; `eps` None: a single-phase model (H = 1); `iy` places
-    /// the smoothed jump ([`InterfaceYield::shift`]).
+    /// the smoothed jump ([`InterfaceYield::shift`]); `p_s` the reference pressure of
+    /// [`crate::rheology::YieldPressure`] (0: p itself).
     #[allow(clippy::too_many_arguments)]
-    pub fn set_friction(&mut self, p: &Field, tnn: Option<NormalStress>, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
+    pub fn set_friction(&mut self, p: &Field, p_s: f64, tnn: Option<NormalStress>, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
         let hv = |x: f64| eps.map_or(1.0, |e| heaviside(iy.shift(x, e), e));
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
         // value extrapolated to the wall from the cells (i, j) inward
@@ -134,7 +135,7 @@ impl CoulombWalls {
             let ncells = if w.side.is_x() { ny } else { nx };
             for f in w.faces.clone() {
                 let (k0, k1) = ((f as isize - 1).clamp(0, ncells - 1), (f as isize).clamp(0, ncells - 1));
-                let mut pw = 0.5 * (wall(&pa, w.side, k0) + wall(&pa, w.side, k1));
+                let mut pw = 0.5 * (wall(&pa, w.side, k0) + wall(&pa, w.side, k1)) - p_s;
                 if let Some(t) = &tnn {
                     let ta = |i, j| t.txx(i, j);
                     let txx = 0.5 * (wall(&ta, w.side, k0) + wall(&ta, w.side, k1));
