@@ -299,6 +299,17 @@ def surface_profile(phi: np.ndarray, dy: float) -> np.ndarray:
     return h
 
 
+def basal_pore_pressure_ratio(pf_base: np.ndarray, h: np.ndarray, weight: float, mask: np.ndarray) -> float:
+    """Share of the granular weight carried by the gas at the base over the columns ``mask``:
+    Σ p_f(first cell row) / Σ φρ_s g h(x), h the surface height (``surface_profile``) and
+    ``weight`` = φρ_s g. β at the start under the reservoir (less the half cell between the base
+    and the first row); 0 where the gas has escaped; above 1 where the pore pressure exceeds the
+    weight (p_s < 0: no friction at all). NaN where ``mask`` holds no material."""
+    sel = mask & (h > 0)
+    w = weight * float(np.sum(h[sel]))
+    return float(np.sum(pf_base[sel]) / w) if w > 0 else math.nan
+
+
 def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
                callbacks: Optional[list] = None, extra_summary: Optional[dict] = None, prepare=None) -> dict:
     """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``.
@@ -324,6 +335,11 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     lc = case.width
     area0 = model.dense_area()
     rec = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
+    # fluidisation: the basal pore pressure over the weight, under the reservoir and in the channel
+    fluid = model.pore_pressure is not None
+    xs_c = (np.arange(grid.nx) + 0.5) * grid.dx
+    if fluid:
+        rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
     profiles = {}
     state = {"rest_since": None}
     pending_profiles = sorted(case.profile_times)
@@ -349,6 +365,10 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         rec["area"].append(model.dense_area())
         rec["max_granular_speed"].append(speed)
         rec["energy"].append(model.energy_budget())
+        if fluid:
+            h, pf0, weight = surface_profile(model.phi, grid.dy), model.pf[0], case.mixture_density * G
+            rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pf0, h, weight, xs_c < lc))
+            rec["pf_ratio_channel"].append(basal_pore_pressure_ratio(pf0, h, weight, xs_c >= lc))
         while pending_profiles and t >= pending_profiles[0] - 1e-9:
             profiles[round(pending_profiles.pop(0), 6)] = surface_profile(model.phi, grid.dy)
         if t > 0.1 and speed < case.rest_speed:
@@ -401,6 +421,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         summary["step_retries_total"] = int(np.sum(hist["step_retries"]))
     if rec["energy"]:
         summary["energy"] = energy_summary(rec["energy"][-1])
+    if fluid and rec["t"]:
+        summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
     summary.update(extra_summary or {})
     xs = (np.arange(grid.nx) + 0.5) * grid.dx - lc
     write_outputs(out, summary, rec, profiles, xs)
@@ -408,6 +430,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         write_energy(out, rec["t"], rec["energy"])
         plot_energy(out)
     np.savez(out / "history.npz", **hist)
+    if fluid and rec["t"]:
+        plot_fluidisation(out)
     plot_front(out, compare_with)
     plot_profiles(out)
     if isinstance(failure, KeyboardInterrupt):
@@ -484,14 +508,54 @@ def plot_energy(out: Path) -> None:
     plt.close(fig)
 
 
+def fluidisation_summary(t: list, reservoir: list, channel: list, threshold: float = 0.1) -> dict:
+    """summary.json["fluidisation"]: the basal pore-pressure ratio (``basal_pore_pressure_ratio``)
+    under the reservoir and in the channel: its largest value in the channel, the last time the
+    channel's ratio was at or above ``threshold`` (after which the material that left the
+    reservoir slides as a dry material), and both ratios at the end."""
+    ch = np.nan_to_num(np.asarray(channel, dtype=float), nan=0.0)
+    above = np.nonzero(ch >= threshold)[0]
+    return {"reservoir_max": float(np.nanmax(reservoir)), "reservoir_final": float(reservoir[-1]),
+            "channel_max": float(ch.max()), "channel_final": float(ch[-1]), "threshold": threshold,
+            "channel_fluidised_until_s": float(t[above[-1]]) if above.size else 0.0}
+
+
+def plot_fluidisation(out: Path) -> None:
+    """fluidisation.png: the basal pore pressure over the weight against time, under the
+    reservoir and in the channel (from front.csv)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = np.genfromtxt(out / "front.csv", delimiter=",", names=True)
+    meta = json.loads((out / "summary.json").read_text())
+    fig, ax = plt.subplots(figsize=(7.5, 4.0))
+    ax.plot(d["t_s"], d["pf_ratio_reservoir"], label="under the reservoir (x < L_c)")
+    ax.plot(d["t_s"], d["pf_ratio_channel"], label="in the channel (x > L_c)")
+    beta = meta["case"]["pore_pressure_ratio"]
+    ax.axhline(beta, color="0.5", ls=":", lw=1, label=f"initial β = {beta:g}")
+    ax.axhline(1.0, color="k", ls="--", lw=0.8, label="pore pressure = weight (p_s = 0)")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("basal p_f / (φ ρ_s g h)")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title(f"{_label(meta)}: fluidisation of the base", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "fluidisation.png", dpi=120)
+    plt.close(fig)
+
+
 def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.ndarray) -> None:
-    """summary.json, front.csv (t, front from the gate, area, largest speed) and profiles.csv
+    """summary.json, front.csv (t, front from the gate, area, largest speed; with pore pressure
+    also the basal pore-pressure ratios under the reservoir and in the channel) and profiles.csv
     (surface height at the recorded times against x − L_c): the same files for every model."""
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    extra = [k for k in ("pf_ratio_reservoir", "pf_ratio_channel") if k in rec]
     with open(out / "front.csv", "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["t_s", "front_m", "area_m2", "max_granular_speed_m_s"])
-        for row in zip(rec["t"], rec["front"], rec["area"], rec["max_granular_speed"]):
+        w.writerow(["t_s", "front_m", "area_m2", "max_granular_speed_m_s"] + extra)
+        for row in zip(rec["t"], rec["front"], rec["area"], rec["max_granular_speed"], *(rec[k] for k in extra)):
             w.writerow([f"{v:.6g}" for v in row])
     with open(out / "profiles.csv", "w", newline="") as f:
         w = csv.writer(f)
