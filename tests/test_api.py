@@ -47,6 +47,10 @@ def test_material_and_numerics_errors_name_the_parameter():
     from granrs.cases.column import ColumnCase
     with pytest.raises(ParameterError, match="`interface_yield`"):
         ColumnCase(interface_yield="sharp").validate()
+    with pytest.raises(ParameterError, match=r"`kappa_air` = 0.5: allowed a number in \[1.0, 1e\+?16"):
+        ColumnCase(kappa_air=0.5).validate()
+    with pytest.raises(ParameterError, match="`yield_pressure`"):
+        ColumnCase(yield_pressure="gauge").validate()
 
 
 def test_impossible_boundary_combination_is_rejected():

@@ -90,6 +90,11 @@ KEYS: tuple[Key, ...] = (
     Key("materials", "wall_friction_angle", "float", _D["wall_friction_angle"], "degree", "α_b, friction angle of the base and back wall", 0.0, 89.0),
     Key("materials", "granular_viscosity", "float", _D["granular_viscosity"], "Pa s", "η_s, viscosity of the granular phase", 1e-8, 1e6),
     Key("materials", "diffusivity", "float", _D["diffusivity"], "m2 s-1", "κ_f, pore pressure diffusivity", 1e-12, 1e6),
+    Key("numerics", "pore_formulation", "choice", _D["pore_formulation"], "",
+        "pore pressure outside the grains: p_f = 0 on the surface (granular-only), κ_∞ in the air with a sharp "
+        "interface, or the paper's smoothed κ(Φ) = κ_f H_ε + κ_∞(1 − H_ε)",
+        choices=("granular-only", "kappa-infinity", "kappa-infinity-smoothed")),
+    Key("numerics", "kappa_air", "float", _D["kappa_air"], "m2 s-1", "κ_∞ of the kappa-infinity formulations", 1.0, 1e16),
     Key("numerics", "cfl", "float", _D["cfl"], "1", "CFL number of the adaptive time step", 1e-3, 1.0),
     Key("numerics", "t_end", "float", _D["t_end"], "s", "end of the simulated time (the run stops earlier at rest)", 1e-6, 1e4),
     Key("numerics", "threads", "int", _D["threads"], "threads", "size of the Rust thread pool (results are identical for any value)", 1, 1024),
@@ -314,5 +319,6 @@ def column_case(cfg: Config) -> ColumnCase:
                       length=g["length"], t_end=n["t_end"], cfl=n["cfl"], threads=n["threads"],
                       picard_tol=n["picard_tol"], theta=n["theta"], mass_correction=n["mass_correction"],
                       interface_yield=n["interface_yield"], wall_normal_stress=n["wall_normal_stress"],
-                      yield_pressure=n["yield_pressure"], active_region=n["active_region"] or None,
+                      yield_pressure=n["yield_pressure"], pore_formulation=n["pore_formulation"],
+                      kappa_air=n["kappa_air"], active_region=n["active_region"] or None,
                       step_retries=n["step_retries"], **m)

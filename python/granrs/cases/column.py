@@ -77,6 +77,11 @@ class ColumnCase:
     # (solve where Φ > 0 with p_f = 0 on the interface: the default, docs/validation.md) or the
     # paper's 'kappa-infinity' extension by zero through the air
     pore_formulation: str = "granular-only"
+    # κ_∞ of the 'kappa-infinity' formulations [m² s⁻¹] (the paper: 1e16). 1e8 places the same
+    # boundary (κ_∞(1 − H_ε) exceeds κ_f wherever 1 − H_ε > 4e-10) and keeps the pore-pressure
+    # CG in double precision: with 1e16 (κ_∞/κ_f = 3e17) it stalled at ny = 32, t = 2.23 s
+    # (docs/validation.md, "How long the flow stays fluidised")
+    kappa_air: float = 1e8
     # where the smoothed jump of the yield stress and of the basal friction sits across the
     # interface band (granrs.Numerics.interface_yield): the paper's 'paper' (default,
     # τ = tan(α) p H_ε(Φ)), 'granular-side' (full strength wherever Φ > 0) or 'density-support'
@@ -125,7 +130,7 @@ class ColumnCase:
                   ("cfl", self.cfl, 1e-3, 1.0), ("friction_angle", self.friction_angle, 0.0, 89.0),
                   ("wall_friction_angle", self.wall_friction_angle, 0.0, 89.0),
                   ("granular_viscosity", self.granular_viscosity, 1e-8, 1e6), ("diffusivity", self.diffusivity, 1e-12, 1e6),
-                  ("solid_fraction", self.solid_fraction, 0.01, 0.74)]
+                  ("solid_fraction", self.solid_fraction, 0.01, 0.74), ("kappa_air", self.kappa_air, 1.0, 1e16)]
         for name, v, lo, hi in checks:
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not lo <= v <= hi:
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo}, {hi}]")
@@ -200,7 +205,7 @@ def build_model(case: ColumnCase) -> Model:
     pore = None
     if case.fluidised and case.pore_pressure_ratio > 0:
         pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=-case.pore_pressure_ratio * rho * G,
-                            formulation=case.pore_formulation,
+                            formulation=case.pore_formulation, kappa_air=case.kappa_air,
                             basal_x_min=0.0, basal_x_max=lc)
     model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
                   bc=BoundaryConditions(left=Coulomb(case.wall_friction_angle), right=FreeSlip(),
