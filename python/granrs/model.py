@@ -126,10 +126,10 @@ class Numerics:
     −σ_n = p − T_nn with T = 2ηD(u) + τΣ, lagged by one step; a spreading layer presses harder
     on the base; docs/validation.md, column collapse).
     yield_pressure: the pressure of the yield stress τ = tan(α) p⁺ and of the walls' −σ_n = p:
-    'absolute' (default, the paper's: p itself) or 'surface-air' (p − p_s, with p_s the mean
-    pressure of the air on the granular surface, taken each step over the air cells just
-    outside the smoothed band: the granular pressure starts from zero at the surface whatever
-    the pressure gauge; two-phase models only; docs/models.md, active region).
+        'absolute' (default, the paper's: p itself) or 'surface-air' (p − p_s, with p_s the mean
+        pressure of the air on the granular surface, taken each step over the air cells just
+        outside the smoothed band: the granular pressure starts from zero at the surface
+        whatever the pressure gauge; two-phase models only; docs/models.md, active region).
     active_region: None (default: every step on the whole domain) or a band in cells: each step
     runs on a window anchored at the lower-left corner that holds the support of the dense phase
     (Φ > −3ε) and at least that many cells of light phase to its right and above; outside it the light phase is

@@ -290,17 +290,14 @@ def deposit_quantile(h: np.ndarray, dx: float, x_gate: float, q: float = DEPOSIT
 def surface_profile(phi: np.ndarray, dy: float) -> np.ndarray:
     """Height h(x) of the granular surface in each column: the highest zero crossing of Φ."""
     ny, nx = phi.shape
-    h = np.zeros(nx)
-    for i in range(nx):
-        col = phi[:, i]
-        inside = np.nonzero(col > 0)[0]
-        if inside.size == 0:
-            continue
-        j = inside[-1]
-        y = (j + 0.5) * dy
-        if j + 1 < ny:
-            y += dy * col[j] / (col[j] - col[j + 1])
-        h[i] = y
+    inside = phi > 0
+    j = ny - 1 - np.argmax(inside[::-1], axis=0)  # highest granular cell of each column
+    cols = np.arange(nx)
+    h = (j + 0.5) * dy
+    below = j + 1 < ny  # interpolate to the zero crossing with the cell above
+    a, b = phi[j[below], cols[below]], phi[j[below] + 1, cols[below]]
+    h[below] += dy * a / (a - b)
+    h[~inside.any(axis=0)] = 0.0
     return h
 
 
@@ -429,8 +426,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     if fluid and rec["t"]:
         summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
     summary.update(extra_summary or {})
-    xs = (np.arange(grid.nx) + 0.5) * grid.dx - lc
-    write_outputs(out, summary, rec, profiles, xs)
+    write_outputs(out, summary, rec, profiles, xs_c - lc)
     if rec["energy"]:
         write_energy(out, rec["t"], rec["energy"])
         plot_energy(out)

@@ -314,6 +314,28 @@ fn pressure_gauge_puts_the_air_at_zero_under_a_closed_lid() {
     }
 }
 
+const BAND_LAYER_NY: usize = 32;
+const BAND_LAYER_H: f64 = 0.08 / BAND_LAYER_NY as f64;
+
+/// A D-P layer `depth` cells deep under air in a 4 × 32 box of h = 2.5 mm (fully developed
+/// sides, Coulomb base at 15°, free-slip lid), `configure` applied to its configuration, the
+/// pressure initialised: the layer of the band tests.
+fn band_layer(depth: f64, configure: impl Fn(&mut ModelConfig)) -> TwoPhaseModel {
+    use granrs_core::levelset::Shape;
+    let (nx, ny, h) = (4, BAND_LAYER_NY, BAND_LAYER_H);
+    let grid = Grid::new(nx, ny, nx as f64 * h, ny as f64 * h).unwrap();
+    let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
+        .with(Side::Bottom, VelocityBc::Coulomb)
+        .with(Side::Top, VelocityBc::FreeSlip);
+    let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
+    cfg.rheology.wall_friction_angle = Some(15.0);
+    configure(&mut cfg);
+    let mut m = TwoPhaseModel::new(cfg).unwrap();
+    m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 1.0, y0: -1.0, y1: depth * h }).unwrap();
+    m.initialise_pressure().unwrap();
+    m
+}
+
 /// Where the smoothed jump of the yield stress and the basal friction sits
 /// (`RheologyConfig::interface_yield`). A flat D-P layer (α = 27°, α_b = 15°) under air, its
 /// surface in mid-cell. With `GranularSide` every cell with Φ > 0 has the full Coulomb ratio
@@ -323,21 +345,10 @@ fn pressure_gauge_puts_the_air_at_zero_under_a_closed_lid() {
 /// Φ < −2ε (pure air).
 #[test]
 fn interface_yield_sets_the_coulomb_ratio_of_the_band() {
-    use granrs_core::levelset::Shape;
     use granrs_core::rheology::InterfaceYield;
-    let (nx, ny, ly) = (4, 32, 0.08);
-    let h = ly / ny as f64;
+    let (ny, h) = (BAND_LAYER_NY, BAND_LAYER_H);
     let build = |iy: InterfaceYield| {
-        let grid = Grid::new(nx, ny, nx as f64 * h, ly).unwrap();
-        let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
-            .with(Side::Bottom, VelocityBc::Coulomb)
-            .with(Side::Top, VelocityBc::FreeSlip);
-        let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
-        cfg.rheology.wall_friction_angle = Some(15.0);
-        cfg.rheology.interface_yield = iy;
-        let mut m = TwoPhaseModel::new(cfg).unwrap();
-        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 1.0, y0: -1.0, y1: 4.16 * h }).unwrap();
-        m.initialise_pressure().unwrap();
+        let mut m = band_layer(4.16, |cfg| cfg.rheology.interface_yield = iy);
         m.step().unwrap();
         m
     };
@@ -627,22 +638,12 @@ fn energy_budget_of_a_sliding_layer_closes() {
 /// where the material is wholly granular. The layer of `interface_yield_sets_the_coulomb_ratio_of_the_band`.
 #[test]
 fn surface_air_yield_pressure_does_not_depend_on_the_gauge() {
-    use granrs_core::levelset::Shape;
     use granrs_core::rheology::YieldPressure;
-    let (nx, ny, ly) = (4, 32, 0.08);
-    let h = ly / ny as f64;
+    let (nx, ny) = (4, BAND_LAYER_NY);
+    let ly = ny as f64 * BAND_LAYER_H;
     let shift = 50.0; // Pa, against p ≈ 1450 × 9.81 × 0.02 ≈ 280 Pa at the base
     let run = |yp: YieldPressure, c: f64| {
-        let grid = Grid::new(nx, ny, nx as f64 * h, ly).unwrap();
-        let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
-            .with(Side::Bottom, VelocityBc::Coulomb)
-            .with(Side::Top, VelocityBc::FreeSlip);
-        let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
-        cfg.rheology.wall_friction_angle = Some(15.0);
-        cfg.rheology.yield_pressure = yp;
-        let mut m = TwoPhaseModel::new(cfg).unwrap();
-        m.set_shape(&Shape::Rectangle { x0: -1.0, x1: 1.0, y0: -1.0, y1: 8.3 * h }).unwrap();
-        m.initialise_pressure().unwrap();
+        let mut m = band_layer(8.3, |cfg| cfg.rheology.yield_pressure = yp);
         for j in 0..ny {
             for i in 0..nx {
                 let v = m.p.at(i as isize, j as isize) + c;

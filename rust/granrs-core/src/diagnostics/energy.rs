@@ -247,6 +247,8 @@ impl TwoPhaseModel {
             let (bu0, bu1, bvn, bn) = (base(u, ji - 1), base(u, ji), base(v, ji), base(eta_n, ji));
             for i in 0..=nx {
                 if free_surface {
+                    // an air node: its Φ (the mean of its four cells, as `cell_to_node` gives the
+                    // node viscosity) ≤ 0
                     let c = |ii: isize, jj: isize| ps[base(phi, jj.clamp(0, ny as isize - 1)) + ii.clamp(0, nx as isize - 1) as usize];
                     let (ii, jj) = (i as isize, ji);
                     if c(ii - 1, jj - 1) + c(ii, jj - 1) + c(ii - 1, jj) + c(ii, jj) <= 0.0 {

@@ -171,7 +171,7 @@ impl ModelConfig {
         let light = self.light.unwrap_or(self.dense);
         if !self.free_surface {
             blend(0.5 * (a + b), self.interface_width * self.grid.h(), self.dense.density, light.density)
-        } else if Self::face_is_solved(self, a, b) {
+        } else if self.face_is_solved(a, b) {
             self.dense.density
         } else {
             light.density

@@ -19,6 +19,7 @@ use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, H
 use crate::models::TwoPhaseModel;
 use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate, strain_rate_norm_centre, BcMode};
 use crate::projection::fill_pressure_ghosts;
+use crate::solvers::par::{n_blocks, sum_rows};
 use crate::solvers::SolveInfo;
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
 use crate::levelset::heaviside;
@@ -70,6 +71,8 @@ pub struct RheologyState {
     pub r_wall: f64,
     /// p_s of `YieldPressure::SurfaceAir` at the current step (0 with `Absolute`) [Pa].
     pub p_surface: f64,
+    /// Block partial sums of `surface_air_pressure` (allocated once).
+    surface_partials: Vec<[f64; 2]>,
     /// Anderson mixing of Σ (`RheologyConfig::anderson_depth` > 0 with a projected yield stress).
     anderson: Option<Anderson>,
 }
@@ -108,6 +111,7 @@ impl RheologyState {
             r: 0.0,
             r_wall: 0.0,
             p_surface: 0.0,
+            surface_partials: vec![[0.0; 2]; n_blocks(grid.ny)],
             anderson,
         })
     }
@@ -141,7 +145,7 @@ impl TwoPhaseModel {
         let iy = rc.interface_yield;
         let hv = |phi: f64| if two_phase { heaviside(iy.shift(phi, eps), eps) } else { 1.0 };
         // the pressure the yield stress reads: p, or p − p_s (YieldPressure::SurfaceAir)
-        rs.p_surface = if two_phase && rc.yield_pressure == YieldPressure::SurfaceAir { surface_air_pressure(&self.p, &self.phi, eps, grid.h()) } else { 0.0 };
+        rs.p_surface = if two_phase && rc.yield_pressure == YieldPressure::SurfaceAir { surface_air_pressure(&self.p, &self.phi, eps, grid.h(), &mut rs.surface_partials, exec) } else { 0.0 };
         let p_s = rs.p_surface;
         // yield stress τ(Φ) = τ(p − p_s) H_ε(Φ + sε) at centres and nodes
         for (tau, p, phi) in [(&mut rs.plastic.tau_c, &self.p, &self.phi), (&mut rs.plastic.tau_n, &rs.p_n, &rs.phi_n)] {
@@ -350,7 +354,7 @@ impl TwoPhaseModel {
                 rs.plastic.trial_norm_centre(&mut rs.trial_norm, exec);
                 return Ok((total, PicardInfo { iterations: k, increment: inc, r: rs.r, r_wall: rs.r_wall, r_halvings: halvings, restarts }));
             }
-            if let (true, Some(a)) = (rs.projection, rs.anderson.as_mut()) {
+            if let Some(a) = rs.anderson.as_mut() {
                 a.mix(&mut rs.plastic);
             }
             if k % PICARD_STALL_WINDOW == 0 {
@@ -424,25 +428,28 @@ fn base(f: &Field, j: isize) -> usize {
     ((j + HALO as isize) as usize) * f.stride() + HALO
 }
 
-
 /// Mean pressure of the air on the granular surface (`YieldPressure::SurfaceAir`): the average of
 /// p over the cells with −ε − h ≤ Φ < −ε (one layer of air cells just outside the smoothed band,
-/// Φ a distance), equal weights; 0 when there is none. A serial sum in a fixed order, so serial and
-/// parallel runs agree bit for bit.
-pub fn surface_air_pressure(p: &Field, phi: &Field, eps: f64, h: f64) -> f64 {
-    let (nx, ny) = (p.nx as isize, p.ny as isize);
-    let (mut sum, mut count) = (0.0, 0usize);
-    for j in 0..ny {
+/// Φ a distance), equal weights; 0 when there is none. A fixed-order row-block reduction
+/// ([`crate::solvers::par::sum_rows`], `partials` ≥ its number of blocks), so serial and parallel
+/// runs agree bit for bit.
+pub(crate) fn surface_air_pressure(p: &Field, phi: &Field, eps: f64, h: f64, partials: &mut [[f64; 2]], exec: Exec) -> f64 {
+    let (nx, ny) = (p.nx, p.ny);
+    let (ps, fs) = (p.slice(), phi.slice());
+    let [sum, count] = sum_rows::<2, _>(exec, ny, nx * ny, partials, |j| {
+        let b = (j + HALO) * p.stride() + HALO;
+        let mut out = [0.0; 2];
         for i in 0..nx {
-            let f = phi.at(i, j);
+            let f = fs[b + i];
             if f < -eps && f >= -eps - h {
-                sum += p.at(i, j);
-                count += 1;
+                out[0] += ps[b + i];
+                out[1] += 1.0;
             }
         }
-    }
-    if count > 0 {
-        sum / count as f64
+        out
+    });
+    if count > 0.0 {
+        sum / count
     } else {
         0.0
     }

@@ -97,6 +97,9 @@ impl TwoPhaseModel {
         Ok(info)
     }
 
+    /// [`TwoPhaseModel::step`] without the energy budget's accounting: the step (with its
+    /// retries) on the whole domain or the window. The window's own steps come through here, so
+    /// that the budget is kept once, on the whole model.
     pub(crate) fn step_accepted(&mut self) -> Result<StepInfo> {
         if let Some(ar) = self.config.active_region {
             return self.step_active(ar);
