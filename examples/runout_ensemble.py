@@ -3,6 +3,7 @@
     python examples/runout_ensemble.py --ny 32 --members 8                 # about 2 min
     python examples/runout_ensemble.py --ny 64 --members 4                 # about 12 min
     python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8 --compare-with out/ensemble-two-phase-fluidised-64
+    python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8 --active-region-sides open-right --compare-with out/ensemble-two-phase-fluidised-64
     python examples/runout_ensemble.py --ny 32 --members 8 --model granular --out out/ensemble-g32
 
 Member k runs the paper's column (`granrs run column`, fluidised unless ``--dry``) with the column
@@ -121,6 +122,8 @@ def main() -> None:
     ap.add_argument("--eps", type=float, default=1e-12, help="relative perturbation of the width per member")
     ap.add_argument("--model", default="two-phase", choices=["two-phase", "granular"])
     ap.add_argument("--active-region", type=int, default=None)
+    ap.add_argument("--active-region-sides", default="walls", choices=["walls", "open-right"],
+                    help="the window's right and top sides (ColumnCase.active_region_sides)")
     ap.add_argument("--dry", action="store_true")
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument("--theta", type=float, default=None, help="the Picard relaxation θ of eq. (12) (ColumnCase.theta; default 0.8)")
@@ -132,13 +135,14 @@ def main() -> None:
     if args.members < 2:
         raise SystemExit("invalid parameter `--members` = %d: allowed an integer >= 2" % args.members)
     tag = (f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
+           + ("-open-right" if args.active_region and args.active_region_sides == "open-right" else "")
            + (f"-theta{args.theta:g}" if args.theta is not None else ""))
     out = Path(args.out or f"out/ensemble-{tag}")
     out.mkdir(parents=True, exist_ok=True)
 
     extra = {k: v for k, v in (("t_end", args.t_end), ("theta", args.theta)) if v is not None}
     base = ColumnCase(ny=args.ny, fluidised=not args.dry, model=args.model, active_region=args.active_region,
-                      threads=args.threads, **extra)
+                      active_region_sides=args.active_region_sides, threads=args.threads, **extra)
     rows, curves = [], []
     for k in range(args.members):
         folder = out / f"member-{k}"

@@ -37,7 +37,7 @@ class RustModel:
                  viscous_max_iterations: int = 2000, interface_yield: str = "paper",
                  ambient_hydrostatic: bool = False, proximal_restarts: int = 0,
                  wall_normal_stress: str = "pressure",
-                 active_region: Optional[tuple[int, int]] = None, step_retries: int = 3,
+                 active_region: Optional[tuple[int, int, str]] = None, step_retries: int = 3,
                  air: str = "resolved", anderson_depth: int = 0,
                  pressure_update: str = "standard", picard_solve_max_iterations: int = 500,
                  yield_pressure: str = "absolute") -> None: ...

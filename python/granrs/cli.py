@@ -89,7 +89,8 @@ def _run(args, parser) -> int:
         case = ColumnCase(aspect_ratio=args.aspect_ratio, width=args.width, fluidised=args.fluidised,
                           pore_pressure_ratio=args.pore_pressure_ratio, ny=args.ny if args.ny is not None else 32,
                           t_end=args.t_end, rheology=args.rheology, cfl=args.cfl, threads=args.threads,
-                          length=args.length, model=args.model, active_region=args.active_region)
+                          length=args.length, model=args.model, active_region=args.active_region,
+                          active_region_sides=args.active_region_sides)
         summary = run_column(case, Path(args.out), progress=not args.quiet,
                              compare_with=Path(args.compare_with) if args.compare_with else None)
         keys = ("model", "model_reason", "runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error",
@@ -155,6 +156,9 @@ def main(argv=None) -> int:
                    help="column: run each step on a window around the granular phase with BAND cells of air "
                         "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
                         "is within 0.1 %% of the whole-domain run-out, BAND = 8 2.4 %% long); default: the whole domain")
+    r.add_argument("--active-region-sides", dest="active_region_sides", choices=["walls", "open-right"], default="walls",
+                   help="column, with --active-region: the window's right and top sides are walls (default), or its "
+                        "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side)")
     r.add_argument("--length", type=float, help="domain length in m (default L_c + 8.25 H_c, rounded up to the grid)")
     r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

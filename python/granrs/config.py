@@ -105,6 +105,9 @@ KEYS: tuple[Key, ...] = (
         choices=("paper", "granular-side", "density-support")),
     Key("numerics", "active_region", "int", 0, "cells",
         "run each step on a window around the granular phase with this many (≥ 2) cells of air; 0: the whole domain", 0, 100000),
+    Key("numerics", "active_region_sides", "choice", _D["active_region_sides"], "",
+        "the active window's sides: walls, or its right side open (outflow at the air's hydrostatic pressure)",
+        choices=("walls", "open-right")),
     Key("numerics", "wall_normal_stress", "choice", _D["wall_normal_stress"], "",
         "normal stress of the Coulomb base and back wall: the pressure p, or the paper's total stress p − T_nn",
         choices=("pressure", "total")),
@@ -321,4 +324,5 @@ def column_case(cfg: Config) -> ColumnCase:
                       interface_yield=n["interface_yield"], wall_normal_stress=n["wall_normal_stress"],
                       yield_pressure=n["yield_pressure"], pore_formulation=n["pore_formulation"],
                       kappa_air=n["kappa_air"], active_region=n["active_region"] or None,
+                      active_region_sides=n["active_region_sides"],
                       step_retries=n["step_retries"], **m)

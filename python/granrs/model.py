@@ -135,7 +135,10 @@ class Numerics:
     (Φ > −3ε) and at least that many cells of light phase to its right and above; outside it the light phase is
     at rest (docs/models.md, active region). Needs a light phase, right and top sides that are
     walls and the 'top' pressure gauge. active_region_align: the window's sizes are multiples of
-    this many cells (default 8, for the multigrid).
+    this many cells (default 8, for the multigrid). active_region_sides: 'walls' (default: the window's
+    right and top sides, where they lie inside the domain, have no normal flow) or 'open-right'
+    (its right side is an outflow at the ambient air's hydrostatic pressure, so the air the front
+    pushes leaves the window; the top stays a wall; docs/models.md, "An open right side").
     """
 
     cfl: float = 0.5
@@ -174,6 +177,7 @@ class Numerics:
     yield_pressure: str = "absolute"
     active_region: Optional[int] = None
     active_region_align: int = 8
+    active_region_sides: str = "walls"
 
 
 class Model:
@@ -235,7 +239,7 @@ class Model:
             n.theta, n.picard_tol, n.picard_max_iterations, n.convection, n.viscous_rtol,
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
-            n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align),
+            n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align, n.active_region_sides),
             n.step_retries, air, n.anderson_depth, n.pressure_update, n.picard_solve_max_iterations, n.yield_pressure)
         self.air = air
         self.threads = threads

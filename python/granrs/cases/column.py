@@ -97,6 +97,9 @@ class ColumnCase:
     # active region (granrs.Numerics.active_region): None (whole domain) or the band of air
     # cells kept around the granular phase; each step then runs on that window (docs/models.md)
     active_region: Optional[int] = None
+    # the window's sides (granrs.Numerics.active_region_sides): 'walls' (default) or 'open-right'
+    # (its right side an outflow at the air's hydrostatic pressure; docs/models.md, "An open right side")
+    active_region_sides: str = "walls"
     length: Optional[float] = None
     height: Optional[float] = None
     # Picard iteration of the plastic projection: stress-weighted increment tolerance and
@@ -148,6 +151,9 @@ class ColumnCase:
         if self.yield_pressure not in ("absolute", "surface-air"):
             raise ParameterError(f"invalid parameter `yield_pressure` = {self.yield_pressure!r}: allowed "
                                  "'absolute' or 'surface-air'")
+        if self.active_region_sides not in ("walls", "open-right"):
+            raise ParameterError(f"invalid parameter `active_region_sides` = {self.active_region_sides!r}: allowed "
+                                 "'walls' or 'open-right'")
         if self.model not in MODELS:
             raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase', 'granular' or "
                                  "'depth-averaged'")
@@ -214,7 +220,7 @@ def build_model(case: ColumnCase) -> Model:
                                     picard_max_iterations=1000, convection_scheme="weno5", step_retries=case.step_retries,
                                     mass_correction=case.mass_correction, interface_yield=case.interface_yield,
                                     wall_normal_stress=case.wall_normal_stress, yield_pressure=case.yield_pressure,
-                                    active_region=case.active_region),
+                                    active_region=case.active_region, active_region_sides=case.active_region_sides),
                   threads=case.threads, pore_pressure=pore,
                   air="free-surface" if case.model == "granular" else "resolved",
                   **_rheology_kwargs(case))
@@ -403,7 +409,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
         "interface_yield": case.interface_yield, "wall_normal_stress": case.wall_normal_stress,
         "yield_pressure": case.yield_pressure,
-        "active_region": case.active_region, "threads": case.threads, "version": __version__,
+        "active_region": case.active_region,
+        "active_region_sides": case.active_region_sides, "threads": case.threads, "version": __version__,
         "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
                                                               if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,

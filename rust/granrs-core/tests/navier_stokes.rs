@@ -1,6 +1,6 @@
 //! Navier–Stokes core: analytic solutions and identities.
 
-use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, VelocityBc};
+use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
 use std::f64::consts::PI;
 
@@ -78,6 +78,45 @@ fn hydrostatic_two_density_layer_stays_at_rest() {
     println!("hydrostatic: max speed over 1000 steps {worst:.3e}, final {:.3e}, t = {}", m.last.max_speed, m.time);
     // round-off level: |g| δt ε_machine ρ-ratio ≈ 1e-12; 1e-8 is the bound
     assert!(worst < 1e-8, "max speed {worst}");
+}
+
+/// Air at rest under gravity in a box whose right side is open (outflow) at the air's own
+/// hydrostatic pressure, p_b(y) = ρ g (L_y − y) (`BoundaryConditions::with_outlet_pressure`,
+/// the open side of an active window): the linear pressure's discrete gradient balances ρg to
+/// round-off on every face, the boundary face included, so nothing moves. With the default
+/// p_b = 0 the same box drains through the open side (the ghost pressure jumps by 2ρg(L_y − y)).
+fn air_at_rest_beside_an_open_side(outlet: bool) -> f64 {
+    let (n, rho, g) = (16, 1.2, 9.81);
+    let grid = Grid::new(n, n, 1.0, 1.0).unwrap();
+    let h = 1.0 / n as f64;
+    let mut bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Right, VelocityBc::Outflow);
+    if outlet {
+        // k-th cell centre along the side at y = (k + ½) h
+        bc = bc.with_outlet_pressure(Side::Right, rho * g * (1.0 - 0.5 * h), -rho * g * h);
+    }
+    let mut cfg = ModelConfig::single_phase(grid.clone(), bc, Material { density: rho, viscosity: 1.8e-5 });
+    cfg.gravity = [0.0, -g];
+    cfg.time.fixed_dt = Some(1e-3);
+    let mut m = TwoPhaseModel::new(cfg).unwrap();
+    m.p = Field::from_fn(&grid, Location::Centre, |_, y| rho * g * (1.0 - y));
+    m.fields_changed();
+    let mut worst: f64 = 0.0;
+    for _ in 0..50 {
+        worst = worst.max(m.step().unwrap().max_speed);
+    }
+    worst
+}
+
+#[test]
+fn an_open_side_at_the_hydrostatic_pressure_keeps_the_air_at_rest() {
+    let at_rest = air_at_rest_beside_an_open_side(true);
+    let drained = air_at_rest_beside_an_open_side(false);
+    println!("open side: max speed {at_rest:.3e} with the hydrostatic outlet pressure, {drained:.3e} with p_b = 0");
+    // round-off: g δt ε ≈ 1e-18 per step over 50 steps (measured 6e-16); the p_b = 0 box is
+    // pushed by a pressure jump of up to 2ρgL_y = 24 Pa at the side and falls out of it at
+    // speeds of order g t = 0.5 m/s (measured 0.98 m/s after 50 steps)
+    assert!(at_rest < 1e-10, "max speed {at_rest}");
+    assert!(drained > 1e-3, "max speed {drained}");
 }
 
 /// Stokes lid-driven cavity (unit box, lid speed 1, η = ρ = 1, no convection) with the

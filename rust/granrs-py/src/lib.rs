@@ -318,7 +318,7 @@ impl PyModel {
         ambient_hydrostatic: bool,
         proximal_restarts: i64,
         wall_normal_stress: &str,
-        active_region: Option<(i64, i64)>,
+        active_region: Option<(i64, i64, String)>,
         step_retries: i64,
         air: &str,
         anderson_depth: i64,
@@ -458,7 +458,15 @@ impl PyModel {
         };
         cfg.active_region = match active_region {
             None => None,
-            Some((band, align)) => Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)? }),
+            Some((band, align, sides)) => Some(ActiveRegion {
+                band: pos("active_region.band", band)?,
+                align: pos("active_region.align", align)?,
+                open_right: match sides.as_str() {
+                    "walls" => false,
+                    "open-right" => true,
+                    other => return Err(param_err("active_region_sides", other, "'walls' or 'open-right'")),
+                },
+            }),
         };
         cfg.free_surface = match air {
             "resolved" => false,

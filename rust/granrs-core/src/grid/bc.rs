@@ -21,7 +21,9 @@
 //! its Neumann form. Exact for flows invariant along the normal.
 //!
 //! The pressure (and pressure increment) sees homogeneous Neumann on every side except outflow,
-//! where it is Dirichlet p = 0 on the boundary.
+//! where it is Dirichlet: p = p_b on the boundary, p_b = 0 unless an outlet pressure is set
+//! ([`BoundaryConditions::with_outlet_pressure`]: a value linear along the side, such as the
+//! ambient air's hydrostatic pressure on the open side of an active window), and δp = 0.
 
 use crate::error::{Error, Result};
 
@@ -134,7 +136,7 @@ impl VelocityBc {
 pub enum PressureBc {
     /// ∂p/∂n = 0 (walls, prescribed velocity).
     Neumann,
-    /// p = 0 on the boundary (outflow).
+    /// p = p_b on the boundary (outflow; p_b = 0 unless an outlet pressure is set).
     Dirichlet,
 }
 
@@ -143,12 +145,34 @@ pub enum PressureBc {
 pub struct BoundaryConditions {
     /// Conditions in the order left, right, bottom, top.
     pub sides: [VelocityBc; 4],
+    /// Pressure on the boundary of each outflow side, linear along it: `[a, b]` gives
+    /// p_b = a + b·k at the k-th cell centre along the side (k from 0, along +y on left/right,
+    /// +x on bottom/top). Zero by default; read only on outflow sides.
+    pub outlet_pressure: [[f64; 2]; 4],
 }
 
 impl BoundaryConditions {
     /// The same condition on every side.
     pub fn uniform(bc: VelocityBc) -> Self {
-        BoundaryConditions { sides: [bc; 4] }
+        BoundaryConditions { sides: [bc; 4], outlet_pressure: [[0.0; 2]; 4] }
+    }
+
+    /// Builder: the boundary pressure of an outflow `side`, p_b = `at_first` + `per_cell`·k at the
+    /// k-th cell along it (see [`BoundaryConditions::outlet_pressure`]).
+    pub fn with_outlet_pressure(mut self, side: Side, at_first: f64, per_cell: f64) -> Self {
+        self.outlet_pressure[side.index()] = [at_first, per_cell];
+        self
+    }
+
+    /// The boundary pressure of `side` at position `k` along it (cells, k = 0 the first centre):
+    /// 0 on sides that are not outflow.
+    #[inline]
+    pub fn outlet_pressure_at(&self, side: Side, k: f64) -> f64 {
+        if self.pressure(side) != PressureBc::Dirichlet {
+            return 0.0;
+        }
+        let [a, b] = self.outlet_pressure[side.index()];
+        a + b * k
     }
 
     /// Builder: sets one side.
@@ -201,6 +225,10 @@ impl BoundaryConditions {
                     return Err(Error::param(&name("slip_length"), slip_length, "a finite length > 0"));
                 }
                 _ => {}
+            }
+            let [a, b] = self.outlet_pressure[side.index()];
+            if !(a.is_finite() && b.is_finite()) {
+                return Err(Error::param(&name("outlet_pressure"), format!("[{a}, {b}]"), "finite values (Pa, Pa per cell)"));
             }
         }
         for (a, b) in [(Side::Left, Side::Right), (Side::Bottom, Side::Top)] {

@@ -42,7 +42,7 @@ use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Side, HALO};
 use crate::levelset::{interface_diagonal, interface_fraction};
 use crate::operators::{divergence, for_each_interior_row, unknown_face_range};
-use crate::projection::fill_pressure_ghosts;
+use crate::projection::{fill_increment_ghosts, fill_pressure_ghosts};
 use crate::solvers::{par::SharedMut, ShiftedSystem, SolveInfo, SolverSettings};
 use rayon::prelude::*;
 
@@ -157,7 +157,7 @@ impl FreeSurfaceProjection {
             }
         });
         let dp = &mut self.div;
-        fill_pressure_ghosts(dp, bc);
+        fill_increment_ghosts(dp, bc);
         fill_pressure_ghosts(p, bc);
         let dps = self.div.slice();
         // velocity correction: u ← ũ − (δt/a₀)(1/ρ_s) ∂p, with the ghost value on surface faces

@@ -18,7 +18,7 @@
 //!
 //! Discretely: β = 1/ρ on faces, the 5-point operator of [`crate::solvers::PoissonSolver`],
 //! δp warm-started from the previous step's increment. Homogeneous Neumann on walls and
-//! prescribed-velocity sides, δp = 0 on outflow sides.
+//! prescribed-velocity sides, δp = 0 on outflow sides (p keeps its boundary value p_b there).
 
 pub mod free_surface;
 
@@ -29,15 +29,29 @@ use crate::operators::{divergence, for_each_interior_row, max_speed, unknown_fac
 use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
 
 /// Fills the ghost layers of a cell-centred pressure: even reflection on Neumann sides,
-/// odd reflection (p = 0 on the boundary) on Dirichlet sides.
+/// odd reflection about the boundary value p_b on Dirichlet sides, ghost = 2 p_b − interior
+/// (p_b = 0 unless the side has an outlet pressure, [`BoundaryConditions::outlet_pressure`]).
 pub fn fill_pressure_ghosts(p: &mut Field, bc: &BoundaryConditions) {
+    fill_ghosts(p, bc, true);
+}
+
+/// Fills the ghost layers of a pressure increment δp: as [`fill_pressure_ghosts`] with δp = 0
+/// on Dirichlet sides (the boundary value does not change).
+pub fn fill_increment_ghosts(dp: &mut Field, bc: &BoundaryConditions) {
+    fill_ghosts(dp, bc, false);
+}
+
+fn fill_ghosts(p: &mut Field, bc: &BoundaryConditions, boundary_values: bool) {
     let (nx, ny) = (p.nx as isize, p.ny as isize);
     let g = HALO as isize;
     let sign = |s: Side| if bc.pressure(s) == PressureBc::Dirichlet { -1.0 } else { 1.0 };
+    // 2 p_b at position k along the side (0 on Neumann sides and for an increment)
+    let twice = |s: Side, k: isize| if boundary_values { 2.0 * bc.outlet_pressure_at(s, k as f64) } else { 0.0 };
     let (sl, sr, sb, st) = (sign(Side::Left), sign(Side::Right), sign(Side::Bottom), sign(Side::Top));
     for j in 0..ny {
+        let (bl, br) = (twice(Side::Left, j), twice(Side::Right, j));
         for k in 1..=g {
-            let (a, b) = (sl * p.at(k - 1, j), sr * p.at(nx - k, j));
+            let (a, b) = (sl * p.at(k - 1, j) + bl, sr * p.at(nx - k, j) + br);
             let (ia, ib) = (p.idx(-k, j), p.idx(nx - 1 + k, j));
             let s = p.slice_mut();
             s[ia] = a;
@@ -45,8 +59,9 @@ pub fn fill_pressure_ghosts(p: &mut Field, bc: &BoundaryConditions) {
         }
     }
     for i in -g..nx + g {
+        let (bb, bt) = (twice(Side::Bottom, i), twice(Side::Top, i));
         for k in 1..=g {
-            let (a, b) = (sb * p.at(i, k - 1), st * p.at(i, ny - k));
+            let (a, b) = (sb * p.at(i, k - 1) + bb, st * p.at(i, ny - k) + bt);
             let (ia, ib) = (p.idx(i, -k), p.idx(i, ny - 1 + k));
             let s = p.slice_mut();
             s[ia] = a;
@@ -160,7 +175,7 @@ impl PressureProjection {
                 row[HALO..HALO + nx].copy_from_slice(&dp[j * nx..(j + 1) * nx]);
             });
         }
-        fill_pressure_ghosts(&mut self.dp_field, bc);
+        fill_increment_ghosts(&mut self.dp_field, bc);
         let dpf = &self.dp_field;
         let (idx, idy) = (1.0 / grid.dx, 1.0 / grid.dy);
         let ru = unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx);
