@@ -117,6 +117,12 @@ fn an_open_side_at_the_hydrostatic_pressure_keeps_the_air_at_rest() {
     // speeds of order g t = 0.5 m/s (measured 0.98 m/s after 50 steps)
     assert!(at_rest < 1e-10, "max speed {at_rest}");
     assert!(drained > 1e-3, "max speed {drained}");
+    // a boundary pressure that is not finite is refused, naming the side
+    let bad = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Right, VelocityBc::Outflow).with_outlet_pressure(Side::Right, f64::NAN, 0.0);
+    match bad.validate(1.0, 1.0) {
+        Err(granrs_core::Error::InvalidParameter { name, .. }) => assert_eq!(name, "bc.right.outlet_pressure"),
+        other => panic!("accepted or wrong error: {other:?}"),
+    }
 }
 
 /// Stokes lid-driven cavity (unit box, lid speed 1, η = ρ = 1, no convection) with the

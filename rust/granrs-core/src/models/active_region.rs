@@ -4,10 +4,11 @@
 //! Equations: the same as the whole-domain model (Aravena et al. eq. 10a–f, stages in
 //! `time_stepping/step.rs`), on the window W = (x0, x0 + n_x^W dx) × (y0, y0 + n_y^W dy) anchored at
 //! the domain's lower-left corner, with the domain's own boundary conditions on all four sides of
-//! W. Outside W the light phase is taken at rest with its hydrostatic pressure, so that on the
-//! window's right and top sides (walls: no normal flow) and under the `Top` gauge the only
-//! change is the gauge value: the mean pressure of W's top row is the hydrostatic pressure of
-//! the light phase there, (ρ_f − ρ_ref) g·(x_top^W − x_top^Ω) above the domain's top-row mean 0.
+//! W (but an open right side with `open_right`, below). Outside W the light phase is taken at
+//! rest with its hydrostatic pressure, so that on the window's right and top sides (walls: no
+//! normal flow) and under the `Top` gauge the only change is the gauge value: the mean
+//! pressure of W's top row is the hydrostatic pressure of the light phase there,
+//! (ρ_f − ρ_ref) g·(x_top^W − x_top^Ω) above the domain's top-row mean 0.
 //!
 //! **Open right side** (`open_right`). A wall b cells ahead of the front turns back the air
 //! the front pushes, which the whole domain lets go on along the channel; the window then lags
