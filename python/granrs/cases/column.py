@@ -346,6 +346,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     # fluidisation: the basal pore pressure over the weight, under the reservoir and in the channel
     fluid = model.pore_pressure is not None
     xs_c = (np.arange(grid.nx) + 0.5) * grid.dx
+    under_reservoir = xs_c < lc
     if fluid:
         rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
     profiles = {}
@@ -375,8 +376,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         rec["energy"].append(model.energy_budget())
         if fluid:
             h, pf0, weight = surface_profile(model.phi, grid.dy), model.pf[0], case.mixture_density * G
-            rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pf0, h, weight, xs_c < lc))
-            rec["pf_ratio_channel"].append(basal_pore_pressure_ratio(pf0, h, weight, xs_c >= lc))
+            rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pf0, h, weight, under_reservoir))
+            rec["pf_ratio_channel"].append(basal_pore_pressure_ratio(pf0, h, weight, ~under_reservoir))
         while pending_profiles and t >= pending_profiles[0] - 1e-9:
             profiles[round(pending_profiles.pop(0), 6)] = surface_profile(model.phi, grid.dy)
         if t > 0.1 and speed < case.rest_speed:

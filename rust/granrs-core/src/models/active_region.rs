@@ -208,22 +208,21 @@ impl TwoPhaseModel {
         let mut wc = cfg.clone();
         wc.grid = Grid::with_origin(nxw, nyw, g.x0, g.y0, nxw as f64 * g.dx, nyw as f64 * g.dy)?;
         wc.active_region = None;
-        let light = cfg.light.expect("validated: two-phase").density;
-        // hydrostatic light phase between the two top rows (centres), relative to their means
-        // the window's gauge cells: the part of its top row beyond the band's inner edge (when
-        // the window is narrower than the domain), the air farthest from the dense phase
-        wc.pressure_top_from = if nxw < g.nx { nxw - ar.band.min(nxw) } else { 0 };
+        // the ambient light phase at rest: p_a(x) = p_top + c g·(x − x_top), c = ρ_f − ρ_ref,
+        // x_top the mean centre of the domain's gauge cells (its top row from pressure_top_from)
+        let c = cfg.light.expect("validated: two-phase").density - cfg.reference_density();
+        let [gx, gy] = cfg.gravity;
         let xm = |from: usize, n: usize| 0.5 * (from + n) as f64 * g.dx;
-        let dx_top = xm(wc.pressure_top_from, nxw) - xm(cfg.pressure_top_from, g.nx);
+        let (x_top, y_top) = (xm(cfg.pressure_top_from, g.nx), (g.ny as f64 - 0.5) * g.dy);
+        // the window's gauge cells: the part of its top row beyond the band's inner edge (when
+        // the window is narrower than the domain), the air farthest from the dense phase; their
+        // mean is p_a there
+        wc.pressure_top_from = if nxw < g.nx { nxw - ar.band.min(nxw) } else { 0 };
+        let dx_top = xm(wc.pressure_top_from, nxw) - x_top;
         let dy_top = (nyw as f64 - g.ny as f64) * g.dy;
-        wc.pressure_top_value = cfg.pressure_top_value + (light - cfg.reference_density()) * (cfg.gravity[0] * dx_top + cfg.gravity[1] * dy_top);
+        wc.pressure_top_value = cfg.pressure_top_value + c * (gx * dx_top + gy * dy_top);
         if ar.open_right && nxw < g.nx {
-            // open right side: outflow at the ambient hydrostatic pressure of the domain's gauge,
-            // p_a(x) = p_top + (ρ_f − ρ_ref) g·(x − x_top), x_top the mean centre of the domain's
-            // gauge cells; the k-th face centre of the side at (n_x^W dx, (k + ½) dy)
-            let c = light - cfg.reference_density();
-            let (x_top, y_top) = (xm(cfg.pressure_top_from, g.nx), (g.ny as f64 - 0.5) * g.dy);
-            let [gx, gy] = cfg.gravity;
+            // open right side: outflow at p_a, its k-th face centre at (n_x^W dx, (k + ½) dy)
             let p0 = cfg.pressure_top_value + c * (gx * (nxw as f64 * g.dx - x_top) + gy * (0.5 * g.dy - y_top));
             wc.bc = wc.bc.with(Side::Right, VelocityBc::Outflow).with_outlet_pressure(Side::Right, p0, c * gy * g.dy);
         }
