@@ -122,7 +122,7 @@ def main() -> None:
     ap.add_argument("--eps", type=float, default=1e-12, help="relative perturbation of the width per member")
     ap.add_argument("--model", default="two-phase", choices=["two-phase", "granular"])
     ap.add_argument("--active-region", type=int, default=None)
-    ap.add_argument("--active-region-sides", default="walls", choices=["walls", "open-right"],
+    ap.add_argument("--active-region-sides", default="walls", choices=["walls", "open-right", "open-right-top"],
                     help="the window's right and top sides (ColumnCase.active_region_sides)")
     ap.add_argument("--dry", action="store_true")
     ap.add_argument("--t-end", type=float, default=None)
@@ -135,7 +135,7 @@ def main() -> None:
     if args.members < 2:
         raise SystemExit("invalid parameter `--members` = %d: allowed an integer >= 2" % args.members)
     tag = (f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
-           + ("-open-right" if args.active_region and args.active_region_sides == "open-right" else "")
+           + (f"-{args.active_region_sides}" if args.active_region and args.active_region_sides != "walls" else "")
            + (f"-theta{args.theta:g}" if args.theta is not None else ""))
     out = Path(args.out or f"out/ensemble-{tag}")
     out.mkdir(parents=True, exist_ok=True)

@@ -195,7 +195,7 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
     assert max(wet["mass_rel_error"], dry["mass_rel_error"]) < 0.01
 
 
-@pytest.mark.parametrize("sides", ["walls", "open-right"])
+@pytest.mark.parametrize("sides", ["walls", "open-right", "open-right-top"])
 def test_active_region_runs_the_column_on_a_window(tmp_path, sides):
     """The active region (Numerics.active_region, docs/models.md): at ny = 16 to t = 0.3 s the
     steps run on a 48 × 16 window of the 128 × 16 channel and the front is the whole-domain one
@@ -216,12 +216,15 @@ def test_active_region_runs_the_column_on_a_window(tmp_path, sides):
             assert wx < 128 and wx % 8 == 0 and wy <= 16
             assert np.all(m.u[:, wx + 1:] == 0.0), "the air outside the window is at rest"
             side_flux = np.abs(m.u[:wy, wx]).max()
-            assert (side_flux > 0.0) == (sides == "open-right"), f"air speed through the window's side {side_flux}"
+            assert (side_flux > 0.0) == (sides != "walls"), f"air speed through the window's side {side_flux}"
+            if wy < 16:
+                top_flux = np.abs(m.v[wy, :wx]).max()
+                assert (top_flux > 0.0) == (sides == "open-right-top"), f"air speed through the window's top {top_flux}"
     assert fronts[8] == pytest.approx(fronts[None], rel=5e-3)
 
 
 def test_active_region_sides_bad_value_names_itself(tmp_path):
-    with pytest.raises(ParameterError, match="`active_region_sides`.*'walls' or 'open-right'"):
+    with pytest.raises(ParameterError, match="`active_region_sides`.*'walls', 'open-right' or 'open-right-top'"):
         run_column(ColumnCase(ny=16, active_region=8, active_region_sides="outflow"), tmp_path, progress=False)
 
 

@@ -106,8 +106,9 @@ KEYS: tuple[Key, ...] = (
     Key("numerics", "active_region", "int", 0, "cells",
         "run each step on a window around the granular phase with this many (≥ 2) cells of air; 0: the whole domain", 0, 100000),
     Key("numerics", "active_region_sides", "choice", _D["active_region_sides"], "",
-        "the active window's sides: walls, or its right side open (outflow at the air's hydrostatic pressure)",
-        choices=("walls", "open-right")),
+        "the active window's sides: walls; its right side open (outflow at the air's hydrostatic pressure); or "
+        "its right and top sides open with backflow stabilisation",
+        choices=("walls", "open-right", "open-right-top")),
     Key("numerics", "wall_normal_stress", "choice", _D["wall_normal_stress"], "",
         "normal stress of the Coulomb base and back wall: the pressure p, or the paper's total stress p − T_nn",
         choices=("pressure", "total")),

@@ -138,7 +138,10 @@ class Numerics:
     this many cells (default 8, for the multigrid). active_region_sides: 'walls' (default: the window's
     right and top sides, where they lie inside the domain, have no normal flow) or 'open-right'
     (its right side is an outflow at the ambient air's hydrostatic pressure, so the air the front
-    pushes leaves the window; the top stays a wall; docs/models.md, "An open right side").
+    pushes leaves the window; the top stays a wall; docs/models.md, "An open right side") or
+    'open-right-top' (its right and top sides both open, with backflow stabilisation: where air
+    enters an open side its boundary pressure is lowered by ½ρ(u·n)²; docs/models.md, "An open
+    top with backflow stabilisation").
     """
 
     cfl: float = 0.5

@@ -97,8 +97,9 @@ class ColumnCase:
     # active region (granrs.Numerics.active_region): None (whole domain) or the band of air
     # cells kept around the granular phase; each step then runs on that window (docs/models.md)
     active_region: Optional[int] = None
-    # the window's sides (granrs.Numerics.active_region_sides): 'walls' (default) or 'open-right'
-    # (its right side an outflow at the air's hydrostatic pressure; docs/models.md, "An open right side")
+    # the window's sides (granrs.Numerics.active_region_sides): 'walls' (default), 'open-right' or
+    # 'open-right-top' (its right side, or its right and top sides, outflows at the air's hydrostatic
+    # pressure, the latter with backflow stabilisation; docs/models.md, "An open right side")
     active_region_sides: str = "walls"
     length: Optional[float] = None
     height: Optional[float] = None
@@ -151,9 +152,9 @@ class ColumnCase:
         if self.yield_pressure not in ("absolute", "surface-air"):
             raise ParameterError(f"invalid parameter `yield_pressure` = {self.yield_pressure!r}: allowed "
                                  "'absolute' or 'surface-air'")
-        if self.active_region_sides not in ("walls", "open-right"):
+        if self.active_region_sides not in ("walls", "open-right", "open-right-top"):
             raise ParameterError(f"invalid parameter `active_region_sides` = {self.active_region_sides!r}: allowed "
-                                 "'walls' or 'open-right'")
+                                 "'walls', 'open-right' or 'open-right-top'")
         if self.model not in MODELS:
             raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase', 'granular' or "
                                  "'depth-averaged'")

@@ -458,15 +458,15 @@ impl PyModel {
         };
         cfg.active_region = match active_region {
             None => None,
-            Some((band, align, sides)) => Some(ActiveRegion {
-                band: pos("active_region.band", band)?,
-                align: pos("active_region.align", align)?,
-                open_right: match sides.as_str() {
-                    "walls" => false,
-                    "open-right" => true,
-                    other => return Err(param_err("active_region_sides", other, "'walls' or 'open-right'")),
-                },
-            }),
+            Some((band, align, sides)) => {
+                let (open_right, open_top) = match sides.as_str() {
+                    "walls" => (false, false),
+                    "open-right" => (true, false),
+                    "open-right-top" => (true, true),
+                    other => return Err(param_err("active_region_sides", other, "'walls', 'open-right' or 'open-right-top'")),
+                };
+                Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)?, open_right, open_top })
+            }
         };
         cfg.free_surface = match air {
             "resolved" => false,

@@ -149,12 +149,20 @@ pub struct BoundaryConditions {
     /// p_b = a + b·k at the k-th cell centre along the side (k from 0, along +y on left/right,
     /// +x on bottom/top). Zero by default; read only on outflow sides.
     pub outlet_pressure: [[f64; 2]; 4],
+    /// Backflow stabilisation of each outflow side (read only there): on a boundary face where
+    /// the flow enters (outward normal velocity u·n < 0) the boundary pressure of the predictor
+    /// is lowered by the normal dynamic pressure, p_b − ½ρ(u·n)², the normal part of the
+    /// directional do-nothing condition (Braack & Mucha 2014, *J. Comput. Math.* 32; Bazilevs et
+    /// al. 2009, *CMAME* 198): fluid entering from an ambient reservoir at p_b pays its dynamic
+    /// pressure, so an open side no longer feeds kinetic energy into the domain where air flows
+    /// back in ([`crate::projection::add_backflow_pressure`]). `false` by default.
+    pub backflow: [bool; 4],
 }
 
 impl BoundaryConditions {
     /// The same condition on every side.
     pub fn uniform(bc: VelocityBc) -> Self {
-        BoundaryConditions { sides: [bc; 4], outlet_pressure: [[0.0; 2]; 4] }
+        BoundaryConditions { sides: [bc; 4], outlet_pressure: [[0.0; 2]; 4], backflow: [false; 4] }
     }
 
     /// Builder: the boundary pressure of an outflow `side`, p_b = `at_first` + `per_cell`·k at the
@@ -162,6 +170,18 @@ impl BoundaryConditions {
     pub fn with_outlet_pressure(mut self, side: Side, at_first: f64, per_cell: f64) -> Self {
         self.outlet_pressure[side.index()] = [at_first, per_cell];
         self
+    }
+
+    /// Builder: backflow stabilisation of the outflow `side` (see [`BoundaryConditions::backflow`]).
+    pub fn with_backflow_stabilisation(mut self, side: Side) -> Self {
+        self.backflow[side.index()] = true;
+        self
+    }
+
+    /// Whether `side` is an outflow side with backflow stabilisation.
+    #[inline]
+    pub fn backflow_on(&self, side: Side) -> bool {
+        self.backflow[side.index()] && self.pressure(side) == PressureBc::Dirichlet
     }
 
     /// The boundary pressure of `side` at position `k` along it (cells, k = 0 the first centre):

@@ -4,7 +4,7 @@
 //! Equations: the same as the whole-domain model (Aravena et al. eq. 10a–f, stages in
 //! `time_stepping/step.rs`), on the window W = (x0, x0 + n_x^W dx) × (y0, y0 + n_y^W dy) anchored at
 //! the domain's lower-left corner, with the domain's own boundary conditions on all four sides of
-//! W (but an open right side with `open_right`, below). Outside W the light phase is taken at
+//! W (but open right and top sides with `open_right` and `open_top`, below). Outside W the light phase is taken at
 //! rest with its hydrostatic pressure, so that on the window's right and top sides (walls: no
 //! normal flow) and under the `Top` gauge the only change is the gauge value: the mean
 //! pressure of W's top row is the hydrostatic pressure of the light phase there,
@@ -16,12 +16,18 @@
 //! (where it lies inside the domain) is an outflow side, ∂u/∂n = 0, at the ambient pressure
 //! p_a(x) = p_top + (ρ_f − ρ_ref) g·(x − x_top), the hydrostatic light phase of the domain's gauge
 //! ([`crate::grid::BoundaryConditions::with_outlet_pressure`]; δp = 0 there, so p keeps p_a). The
-//! window's pressure is then fixed by that side and needs no gauge. The top stays a wall: an
-//! outflow top over the deposit, tried at ny = 64, drew jets of air in and out of it (4.9 m/s
-//! against 1.6 m/s in the whole domain after t = 1.25 s), the backflow instability of open
-//! boundaries where air enters. The flux through the open side is copied back with the state,
-//! so the first cell outside W holds a divergence until W grows over it; the projection of the
-//! next step on the grown W removes it.
+//! window's pressure is then fixed by that side and needs no gauge. The flux through the open
+//! side is copied back with the state, so the first cell outside W holds a divergence until W
+//! grows over it; the projection of the next step on the grown W removes it.
+//!
+//! **Open top** (`open_top`, implies an open right side). The top side too is an outflow at
+//! p_a, and both open sides have backflow stabilisation: on a face where air enters, the
+//! predictor's boundary pressure is p_a − ½ρ(u·n)² (the air arrives from the ambient at rest
+//! and pays its dynamic pressure; [`crate::grid::BoundaryConditions::backflow`]). Without it an
+//! open top over the deposit, tried at ny = 64, drew jets of air in and out of it (4.9 m/s
+//! against at most 1.6 m/s in the whole domain after t = 1.5 s), the backflow instability of
+//! open boundaries where air enters; with it the window's largest speed stays at 1.7–2.4 m/s
+//! (BAND = 8) and the band can be narrowed to 4 cells (docs/models.md).
 //!
 //! **Window.** Let i_max, j_max be the largest column and row of a cell with Φ > −3ε: the
 //! support of the smoothed properties H_ε(Φ + sε), s ≤ 2, of the dense phase (a film with Φ ≈ 0
@@ -74,9 +80,14 @@ pub struct ActiveRegion {
     pub align: usize,
     /// The window's right side, where it lies inside the domain: `false` a wall (no normal flow,
     /// the default), `true` open (an outflow side at the ambient light phase's hydrostatic
-    /// pressure, through which the air the advancing front pushes leaves W). The top stays a
-    /// wall: an open top over the deposit drew spurious jets of air in and out (see the header).
+    /// pressure, through which the air the advancing front pushes leaves W), without backflow
+    /// stabilisation (the session-14 form, kept bit for bit).
     pub open_right: bool,
+    /// The window's top side, where it lies inside the domain, and its right side: `true` both
+    /// open (outflow at the ambient light phase's hydrostatic pressure) with backflow
+    /// stabilisation (p_b − ½ρ(u·n)² where air enters, [`crate::grid::BoundaryConditions::backflow`]),
+    /// which keeps an open top over the deposit from drawing jets. Implies an open right side.
+    pub open_top: bool,
 }
 
 impl ActiveRegion {
@@ -221,21 +232,34 @@ impl TwoPhaseModel {
         let dx_top = xm(wc.pressure_top_from, nxw) - x_top;
         let dy_top = (nyw as f64 - g.ny as f64) * g.dy;
         wc.pressure_top_value = cfg.pressure_top_value + c * (gx * dx_top + gy * dy_top);
-        if ar.open_right && nxw < g.nx {
+        let open_right = ar.open_right || ar.open_top;
+        if open_right && nxw < g.nx {
             // open right side: outflow at p_a, its k-th face centre at (n_x^W dx, (k + ½) dy)
             let p0 = cfg.pressure_top_value + c * (gx * (nxw as f64 * g.dx - x_top) + gy * (0.5 * g.dy - y_top));
             wc.bc = wc.bc.with(Side::Right, VelocityBc::Outflow).with_outlet_pressure(Side::Right, p0, c * gy * g.dy);
+            if ar.open_top {
+                wc.bc = wc.bc.with_backflow_stabilisation(Side::Right);
+            }
+        }
+        if ar.open_top && nyw < g.ny {
+            // open top side: outflow at p_a, its k-th face centre at ((k + ½) dx, n_y^W dy)
+            let p0 = cfg.pressure_top_value + c * (gx * (0.5 * g.dx - x_top) + gy * (nyw as f64 * g.dy - y_top));
+            wc.bc = wc
+                .bc
+                .with(Side::Top, VelocityBc::Outflow)
+                .with_outlet_pressure(Side::Top, p0, c * gx * g.dx)
+                .with_backflow_stabilisation(Side::Top);
         }
         let mut w = TwoPhaseModel::new(wc)?;
         for (src, dst) in flow_state(self).into_iter().zip(flow_state_mut(&mut w)) {
             copy_block(src, dst);
         }
-        if nyw < g.ny {
+        if nyw < g.ny && !ar.open_top {
             // the window's top side is a wall
             let vs = &mut w.v;
             vs.data.slice_mut(s![HALO + nyw, ..]).fill(0.0);
         }
-        if nxw < g.nx && !ar.open_right {
+        if nxw < g.nx && !open_right {
             let us = &mut w.u;
             us.data.slice_mut(s![.., HALO + nxw]).fill(0.0);
         }

@@ -70,6 +70,44 @@ fn fill_ghosts(p: &mut Field, bc: &BoundaryConditions, boundary_values: bool) {
     }
 }
 
+/// Backflow stabilisation of outflow sides ([`BoundaryConditions::backflow`]): on each boundary
+/// face of such a side where the outward normal velocity u·n of `u`, `v` is negative (the flow
+/// enters), the boundary pressure p_b of the predictor's ∇p is lowered by q = ½ρ(u·n)², ρ the
+/// face density. With ghost = 2p_b − interior the face's gradient moves by 2q/h: −2q/h on the
+/// right and top sides, +2q/h on the left and bottom ones. Lowering p_b where fluid enters
+/// decelerates the inflow (the work of the boundary pressure on the entering fluid pays its
+/// kinetic energy), which is what removes the backflow instability of open sides. Faces where
+/// the flow leaves are untouched, so a side with outflow only is the plain Dirichlet side.
+#[allow(clippy::too_many_arguments)]
+pub fn add_backflow_pressure(
+    u: &Field, v: &Field, rho_u: &Field, rho_v: &Field, gx: &mut Field, gy: &mut Field, grid: &Grid, bc: &BoundaryConditions,
+) {
+    let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+    // q = ½ρ(u·n)² where u·n < 0; `outward` is u·n for the face velocity w
+    let q = |w: f64, outward_sign: f64, rho: f64| {
+        let un = outward_sign * w;
+        if un < 0.0 { 0.5 * rho * un * un } else { 0.0 }
+    };
+    for (side, face, sign) in [(Side::Left, 0, -1.0), (Side::Right, nx, 1.0)] {
+        if bc.backflow_on(side) {
+            for j in 0..ny {
+                let dq = q(u.at(face, j), sign, rho_u.at(face, j));
+                let k = gx.idx(face, j);
+                gx.slice_mut()[k] -= sign * 2.0 * dq / grid.dx;
+            }
+        }
+    }
+    for (side, face, sign) in [(Side::Bottom, 0, -1.0), (Side::Top, ny, 1.0)] {
+        if bc.backflow_on(side) {
+            for i in 0..nx {
+                let dq = q(v.at(i, face), sign, rho_v.at(i, face));
+                let k = gy.idx(i, face);
+                gy.slice_mut()[k] -= sign * 2.0 * dq / grid.dy;
+            }
+        }
+    }
+}
+
 /// The pressure projection: owns the Poisson solver, its coefficients and work arrays.
 pub struct PressureProjection {
     solver: PoissonSolver,

@@ -468,6 +468,8 @@ impl TwoPhaseModel {
         } else {
             pressure_gradient(Some(&self.p), self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
         }
+        // open sides with backflow stabilisation: p_b − ½ρ(u·n)² on the faces where air enters
+        crate::projection::add_backflow_pressure(&self.u, &self.v, &wk.rho_u, &wk.rho_v, &mut wk.gx, &mut wk.gy, grid, bc);
         let first = self.dt_prev.is_none();
         // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ρ_ref g − ∇pⁿ ;  c = a₀ρ/δt
         // (ρ_ref = ρ_f with `ambient_hydrostatic`, else 0: the same floating-point result)
