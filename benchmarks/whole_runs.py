@@ -3,7 +3,7 @@ column collapse, with 1 and 2 threads (median of repeats). Refuses a debug build
 
     .venv/bin/python benchmarks/whole_runs.py [--quick] [--out benchmarks/results.json]
     .venv/bin/python benchmarks/whole_runs.py --column [--threads 1 2] [--model granular] [--repeats R] [--out benchmarks/column_scaling.json]
-    .venv/bin/python benchmarks/whole_runs.py --window [--repeats R]   # cost against the channel length (benchmarks/window_scaling.json)
+    .venv/bin/python benchmarks/whole_runs.py --window [--repeats R] [--band B --sides S --out F]   # cost against the channel length (benchmarks/window_scaling.json)
 
 ``--column``: the two-phase column step of the main job (D-P bi-projection, Coulomb walls, pore
 pressure, WENO5 level set and redistancing: everything a step does) from ny = 23 (4.5 k cells,
@@ -70,20 +70,22 @@ def column_cost(ny: int, threads: int, steps: int, repeats: int, model: str = "t
             "viscous_iterations_median": statistics.median(log["viscous_iterations"])}
 
 
-def window_cost(ny: int, length: float, model: str, band: int | None, steps: int, repeats: int) -> dict:
+def window_cost(ny: int, length: float, model: str, band: int | None, steps: int, repeats: int,
+                sides: str = "walls") -> dict:
     """Cost per step of the column's steps 11–30 on a channel of `length` m: with the active
     region the cost should follow the granular area (fixed here), not the domain (issue 8)."""
     from granrs.cases.column import ColumnCase, build_model
 
     times = []
     for _ in range(repeats):
-        m = build_model(ColumnCase(ny=ny, length=length, model=model, active_region=band))
+        m = build_model(ColumnCase(ny=ny, length=length, model=model, active_region=band, active_region_sides=sides))
         m.advance(max_steps=10)
         t0 = time.perf_counter()
         m.advance(max_steps=steps)
         times.append((time.perf_counter() - t0) / steps)
     return {"case": "column-window", "model": model, "ny": ny, "length_m": length, "nx": m.grid.nx,
-            "cells": m.grid.nx * m.grid.ny, "active_region": band, "s_per_step": statistics.median(times)}
+            "cells": m.grid.nx * m.grid.ny, "active_region": band, "active_region_sides": sides if band else None,
+            "s_per_step": statistics.median(times)}
 
 
 def slope(rows: list, key: str) -> float:
@@ -110,13 +112,16 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=None, help="--column: repeats per point (default 3 up to ny = 128, else 1)")
     ap.add_argument("--window", action="store_true",
                     help="cost per step against the channel length, whole domain and active region (issue 8)")
+    ap.add_argument("--band", type=int, default=8, help="--window: the active region's band in cells (default 8)")
+    ap.add_argument("--sides", default="walls", choices=["walls", "open-right", "open-right-top"],
+                    help="--window: the window's sides (open ones: the two-phase model only)")
     args = ap.parse_args()
     if args.window:
         rows = []
-        for model in ("two-phase", "granular"):
-            for band in (None, 8):
+        for model in ("two-phase", "granular") if args.sides == "walls" else ("two-phase",):
+            for band in (None, args.band):
                 for length in (3.6, 7.2, 14.4):
-                    rows.append(window_cost(64, length, model, band, steps=20, repeats=args.repeats or 3))
+                    rows.append(window_cost(64, length, model, band, steps=20, repeats=args.repeats or 3, sides=args.sides))
                     print(json.dumps(rows[-1]), flush=True)
         out = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()}, "version": info["version"], "rows": rows}
         Path(args.out or "benchmarks/window_scaling.json").write_text(json.dumps(out, indent=2) + "\n")

@@ -187,7 +187,7 @@ def main() -> None:
     if td is not None:
         ax.axvline(td, color="r", lw=0.8, label=f"fronts differ by > {DIVERGENCE:.0%} from t = {td:.2f} s")
     r = summary["runout_m"]
-    ax.set_title(f"{tag}: {len(rows)} members, width × (1 + k·{args.eps:g}); run-out {r['mean']:.3f} ± {r['std']:.3f} m "
+    ax.set_title(f"{tag}: {len(rows)} members, width × (1 + k·{args.eps:g});\nrun-out {r['mean']:.3f} ± {r['std']:.3f} m "
                  f"(range {r['relative_spread']:.1%})", fontsize=9)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("front from the gate (m)")

@@ -120,7 +120,13 @@ fn a_window_is_refused_where_it_cannot_stand_in_for_the_domain() {
     cfg.active_region = Some(ActiveRegion { band: 1, align: 4, open_right: false, open_top: false });
     assert_eq!(named(cfg.clone()), "active_region.band");
     cfg.active_region = Some(ActiveRegion { band: 4, align: 0, open_right: false, open_top: false });
-    assert_eq!(named(cfg), "active_region.align");
+    assert_eq!(named(cfg.clone()), "active_region.align");
+    // open sides on the granular-only model, which has no air to let through them
+    cfg.free_surface = true;
+    for (open_right, open_top) in [(true, false), (false, true)] {
+        cfg.active_region = Some(ActiveRegion { band: 4, align: 4, open_right, open_top });
+        assert_eq!(named(cfg.clone()), "active_region_sides");
+    }
 }
 
 /// One step from the same state of a collapsing column, on the whole domain and on a window of

@@ -158,6 +158,13 @@ impl TwoPhaseModel {
                 ));
             }
         }
+        if cfg.free_surface && (ar.open_right || ar.open_top) {
+            return Err(Error::param(
+                "active_region_sides",
+                if ar.open_top { "open-right-top" } else { "open-right" },
+                "'walls' with the granular-only model (free surface): it carries no air to let through an open side",
+            ));
+        }
         if !cfg.free_surface && cfg.resolved_pressure_gauge() != Some(PressureGauge::Top) {
             return Err(Error::param("active_region", "with this pressure gauge", "the 'top' pressure gauge (pressure_gauge 'top', or 'auto' with a pressure-dependent law)"));
         }

@@ -13,7 +13,9 @@
 //!    (`rheology/stage.rs`).
 //! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection, the body force
 //!    (ρ − ρ_ref) g (ρ_ref = ρ_f with `ModelConfig::ambient_hydrostatic`, else 0) and the viscous term
-//!    (implicit or explicit); with a yield stress or wall friction, the Picard loop of eq. (12)
+//!    (implicit or explicit; on open sides with backflow stabilisation ∇pⁿ takes the boundary
+//!    pressure p_b − ½ρ(u·n)² where the flow enters, `projection::add_backflow_pressure`); with a
+//!    yield stress or wall friction, the Picard loop of eq. (12)
 //!    couples it with the plastic projection of Σ and the friction projection of s
 //!    (`momentum_solve` in `rheology/stage.rs`).
 //!    `check_predictor`: a non-finite ũ (blow-up) stops the step here, naming the cell.
