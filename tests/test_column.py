@@ -223,6 +223,14 @@ def test_active_region_runs_the_column_on_a_window(tmp_path, sides):
     assert fronts[8] == pytest.approx(fronts[None], rel=5e-3)
 
 
+@pytest.mark.parametrize("sides", ["open-right", "open-right-top"])
+def test_open_window_sides_are_refused_for_the_granular_only_model(tmp_path, sides):
+    """The granular-only model carries no air, so an open window side has nothing to let through:
+    refused by the Rust core, with the parameter named."""
+    with pytest.raises(ParameterError, match="`active_region_sides`.*granular-only"):
+        run_column(ColumnCase(ny=16, model="granular", active_region=8, active_region_sides=sides), tmp_path, progress=False)
+
+
 def test_active_region_sides_bad_value_names_itself(tmp_path):
     with pytest.raises(ParameterError, match="`active_region_sides`.*'walls', 'open-right' or 'open-right-top'"):
         run_column(ColumnCase(ny=16, active_region=8, active_region_sides="outflow"), tmp_path, progress=False)
