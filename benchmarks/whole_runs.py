@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 import granrs
+import granrs.model
 
 
 def cavity_cost(n: int, threads: int, steps: int, repeats: int) -> dict:
@@ -113,7 +114,7 @@ def main() -> None:
     ap.add_argument("--window", action="store_true",
                     help="cost per step against the channel length, whole domain and active region (issue 8)")
     ap.add_argument("--band", type=int, default=8, help="--window: the active region's band in cells (default 8)")
-    ap.add_argument("--sides", default="walls", choices=["walls", "open-right", "open-right-top"],
+    ap.add_argument("--sides", default="walls", choices=granrs.model.ACTIVE_REGION_SIDES,
                     help="--window: the window's sides (open ones: the two-phase model only)")
     args = ap.parse_args()
     if args.window:

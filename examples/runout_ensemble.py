@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_column
+from granrs.model import ACTIVE_REGION_SIDES
 
 #: Fronts of the members are said to have diverged once their range exceeds this fraction of
 #: their mean.
@@ -122,7 +123,7 @@ def main() -> None:
     ap.add_argument("--eps", type=float, default=1e-12, help="relative perturbation of the width per member")
     ap.add_argument("--model", default="two-phase", choices=["two-phase", "granular"])
     ap.add_argument("--active-region", type=int, default=None)
-    ap.add_argument("--active-region-sides", default="walls", choices=["walls", "open-right", "open-right-top"],
+    ap.add_argument("--active-region-sides", default="walls", choices=ACTIVE_REGION_SIDES,
                     help="the window's right and top sides (ColumnCase.active_region_sides)")
     ap.add_argument("--dry", action="store_true")
     ap.add_argument("--t-end", type=float, default=None)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from . import __version__, build_info
 from ._granrs import ParameterError, SimulationError, SolverError
+from .model import ACTIVE_REGION_SIDES
 
 
 def _validate(args) -> int:
@@ -156,7 +157,7 @@ def main(argv=None) -> int:
                    help="column: run each step on a window around the granular phase with BAND cells of air "
                         "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
                         "is within 0.1 %% of the whole-domain run-out, BAND = 8 2.4 %% long); default: the whole domain")
-    r.add_argument("--active-region-sides", dest="active_region_sides", choices=["walls", "open-right", "open-right-top"], default="walls",
+    r.add_argument("--active-region-sides", dest="active_region_sides", choices=ACTIVE_REGION_SIDES, default="walls",
                    help="column, with --active-region: the window's right and top sides are walls (default), or its "
                         "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or "
                         "its right and top sides are open with backflow stabilisation (open-right-top; with the two-phase "

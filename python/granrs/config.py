@@ -24,6 +24,7 @@ from typing import Iterable, Optional, Union
 
 from ._granrs import ParameterError
 from .cases.column import ColumnCase
+from .model import ACTIVE_REGION_SIDES
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,7 @@ KEYS: tuple[Key, ...] = (
     Key("numerics", "active_region_sides", "choice", _D["active_region_sides"], "",
         "the active window's sides: walls; its right side open (outflow at the air's hydrostatic pressure); or "
         "its right and top sides open with backflow stabilisation",
-        choices=("walls", "open-right", "open-right-top")),
+        choices=ACTIVE_REGION_SIDES),
     Key("numerics", "wall_normal_stress", "choice", _D["wall_normal_stress"], "",
         "normal stress of the Coulomb base and back wall: the pressure p, or the paper's total stress p − T_nn",
         choices=("pressure", "total")),

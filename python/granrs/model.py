@@ -62,6 +62,10 @@ class PorePressure:
             raise ParameterError(f"invalid parameter `diffusivity` = {self.diffusivity!r}: allowed a finite number > 0 (m²/s)")
 
 
+# the values of Numerics.active_region_sides (the Rust core parses the same names)
+ACTIVE_REGION_SIDES = ("walls", "open-right", "open-right-top")
+
+
 @dataclass(frozen=True)
 class Numerics:
     """Numerical settings (defaults suit the paper's cases).

@@ -43,7 +43,7 @@ from .._granrs import ParameterError, SimulationError, SolverError
 from ..boundary import BoundaryConditions, Coulomb, FreeSlip
 from ..grid import Grid
 from ..materials import AIR, Material
-from ..model import Model, Numerics, PorePressure
+from ..model import ACTIVE_REGION_SIDES, Model, Numerics, PorePressure
 from ..shapes import Rectangle
 from ..simulation import Callback, Simulation
 
@@ -152,7 +152,7 @@ class ColumnCase:
         if self.yield_pressure not in ("absolute", "surface-air"):
             raise ParameterError(f"invalid parameter `yield_pressure` = {self.yield_pressure!r}: allowed "
                                  "'absolute' or 'surface-air'")
-        if self.active_region_sides not in ("walls", "open-right", "open-right-top"):
+        if self.active_region_sides not in ACTIVE_REGION_SIDES:
             raise ParameterError(f"invalid parameter `active_region_sides` = {self.active_region_sides!r}: allowed "
                                  "'walls', 'open-right' or 'open-right-top'")
         if self.model not in MODELS:

@@ -13,7 +13,7 @@
 
 use granrs_core::error::Error;
 use granrs_core::grid::{BoundaryConditions, Grid, Side, VelocityBc};
-use granrs_core::models::{ActiveRegion, ModelConfig, PressureGauge, TwoPhaseModel};
+use granrs_core::models::{ActiveRegion, ModelConfig, PressureGauge, TwoPhaseModel, WindowSides};
 
 mod common;
 use common::{column_config, released_column, AIR};
@@ -30,7 +30,7 @@ fn column(nx: usize, ny: usize, active: Option<ActiveRegion>) -> TwoPhaseModel {
 fn a_window_as_large_as_the_domain_is_the_whole_domain_step_bit_for_bit() {
     let (nx, ny) = (48, 16);
     let mut plain = column(nx, ny, None);
-    let mut win = column(nx, ny, Some(ActiveRegion { band: 1000, align: 8, open_right: false, open_top: false }));
+    let mut win = column(nx, ny, Some(ActiveRegion { band: 1000, align: 8, sides: WindowSides::Walls }));
     for k in 0..30 {
         let a = plain.step().unwrap();
         let b = win.step().unwrap();
@@ -56,7 +56,7 @@ fn a_window_as_large_as_the_domain_is_the_whole_domain_step_bit_for_bit() {
 #[test]
 fn the_window_follows_the_collapse_and_keeps_its_band() {
     let (nx, ny, band) = (128, 32, 4);
-    let mut m = column(nx, ny, Some(ActiveRegion { band, align: 4, open_right: false, open_top: false }));
+    let mut m = column(nx, ny, Some(ActiveRegion { band, align: 4, sides: WindowSides::Walls }));
     let area0 = m.dense_area();
     let mut sizes = Vec::new();
     for _ in 0..400 {
@@ -97,7 +97,7 @@ fn the_window_follows_the_collapse_and_keeps_its_band() {
 #[test]
 fn a_window_is_refused_where_it_cannot_stand_in_for_the_domain() {
     let grid = Grid::new(32, 16, 2.0, 1.0).unwrap();
-    let ar = Some(ActiveRegion { band: 4, align: 4, open_right: false, open_top: false });
+    let ar = Some(ActiveRegion { band: 4, align: 4, sides: WindowSides::Walls });
     let named = |cfg: ModelConfig| match TwoPhaseModel::new(cfg) {
         Err(Error::InvalidParameter { name, .. }) => name,
         Err(e) => panic!("wrong error {e}"),
@@ -117,31 +117,24 @@ fn a_window_is_refused_where_it_cannot_stand_in_for_the_domain() {
     assert_eq!(named(cfg.clone()), "active_region");
     // a band below 2 cells
     cfg.pressure_gauge = PressureGauge::Top;
-    cfg.active_region = Some(ActiveRegion { band: 1, align: 4, open_right: false, open_top: false });
+    cfg.active_region = Some(ActiveRegion { band: 1, align: 4, sides: WindowSides::Walls });
     assert_eq!(named(cfg.clone()), "active_region.band");
-    cfg.active_region = Some(ActiveRegion { band: 4, align: 0, open_right: false, open_top: false });
+    cfg.active_region = Some(ActiveRegion { band: 4, align: 0, sides: WindowSides::Walls });
     assert_eq!(named(cfg.clone()), "active_region.align");
     // open sides on the granular-only model, which has no air to let through them
     cfg.free_surface = true;
-    for (open_right, open_top) in [(true, false), (false, true)] {
-        cfg.active_region = Some(ActiveRegion { band: 4, align: 4, open_right, open_top });
+    for sides in [WindowSides::OpenRight, WindowSides::OpenRightTop] {
+        cfg.active_region = Some(ActiveRegion { band: 4, align: 4, sides });
         assert_eq!(named(cfg.clone()), "active_region_sides");
     }
 }
 
 /// One step from the same state of a collapsing column, on the whole domain and on a window of
-/// `band` cells whose right side is a wall or open: the largest differences from the whole-domain
-/// step of the velocity over the window (relative to the largest speed) and of the pressure
-/// in the dense phase (Pa), and the largest air speed through the window's right side.
-fn one_step_against_the_whole_domain(band: usize, open: bool) -> (f64, f64, f64) {
-    let (du, dp, through, _) = one_step_on_a_window(band, open, false);
-    (du, dp, through)
-}
-
-/// [`one_step_against_the_whole_domain`] with the top open too (`open_top`); also returns the
-/// largest air speed through the window's top side, and asserts that the window is lower than
-/// the domain.
-fn one_step_on_a_window(band: usize, open: bool, open_top: bool) -> (f64, f64, f64, f64) {
+/// `band` cells with the given `sides`: the largest differences from the whole-domain step of
+/// the velocity over the window (relative to the largest speed) and of the pressure in the
+/// dense phase (Pa), and the largest air speeds through the window's right and top sides. With
+/// an open top the window must be lower than the domain (asserted).
+fn one_step_on_a_window(band: usize, sides: WindowSides) -> (f64, f64, f64, f64) {
     let (nx, ny) = (128, 32);
     let fixed = |ar: Option<ActiveRegion>| {
         let mut cfg = column_config(nx, ny);
@@ -154,7 +147,7 @@ fn one_step_on_a_window(band: usize, open: bool, open_top: bool) -> (f64, f64, f
         whole.step().unwrap();
     }
     let state = whole.checkpoint();
-    let mut win = fixed(Some(ActiveRegion { band, align: 4, open_right: open, open_top }));
+    let mut win = fixed(Some(ActiveRegion { band, align: 4, sides }));
     win.restore(&state).unwrap();
     whole.step().unwrap();
     win.step().unwrap();
@@ -174,7 +167,7 @@ fn one_step_on_a_window(band: usize, open: bool, open_top: bool) -> (f64, f64, f
     }
     let through = (0..wy).map(|j| win.u.at(wx as isize, j as isize).abs()).fold(0.0, f64::max);
     let through_top = (0..wx).map(|i| win.v.at(i as isize, wy as isize).abs()).fold(0.0, f64::max);
-    if open_top {
+    if sides.top_open() {
         assert!(wy < ny, "the window is as high as the domain: its top is not inside it");
     }
     (du / umax, dp, through, through_top)
@@ -185,8 +178,8 @@ fn an_open_right_side_lets_the_air_out_and_follows_the_whole_domain() {
     // measured: velocity 5.1e-3 (walls) against 4.1e-6 (open) of the largest speed, pressure in
     // the grains 10.8 Pa against 0.016 Pa
     let band = 8;
-    let (du_w, dp_w, through_w) = one_step_against_the_whole_domain(band, false);
-    let (du_o, dp_o, through_o) = one_step_against_the_whole_domain(band, true);
+    let (du_w, dp_w, through_w, _) = one_step_on_a_window(band, WindowSides::Walls);
+    let (du_o, dp_o, through_o, _) = one_step_on_a_window(band, WindowSides::OpenRight);
     println!(
         "band {band}: velocity difference {du_w:.2e} (walls) / {du_o:.2e} (open) of the largest speed; pressure in the grains {dp_w:.3} / {dp_o:.3} Pa; air through the side {through_w:.1e} / {through_o:.3} m/s"
     );
@@ -210,8 +203,8 @@ fn an_open_top_with_backflow_stabilisation_follows_the_whole_domain() {
     // Band 4: the window (support + 2 bands, rows rounded to 4) is then 28 of the 32 rows, so
     // its top lies inside the domain
     let band = 4;
-    let (du_w, dp_w, _, top_w) = one_step_on_a_window(band, false, false);
-    let (du_o, dp_o, _, top_o) = one_step_on_a_window(band, true, true);
+    let (du_w, dp_w, _, top_w) = one_step_on_a_window(band, WindowSides::Walls);
+    let (du_o, dp_o, _, top_o) = one_step_on_a_window(band, WindowSides::OpenRightTop);
     println!("band {band}, open right and top: velocity difference {du_o:.2e} (walls {du_w:.2e}); pressure in the grains {dp_o:.3} Pa (walls {dp_w:.3}); air through the top {top_o:.3} m/s (walls {top_w:.1e})");
     assert!(top_w == 0.0, "flow through a wall: {top_w}");
     assert!(top_o > 1e-3, "no air crossed the open top: {top_o} m/s");

@@ -14,7 +14,7 @@
 
 use granrs_core::error::Error;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, VelocityBc};
-use granrs_core::models::{ActiveRegion, ModelConfig, TwoPhaseModel};
+use granrs_core::models::{ActiveRegion, ModelConfig, TwoPhaseModel, WindowSides};
 use granrs_core::projection::free_surface::EXTENSION_LAYERS;
 
 mod common;
@@ -146,7 +146,7 @@ fn one_thread_and_two_and_a_full_window_agree_bit_for_bit() {
     let (nx, ny) = (128, 32);
     let mut a = column(nx, ny, 1, None);
     let mut b = column(nx, ny, 2, None);
-    let mut c = column(nx, ny, 1, Some(ActiveRegion { band: 1000, align: 8, open_right: false, open_top: false }));
+    let mut c = column(nx, ny, 1, Some(ActiveRegion { band: 1000, align: 8, sides: WindowSides::Walls }));
     for k in 0..30 {
         let (ia, ib, ic) = (a.step().unwrap(), b.step().unwrap(), c.step().unwrap());
         assert_eq!(ia.dt.to_bits(), ib.dt.to_bits(), "step {k}");

@@ -5,7 +5,7 @@
 use granrs_core::exec::Exec;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
-use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};
+use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel, WindowSides};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
 use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, WallNormalStress, YieldPressure, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
@@ -459,13 +459,13 @@ impl PyModel {
         cfg.active_region = match active_region {
             None => None,
             Some((band, align, sides)) => {
-                let (open_right, open_top) = match sides.as_str() {
-                    "walls" => (false, false),
-                    "open-right" => (true, false),
-                    "open-right-top" => (true, true),
+                let sides = match sides.as_str() {
+                    "walls" => WindowSides::Walls,
+                    "open-right" => WindowSides::OpenRight,
+                    "open-right-top" => WindowSides::OpenRightTop,
                     other => return Err(param_err("active_region_sides", other, "'walls', 'open-right' or 'open-right-top'")),
                 };
-                Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)?, open_right, open_top })
+                Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)?, sides })
             }
         };
         cfg.free_surface = match air {

@@ -4,15 +4,15 @@
 //! Equations: the same as the whole-domain model (Aravena et al. eq. 10a–f, stages in
 //! `time_stepping/step.rs`), on the window W = (x0, x0 + n_x^W dx) × (y0, y0 + n_y^W dy) anchored at
 //! the domain's lower-left corner, with the domain's own boundary conditions on all four sides of
-//! W (but open right and top sides with `open_right` and `open_top`, below). Outside W the light phase is taken at
+//! W (but open right and top sides with [`WindowSides`], below). Outside W the light phase is taken at
 //! rest with its hydrostatic pressure, so that on the window's right and top sides (walls: no
 //! normal flow) and under the `Top` gauge the only change is the gauge value: the mean
 //! pressure of W's top row is the hydrostatic pressure of the light phase there,
 //! (ρ_f − ρ_ref) g·(x_top^W − x_top^Ω) above the domain's top-row mean 0.
 //!
-//! **Open right side** (`open_right`). A wall b cells ahead of the front turns back the air
+//! **Open right side** (`WindowSides::OpenRight`). A wall b cells ahead of the front turns back the air
 //! the front pushes, which the whole domain lets go on along the channel; the window then lags
-//! the whole-domain front by 2–3 % (docs/models.md). With `open_right` the window's right side
+//! the whole-domain front by 2–3 % (docs/models.md). With an open right side the window's right side
 //! (where it lies inside the domain) is an outflow side, ∂u/∂n = 0, at the ambient pressure
 //! p_a(x) = p_top + (ρ_f − ρ_ref) g·(x − x_top), the hydrostatic light phase of the domain's gauge
 //! ([`crate::grid::BoundaryConditions::with_outlet_pressure`]; δp = 0 there, so p keeps p_a). The
@@ -20,7 +20,7 @@
 //! side is copied back with the state, so the first cell outside W holds a divergence until W
 //! grows over it; the projection of the next step on the grown W removes it.
 //!
-//! **Open top** (`open_top`, implies an open right side). The top side too is an outflow at
+//! **Open top** (`WindowSides::OpenRightTop`, with the right side open too). The top side too is an outflow at
 //! p_a, and both open sides have backflow stabilisation: on a face where air enters, the
 //! predictor's boundary pressure is p_a − ½ρ(u·n)² (the air arrives from the ambient at rest
 //! and pays its dynamic pressure; [`crate::grid::BoundaryConditions::backflow`]). Without it an
@@ -78,16 +78,45 @@ pub struct ActiveRegion {
     pub band: usize,
     /// Window sizes are rounded up to a multiple of this many cells.
     pub align: usize,
-    /// The window's right side, where it lies inside the domain: `false` a wall (no normal flow,
-    /// the default), `true` open (an outflow side at the ambient light phase's hydrostatic
-    /// pressure, through which the air the advancing front pushes leaves W), without backflow
-    /// stabilisation (the session-14 form, kept bit for bit).
-    pub open_right: bool,
-    /// The window's top side, where it lies inside the domain, and its right side: `true` both
-    /// open (outflow at the ambient light phase's hydrostatic pressure) with backflow
-    /// stabilisation (p_b − ½ρ(u·n)² where air enters, [`crate::grid::BoundaryConditions::backflow`]),
-    /// which keeps an open top over the deposit from drawing jets. Implies an open right side.
-    pub open_top: bool,
+    /// The window's right and top sides, where they lie inside the domain.
+    pub sides: WindowSides,
+}
+
+/// The sides of an active window that lie inside the domain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum WindowSides {
+    /// Right and top sides are walls (no normal flow).
+    #[default]
+    Walls,
+    /// The right side is open: an outflow side at the ambient light phase's hydrostatic
+    /// pressure, through which the air the advancing front pushes leaves W (the session-14
+    /// form, kept bit for bit: no backflow stabilisation). The top is a wall.
+    OpenRight,
+    /// The right and top sides are open, both with backflow stabilisation (p_b − ½ρ(u·n)² where
+    /// air enters, [`crate::grid::BoundaryConditions::backflow`]), which keeps an open top over
+    /// the deposit from drawing jets.
+    OpenRightTop,
+}
+
+impl WindowSides {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            WindowSides::Walls => "walls",
+            WindowSides::OpenRight => "open-right",
+            WindowSides::OpenRightTop => "open-right-top",
+        }
+    }
+
+    /// Whether the right side is open.
+    pub fn right_open(self) -> bool {
+        self != WindowSides::Walls
+    }
+
+    /// Whether the top side is open (and both open sides are stabilised).
+    pub fn top_open(self) -> bool {
+        self == WindowSides::OpenRightTop
+    }
 }
 
 impl ActiveRegion {
@@ -158,10 +187,10 @@ impl TwoPhaseModel {
                 ));
             }
         }
-        if cfg.free_surface && (ar.open_right || ar.open_top) {
+        if cfg.free_surface && ar.sides != WindowSides::Walls {
             return Err(Error::param(
                 "active_region_sides",
-                if ar.open_top { "open-right-top" } else { "open-right" },
+                ar.sides.name(),
                 "'walls' with the granular-only model (free surface): it carries no air to let through an open side",
             ));
         }
@@ -239,16 +268,16 @@ impl TwoPhaseModel {
         let dx_top = xm(wc.pressure_top_from, nxw) - x_top;
         let dy_top = (nyw as f64 - g.ny as f64) * g.dy;
         wc.pressure_top_value = cfg.pressure_top_value + c * (gx * dx_top + gy * dy_top);
-        let open_right = ar.open_right || ar.open_top;
+        let (open_right, open_top) = (ar.sides.right_open(), ar.sides.top_open());
         if open_right && nxw < g.nx {
             // open right side: outflow at p_a, its k-th face centre at (n_x^W dx, (k + ½) dy)
             let p0 = cfg.pressure_top_value + c * (gx * (nxw as f64 * g.dx - x_top) + gy * (0.5 * g.dy - y_top));
             wc.bc = wc.bc.with(Side::Right, VelocityBc::Outflow).with_outlet_pressure(Side::Right, p0, c * gy * g.dy);
-            if ar.open_top {
+            if open_top {
                 wc.bc = wc.bc.with_backflow_stabilisation(Side::Right);
             }
         }
-        if ar.open_top && nyw < g.ny {
+        if open_top && nyw < g.ny {
             // open top side: outflow at p_a, its k-th face centre at ((k + ½) dx, n_y^W dy)
             let p0 = cfg.pressure_top_value + c * (gx * (0.5 * g.dx - x_top) + gy * (nyw as f64 * g.dy - y_top));
             wc.bc = wc
@@ -261,7 +290,7 @@ impl TwoPhaseModel {
         for (src, dst) in flow_state(self).into_iter().zip(flow_state_mut(&mut w)) {
             copy_block(src, dst);
         }
-        if nyw < g.ny && !ar.open_top {
+        if nyw < g.ny && !open_top {
             // the window's top side is a wall
             let vs = &mut w.v;
             vs.data.slice_mut(s![HALO + nyw, ..]).fill(0.0);

@@ -12,7 +12,7 @@ pub mod active_region;
 pub mod depth_averaged;
 mod two_phase;
 
-pub use active_region::ActiveRegion;
+pub use active_region::{ActiveRegion, WindowSides};
 pub use checkpoint::StateEntry;
 pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};

@@ -83,26 +83,21 @@ pub fn add_backflow_pressure(
     u: &Field, v: &Field, rho_u: &Field, rho_v: &Field, gx: &mut Field, gy: &mut Field, grid: &Grid, bc: &BoundaryConditions,
 ) {
     let (nx, ny) = (grid.nx as isize, grid.ny as isize);
-    // q = ½ρ(u·n)² where u·n < 0; `outward` is u·n for the face velocity w
-    let q = |w: f64, outward_sign: f64, rho: f64| {
-        let un = outward_sign * w;
-        if un < 0.0 { 0.5 * rho * un * un } else { 0.0 }
-    };
-    for (side, face, sign) in [(Side::Left, 0, -1.0), (Side::Right, nx, 1.0)] {
-        if bc.backflow_on(side) {
-            for j in 0..ny {
-                let dq = q(u.at(face, j), sign, rho_u.at(face, j));
-                let k = gx.idx(face, j);
-                gx.slice_mut()[k] -= sign * 2.0 * dq / grid.dx;
-            }
-        }
-    }
-    for (side, face, sign) in [(Side::Bottom, 0, -1.0), (Side::Top, ny, 1.0)] {
-        if bc.backflow_on(side) {
-            for i in 0..nx {
-                let dq = q(v.at(i, face), sign, rho_v.at(i, face));
-                let k = gy.idx(i, face);
-                gy.slice_mut()[k] -= sign * 2.0 * dq / grid.dy;
+    for side in Side::ALL.into_iter().filter(|&s| bc.backflow_on(s)) {
+        // the side's normal velocity, density and gradient; its faces along it; the outward sign
+        let (w, rho, g, h, along) = if side.is_x() { (u, rho_u, &mut *gx, grid.dx, ny) } else { (v, rho_v, &mut *gy, grid.dy, nx) };
+        let (face, sign) = match side {
+            Side::Left | Side::Bottom => (0, -1.0),
+            Side::Right => (nx, 1.0),
+            Side::Top => (ny, 1.0),
+        };
+        for k in 0..along {
+            let (i, j) = if side.is_x() { (face, k) } else { (k, face) };
+            let un = sign * w.at(i, j); // u·n, outward
+            if un < 0.0 {
+                let q = 0.5 * rho.at(i, j) * un * un;
+                let at = g.idx(i, j);
+                g.slice_mut()[at] -= sign * 2.0 * q / h;
             }
         }
     }
