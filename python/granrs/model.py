@@ -114,6 +114,11 @@ class Numerics:
     iteration). Eq. (12) converges to Σ = P(Σ + rD + θ(Σ^n − Σ)), whose rigid zones deform like
     an elastic body (wave speed ≈ 0.22 h/δt at θ = 0.8); the restarts approach eq. (11) itself,
     slowly (docs/validation.md, fluidised layer).
+    r_neighbourhood: half-width w (cells) of the neighbourhood over which the default local r of
+        the plastic projection takes the largest velocity response (0: the cell's own faces; at
+        most 4; default 2). It sets how soft the relaxed fixed point of eq. (12) is within w cells
+        of the air: a rigid zone there deforms at D = θ(Σ − Σ^n)/r, and r is set by the air's
+        faces. w = 0 makes the column's run-out independent of δt (docs/validation.md, session 16).
     anderson_depth: depth m of the Anderson acceleration of the Picard iteration (0, default: the
         plain iteration; at most 20). Same fixed point, fewer predictor solves where the plain
         iteration crawls: Uzawa (θ = 0), fine grids, proximal restarts (docs/validation.md,
@@ -178,6 +183,7 @@ class Numerics:
     ambient_hydrostatic: bool = False
     proximal_restarts: int = 0
     anderson_depth: int = 0
+    r_neighbourhood: int = 2
     picard_solve_max_iterations: int = 500
     pressure_update: str = "standard"
     wall_normal_stress: str = "pressure"
@@ -247,7 +253,8 @@ class Model:
             None if pore_pressure is None else asdict(pore_pressure), n.mass_correction, n.convection_scheme,
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
             n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align, n.active_region_sides),
-            n.step_retries, air, n.anderson_depth, n.pressure_update, n.picard_solve_max_iterations, n.yield_pressure)
+            n.step_retries, air, n.anderson_depth, n.pressure_update, n.picard_solve_max_iterations, n.yield_pressure,
+            n.r_neighbourhood)
         self.air = air
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())

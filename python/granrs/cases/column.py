@@ -109,6 +109,10 @@ class ColumnCase:
     # stalls transiently between 1e-4 and 5e-4 (see docs/validation.md), so 1e-4 stopped runs.
     picard_tol: float = 1e-3
     theta: float = 0.8
+    # half-width of the neighbourhood of the plastic projection's local r (granrs.Numerics.r_neighbourhood):
+    # within this many cells of the air the relaxed fixed point of eq. (12) is as soft as the air's
+    # faces make it; 0 keeps the run-out independent of δt (docs/validation.md, session 16)
+    r_neighbourhood: int = 2
     # rejections of a step whose Picard iteration does not converge (retaken with δt halved;
     # granrs.Numerics.step_retries): the paper's grid, ny = 256, needs them at t ≈ 6 ms
     step_retries: int = 3
@@ -217,7 +221,7 @@ def build_model(case: ColumnCase) -> Model:
     model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
                   bc=BoundaryConditions(left=Coulomb(case.wall_friction_angle), right=FreeSlip(),
                                         bottom=Coulomb(case.wall_friction_angle), top=FreeSlip()),
-                  numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta,
+                  numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta, r_neighbourhood=case.r_neighbourhood,
                                     picard_max_iterations=1000, convection_scheme="weno5", step_retries=case.step_retries,
                                     mass_correction=case.mass_correction, interface_yield=case.interface_yield,
                                     wall_normal_stress=case.wall_normal_stress, yield_pressure=case.yield_pressure,

@@ -279,6 +279,9 @@ impl YieldTreatment {
     }
 }
 
+/// Default of `RheologyConfig::r_neighbourhood`.
+pub const DEFAULT_R_NEIGHBOURHOOD: usize = 2;
+
 /// Rheology of the dense phase and the numerics of its yield stress and of Coulomb walls.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RheologyConfig {
@@ -318,6 +321,11 @@ pub struct RheologyConfig {
     pub anderson_depth: usize,
     /// The normal stress of the Coulomb walls' friction (eq. 8).
     pub wall_normal_stress: WallNormalStress,
+    /// Half-width w (cells) of the neighbourhood over which the default local r takes the
+    /// largest velocity response k (0: the cell's own faces; at most
+    /// [`plastic::MAX_R_NEIGHBOURHOOD`]). It sets how soft the relaxed fixed point of eq. (12)
+    /// is near the interface (`rheology/plastic.rs`, "Choice of r").
+    pub r_neighbourhood: usize,
     /// The pressure of the yield stress and of the walls' normal stress (two-phase models only).
     pub yield_pressure: YieldPressure,
 }
@@ -338,6 +346,7 @@ impl Default for RheologyConfig {
             proximal_restarts: 0,
             anderson_depth: 0,
             wall_normal_stress: WallNormalStress::default(),
+            r_neighbourhood: DEFAULT_R_NEIGHBOURHOOD,
             yield_pressure: YieldPressure::default(),
         }
     }
@@ -390,6 +399,9 @@ impl RheologyConfig {
         }
         if self.picard_solve_max_iterations == 0 || self.picard_solve_max_iterations > 100_000_000 {
             return Err(Error::param("picard_solve_max_iterations", self.picard_solve_max_iterations, "an integer in [1, 1e8]"));
+        }
+        if self.r_neighbourhood > plastic::MAX_R_NEIGHBOURHOOD {
+            return Err(Error::param("r_neighbourhood", self.r_neighbourhood, &format!("an integer in [0, {}]", plastic::MAX_R_NEIGHBOURHOOD)));
         }
         if self.anderson_depth > anderson::MAX_ANDERSON_DEPTH {
             return Err(Error::param("anderson_depth", self.anderson_depth, &format!("an integer in [0, {}]", anderson::MAX_ANDERSON_DEPTH)));

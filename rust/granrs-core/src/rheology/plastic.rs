@@ -33,15 +33,25 @@
 //! k_max = 2S/(c + 4ηS), S = 2(1/dx² + 1/dy²) ≥ ‖D‖². P is non-expansive, so the map contracts
 //! with ratio max(1 − θ, |1 − θ − r τ k_max|) for r τ k_max ≤ 2(1 − θ).
 //!
-//! The fixed point does not depend on r, even point by point (Σ = P(Σ + r D) says Σ = D/|D| or
-//! D = 0 whatever r > 0 is), so the default takes a *local* r(x) = (1 − θ)/(τ(x) k(x)) with k
-//! the largest over a 5 × 5 neighbourhood of the point (k evaluated with each cell's c and η): a
-//! Jacobi-like scaling of the same bound. (k of the point alone flip-flopped, increment ≈ 2, at
-//! the interface band where k jumps by ~80 over two cells.) A single
-//! r = (1 − θ)/max(τ k) satisfies the bound rigorously but crawls on layers under air: τ ∝ p
-//! varies with depth, and in the interface band the harmonic-mean viscosity collapses to the
-//! air's, so k there is ~80 times the bulk value; Uzawa (θ = 0) on a heap at rest did not
-//! converge in 20 000 iterations with it, and converges with the local r (docs/validation.md).
+//! The fixed point of eq. (11) does not depend on r, even point by point (Σ = P(Σ + r D) says
+//! Σ = D/|D| or D = 0 whatever r > 0 is), so the default takes a *local* r(x) = (1 − θ)/(τ(x) k̄(x))
+//! with k̄ the largest k over a (2w + 1)² neighbourhood of the point, w =
+//! `RheologyConfig::r_neighbourhood` (k evaluated with each cell's c and η): a Jacobi-like
+//! scaling of the same bound. A single r = (1 − θ)/max(τ k) satisfies the bound rigorously but
+//! crawls on layers under air: τ ∝ p varies with depth, and in the interface band the
+//! harmonic-mean viscosity collapses to the air's, so k there is ~80 times the bulk value; Uzawa
+//! (θ = 0) on a heap at rest did not converge in 20 000 iterations with it, and converges with
+//! the local r (docs/validation.md).
+//!
+//! The relaxed fixed point of eq. (12) (θ > 0) *does* depend on r: a rigid zone deforms at
+//! D = θ(Σ − Σⁿ)/r, an elastic body of compliance θδt/(τr). With w = 2 (the default until
+//! session 16) every cell within two cells of the air takes the air face's k, about 1600 times
+//! the bulk value, so a band two cells deep under every surface is 1600 times softer than the
+//! bulk; at the adaptive steps of the column its elastic strains reach O(1) and the late
+//! run-out depends on δt by tens of per cent (docs/validation.md, session 16). With w = 0 (k of
+//! the cell's own four faces) only the surface cells themselves are soft, and the run-out
+//! agrees across δt. w = 0 had been tried in session 5 and then flip-flopped on no case measured
+//! since; the stall safeguard of the Picard loop (`rheology/stage.rs`) halves r if it does.
 //! Limits: Stokes (c → 0) r = 2η(1 − θ)/τ ("r ~ η/τ"); inertial (small δt) r = (1 − θ)c/(2Sτ).
 //! A user-given `r` is used as a constant.
 
@@ -319,14 +329,15 @@ pub fn weighted_max_abs_diff(a: &Field, b: &Field, w: &Field, w_ref: f64, exec: 
     })
 }
 
-/// Half-width (in cells) of the neighbourhood over which the default r takes the largest k.
-pub const R_NEIGHBOURHOOD: isize = 2;
+/// Largest half-width (in cells) of the neighbourhood over which the default r takes the
+/// largest k (`RheologyConfig::r_neighbourhood`).
+pub const MAX_R_NEIGHBOURHOOD: usize = 4;
 
 impl PlasticState {
     /// Sets r at centres and nodes: the constant `r` if given, else the local default
     /// r = (1 − θ)/(τ k̄), with k̄ the largest k = 2S/(c + 4ηS) (S = 2(1/dx² + 1/dy²),
     /// c = a₀ρ/δt with ρ the lightest of the cell's four faces, η of the cell) over the
-    /// (2·[`R_NEIGHBOURHOOD`] + 1)² cells around the point (for a node: around its four cells).
+    /// (2w + 1)² cells around the point, w = `neighbourhood` (for a node: around its four cells).
     /// Returns the smallest r where τ > 0 (the value reported per step; 0 if τ = 0 everywhere).
     #[allow(clippy::too_many_arguments)]
     /// Multiplies r at centres and nodes by `f` (the stall safeguard of the Picard loop).
@@ -336,7 +347,7 @@ impl PlasticState {
     }
 
     #[allow(clippy::too_many_arguments)]
-    pub fn set_r(&mut self, r: Option<f64>, theta: f64, eta_c: &Field, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
+    pub fn set_r(&mut self, r: Option<f64>, theta: f64, neighbourhood: usize, eta_c: &Field, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
         if let Some(r) = r {
             self.r_c.fill(r);
             self.r_n.fill(r);
@@ -361,7 +372,7 @@ impl PlasticState {
         }
         {
             let k = &self.new_c;
-            let w = R_NEIGHBOURHOOD;
+            let w = neighbourhood as isize;
             for_each_interior_row(exec, &mut self.trial_c, |j, row| {
                 let j = j as isize;
                 for i in 0..nx {

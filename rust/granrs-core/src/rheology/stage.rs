@@ -208,7 +208,7 @@ impl TwoPhaseModel {
         // parameters of the projections
         if rs.projection {
             let wk = &self.work;
-            rs.r = rs.plastic.set_r(rc.r, rc.theta, &wk.eta_c, &wk.rho_u, &wk.rho_v, a0_over_dt, grid, exec);
+            rs.r = rs.plastic.set_r(rc.r, rc.theta, rc.r_neighbourhood, &wk.eta_c, &wk.rho_u, &wk.rho_v, a0_over_dt, grid, exec);
         }
         if rs.walls.is_active() {
             let tan_b = rc.wall_friction_angle.unwrap_or(0.0).to_radians().tan();
