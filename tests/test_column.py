@@ -1,8 +1,8 @@
 """The paper's column collapse end to end (granrs.cases.column, `granrs run column`).
 
 Fast tests run the coarse grid ny = 32 (about 10–20 s each on 2 cores) and check the outputs, not
-the timing. Measured at ny = 32 (docs/validation.md, "Column collapse"): fluidised run-out
-1.98 m, non-fluidised 0.96 m (ratio 2.07); the paper's grid is ny = 256.
+the timing. Measured at ny = 32 (docs/validation.md, "Column collapse", session 16): fluidised
+run-out 2.31 m, non-fluidised 1.11 m (ratio 2.08); the paper's grid is ny = 256.
 """
 
 from __future__ import annotations
@@ -166,11 +166,11 @@ def _front_at(folder: Path, t: float) -> float:
 def test_coarse_runouts_match_the_stored_reference(coarse_runs):
     # regression against the round-off ensembles of tests/data/column_ensemble.csv (8 members
     # each, widths scaled by 1 + k·1e-12; docs/validation.md "Predictability of the late
-    # run-out"). The run-out at t = 3 s is chaotic: the members span 1.801–2.032 m fluidised
-    # (std 0.079) and 0.898–0.945 m dry (std 0.014), so a round-off-level change of the code may
-    # move it anywhere in that band: the bound is mean ± 3 std. The front at t = 1.0 s is
-    # deterministic (members within 0.4 % fluidised, identical dry): 1 %, the ensemble
-    # script's divergence threshold.
+    # run-out"). The run-out at t = 3 s is chaotic at the per-cent level: with the default
+    # r_neighbourhood = 0 (session 16) the members span 2.299–2.325 m fluidised (std 0.008) and
+    # 1.108–1.121 m dry (std 0.004), so a round-off-level change of the code may move it anywhere
+    # in that band: the bound is mean ± 3 std. The front at t = 1.0 s is deterministic (members
+    # identical to 5 digits): 1 %, the ensemble script's divergence threshold.
     base, dry, wet = coarse_runs
     for summary, folder, fluidised in ((wet, base / "wet", True), (dry, base / "dry", False)):
         e = _ensemble(32, fluidised)
@@ -202,8 +202,8 @@ def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path)
     plastic projection's r taken from each cell's own faces (r_neighbourhood = 0), the adaptive
     step (CFL 0.5, ~880 steps) runs out as far as a fixed δt = 1e-4 s (30 000 steps) to within
     the δt trend measured between 1e-4 and 1e-5 s (2.0 %: 2.154 ± 0.022 m, 8 members, against 2.197 m);
-    with the default r_neighbourhood = 2 the adaptive run-out is 26 % short of its own δt = 1e-4 s
-    run (1.52 against 2.05 m). About 2 min on one core."""
+    with r_neighbourhood = 2 (the default until session 16) the adaptive run-out is 26 % short of
+    its own δt = 1e-4 s run (1.52 against 2.05 m). About 2 min on one core."""
     import functools
     import granrs.cases.column as column
 
@@ -323,9 +323,12 @@ def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):
     gravity's work add up to 1 by construction, so the checks are on what could be wrong: the
     work of gravity, integrated from the face velocities, against the drop of potential energy
     measured on Φ (independent; they differ by the level set's transport and mass correction:
-    measured 0.9 % wet and 1.7 % dry at ny = 32), and the signs of the dissipations. Measured
-    shares at ny = 32 (docs/validation.md, "Energy budget"): friction 0.60 / 0.26, plastic
-    −0.09 / 0.25 (its negative part −0.37 / −0.52), numerical 0.47 / 0.48 (wet / dry)."""
+    measured 0.2 % wet and 1.0 % dry at ny = 32), and the signs of the dissipations. Measured
+    shares at ny = 32 with the default r_neighbourhood = 0 (docs/validation.md, session 16):
+    friction 0.72 / 0.23, plastic 0.16 / 0.72 (its negative part −0.005 / −0.033), numerical
+    0.12 / 0.05 (wet / dry). With the soft band of r_neighbourhood = 2 the numerical share was
+    0.47 / 0.48 and the negative plastic part −0.37 / −0.52: the bound on the numerical share
+    (0.25, twice the larger measured value and half the old one) guards that."""
     base, dry, wet = coarse_runs
     for run, s in (("dry", dry), ("wet", wet)):
         assert (base / run / "energy.csv").stat().st_size > 0 and (base / run / "energy.png").stat().st_size > 0
@@ -334,9 +337,14 @@ def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):
         shares = e["kinetic"] + e["plastic"] + e["wall"] + e["viscous"] + e["numerical"]
         assert shares == pytest.approx(1.0, abs=1e-9)
         assert e["wall"] > 0.2 and e["viscous"] >= 0.0 and e["plastic_negative"] < 0.0
-        assert e["plastic"] - e["plastic_negative"] > 0.2, "the stress dissipates where it is not given back"
+        assert e["plastic"] - e["plastic_negative"] > 0.1, "the stress dissipates where it is not given back"
+        assert e["numerical"] < 0.25, "numerical dissipation (0.12 / 0.05 measured; 0.47 with the soft band)"
         d = np.genfromtxt(base / run / "energy.csv", delimiter=",", names=True)
-        assert np.all(np.diff(d["wall_work_J_m"]) >= -1e-9), "friction only dissipates"
+        # friction dissipates, up to the elastic give-back of the relaxed fixed point of eq. (12)
+        # on stuck faces (u_t = θ(sⁿ − s)/r_b): measured −1.3e-4 of the friction's work on the dry
+        # deposit at rest after 1.5 s, none wet; bound 1e-3
+        dw = np.diff(d["wall_work_J_m"])
+        assert -dw[dw < 0].sum() <= 1e-3 * d["wall_work_J_m"].max(), "friction only dissipates"
 
 
 def test_energy_budget_of_the_active_region_matches_the_whole_domain():

@@ -116,7 +116,7 @@ class Numerics:
     slowly (docs/validation.md, fluidised layer).
     r_neighbourhood: half-width w (cells) of the neighbourhood over which the default local r of
         the plastic projection takes the largest velocity response (0: the cell's own faces; at
-        most 4; default 2). It sets how soft the relaxed fixed point of eq. (12) is within w cells
+        most 4; default 0 since session 16, 2 before). It sets how soft the relaxed fixed point of eq. (12) is within w cells
         of the air: a rigid zone there deforms at D = θ(Σ − Σ^n)/r, and r is set by the air's
         faces. w = 0 makes the column's run-out independent of δt (docs/validation.md, session 16).
     anderson_depth: depth m of the Anderson acceleration of the Picard iteration (0, default: the
@@ -183,7 +183,7 @@ class Numerics:
     ambient_hydrostatic: bool = False
     proximal_restarts: int = 0
     anderson_depth: int = 0
-    r_neighbourhood: int = 2
+    r_neighbourhood: int = 0
     picard_solve_max_iterations: int = 500
     pressure_update: str = "standard"
     wall_normal_stress: str = "pressure"

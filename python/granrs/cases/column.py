@@ -112,7 +112,7 @@ class ColumnCase:
     # half-width of the neighbourhood of the plastic projection's local r (granrs.Numerics.r_neighbourhood):
     # within this many cells of the air the relaxed fixed point of eq. (12) is as soft as the air's
     # faces make it; 0 keeps the run-out independent of δt (docs/validation.md, session 16)
-    r_neighbourhood: int = 2
+    r_neighbourhood: int = 0
     # rejections of a step whose Picard iteration does not converge (retaken with δt halved;
     # granrs.Numerics.step_retries): the paper's grid, ny = 256, needs them at t ≈ 6 ms
     step_retries: int = 3

@@ -476,7 +476,10 @@ def sliding_block(slope, stop_slope, n, threads: int = 1, wall_friction_angle: f
     u0 = 0.5
     d_ex = accel(stop_slope)
     t_stop_ex = u0 / -d_ex if d_ex < 0 else math.inf
-    t2, U2, _ = run_block(stop_slope, n, u0=u0, t_end=min(t_stop_ex + 0.4, 2.0), threads=threads)
+    # the stop at δt = 0.5 ms: the relaxed fixed point of eq. (12) rings after the stop with an
+    # amplitude ∝ δt; with the stiffer band of r_neighbourhood = 0 (session 16) the block moved
+    # 3.0 mm after its stop at δt = 1 ms (2.1 % of its slide) and moves 0.8 mm at 0.5 ms (0.6 %)
+    t2, U2, _ = run_block(stop_slope, n, dt=5e-4, u0=u0, t_end=min(t_stop_ex + 0.4, 2.0), threads=threads)
     X = np.concatenate([[0.0], np.cumsum(0.5 * (U2[1:] + U2[:-1]) * np.diff(t2))])
     slide = u0 ** 2 / (2 * -d_ex) if d_ex < 0 else math.inf
     after = t2 >= t_stop_ex + 0.1
@@ -494,7 +497,7 @@ def sliding_block(slope, stop_slope, n, threads: int = 1, wall_friction_angle: f
                  "stop_time": t_stop_ex,
                  "acceptance": "acceleration within 2 %; below α_b the deceleration within 2 % and, after the stop, the "
                                "block moves less than 2 % of its sliding distance (θ = 0.5 leaves an elastic ringing of "
-                               "amplitude ∝ δt, reported)"}
+                               "amplitude ∝ δt, reported; the stop is run at δt = 0.5 ms)"}
     return metrics, reference, passed
 
 

@@ -275,7 +275,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute", r_neighbourhood=2))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute", r_neighbourhood=0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,

@@ -280,7 +280,7 @@ impl YieldTreatment {
 }
 
 /// Default of `RheologyConfig::r_neighbourhood`.
-pub const DEFAULT_R_NEIGHBOURHOOD: usize = 2;
+pub const DEFAULT_R_NEIGHBOURHOOD: usize = 0;
 
 /// Rheology of the dense phase and the numerics of its yield stress and of Coulomb walls.
 #[derive(Clone, Copy, Debug, PartialEq)]
