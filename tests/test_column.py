@@ -180,16 +180,18 @@ def test_coarse_runouts_match_the_stored_reference(coarse_runs):
 
 @pytest.mark.slow
 def test_ny64_runouts_ratio_and_mass(tmp_path):
-    # ny = 64 (about 4 + 3 min on 2 cores), against the 4-member ensembles of
-    # tests/data/column_ensemble.csv: run-outs within mean ± 3 std (fluidised 2.096–2.318 m, std
-    # 0.117; dry 1.099–1.172 m, std 0.032), fronts at t = 1.0 s within 1 % (members within 0.5 %
-    # and 0.3 %); the ratio range 1.7–2.2 (1.79–2.11 over all pairs of members); dense
-    # area within 1 % (measured 1e-10 with the correction)
+    # ny = 64 (about 2.5 + 2 min on 2 cores), against the 4-member ensembles of
+    # tests/data/column_ensemble.csv (session 16, r_neighbourhood = 0): run-outs within
+    # mean ± 3 std, but at least ± 0.5 % (fluidised 2.5316–2.5330 m, std 0.0006; dry 1.244–1.258 m,
+    # std 0.006), fronts at t = 1.0 s within 1 % (members identical to 5 digits); the ratio
+    # range 1.7–2.2 (2.01–2.04 over all pairs of members); dense area within 1 % (measured 1e-10
+    # with the correction)
     wet = run_column(ColumnCase(ny=64), tmp_path / "wet", progress=False)
     dry = run_column(ColumnCase(ny=64, fluidised=False), tmp_path / "dry", progress=False)
     for summary, fluidised in ((wet, True), (dry, False)):
         e = _ensemble(64, fluidised)
-        assert abs(summary["runout_m"] - e["runout_mean_m"]) <= 3 * e["runout_std_m"], (fluidised, summary["runout_m"])
+        bound = max(3 * e["runout_std_m"], 0.005 * e["runout_mean_m"])  # 4 members: a floor of 0.5 % (the ny = 32 spread)
+        assert abs(summary["runout_m"] - e["runout_mean_m"]) <= bound, (fluidised, summary["runout_m"])
         folder = tmp_path / ("wet" if fluidised else "dry")
         assert _front_at(folder, 1.0) == pytest.approx(e["front_1s_mean_m"], rel=0.01), fluidised
     assert 1.7 <= wet["runout_m"] / dry["runout_m"] <= 2.2
