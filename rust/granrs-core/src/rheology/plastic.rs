@@ -50,8 +50,9 @@
 //! bulk; at the adaptive steps of the column its elastic strains reach O(1) and the late
 //! run-out depends on δt by tens of per cent (docs/validation.md, session 16). With w = 0 (k of
 //! the cell's own four faces) only the surface cells themselves are soft, and the run-out
-//! agrees across δt: w = 0 is the default since session 16. (Session 1 chose w = 2 because k of
-//! the point alone flip-flopped at the interface band; no case measured since session 16 does,
+//! agrees across δt: w = 0 is the default since session 16. (w = 2 had been chosen because k of
+//! the point alone flip-flopped, increment ≈ 2, at the interface band where k jumps by ~80 over
+//! two cells; no case measured in session 16 does,
 //! and the stall safeguard of the Picard loop, `rheology/stage.rs`, halves r if one does.)
 //! Limits: Stokes (c → 0) r = 2η(1 − θ)/τ ("r ~ η/τ"); inertial (small δt) r = (1 − θ)c/(2Sτ).
 //! A user-given `r` is used as a constant.
