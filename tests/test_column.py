@@ -190,7 +190,8 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
     dry = run_column(ColumnCase(ny=64, fluidised=False), tmp_path / "dry", progress=False)
     for summary, fluidised in ((wet, True), (dry, False)):
         e = _ensemble(64, fluidised)
-        bound = max(3 * e["runout_std_m"], 0.005 * e["runout_mean_m"])  # 4 members: a floor of 0.5 % (the ny = 32 spread)
+        # 4 members may underestimate the spread: a floor of 0.5 % (the 8-member ny = 32 std, 0.36 %, rounded up)
+        bound = max(3 * e["runout_std_m"], 0.005 * e["runout_mean_m"])
         assert abs(summary["runout_m"] - e["runout_mean_m"]) <= bound, (fluidised, summary["runout_m"])
         folder = tmp_path / ("wet" if fluidised else "dry")
         assert _front_at(folder, 1.0) == pytest.approx(e["front_1s_mean_m"], rel=0.01), fluidised
@@ -199,7 +200,7 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
 
 
 @pytest.mark.slow
-def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path):
+def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path, monkeypatch):
     """Session 16 (docs/validation.md, "The soft band under the surface"): at ny = 16, with the
     plastic projection's r taken from each cell's own faces (r_neighbourhood = 0), the adaptive
     step (CFL 0.5, ~880 steps) runs out as far as a fixed δt = 1e-4 s (30 000 steps) to within
@@ -209,16 +210,11 @@ def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path)
     import functools
     import granrs.cases.column as column
 
-    out = {}
-    for w in (0, 2):
-        adaptive = run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"a{w}", progress=False)
-        original = column.Numerics
-        column.Numerics = functools.partial(original, dt=1e-4)  # build_model reads the name from the module
-        try:
-            fixed = run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"f{w}", progress=False)
-        finally:
-            column.Numerics = original
-        out[w] = adaptive["runout_m"] / fixed["runout_m"] - 1.0
+    adaptive = {w: run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"a{w}", progress=False) for w in (0, 2)}
+    # a fixed step: build_model reads Numerics from the module
+    monkeypatch.setattr(column, "Numerics", functools.partial(column.Numerics, dt=1e-4))
+    out = {w: adaptive[w]["runout_m"] / run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"f{w}",
+                                                   progress=False)["runout_m"] - 1.0 for w in (0, 2)}
     # w = 0: −2.0 % measured (8-member adaptive mean −2.0 ± 1.0 %); 4 % leaves room for its
     # round-off scatter (std 1.0 %) and stays far from w = 2's −26 %
     assert abs(out[0]) < 0.04, out

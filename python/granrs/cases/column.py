@@ -157,8 +157,9 @@ class ColumnCase:
             raise ParameterError(f"invalid parameter `yield_pressure` = {self.yield_pressure!r}: allowed "
                                  "'absolute' or 'surface-air'")
         if self.active_region_sides not in ACTIVE_REGION_SIDES:
+            names = [repr(n) for n in ACTIVE_REGION_SIDES]
             raise ParameterError(f"invalid parameter `active_region_sides` = {self.active_region_sides!r}: allowed "
-                                 "'walls', 'open-right' or 'open-right-top'")
+                                 f"{', '.join(names[:-1])} or {names[-1]}")
         if self.model not in MODELS:
             raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase', 'granular' or "
                                  "'depth-averaged'")

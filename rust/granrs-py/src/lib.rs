@@ -461,12 +461,11 @@ impl PyModel {
         cfg.active_region = match active_region {
             None => None,
             Some((band, align, sides)) => {
-                let sides = match sides.as_str() {
-                    "walls" => WindowSides::Walls,
-                    "open-right" => WindowSides::OpenRight,
-                    "open-right-top" => WindowSides::OpenRightTop,
-                    other => return Err(param_err("active_region_sides", other, "'walls', 'open-right' or 'open-right-top'")),
-                };
+                let sides = WindowSides::from_name(&sides).ok_or_else(|| {
+                    let names: Vec<String> = WindowSides::ALL.iter().map(|s| format!("'{}'", s.name())).collect();
+                    let (last, rest) = names.split_last().expect("WindowSides has values");
+                    param_err("active_region_sides", &sides, &format!("{} or {last}", rest.join(", ")))
+                })?;
                 Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)?, sides })
             }
         };

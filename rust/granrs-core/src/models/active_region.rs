@@ -99,6 +99,14 @@ pub enum WindowSides {
 }
 
 impl WindowSides {
+    /// Every value, in the order of the docs.
+    pub const ALL: [WindowSides; 3] = [WindowSides::Walls, WindowSides::OpenRight, WindowSides::OpenRightTop];
+
+    /// The value of a name (`None` for an unknown one).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
+
     /// Name used in Python and the docs.
     pub fn name(&self) -> &'static str {
         match self {
