@@ -1,14 +1,17 @@
 """Grid convergence of the column collapse: run-out against the cell size, fluidised and not.
 
-    python examples/column_convergence.py                      # ny = 32, 64, 128, 256 (hours)
-    python examples/column_convergence.py --ny 32 64 128       # what docs/validation.md reports
+    python examples/column_convergence.py                      # ny = 32, 64, 128, 256: what docs/validation.md reports
     python examples/column_convergence.py --ny 32 64 --threads 2 --out out/convergence
+    python examples/column_convergence.py --channel-width 0.1 --out out/convergence-walls   # with side walls
 
-Run time on the 2-core development machine (one thread per run, measured): ny = 32 about 15 s
-per run, ny = 64 about 1.5–2 min, ny = 128 about 15–20 min; ny = 256 (the paper's grid) is
-expected at 8–10× the ny = 128 figure and was not run in the first sessions (see
-docs/validation.md). Each finished run is kept in ``OUT/{fluidised,dry}-{ny}/`` and skipped when the
-script is run again, so a study can be extended one grid at a time.
+Grids from ny = 128 up run on the active region with open right and top sides (BAND = ny/16
+cells of air, the same 28 mm at every grid; `--active-region BAND --active-region-sides
+open-right-top`, docs/models.md), coarser ones on the whole domain. Run time on the 2-core
+development machine, one thread per run, session 17 (default numerics, r_neighbourhood = 0):
+ny = 32 about 10 s per run, ny = 64 about 1–2.5 min, ny = 128 about 2–3 min, ny = 256 about
+23 min dry and 25–30 min fluidised (about 1 h for the whole study, two runs at a time). Each
+finished run is kept in ``OUT/{fluidised,dry}-{ny}/`` and skipped when the script is run again,
+so a study can be extended one grid at a time.
 
 What it writes into ``OUT``:
 
@@ -31,13 +34,24 @@ import numpy as np
 from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column
 
 
-def run_or_load(ny: int, fluidised: bool, out: Path, threads: int) -> dict:
+# from this grid up the runs take the active region with open right and top sides
+ACTIVE_REGION_FROM_NY = 128
+
+
+def case_for(ny: int, fluidised: bool, threads: int, channel_width) -> ColumnCase:
+    """The study's case on the grid ny: the whole domain below ACTIVE_REGION_FROM_NY, the open
+    active window (BAND = ny/16) from it up."""
+    window = dict(active_region=ny // 16, active_region_sides="open-right-top") if ny >= ACTIVE_REGION_FROM_NY else {}
+    return ColumnCase(ny=ny, fluidised=fluidised, threads=threads, channel_width=channel_width, **window)
+
+
+def run_or_load(ny: int, fluidised: bool, out: Path, threads: int, channel_width=None) -> dict:
     """The run's summary.json, running the case first if it is not there yet."""
     folder = out / f"{'fluidised' if fluidised else 'dry'}-{ny}"
     summary = folder / "summary.json"
     if not summary.exists():
         print(f"running ny = {ny}, {'fluidised' if fluidised else 'dry'} ...", flush=True)
-        run_column(ColumnCase(ny=ny, fluidised=fluidised, threads=threads), folder, progress=True)
+        run_column(case_for(ny, fluidised, threads, channel_width), folder, progress=True)
     return json.loads(summary.read_text())
 
 
@@ -46,13 +60,15 @@ def main() -> None:
     ap.add_argument("--ny", type=int, nargs="+", default=[32, 64, 128, 256])
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default="out/convergence")
+    ap.add_argument("--channel-width", dest="channel_width", type=float, default=None,
+                    help="friction of side walls this far apart (m; not in the paper's 2D model)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
     rows = []
     for ny in sorted(args.ny):
-        wet, dry = run_or_load(ny, True, out, args.threads), run_or_load(ny, False, out, args.threads)
+        wet, dry = (run_or_load(ny, fl, out, args.threads, args.channel_width) for fl in (True, False))
         rows.append({"ny": ny, "h_m": wet["h_m"], "runout_fluidised_m": wet["runout_m"], "runout_dry_m": dry["runout_m"],
                      "ratio": wet["runout_m"] / dry["runout_m"], "wall_fluidised_s": wet["wall_s"], "wall_dry_s": dry["wall_s"],
                      "mass_rel_error_max": max(wet["mass_rel_error"], dry["mass_rel_error"])})
@@ -80,8 +96,9 @@ def main() -> None:
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation (h = 1.76 mm): {PAPER_RUNOUT_SIM} m")
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"paper, experiment: {PAPER_RUNOUT_EXP} m")
     ax.axvline(0.45 / 256 * 1e3, color="grey", lw=0.8)
+    walls = f", side walls {100 * args.channel_width:g} cm apart" if args.channel_width else ""
     ax.set(xscale="log", xlabel="cell size h (mm)", ylabel="run-out from the gate (m)",
-           title="Column collapse: run-out against the grid")
+           title=f"Column collapse{walls}: run-out against the grid")
     ax.grid(alpha=0.3, which="both")
     from matplotlib.ticker import NullFormatter, ScalarFormatter
     ax.xaxis.set_major_formatter(ScalarFormatter())
@@ -101,7 +118,7 @@ def main() -> None:
                     label=f"ny = {row['ny']}, {'fluidised' if fl else 'dry'}")
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=0.8)
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.2)
-    ax.set(xlabel="t (s)", ylabel="front position from the gate (m)", title="Column collapse: front curves")
+    ax.set(xlabel="t (s)", ylabel="front position from the gate (m)", title=f"Column collapse{walls}: front curves")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()

@@ -217,6 +217,8 @@ def test_bad_rheology_parameters_name_the_parameter(make, name):
     (dict(plastic="papanastasiou"), "regularisation"),
     (dict(plastic="papanastasiou", regularisation=-5.0), "regularisation"),
     (dict(viscous_rtol=0.0), "viscous_rtol"),
+    (dict(sigma_location="nodes"), "sigma_location"),
+    (dict(sigma_location="centres", anderson_depth=2), "anderson_depth"),
 ])
 def test_bad_numerics_are_rejected_by_rust_with_the_name(numerics, name):
     with pytest.raises(ParameterError, match=f"`{name}`"):

@@ -21,7 +21,7 @@ from .depth_averaged import DepthAveragedModel, DepthAveragedPore
 from .boundary import BoundaryConditions, Coulomb, FreeSlip, FullyDeveloped, NavierSlip, NoSlip, Outflow, Velocity
 from .grid import Grid
 from .materials import AIR, WATER, Material
-from .model import Model, Numerics, PorePressure
+from .model import Model, Numerics, PorePressure, SideWalls
 from .rheology import Bingham, DruckerPrager, MuI, Newtonian
 from .simulation import Callback, Simulation
 
@@ -47,6 +47,7 @@ __all__ = [
     "Numerics",
     "Outflow",
     "PorePressure",
+    "SideWalls",
     "ParameterError",
     "Simulation",
     "SimulationError",

@@ -91,7 +91,7 @@ def _run(args, parser) -> int:
                           pore_pressure_ratio=args.pore_pressure_ratio, ny=args.ny if args.ny is not None else 32,
                           t_end=args.t_end, rheology=args.rheology, cfl=args.cfl, threads=args.threads,
                           length=args.length, model=args.model, active_region=args.active_region,
-                          active_region_sides=args.active_region_sides)
+                          active_region_sides=args.active_region_sides, channel_width=args.channel_width)
         summary = run_column(case, Path(args.out), progress=not args.quiet,
                              compare_with=Path(args.compare_with) if args.compare_with else None)
         keys = ("model", "model_reason", "runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error",
@@ -162,6 +162,9 @@ def main(argv=None) -> int:
                         "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or "
                         "its right and top sides are open with backflow stabilisation (open-right-top; with the two-phase "
                         "model and --active-region 4: 4.3x faster at ny = 64, docs/models.md)")
+    r.add_argument("--channel-width", dest="channel_width", type=float, metavar="W",
+                   help="column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
+                        "not in the paper's 2D model; friction angle that of the base; docs/validation.md)")
     r.add_argument("--length", type=float, help="domain length in m (default L_c + 8.25 H_c, rounded up to the grid)")
     r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

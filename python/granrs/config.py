@@ -24,7 +24,7 @@ from typing import Iterable, Optional, Union
 
 from ._granrs import ParameterError
 from .cases.column import ColumnCase
-from .model import ACTIVE_REGION_SIDES
+from .model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,9 @@ KEYS: tuple[Key, ...] = (
     Key("case", "fluidised", "bool", _D["fluidised"], "", "pore gas pressure on (initial p_f and basal air supply)"),
     Key("case", "pore_pressure_ratio", "float", _D["pore_pressure_ratio"], "1", "β: initial and supplied pore pressure over the lithostatic one", 0.0, 1.0),
     Key("case", "rheology", "choice", _D["rheology"], "", "granular rheology", choices=("drucker-prager", "mu-i")),
+    Key("case", "channel_width", "float", 0.0, "m",
+        "friction of a channel's side walls this far apart (not in the paper's 2D model; the experiment's: 0.1), at the "
+        "base's friction angle; 0: none", 0.0, 1000.0),
     Key("grid", "ny", "int", _D["ny"], "cells", "cells over the domain height (256 is the paper's grid)", 8, 4096),
     Key("grid", "length", "float", None, "m", f"channel length; default from the column case ({_PAPER_LENGTH:g} m for the paper's column)", 0.01, 1000.0),
     Key("materials", "solid_fraction", "float", _D["solid_fraction"], "1", "φ, solid volume fraction of the column", 0.01, 0.74),
@@ -104,6 +107,9 @@ KEYS: tuple[Key, ...] = (
     Key("numerics", "r_neighbourhood", "int", _D["r_neighbourhood"], "cells",
         "half-width of the neighbourhood of the plastic projection's local r: within it the relaxed fixed point of "
         "eq. (12) is as soft as the air's faces make it (0: the cell's own faces, δt-independent run-out)", 0, 4),
+    Key("numerics", "sigma_location", "choice", _D["sigma_location"], "",
+        "where the plastic tensor lives: staggered (Σ_xx at centres, Σ_xy at nodes) or the paper's Figure 3, both at centres",
+        choices=SIGMA_LOCATIONS),
     Key("numerics", "interface_yield", "choice", _D["interface_yield"], "",
         "where the smoothed jump of the yield stress and basal friction sits: the paper's H_ε(Φ), H_ε(Φ + ε) or H_ε(Φ + 2ε)",
         choices=("paper", "granular-side", "density-support")),
@@ -323,9 +329,11 @@ def column_case(cfg: Config) -> ColumnCase:
     """The ``ColumnCase`` of a resolved configuration."""
     c, g, m, n = cfg["case"], cfg["grid"], cfg["materials"], cfg["numerics"]
     return ColumnCase(aspect_ratio=c["aspect_ratio"], width=c["width"], fluidised=c["fluidised"],
+                      channel_width=c["channel_width"] or None,
                       pore_pressure_ratio=c["pore_pressure_ratio"], rheology=c["rheology"], ny=g["ny"],
                       length=g["length"], t_end=n["t_end"], cfl=n["cfl"], threads=n["threads"],
                       picard_tol=n["picard_tol"], theta=n["theta"], r_neighbourhood=n["r_neighbourhood"],
+                      sigma_location=n["sigma_location"],
                       mass_correction=n["mass_correction"],
                       interface_yield=n["interface_yield"], wall_normal_stress=n["wall_normal_stress"],
                       yield_pressure=n["yield_pressure"], pore_formulation=n["pore_formulation"],

@@ -62,8 +62,32 @@ class PorePressure:
             raise ParameterError(f"invalid parameter `diffusivity` = {self.diffusivity!r}: allowed a finite number > 0 (m²/s)")
 
 
+@dataclass(frozen=True)
+class SideWalls:
+    """Friction of a channel's two vertical side walls on the 2D flow (not in the paper's model;
+    Jop, Forterre & Pouliquen 2005, J. Fluid Mech. 541): the body force −(2/W) tan(α_w) p⁺ H_ε(Φ) s,
+    s = u/|u| where the granular phase slides, |s| ≤ 1 where it sticks (a projection solved in
+    the Picard loop with Σ; Rust walls/side.rs).
+
+    width: the channel width W [m] (the paper's experiment: 0.10), in (0, 1000];
+    friction_angle: α_w [degrees], in [0, 90).
+    """
+
+    width: float
+    friction_angle: float
+
+    def __post_init__(self):
+        w, a = self.width, self.friction_angle
+        if not isinstance(w, (int, float)) or isinstance(w, bool) or not math.isfinite(w) or not 0 < w <= 1000:
+            raise ParameterError(f"invalid parameter `side_walls.width` = {w!r}: allowed a channel width in (0, 1000] (m)")
+        if not isinstance(a, (int, float)) or isinstance(a, bool) or not math.isfinite(a) or not 0 <= a < 90:
+            raise ParameterError(f"invalid parameter `side_walls.friction_angle` = {a!r}: allowed an angle in degrees in [0, 90)")
+
+
 # the values of Numerics.active_region_sides (the Rust core parses the same names)
 ACTIVE_REGION_SIDES = ("walls", "open-right", "open-right-top")
+# where the plastic tensor lives (Numerics.sigma_location; Rust SigmaLocation)
+SIGMA_LOCATIONS = ("staggered", "centres")
 
 
 @dataclass(frozen=True)
@@ -119,6 +143,11 @@ class Numerics:
         most 4; default 0 since session 16, 2 before). It sets how soft the relaxed fixed point of eq. (12) is within w cells
         of the air: a rigid zone there deforms at D = θ(Σ − Σ^n)/r, and r is set by the air's
         faces. w = 0 makes the column's run-out independent of δt (docs/validation.md, session 16).
+    sigma_location: where the plastic tensor Σ lives on the MAC grid: 'staggered' (default: Σ_xx
+        at cell centres, Σ_xy at nodes, each projected where its strain rate is exact) or
+        'centres' (both at cell centres, as in the paper's Figure 3: D_xy averaged from the four
+        corner nodes, the pair projected at the centre; not with anderson_depth > 0;
+        docs/validation.md, column collapse).
     anderson_depth: depth m of the Anderson acceleration of the Picard iteration (0, default: the
         plain iteration; at most 20). Same fixed point, fewer predictor solves where the plain
         iteration crawls: Uzawa (θ = 0), fine grids, proximal restarts (docs/validation.md,
@@ -184,6 +213,7 @@ class Numerics:
     proximal_restarts: int = 0
     anderson_depth: int = 0
     r_neighbourhood: int = 0
+    sigma_location: str = "staggered"
     picard_solve_max_iterations: int = 500
     pressure_update: str = "standard"
     wall_normal_stress: str = "pressure"
@@ -204,13 +234,15 @@ class Model:
     ``"free-surface"`` (the granular-only model: the light phase is not resolved, the dense phase
     has a free surface at p = 0 and its velocity is extended into the light phase to move Φ; p is
     then the whole pressure above the ambient one). ``light`` is still needed: it marks where the
-    dense phase is not.
+    dense phase is not. ``side_walls``: None (default, the paper's 2D model) or a
+    ``granrs.SideWalls(width, friction_angle)``: the friction of a channel's side walls on the flow.
     """
 
     def __init__(self, grid: Grid, dense: Material, light: Optional[Material] = None,
                  bc: Optional[BoundaryConditions] = None, gravity=(0.0, 0.0),
                  numerics: Optional[Numerics] = None, threads: int = 1, rheology=None,
-                 pore_pressure: Optional[PorePressure] = None, air: str = "resolved"):
+                 pore_pressure: Optional[PorePressure] = None, air: str = "resolved",
+                 side_walls: Optional[SideWalls] = None):
         if air not in ("resolved", "free-surface"):
             raise ParameterError(f"invalid parameter `air` = {air!r}: allowed 'resolved' (two-phase) or 'free-surface' (granular-only)")
         if air == "free-surface" and light is None:
@@ -228,6 +260,9 @@ class Model:
         if not isinstance(rheology, RHEOLOGIES):
             raise ParameterError(f"invalid parameter `rheology` = {rheology!r}: allowed granrs.Newtonian(), Bingham(...), "
                                  "DruckerPrager(...) or MuI(...)")
+        if side_walls is not None and not isinstance(side_walls, SideWalls):
+            raise ParameterError(f"invalid parameter `side_walls` = {side_walls!r}: allowed a granrs.SideWalls or None")
+        self.side_walls = side_walls
         self.rheology = rheology
         self.grid = grid
         self.dense = dense
@@ -254,7 +289,8 @@ class Model:
             n.pressure_gauge, n.viscous_max_iterations, n.interface_yield, n.ambient_hydrostatic, n.proximal_restarts,
             n.wall_normal_stress, None if n.active_region is None else (n.active_region, n.active_region_align, n.active_region_sides),
             n.step_retries, air, n.anderson_depth, n.pressure_update, n.picard_solve_max_iterations, n.yield_pressure,
-            n.r_neighbourhood)
+            n.r_neighbourhood, n.sigma_location,
+            None if side_walls is None else (float(side_walls.width), float(side_walls.friction_angle)))
         self.air = air
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
@@ -402,7 +438,8 @@ class Model:
         (docs/architecture.md, "Energy budget"): ``kinetic``, ``potential`` (now and ``*_initial``),
         the works ``gravity_work``, ``plastic_work`` (with its ``plastic_negative_work``: stress
         given back to the flow, which eq. (11) of the paper forbids), ``viscous_work``,
-        ``wall_work`` by side, the ``residual`` E_k − E_k(0) − W_g + W_pl + W_visc + W_wall that
+        ``wall_work`` by side, ``side_wall_work`` (the channel's side walls, 0 without them), the
+        ``residual`` E_k − E_k(0) − W_g + W_pl + W_visc + W_wall + W_side that
         the discretisation added (> 0) or removed (< 0), and the last ``rates`` in W/m."""
         return self._rust.energy_budget()
 

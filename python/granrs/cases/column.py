@@ -43,7 +43,7 @@ from .._granrs import ParameterError, SimulationError, SolverError
 from ..boundary import BoundaryConditions, Coulomb, FreeSlip
 from ..grid import Grid
 from ..materials import AIR, Material
-from ..model import ACTIVE_REGION_SIDES, Model, Numerics, PorePressure
+from ..model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, Model, Numerics, PorePressure, SideWalls
 from ..shapes import Rectangle
 from ..simulation import Callback, Simulation
 
@@ -113,6 +113,14 @@ class ColumnCase:
     # within this many cells of the air the relaxed fixed point of eq. (12) is as soft as the air's
     # faces make it; 0 keeps the run-out independent of δt (docs/validation.md, session 16)
     r_neighbourhood: int = 0
+    # the friction of the channel's side walls (granrs.SideWalls; not in the paper's 2D model): None
+    # (default, the paper) or the channel width W in m (the experiment's: 0.10), with the friction
+    # angle side_wall_friction_angle (None: the base's wall_friction_angle); docs/validation.md
+    channel_width: Optional[float] = None
+    side_wall_friction_angle: Optional[float] = None
+    # where the plastic tensor lives (granrs.Numerics.sigma_location): 'staggered' (default) or
+    # 'centres' (the paper's Figure 3: Σ_xx and Σ_xy at cell centres); docs/validation.md
+    sigma_location: str = "staggered"
     # rejections of a step whose Picard iteration does not converge (retaken with δt halved;
     # granrs.Numerics.step_retries): the paper's grid, ny = 256, needs them at t ≈ 6 ms
     step_retries: int = 3
@@ -153,6 +161,15 @@ class ColumnCase:
         if self.wall_normal_stress not in ("pressure", "total"):
             raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
                                  "'pressure' or 'total'")
+        if self.channel_width is not None:
+            SideWalls(self.channel_width, self.wall_friction_angle if self.side_wall_friction_angle is None
+                      else self.side_wall_friction_angle)
+        elif self.side_wall_friction_angle is not None:
+            raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
+                                 "allowed only with a channel_width")
+        if self.sigma_location not in SIGMA_LOCATIONS:
+            raise ParameterError(f"invalid parameter `sigma_location` = {self.sigma_location!r}: allowed "
+                                 + " or ".join(repr(n) for n in SIGMA_LOCATIONS))
         if self.yield_pressure not in ("absolute", "surface-air"):
             raise ParameterError(f"invalid parameter `yield_pressure` = {self.yield_pressure!r}: allowed "
                                  "'absolute' or 'surface-air'")
@@ -207,6 +224,14 @@ class ColumnCase:
         return Grid(nx, self.ny, nx * h, ly)
 
 
+def side_walls(case: ColumnCase) -> Optional[SideWalls]:
+    """The channel's side walls of ``case`` (None without a channel_width)."""
+    if case.channel_width is None:
+        return None
+    angle = case.wall_friction_angle if case.side_wall_friction_angle is None else case.side_wall_friction_angle
+    return SideWalls(case.channel_width, angle)
+
+
 def build_model(case: ColumnCase) -> Model:
     """The two-phase model of the column case (or, with ``model='granular'``, the granular-only
     model: the same 2D model with the air not resolved), with its initial condition."""
@@ -223,12 +248,14 @@ def build_model(case: ColumnCase) -> Model:
                   bc=BoundaryConditions(left=Coulomb(case.wall_friction_angle), right=FreeSlip(),
                                         bottom=Coulomb(case.wall_friction_angle), top=FreeSlip()),
                   numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta, r_neighbourhood=case.r_neighbourhood,
+                                    sigma_location=case.sigma_location,
                                     picard_max_iterations=1000, convection_scheme="weno5", step_retries=case.step_retries,
                                     mass_correction=case.mass_correction, interface_yield=case.interface_yield,
                                     wall_normal_stress=case.wall_normal_stress, yield_pressure=case.yield_pressure,
                                     active_region=case.active_region, active_region_sides=case.active_region_sides),
                   threads=case.threads, pore_pressure=pore,
                   air="free-surface" if case.model == "granular" else "resolved",
+                  side_walls=side_walls(case),
                   **_rheology_kwargs(case))
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
     if pore is not None:
@@ -339,6 +366,9 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         if callbacks or prepare is not None:
             raise ParameterError("invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
                                  "restart: allowed only with the 2D models ('two-phase', 'granular')")
+        if case.channel_width is not None:
+            raise ParameterError("invalid parameter `channel_width` with the depth-averaged model: allowed only with the "
+                                 "2D models ('two-phase', 'granular')")
         return run_column_depth_averaged(case, out, progress=progress, compare_with=compare_with,
                                          extra_summary=extra_summary, reason=model_reason)
     out.mkdir(parents=True, exist_ok=True)
@@ -415,7 +445,10 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
         "interface_yield": case.interface_yield, "wall_normal_stress": case.wall_normal_stress,
-        "yield_pressure": case.yield_pressure,
+        "yield_pressure": case.yield_pressure, "sigma_location": case.sigma_location,
+        "channel_width_m": case.channel_width, "side_wall_friction_angle": (None if case.channel_width is None else
+                                                                             side_walls(case).friction_angle),
+        "r_neighbourhood": case.r_neighbourhood,
         "active_region": case.active_region,
         "active_region_sides": case.active_region_sides, "threads": case.threads, "version": __version__,
         "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
@@ -458,7 +491,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
 
 
 ENERGY_COLUMNS = ("kinetic", "potential_drop", "gravity_work", "plastic_work", "plastic_negative_work", "viscous_work",
-                  "wall_work", "residual")
+                  "wall_work", "side_wall_work", "residual")
 
 
 def _energy_row(b: dict) -> dict:
@@ -466,12 +499,13 @@ def _energy_row(b: dict) -> dict:
     return {"kinetic": b["kinetic"], "potential_drop": b["potential_initial"] - b["potential"],
             "gravity_work": b["gravity_work"], "plastic_work": b["plastic_work"],
             "plastic_negative_work": b["plastic_negative_work"], "viscous_work": b["viscous_work"],
-            "wall_work": sum(b["wall_work"].values()), "residual": b["residual"]}
+            "wall_work": sum(b["wall_work"].values()), "side_wall_work": b["side_wall_work"], "residual": b["residual"]}
 
 
 def energy_summary(b: dict) -> dict:
     """Where gravity's work went by the end of the run, as fractions of it (they add up to 1):
-    kinetic energy left, plastic, basal and back-wall friction, viscous, and ``numerical`` (−
+    kinetic energy left, plastic, basal and back-wall friction, the channel's side walls (0 without
+    them), viscous, and ``numerical`` (−
     the residual: what the discretisation dissipated); ``plastic_negative`` is the stress given
     back to the flow (≤ 0; zero for the paper's eq. 11, docs/validation.md)."""
     row = _energy_row(b)
@@ -480,7 +514,7 @@ def energy_summary(b: dict) -> dict:
         return {"gravity_work_J_per_m": wg}
     return {"gravity_work_J_per_m": wg, "potential_drop_J_per_m": row["potential_drop"],
             "kinetic": row["kinetic"] / wg, "plastic": row["plastic_work"] / wg, "wall": row["wall_work"] / wg,
-            "viscous": row["viscous_work"] / wg, "numerical": -row["residual"] / wg,
+            "side_walls": row["side_wall_work"] / wg, "viscous": row["viscous_work"] / wg, "numerical": -row["residual"] / wg,
             "plastic_negative": row["plastic_negative_work"] / wg}
 
 
@@ -511,6 +545,8 @@ def plot_energy(out: Path) -> None:
     ax.plot(t, -d["plastic_negative_work_J_m"], color="C0", ls="--", lw=1,
             label="its negative part (stress given back), sign flipped")
     ax.plot(t, d["wall_work_J_m"], color="C1", label="Coulomb friction, base and back wall")
+    if np.any(d["side_wall_work_J_m"] != 0):
+        ax.plot(t, d["side_wall_work_J_m"], color="C5", label="friction of the channel's side walls")
     ax.plot(t, d["kinetic_J_m"], color="C2", label="kinetic energy")
     ax.plot(t, d["viscous_work_J_m"], color="C4", lw=1, label="viscous work")
     ax.plot(t, -d["residual_J_m"], color="C3", label="numerical dissipation (− residual)")
@@ -727,7 +763,8 @@ def _label(meta: dict) -> str:
         return f"{state}, depth-averaged ({meta['cells']} cells)"
     model = ", granular-only" if meta.get("model") == "granular" else ""
     window = f", active region {meta['active_region']}" if meta.get("active_region") else ""
-    return f"{state}{model}{window}, ny = {meta['ny']}"
+    walls = f", side walls {100 * meta['channel_width_m']:g} cm apart" if meta.get("channel_width_m") else ""
+    return f"{state}{model}{walls}{window}, ny = {meta['ny']}"
 
 
 def _read_front(path: Path):
@@ -791,7 +828,7 @@ def plot_profiles(out: Path) -> None:
     ax.axvline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label="paper run-out (simulation)")
     ax.axvline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label="paper run-out (experiment)")
     ax.set(xlabel="x − L_c (m), gate at 0", ylabel="surface height h (m)",
-           title=_label(meta) + " column: surface profiles "
+           title=_label(meta) + " column: surface profiles\n"
                  "(paper: thickest near the gate, gentle decrease downstream)")
     ax.title.set_fontsize(9)
     ax.grid(alpha=0.3)

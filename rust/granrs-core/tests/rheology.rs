@@ -4,12 +4,17 @@
 use granrs_core::grid::{BoundaryConditions, Grid, Side, VelocityBc};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
 use granrs_core::rheology::plastic::unit_ball_scale;
-use granrs_core::rheology::{RheologyConfig, RheologyLaw, YieldTreatment};
+use granrs_core::rheology::{RheologyConfig, RheologyLaw, SigmaLocation, YieldTreatment};
+use granrs_core::walls::side::SideWalls;
 use granrs_core::Error;
 
 /// Bingham plane Poiseuille flow (validation-data §3): channel 0 < y < 2 (half-width h = 1),
 /// body force G = 1 along x, μ = ρ = 1, no-slip walls, outflow sides (p = 0, x-invariant flow).
 fn poiseuille(n: usize, tau_y: f64, theta: f64) -> TwoPhaseModel {
+    poiseuille_with(n, tau_y, theta, SigmaLocation::Staggered)
+}
+
+fn poiseuille_with(n: usize, tau_y: f64, theta: f64, location: SigmaLocation) -> TwoPhaseModel {
     let dy = 2.0 / n as f64;
     let grid = Grid::new(4, n, 4.0 * dy, 2.0).unwrap();
     let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Left, VelocityBc::Outflow).with(Side::Right, VelocityBc::Outflow);
@@ -20,6 +25,7 @@ fn poiseuille(n: usize, tau_y: f64, theta: f64) -> TwoPhaseModel {
     cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: tau_y });
     cfg.rheology.theta = theta;
     cfg.rheology.picard_tol = 1e-11;
+    cfg.rheology.sigma_location = location;
     let mut m = TwoPhaseModel::new(cfg).unwrap();
     for _ in 0..400 {
         let before = m.u.clone();
@@ -72,6 +78,39 @@ fn poiseuille_plug_exact_and_second_order() {
     println!("orders {orders:?}");
     // issue: l2 <= 1 % at n = 64, second order
     assert!(errors[2] <= 0.01 && orders.iter().all(|&o| o >= 1.9));
+}
+
+/// `SigmaLocation::Centres` (the paper's Figure 3): D_xy is averaged from the nodes to the centres,
+/// so the yield surface is smeared over a cell and the plug is rigid only in the average of two
+/// node rows. Printed: the plug speed and the l2 error against the exact profile at n = 16, 32, 64.
+#[test]
+fn centred_plastic_tensor_converges_to_the_bingham_poiseuille_profile() {
+    let tau_y = 0.25;
+    let mut errors = Vec::new();
+    for n in [16, 32, 64] {
+        let m = poiseuille_with(n, tau_y, 0.5, SigmaLocation::Centres);
+        let g = m.grid().clone();
+        let (mut e2, mut n2, mut umax) = (0.0, 0.0, 0.0f64);
+        for j in 0..n {
+            let ex = exact_poiseuille(g.yc(j as isize), tau_y);
+            let u = m.u.at(2, j as isize);
+            e2 += (u - ex).powi(2);
+            n2 += ex * ex;
+            umax = umax.max(u);
+        }
+        let l2 = (e2 / n2).sqrt();
+        println!("centres, n = {n}: steps {} u_plug {umax:.9} (exact 0.28125) l2 {l2:.3e}", m.step_count);
+        errors.push((l2, (umax - 0.28125).abs()));
+    }
+    let orders: Vec<f64> = errors.windows(2).map(|w| (w[0].0 / w[1].0).log2()).collect();
+    println!("orders {orders:?}");
+    // measured: the staggered layout's l2 errors (7.46e-3, 1.87e-3, 4.66e-4) to three digits, and
+    // the plug speed within 2e-6 of exact; but the stress settles slowly (166 steps at n = 16, the
+    // 400-step cap at 32 and 64, against 29 staggered): the cell-averaged D_xy leaves the zig-zag
+    // of D_xy between node rows to the viscosity alone. Bounds: the issue's 1 % at n = 64, second
+    // order, the plug within 1e-5 (the cap's residual, 5× the measured).
+    assert!(errors[2].0 <= 0.01 && orders.iter().all(|&o| o >= 1.9), "{errors:?} {orders:?}");
+    assert!(errors.iter().all(|e| e.1 < 1e-5), "plug speeds {errors:?}");
 }
 
 #[test]
@@ -732,5 +771,125 @@ fn r_neighbourhood_out_of_range_is_named() {
     match r.validate() {
         Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "r_neighbourhood"),
         other => panic!("expected an r_neighbourhood error, got {other:?}"),
+    }
+}
+
+/// `SigmaLocation::Centres`: Σ_xy at centres travels in the checkpoint (a restart is bit
+/// identical), two threads give the serial answer bit for bit, and the combinations it does not
+/// support are refused by name.
+#[test]
+fn centred_plastic_tensor_restarts_and_threads_exactly() {
+    let build = |threads: usize| {
+        let mut cfg = bingham_cavity(16, 0.05, 0.5, 0, false, threads).config().clone();
+        cfg.rheology.sigma_location = SigmaLocation::Centres;
+        cfg.rheology.picard_tol = 1e-9;
+        TwoPhaseModel::new(cfg).unwrap()
+    };
+    let (mut a, mut two) = (build(1), build(2));
+    for _ in 0..4 {
+        let (x, y) = (a.step().unwrap(), two.step().unwrap());
+        assert_eq!(x.picard_iterations, y.picard_iterations);
+    }
+    assert_eq!(max_diff(&a.u, &two.u), 0.0);
+    let state = a.checkpoint();
+    assert!(state.iter().any(|(n, _)| n == "sigma_xy_centre"));
+    let mut b = build(1);
+    b.restore(&state).unwrap();
+    for _ in 0..4 {
+        a.step().unwrap();
+        b.step().unwrap();
+    }
+    assert_eq!(a.u.slice(), b.u.slice());
+    assert_eq!(a.plastic_tensor().unwrap().1.slice(), b.plastic_tensor().unwrap().1.slice());
+    // the nodal equivalent of Σ_xy carries the stress (the lid drags the yielded layer under it:
+    // |Σ| = 1 there), and with a uniform yield stress it is the plain average of |Σ_xy,c| ≤ 1
+    let (_, sxy) = a.plastic_tensor().unwrap();
+    let largest = sxy.slice().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(largest > 0.5 && largest <= 1.0 + 1e-12, "largest nodal |Σ_xy| {largest}");
+    let mut r = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 1.0 });
+    r.sigma_location = SigmaLocation::Centres;
+    r.anderson_depth = 3;
+    match r.validate() {
+        Err(Error::InvalidParameter { name, allowed, .. }) => {
+            assert_eq!(name, "anderson_depth");
+            assert!(allowed.contains("centres"), "{allowed}");
+        }
+        other => panic!("expected an anderson_depth error, got {other:?}"),
+    }
+    assert_eq!(SigmaLocation::from_name("centres"), Some(SigmaLocation::Centres));
+    assert_eq!(SigmaLocation::from_name("nodes"), None);
+}
+
+/// The layer of `sliding_layer` (D-P, H = 0.1 m) in a channel W = 0.1 m whose side walls have
+/// the friction angle α_w = 15° (`walls/side.rs`), on a frictionless base under an open top
+/// (p = 0 there). The walls resist with (2/W) tan(α_w) ∫ p dy = tan(α_w) ρ g cos β H²/W per unit
+/// length (p hydrostatic, and the midpoint sum of a linear p is exact), so the layer moves as one
+/// block at a = g (sin β − tan(α_w) cos β H/W) when that is positive (β = 20°: 0.884 m/s²; the
+/// internal shear this needs is at most 0.27 p, under tan 27° p), and holds otherwise (β = 10°).
+fn side_wall_layer(slope: f64, threads: usize) -> TwoPhaseModel {
+    let mut cfg = sliding_layer(slope, VelocityBc::Outflow, 1e-3);
+    cfg.bc = cfg.bc.with(Side::Bottom, VelocityBc::FreeSlip);
+    cfg.rheology.wall_friction_angle = None;
+    cfg.rheology.side_walls = Some(SideWalls { width: 0.1, friction_angle: 15.0 });
+    cfg.threads = threads;
+    let mut m = TwoPhaseModel::new(cfg).unwrap();
+    m.initialise_pressure().unwrap();
+    m
+}
+
+#[test]
+fn side_walls_slow_a_sliding_layer_at_their_friction_rate_and_hold_it_below() {
+    let n = 32;
+    let mean = |m: &TwoPhaseModel| (0..n).map(|j| m.u.at(2, j as isize)).sum::<f64>() / n as f64;
+    let s = 20f64.to_radians();
+    let exact = 9.81 * (s.sin() - 15f64.to_radians().tan() * s.cos() * 0.1 / 0.1);
+    let mut m = side_wall_layer(20.0, 1);
+    for _ in 0..100 {
+        m.step().unwrap();
+    }
+    let (t0, u0) = (m.time, mean(&m));
+    for _ in 0..100 {
+        m.step().unwrap();
+    }
+    let a = (mean(&m) - u0) / (m.time - t0);
+    let spread = (0..n).map(|j| m.u.at(2, j as isize)).fold(f64::NEG_INFINITY, f64::max) - (0..n).map(|j| m.u.at(2, j as isize)).fold(f64::INFINITY, f64::min);
+    let b = m.energy_budget();
+    println!("20°: acceleration {a:.5} exact {exact:.5}, spread of u over the depth {spread:.2e}; budget {b:?}");
+    // the block's mean momentum balance is exact; 1 % allows the Picard tolerance (1e-9) and
+    // the pressure solve (1e-12) with a margin of many orders
+    assert!((a / exact - 1.0).abs() < 1e-2, "acceleration {a} against {exact}");
+    // (u varies over the depth by 0.065 m/s at 0.2 s: the elastic ringing of the relaxed fixed
+    // point of eq. (12) started from Σ = 0, as on the Coulomb base; measured, it reverses every
+    // 0.05 s and is ten times smaller at δt = 0.1 ms. The block's mean motion does not see it.)
+    // the walls' work is what the block does not gain: W_g − E_k, closed to the trapezoid's error
+    assert!(b.side_wall_work > 0.0 && b.residual.abs() < 1e-3 * b.side_wall_work, "{b:?}");
+    // below the walls' friction the layer holds
+    let mut held = side_wall_layer(10.0, 1);
+    for _ in 0..200 {
+        held.step().unwrap();
+    }
+    let umax = held.u.max_abs();
+    println!("10°: largest speed after 0.2 s {umax:.2e} m/s");
+    assert!(umax < 1e-4, "the 10° layer slides at {umax}");
+    // serial == parallel, and s travels in the checkpoint
+    let (mut one, mut two) = (side_wall_layer(20.0, 1), side_wall_layer(20.0, 2));
+    for _ in 0..5 {
+        one.step().unwrap();
+        two.step().unwrap();
+    }
+    assert_eq!(max_diff(&one.u, &two.u), 0.0);
+    let state = one.checkpoint();
+    assert!(state.iter().any(|(k, _)| k == "side_wall_s_u") && state.iter().any(|(k, _)| k == "side_wall_s_v"));
+    // bad channels are named
+    let mut r = RheologyConfig::new(RheologyLaw::DruckerPrager { friction_angle: 27.0 });
+    r.side_walls = Some(SideWalls { width: 0.0, friction_angle: 15.0 });
+    match r.validate() {
+        Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "side_walls.width"),
+        other => panic!("expected a side_walls.width error, got {other:?}"),
+    }
+    r.side_walls = Some(SideWalls { width: 0.1, friction_angle: 90.0 });
+    match r.validate() {
+        Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "side_walls.friction_angle"),
+        other => panic!("expected a side_walls.friction_angle error, got {other:?}"),
     }
 }

@@ -7,7 +7,8 @@ use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
 use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel, WindowSides};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
-use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, WallNormalStress, YieldPressure, YieldTreatment};
+use granrs_core::walls::side::SideWalls;
+use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, SigmaLocation, WallNormalStress, YieldPressure, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
 use granrs_core::Error;
@@ -275,7 +276,7 @@ impl PyModel {
         max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
         pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
         regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute", r_neighbourhood=0))]
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute", r_neighbourhood=0, sigma_location="staggered", side_walls=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         nx: i64,
@@ -326,6 +327,8 @@ impl PyModel {
         picard_solve_max_iterations: i64,
         yield_pressure: &str,
         r_neighbourhood: i64,
+        sigma_location: &str,
+        side_walls: Option<(f64, f64)>,
     ) -> PyResult<Self> {
         let pos = |name: &str, v: i64| -> PyResult<usize> {
             if v < 0 {
@@ -457,6 +460,11 @@ impl PyModel {
                 "surface-air" => YieldPressure::SurfaceAir,
                 other => return Err(param_err("yield_pressure", other, "'absolute' or 'surface-air'")),
             },
+            sigma_location: SigmaLocation::from_name(sigma_location).ok_or_else(|| {
+                let names: Vec<String> = SigmaLocation::ALL.iter().map(|l| format!("'{}'", l.name())).collect();
+                param_err("sigma_location", sigma_location, &names.join(" or "))
+            })?,
+            side_walls: side_walls.map(|(width, friction_angle)| SideWalls { width, friction_angle }),
         };
         cfg.active_region = match active_region {
             None => None,
@@ -558,6 +566,7 @@ impl PyModel {
             rates_walls.set_item(side, b.rates.wall[k])?;
         }
         d.set_item("wall_work", walls)?;
+        d.set_item("side_wall_work", b.side_wall_work)?;
         d.set_item("residual", b.residual)?;
         let r = PyDict::new(py);
         r.set_item("gravity", b.rates.gravity)?;
@@ -565,6 +574,7 @@ impl PyModel {
         r.set_item("plastic_negative", b.rates.plastic_negative)?;
         r.set_item("viscous", b.rates.viscous)?;
         r.set_item("wall", rates_walls)?;
+        r.set_item("side_walls", b.rates.side_walls)?;
         d.set_item("rates", r)?;
         Ok(d)
     }

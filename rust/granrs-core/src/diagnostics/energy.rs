@@ -3,7 +3,9 @@
 //! Multiplying the momentum balance (Aravena et al. eq. 10b) by u and integrating over Ω, with
 //! div u = 0 and u·n = 0 on the walls, gives (per unit width, J m⁻¹):
 //!
-//!   d/dt ∫ ½ρ|u|² = ∫ (ρ − ρ_ref) g·u − ∫ 2η D:D − ∫ τ Σ:D + Σ_walls ∫ τ_b s·u_t
+//!   d/dt ∫ ½ρ|u|² = ∫ (ρ − ρ_ref) g·u − ∫ 2η D:D − ∫ τ Σ:D + Σ_walls ∫ τ_b s·u_t − (2/W) ∫ τ_w s·u
+//!
+//! (the last term only with the channel's side walls, `walls/side.rs`, not in the paper).
 //!
 //! The pressure and the pore pressure p_f do no net work on a solenoidal field with u·n = 0 (their
 //! effect is through τ = tan(α) p⁺), and the mass equation of ρ carries kinetic energy without
@@ -24,7 +26,7 @@
 //! cell and nothing elsewhere) and the body force (ρ − ρ_ref) g of the predictor. The time
 //! integrals are trapezoidal over the steps ([`EnergyLedger`]), and
 //!
-//!   residual = E_k(t) − E_k(0) − W_g + W_visc + W_pl + W_wall
+//!   residual = E_k(t) − E_k(0) − W_g + W_visc + W_pl + W_wall + W_side
 //!
 //! is the energy the discretisation adds (> 0) or removes (< 0): time stepping, convection,
 //! interface transport and mass correction, the projection of the predictor. The budget assumes
@@ -56,6 +58,8 @@ pub struct EnergyRates {
     pub viscous: f64,
     /// −Σ ∫ τ_b s·u_t: friction dissipation on the Coulomb walls, by side (left, right, bottom, top).
     pub wall: [f64; 4],
+    /// (2/W) ∫ τ_w s·u: friction dissipation on the channel's side walls (`walls/side.rs`).
+    pub side_walls: f64,
 }
 
 /// The budget since the model's state was last set: energies now and the time integrals of the
@@ -74,7 +78,9 @@ pub struct EnergyBudget {
     pub plastic_negative_work: f64,
     pub viscous_work: f64,
     pub wall_work: [f64; 4],
-    /// E_k − E_k(0) − W_g + W_visc + W_pl + W_wall: added (> 0) or removed (< 0) by the numerics.
+    /// Work of the side walls' friction (0 without side walls).
+    pub side_wall_work: f64,
+    /// E_k − E_k(0) − W_g + W_visc + W_pl + W_wall + W_side: added (> 0) or removed (< 0) by the numerics.
     pub residual: f64,
     /// The rates at the end of the last step.
     pub rates: EnergyRates,
@@ -92,6 +98,7 @@ pub struct EnergyLedger {
     plastic_negative_work: f64,
     viscous_work: f64,
     wall_work: [f64; 4],
+    side_wall_work: f64,
     partials: Vec<[f64; 4]>,
 }
 
@@ -287,7 +294,10 @@ impl TwoPhaseModel {
                 }
             }
         }
-        EnergyRates { gravity: s[0] * area, plastic: s[1] * area, plastic_negative: s[2] * area, viscous: s[3] * area, wall }
+        let side_walls = self.rheology.as_ref().and_then(|r| r.side_walls.as_ref()).map_or(0.0, |sw| {
+            sw.dissipation(&self.u, &self.v, &g, |i, _| !(per.0 && i == nx), |_, j| !(per.1 && j == ny))
+        });
+        EnergyRates { gravity: s[0] * area, plastic: s[1] * area, plastic_negative: s[2] * area, viscous: s[3] * area, wall, side_walls }
     }
 
     /// Adds the step just taken (δt `dt`) to the energy ledger (called by `step` after an
@@ -307,6 +317,7 @@ impl TwoPhaseModel {
         for k in 0..4 {
             ledger.wall_work[k] += 0.5 * dt * (l.wall[k] + rates.wall[k]);
         }
+        ledger.side_wall_work += 0.5 * dt * (l.side_walls + rates.side_walls);
         ledger.last = rates;
         ledger.partials = partials;
         self.energy = ledger;
@@ -346,7 +357,8 @@ impl TwoPhaseModel {
             plastic_negative_work: l.plastic_negative_work,
             viscous_work: l.viscous_work,
             wall_work: l.wall_work,
-            residual: ek - l.kinetic_initial - l.gravity_work + l.viscous_work + l.plastic_work + wall,
+            side_wall_work: l.side_wall_work,
+            residual: ek - l.kinetic_initial - l.gravity_work + l.viscous_work + l.plastic_work + wall + l.side_wall_work,
             rates: l.last,
         }
     }

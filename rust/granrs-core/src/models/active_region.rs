@@ -317,6 +317,13 @@ impl TwoPhaseModel {
             for (src, dst) in [(&a.plastic.sigma_xx, &mut b.plastic.sigma_xx), (&a.plastic.sigma_xy, &mut b.plastic.sigma_xy)] {
                 copy_block(src, dst);
             }
+            if let (Some(sa), Some(sb)) = (&a.plastic.centred, &mut b.plastic.centred) {
+                copy_block(&sa.sigma, &mut sb.sigma);
+            }
+            if let (Some(sa), Some(sb)) = (&a.side_walls, &mut b.side_walls) {
+                copy_block(&sa.s_u, &mut sb.s_u);
+                copy_block(&sa.s_v, &mut sb.s_v);
+            }
             b.walls.copy_prefix_from(&a.walls);
         }
         copy_clock(self, &mut w);
@@ -347,6 +354,13 @@ impl TwoPhaseModel {
                 (&a.trial_norm, &mut b.trial_norm),
             ] {
                 copy_back(src, dst);
+            }
+            if let (Some(sa), Some(sb)) = (&a.plastic.centred, &mut b.plastic.centred) {
+                copy_back(&sa.sigma, &mut sb.sigma);
+            }
+            if let (Some(sa), Some(sb)) = (&a.side_walls, &mut b.side_walls) {
+                copy_back(&sa.s_u, &mut sb.s_u);
+                copy_back(&sa.s_v, &mut sb.s_v);
             }
             b.walls.copy_prefix_from(&a.walls);
             b.history.clear();

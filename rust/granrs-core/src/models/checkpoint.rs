@@ -52,6 +52,13 @@ impl TwoPhaseModel {
         if let Some(rs) = &self.rheology {
             f("sigma_xx", rs.plastic.sigma_xx.slice());
             f("sigma_xy", rs.plastic.sigma_xy.slice());
+            if let Some(cs) = &rs.plastic.centred {
+                f("sigma_xy_centre", cs.sigma.slice());
+            }
+            if let Some(sw) = &rs.side_walls {
+                f("side_wall_s_u", sw.s_u.slice());
+                f("side_wall_s_v", sw.s_v.slice());
+            }
         }
         let walls: Vec<Vec<f64>> = self.rheology.as_ref().map(|rs| rs.walls.directions()).unwrap_or_default();
         for (k, s) in walls.iter().enumerate() {
@@ -107,6 +114,13 @@ impl TwoPhaseModel {
         if let Some(rs) = &mut self.rheology {
             rs.plastic.sigma_xx.slice_mut().copy_from_slice(get("sigma_xx"));
             rs.plastic.sigma_xy.slice_mut().copy_from_slice(get("sigma_xy"));
+            if let Some(cs) = &mut rs.plastic.centred {
+                cs.sigma.slice_mut().copy_from_slice(get("sigma_xy_centre"));
+            }
+            if let Some(sw) = &mut rs.side_walls {
+                sw.s_u.slice_mut().copy_from_slice(get("side_wall_s_u"));
+                sw.s_v.slice_mut().copy_from_slice(get("side_wall_s_v"));
+            }
             for (k, s) in rs.walls.directions_mut().into_iter().enumerate() {
                 s.copy_from_slice(get(&format!("wall_direction_{k}")));
             }

@@ -202,6 +202,39 @@ pub enum WallNormalStress {
     Total,
 }
 
+/// Where the plastic tensor Σ lives on the MAC grid (`rheology/plastic.rs`, "Storage").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum SigmaLocation {
+    /// Σ_xx at cell centres with D_xx, D_yy, Σ_xy at nodes with D_xy: each component is projected
+    /// where its strain rate is exact, and div(τΣ) has the compact stencil of the viscous term.
+    #[default]
+    Staggered,
+    /// Σ_xx and Σ_xy both at cell centres, as in the paper's Figure 3 ("the discrete unknowns
+    /// associated with Σ and p_f are also placed at the centre of the mesh cell"): D_xy is
+    /// averaged from the four corner nodes to the centre, the pair is projected there, and the
+    /// force takes τΣ_xy at a node as the average of its four cells (the adjoint of that average,
+    /// so that the discrete plastic power is Σ_cells τ Σ:D).
+    Centres,
+}
+
+impl SigmaLocation {
+    /// Every location, in the order of the names.
+    pub const ALL: [SigmaLocation; 2] = [SigmaLocation::Staggered, SigmaLocation::Centres];
+
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            SigmaLocation::Staggered => "staggered",
+            SigmaLocation::Centres => "centres",
+        }
+    }
+
+    /// The location called `name`, if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|l| l.name() == name)
+    }
+}
+
 /// Which pressure the yield stress τ = τ(p) and the walls' −σ_n = p use (two-phase models only).
 ///
 /// In the level-set formulation (eq. 10b) one pressure p serves the air and the granular phase,
@@ -328,6 +361,11 @@ pub struct RheologyConfig {
     pub r_neighbourhood: usize,
     /// The pressure of the yield stress and of the walls' normal stress (two-phase models only).
     pub yield_pressure: YieldPressure,
+    /// Where Σ lives: staggered (default) or at cell centres (the paper's Figure 3).
+    pub sigma_location: SigmaLocation,
+    /// Friction of a channel's side walls on the 2D flow (`walls/side.rs`); `None` (default,
+    /// the paper's 2D model): no side walls.
+    pub side_walls: Option<crate::walls::side::SideWalls>,
 }
 
 impl Default for RheologyConfig {
@@ -348,6 +386,8 @@ impl Default for RheologyConfig {
             wall_normal_stress: WallNormalStress::default(),
             r_neighbourhood: DEFAULT_R_NEIGHBOURHOOD,
             yield_pressure: YieldPressure::default(),
+            sigma_location: SigmaLocation::default(),
+            side_walls: None,
         }
     }
 }
@@ -363,6 +403,7 @@ impl RheologyConfig {
     pub fn needs_picard(&self, has_coulomb_walls: bool) -> bool {
         (self.law.has_yield_stress() && self.treatment == YieldTreatment::Projection)
             || (has_coulomb_walls && self.wall_friction_angle.is_some())
+            || self.side_walls.is_some()
     }
 
     /// Whether the viscosity of the dense phase changes from step to step.
@@ -405,6 +446,17 @@ impl RheologyConfig {
         }
         if self.anderson_depth > anderson::MAX_ANDERSON_DEPTH {
             return Err(Error::param("anderson_depth", self.anderson_depth, &format!("an integer in [0, {}]", anderson::MAX_ANDERSON_DEPTH)));
+        }
+        if let Some(w) = self.side_walls {
+            if !(w.width.is_finite() && w.width > 0.0 && w.width <= crate::walls::side::MAX_CHANNEL_WIDTH) {
+                return Err(Error::param("side_walls.width", w.width, &format!("a channel width in (0, {}] (m)", crate::walls::side::MAX_CHANNEL_WIDTH)));
+            }
+            if !(w.friction_angle.is_finite() && (0.0..90.0).contains(&w.friction_angle)) {
+                return Err(Error::param("side_walls.friction_angle", w.friction_angle, "an angle in degrees in [0, 90)"));
+            }
+        }
+        if self.anderson_depth > 0 && self.sigma_location == SigmaLocation::Centres {
+            return Err(Error::param("anderson_depth", self.anderson_depth, "0 with sigma_location = 'centres' (Anderson mixing acts on the staggered Σ)"));
         }
         Ok(())
     }

@@ -59,6 +59,9 @@ impl TwoPhaseModel {
             return Err(Error::param("rheology", self.config.rheology.law.name(), "a law with a yield stress treated by projection \
                  (Bingham, Drucker-Prager, mu(I) with treatment 'projection') for balance_plastic_stress"));
         }
+        if self.config.rheology.sigma_location != super::SigmaLocation::Staggered {
+            return Err(Error::param("sigma_location", self.config.rheology.sigma_location.name(), "'staggered' for balance_plastic_stress (it builds Σ_xy at nodes)"));
+        }
         self.properties(exec);
         // τ at centres and nodes from the current p and Φ (δt does not enter τ)
         self.rheology_stage(1.0, exec)?;

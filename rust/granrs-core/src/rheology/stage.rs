@@ -23,6 +23,7 @@ use crate::solvers::par::{n_blocks, sum_rows};
 use crate::solvers::SolveInfo;
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
 use crate::levelset::heaviside;
+use crate::walls::side::SideWallFriction;
 use crate::walls::{default_r_wall, CoulombWalls, NormalStress};
 
 /// Stall safeguard of the Picard loop: every `PICARD_STALL_WINDOW` iterations, if the increment
@@ -47,6 +48,8 @@ pub const PICARD_SOLVE_MAX_ITERATIONS: usize = 500;
 pub struct RheologyState {
     pub plastic: PlasticState,
     pub walls: CoulombWalls,
+    /// Friction of the channel's side walls (`RheologyConfig::side_walls`).
+    pub side_walls: Option<SideWallFriction>,
     dxx: Field,
     dyy: Field,
     dxy: Field,
@@ -82,17 +85,18 @@ impl RheologyState {
     pub fn new(grid: &Grid, bc: &BoundaryConditions, cfg: &RheologyConfig) -> Option<Self> {
         let coulomb = Side::ALL.iter().any(|&s| bc.get(s) == VelocityBc::Coulomb);
         let walls = CoulombWalls::new(grid, bc, cfg.wall_friction_angle.is_some());
-        if !cfg.law.has_yield_stress() && !walls.is_active() && !cfg.variable_viscosity() {
+        if !cfg.law.has_yield_stress() && !walls.is_active() && !cfg.variable_viscosity() && cfg.side_walls.is_none() {
             return None;
         }
         let c = || Field::zeros(grid, Location::Centre);
         let n = || Field::zeros(grid, Location::Node);
-        let plastic = PlasticState::new(grid, bc);
+        let plastic = PlasticState::new(grid, bc, cfg.sigma_location);
         let projection = cfg.law.has_yield_stress() && cfg.treatment == YieldTreatment::Projection;
         let anderson = (projection && cfg.anderson_depth > 0).then(|| Anderson::new(cfg.anderson_depth, &plastic));
         Some(RheologyState {
             plastic,
             walls,
+            side_walls: cfg.side_walls.map(|_| SideWallFriction::new(grid)),
             dxx: c(),
             dyy: c(),
             dxy: n(),
@@ -223,6 +227,9 @@ impl TwoPhaseModel {
                 default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid))
             });
         }
+        if let (Some(sw), Some(walls)) = (rs.side_walls.as_mut(), rc.side_walls) {
+            sw.set_friction(walls, &self.p, p_s, &self.phi, two_phase.then_some(eps), rc.interface_yield, &self.work.rho_u, &self.work.rho_v, a0_over_dt, rc.theta, exec);
+        }
         Ok(())
     }
 
@@ -246,6 +253,9 @@ impl TwoPhaseModel {
         };
         rs.plastic.begin_step();
         rs.walls.begin_step();
+        if let Some(sw) = rs.side_walls.as_mut() {
+            sw.begin_step();
+        }
         if explicit {
             rs.ustar_u.assign(&self.u);
             rs.ustar_v.assign(&self.v);
@@ -291,6 +301,9 @@ impl TwoPhaseModel {
                 rs.plastic.add_force(grid, &mut rs.rhs_u, &mut rs.rhs_v, exec);
             }
             rs.walls.add_force(&mut rs.rhs_u, &mut rs.rhs_v, grid);
+            if let Some(sw) = rs.side_walls.as_ref() {
+                sw.add_force(&mut rs.rhs_u, &mut rs.rhs_v, exec);
+            }
             if explicit {
                 self.u.assign(&rs.ustar_u);
                 self.v.assign(&rs.ustar_v);
@@ -329,6 +342,10 @@ impl TwoPhaseModel {
                 let d = rs.walls.update(&self.u, &self.v, rs.r_wall, rc.theta, grid);
                 inc = if d.is_nan() { d } else { inc.max(d) };
             }
+            if let Some(sw) = rs.side_walls.as_mut() {
+                let d = sw.update(&self.u, &self.v, rc.theta, exec);
+                inc = if d.is_nan() || inc.is_nan() { f64::NAN } else { inc.max(d) };
+            }
             if rs.history.len() < rs.history.capacity() {
                 rs.history.push(inc);
             }
@@ -338,10 +355,15 @@ impl TwoPhaseModel {
             if inc <= rc.picard_tol && restarts < rc.proximal_restarts {
                 // proximal restart: the relaxed fixed point becomes the anchor (see
                 // `RheologyConfig::proximal_restarts`)
-                let moved = if rs.projection { rs.plastic.anchor_distance(exec) } else { 0.0 }.max(rs.walls.anchor_distance());
+                let moved = if rs.projection { rs.plastic.anchor_distance(exec) } else { 0.0 }
+                    .max(rs.walls.anchor_distance())
+                    .max(rs.side_walls.as_ref().map_or(0.0, |sw| sw.anchor_distance(exec)));
                 if moved > rc.picard_tol {
                     rs.plastic.begin_step();
                     rs.walls.begin_step();
+                    if let Some(sw) = rs.side_walls.as_mut() {
+                        sw.begin_step();
+                    }
                     if let Some(a) = rs.anderson.as_mut() {
                         a.reset();
                     }

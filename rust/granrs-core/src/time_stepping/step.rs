@@ -9,15 +9,17 @@
 //!
 //! 4b. `rheology_stage` [step 2, continued]: τ^{n+1} = τ(p^n) H_ε(Φ^{n+1}) at centres and nodes
 //!    (H_ε(Φ^{n+1} + sε) with the shift s = 0, 1, 2 of `InterfaceYield`),
-//!    τ_b^{n+1} on Coulomb walls, the lagged viscosity of μ(I) and regularised laws, r and r_b
-//!    (`rheology/stage.rs`).
+//!    τ_b^{n+1} on Coulomb walls, (2/W)τ_w^{n+1} on every face with the channel's side walls
+//!    (`RheologyConfig::side_walls`, `walls/side.rs`), the lagged viscosity of μ(I) and
+//!    regularised laws, r and r_b (`rheology/stage.rs`).
 //! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection, the body force
 //!    (ρ − ρ_ref) g (ρ_ref = ρ_f with `ModelConfig::ambient_hydrostatic`, else 0) and the viscous term
 //!    (implicit or explicit; on open sides with backflow stabilisation ∇pⁿ takes the boundary
 //!    pressure p_b − ½ρ(u·n)² where the flow enters, `projection::add_backflow_pressure`); with a
 //!    yield stress or wall friction, the Picard loop of eq. (12)
-//!    couples it with the plastic projection of Σ and the friction projection of s
-//!    (`momentum_solve` in `rheology/stage.rs`).
+//!    couples it with the plastic projection of Σ and the friction projections of s (the
+//!    Coulomb walls' and, with side walls, the side walls') (`momentum_solve` in
+//!    `rheology/stage.rs`).
 //!    `check_predictor`: a non-finite ũ (blow-up) stops the step here, naming the cell.
 //! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp (− η div ũ in the rotational form,
 //!    `ModelConfig::rotational_pressure`), then the pressure gauge (p = 0 under the lid when no

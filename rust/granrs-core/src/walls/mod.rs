@@ -29,6 +29,8 @@
 //!
 //! The loops here run over one row of faces per side (O(nx + ny) work) and are serial.
 
+pub mod side;
+
 use crate::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use crate::operators::unknown_face_range;
 use crate::levelset::heaviside;
