@@ -128,6 +128,8 @@ def main() -> None:
     ap.add_argument("--dry", action="store_true")
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument("--theta", type=float, default=None, help="the Picard relaxation θ of eq. (12) (ColumnCase.theta; default 0.8)")
+    ap.add_argument("--channel-width", dest="channel_width", type=float, default=None,
+                    help="the friction of side walls this far apart (m; ColumnCase.channel_width; not in the paper's model)")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default=None)
     ap.add_argument("--compare-with", default=None, metavar="DIR",
@@ -137,11 +139,12 @@ def main() -> None:
         raise SystemExit("invalid parameter `--members` = %d: allowed an integer >= 2" % args.members)
     tag = (f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
            + (f"-{args.active_region_sides}" if args.active_region and args.active_region_sides != "walls" else "")
-           + (f"-theta{args.theta:g}" if args.theta is not None else ""))
+           + (f"-theta{args.theta:g}" if args.theta is not None else "")
+           + (f"-walls{args.channel_width:g}" if args.channel_width is not None else ""))
     out = Path(args.out or f"out/ensemble-{tag}")
     out.mkdir(parents=True, exist_ok=True)
 
-    extra = {k: v for k, v in (("t_end", args.t_end), ("theta", args.theta)) if v is not None}
+    extra = {k: v for k, v in (("t_end", args.t_end), ("theta", args.theta), ("channel_width", args.channel_width)) if v is not None}
     base = ColumnCase(ny=args.ny, fluidised=not args.dry, model=args.model, active_region=args.active_region,
                       active_region_sides=args.active_region_sides, threads=args.threads, **extra)
     rows, curves = [], []

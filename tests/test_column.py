@@ -160,6 +160,18 @@ def test_bad_side_walls_name_themselves(tmp_path, kwargs, name):
         run_column(ColumnCase(**kwargs), tmp_path, progress=False)
 
 
+@pytest.mark.parametrize("fluidised", [True, False])
+def test_side_wall_runouts_match_the_stored_reference(tmp_path, fluidised):
+    """Regression of the column with side walls 0.1 m apart at ny = 32 against its round-off
+    ensemble (tests/data/column_ensemble.csv, 8 members, session 17): the run-out within mean ±
+    3 std (members 1.792–1.832 m fluidised, std 0.014; 0.774–0.808 m dry, std 0.012), the front at
+    t = 1.0 s, identical in every member, within 1 % (the ensemble script's divergence threshold)."""
+    ref = _ensemble(32, fluidised, 0.1)
+    s = run_column(ColumnCase(ny=32, fluidised=fluidised, channel_width=0.1), tmp_path, progress=False)
+    assert abs(s["runout_m"] - ref["runout_mean_m"]) <= 3 * ref["runout_std_m"], (s["runout_m"], ref)
+    assert abs(_front_at(tmp_path, 1.0) / ref["front_1s_mean_m"] - 1) < 0.01
+
+
 def test_side_walls_shorten_the_column_and_take_their_share_of_gravitys_work(tmp_path):
     """The friction of the channel's side walls (granrs.SideWalls, Rust walls/side.rs; not in the
     paper's 2D model), at the experiment's W = 0.1 m with the base's 15°: measured at ny = 16
@@ -177,10 +189,11 @@ def test_side_walls_shorten_the_column_and_take_their_share_of_gravitys_work(tmp
     assert np.all(np.diff(energy["side_wall_work_J_m"]) >= -1e-9), "the side walls' work never decreases"
 
 
-def _ensemble(ny: int, fluidised: bool) -> dict:
+def _ensemble(ny: int, fluidised: bool, channel_width: float = 0.0) -> dict:
     lines = (Path(__file__).parent / "data" / "column_ensemble.csv").read_text().splitlines()
     rows = csv.DictReader(line for line in lines if not line.startswith("#"))
-    row = next(r for r in rows if int(r["ny"]) == ny and int(r["fluidised"]) == int(fluidised))
+    row = next(r for r in rows if int(r["ny"]) == ny and int(r["fluidised"]) == int(fluidised)
+               and float(r["channel_width_m"]) == channel_width)
     return {k: float(v) for k, v in row.items()}
 
 
