@@ -151,8 +151,8 @@ def test_bad_parameters_name_themselves(tmp_path, field, value):
         run_column(ColumnCase(**{field: value}), tmp_path, progress=False)
 
 
-@pytest.mark.parametrize("kwargs,name", [(dict(channel_width=0.0), "side_walls.width"),
-                                         (dict(channel_width=0.1, side_wall_friction_angle=95.0), "side_walls.friction_angle"),
+@pytest.mark.parametrize("kwargs,name", [(dict(channel_width=0.0), "channel_width"),
+                                         (dict(channel_width=0.1, side_wall_friction_angle=95.0), "side_wall_friction_angle"),
                                          (dict(side_wall_friction_angle=15.0), "side_wall_friction_angle"),
                                          (dict(channel_width=0.1, model="depth-averaged"), "channel_width")])
 def test_bad_side_walls_name_themselves(tmp_path, kwargs, name):

@@ -225,6 +225,16 @@ def test_bad_numerics_are_rejected_by_rust_with_the_name(numerics, name):
         Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 1.0), rheology=Bingham(1.0), numerics=Numerics(**numerics))
 
 
+@pytest.mark.parametrize("make, name", [
+    (lambda: granrs.SideWalls(0.0, 15.0), "side_walls.width"),
+    (lambda: granrs.SideWalls(0.1, 90.0), "side_walls.friction_angle"),
+    (lambda: Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 1.0), side_walls=(0.1, 15.0)), "side_walls"),
+])
+def test_bad_side_walls_name_the_parameter(make, name):
+    with pytest.raises(ParameterError, match=f"`{name}`"):
+        make()
+
+
 def test_fully_developed_sides_come_in_pairs():
     with pytest.raises(ParameterError, match="`bc.left`"):
         Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 1.0), bc=BoundaryConditions(left=FullyDeveloped()))

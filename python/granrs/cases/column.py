@@ -162,8 +162,13 @@ class ColumnCase:
             raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
                                  "'pressure' or 'total'")
         if self.channel_width is not None:
-            SideWalls(self.channel_width, self.wall_friction_angle if self.side_wall_friction_angle is None
-                      else self.side_wall_friction_angle)
+            w, a = self.channel_width, self.side_wall_friction_angle
+            if not isinstance(w, (int, float)) or isinstance(w, bool) or not math.isfinite(w) or not 0 < w <= 1000:
+                raise ParameterError(f"invalid parameter `channel_width` = {w!r}: allowed None or a width in (0, 1000] (m)")
+            if a is not None and (not isinstance(a, (int, float)) or isinstance(a, bool) or not math.isfinite(a)
+                                  or not 0 <= a < 90):
+                raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {a!r}: allowed None (the base's "
+                                     "angle) or an angle in degrees in [0, 90)")
         elif self.side_wall_friction_angle is not None:
             raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
                                  "allowed only with a channel_width")
