@@ -77,11 +77,18 @@ class SideWalls:
     friction_angle: float
 
     def __post_init__(self):
-        w, a = self.width, self.friction_angle
-        if not isinstance(w, (int, float)) or isinstance(w, bool) or not math.isfinite(w) or not 0 < w <= 1000:
-            raise ParameterError(f"invalid parameter `side_walls.width` = {w!r}: allowed a channel width in (0, 1000] (m)")
-        if not isinstance(a, (int, float)) or isinstance(a, bool) or not math.isfinite(a) or not 0 <= a < 90:
-            raise ParameterError(f"invalid parameter `side_walls.friction_angle` = {a!r}: allowed an angle in degrees in [0, 90)")
+        check_side_walls(self.width, self.friction_angle, "side_walls.width", "side_walls.friction_angle")
+
+
+def check_side_walls(width, friction_angle, width_name: str, angle_name: str) -> None:
+    """The ranges of a channel's side walls (Rust `SideWalls` checks the same): a width in
+    (0, 1000] m and an angle in [0, 90) degrees; the errors name the caller's parameters."""
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    if not number(width) or not 0 < width <= 1000:
+        raise ParameterError(f"invalid parameter `{width_name}` = {width!r}: allowed a channel width in (0, 1000] (m)")
+    if not number(friction_angle) or not 0 <= friction_angle < 90:
+        raise ParameterError(f"invalid parameter `{angle_name}` = {friction_angle!r}: allowed an angle in degrees in [0, 90)")
 
 
 # the values of Numerics.active_region_sides (the Rust core parses the same names)

@@ -43,7 +43,7 @@ from .._granrs import ParameterError, SimulationError, SolverError
 from ..boundary import BoundaryConditions, Coulomb, FreeSlip
 from ..grid import Grid
 from ..materials import AIR, Material
-from ..model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, Model, Numerics, PorePressure, SideWalls
+from ..model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, Model, Numerics, PorePressure, SideWalls, check_side_walls
 from ..shapes import Rectangle
 from ..simulation import Callback, Simulation
 
@@ -162,13 +162,8 @@ class ColumnCase:
             raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
                                  "'pressure' or 'total'")
         if self.channel_width is not None:
-            w, a = self.channel_width, self.side_wall_friction_angle
-            if not isinstance(w, (int, float)) or isinstance(w, bool) or not math.isfinite(w) or not 0 < w <= 1000:
-                raise ParameterError(f"invalid parameter `channel_width` = {w!r}: allowed None or a width in (0, 1000] (m)")
-            if a is not None and (not isinstance(a, (int, float)) or isinstance(a, bool) or not math.isfinite(a)
-                                  or not 0 <= a < 90):
-                raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {a!r}: allowed None (the base's "
-                                     "angle) or an angle in degrees in [0, 90)")
+            angle = self.wall_friction_angle if self.side_wall_friction_angle is None else self.side_wall_friction_angle
+            check_side_walls(self.channel_width, angle, "channel_width", "side_wall_friction_angle")
         elif self.side_wall_friction_angle is not None:
             raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
                                  "allowed only with a channel_width")

@@ -31,8 +31,8 @@
 //! force takes τΣ_xy at a node as the average of τ_c Σ_xy,c over its four cells, the adjoint of
 //! that average, so that the discrete plastic power is still Σ_cells τ Σ:D (`sigma_xy` then holds
 //! this nodal equivalent for the energy budget and the views). Measured: the Bingham Poiseuille
-//! profile has the same l2 errors and the same second order, but the stress settles six to ten
-//! times slower (the cell average does not see the zig-zag of D_xy between node rows); the
+//! profile has the same l2 errors and the same second order, but the stress settles 6 to more
+//! than 14 times slower (166 steps against 29 at n = 16; the 400-step cap at 32 and 64) (the cell average does not see the zig-zag of D_xy between node rows); the
 //! column runs 6–7 % further at ny = 32 and 2–5 % at ny = 64 (docs/validation.md, session 17).
 //!
 //! **Choice of r (contraction).** With the discrete force F(Σ) = −2 Dᵀ τ Σ and the predictor
@@ -440,8 +440,14 @@ impl PlasticState {
         }
         self.sigma_xx.assign(&self.new_c);
         cs.sigma.assign(&cs.new);
-        self.centred_shear_to_nodes(exec);
         inc
+    }
+
+    /// End of a converged Picard loop: with Σ_xy at centres, brings the nodal equivalent in
+    /// `sigma_xy` (energy budget, checkpoint, views) up to the final Σ (the force refreshes it at
+    /// the start of each iteration; nothing to do for the staggered layout).
+    pub fn end_step(&mut self, exec: Exec) {
+        self.centred_shear_to_nodes(exec);
     }
 
     /// |Λ| of the argument Λ = Σ + r D_dev + θ(Σ^n − Σ) of the last centre projection (Λ_xy

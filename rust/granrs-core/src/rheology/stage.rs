@@ -373,6 +373,7 @@ impl TwoPhaseModel {
                 }
             }
             if inc <= rc.picard_tol {
+                rs.plastic.end_step(exec);
                 rs.plastic.trial_norm_centre(&mut rs.trial_norm, exec);
                 return Ok((total, PicardInfo { iterations: k, increment: inc, r: rs.r, r_wall: rs.r_wall, r_halvings: halvings, restarts }));
             }

@@ -37,6 +37,9 @@ use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, HALO};
 use crate::levelset::heaviside;
 use crate::operators::for_each_interior_row;
+// the plastic tensor's projection: the pair (Λ_xx, Λ_xy) with |Λ|² = Λ_xx² + Λ_xy² is the same
+// Euclidean unit disc as (s_x, s_y)
+use crate::rheology::plastic::{unit_ball_scale, weighted_max_abs_diff};
 use crate::rheology::InterfaceYield;
 
 /// The side walls of a channel (`RheologyConfig::side_walls`).
@@ -105,7 +108,7 @@ impl SideWallFriction {
 
     /// max (2/W)τ_w|s − s^n| / max (2/W)τ_w: how far s is from the anchor of eq. (12).
     pub fn anchor_distance(&self, exec: Exec) -> f64 {
-        let w = |a: &Field, b: &Field, t: &Field| crate::rheology::plastic::weighted_max_abs_diff(a, b, t, self.tau_max, exec);
+        let w = |a: &Field, b: &Field, t: &Field| weighted_max_abs_diff(a, b, t, self.tau_max, exec);
         w(&self.s_u, &self.s_u_n, &self.tau_u).max(w(&self.s_v, &self.s_v_n, &self.tau_v))
     }
 
@@ -193,7 +196,7 @@ impl SideWallFriction {
                 for i in 0..n {
                     let x = tus[bu + i];
                     let y = 0.25 * (tvs[bv0 + i - 1] + tvs[bv0 + i] + tvs[bv1 + i - 1] + tvs[bv1 + i]);
-                    row[HALO + i] = x * disc_scale(x, y);
+                    row[HALO + i] = x * unit_ball_scale(x, y);
                 }
             });
         }
@@ -206,11 +209,11 @@ impl SideWallFriction {
                 for i in 0..n {
                     let y = tvs[bv + i];
                     let x = 0.25 * (tus[bu0 + i] + tus[bu0 + i + 1] + tus[bu1 + i] + tus[bu1 + i + 1]);
-                    row[HALO + i] = y * disc_scale(x, y);
+                    row[HALO + i] = y * unit_ball_scale(x, y);
                 }
             });
         }
-        let w = |a: &Field, b: &Field, t: &Field| crate::rheology::plastic::weighted_max_abs_diff(a, b, t, self.tau_max, exec);
+        let w = |a: &Field, b: &Field, t: &Field| weighted_max_abs_diff(a, b, t, self.tau_max, exec);
         let inc = w(&self.new_u, &self.s_u, &self.tau_u).max(w(&self.new_v, &self.s_v, &self.tau_v));
         self.s_u.assign(&self.new_u);
         self.s_v.assign(&self.new_v);
@@ -232,16 +235,5 @@ impl SideWallFriction {
             }
         }
         sum * grid.dx * grid.dy
-    }
-}
-
-/// The scale of the projection on the unit disc of R²: 1/max(1, |(x, y)|).
-#[inline]
-fn disc_scale(x: f64, y: f64) -> f64 {
-    let n2 = x * x + y * y;
-    if n2 > 1.0 {
-        1.0 / n2.sqrt()
-    } else {
-        1.0
     }
 }
