@@ -5,12 +5,50 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
 from . import __version__, build_info
 from ._granrs import ParameterError, SimulationError, SolverError
 from .model import ACTIVE_REGION_SIDES
+
+
+def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False):
+    """An argparse type: an int or a finite float in [lo, hi] ((lo, hi] with ``lo_open``); the
+    error names the flag and its range."""
+    what = "an integer" if kind == "int" else "a number"
+    rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+
+    def parse(text: str):
+        try:
+            v = int(text) if kind == "int" else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}") from None
+        if kind == "float" and not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
+            raise argparse.ArgumentTypeError(f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}")
+        return v
+    return parse
+
+
+def _key_type(flag: str, dotted: str):
+    """The argparse type of a flag that sets a run-file key: that key's range (``granrs keys``)."""
+    from .config import key
+
+    k = key(dotted)
+    return _number(flag, k.kind, k.lo, k.hi, k.lo_open)
+
+
+def _out_plan(out, overwrite: bool, append: bool = False):
+    from .io.outputs import plan_output_dir
+
+    return plan_output_dir(out, overwrite=overwrite, append=append, name="--out")
+
+
+def _interrupted(out) -> int:
+    where = f"; the outputs written so far are in {out} (summary.json says where it stopped)" if out else ""
+    print(f"\ngranrs: interrupted (Ctrl-C){where}", file=sys.stderr)
+    return 130
 
 
 def _validate(args) -> int:
@@ -36,7 +74,9 @@ def _validate(args) -> int:
 
 
 _COLUMN_OPTIONS = ("aspect_ratio", "width", "fluidised", "pore_pressure_ratio", "ny", "t_end", "rheology", "cfl",
-                   "length", "compare_with", "threads", "re", "n", "model")
+                   "length", "compare_with", "threads", "re", "n", "model", "active_region", "active_region_sides",
+                   "channel_width")
+_CAVITY_OPTIONS = ("re", "n")
 
 
 def _run_file(args, parser) -> int:
@@ -47,14 +87,19 @@ def _run_file(args, parser) -> int:
     given = [f"--{k.replace('_', '-')}" for k in _COLUMN_OPTIONS if getattr(args, k) != parser.get_default(k)]
     if given:
         raise ParameterError(f"invalid parameter `{given[0]}` with a run file: allowed --set section.key=value "
-                             "(e.g. --set grid.ny=64), --out, --restart, --quiet")
+                             "(e.g. --set grid.ny=64), --out, --restart, --allow-changes, --overwrite, --quiet")
+    if args.allow_changes and not args.restart:
+        raise ParameterError("invalid parameter `--allow-changes`: allowed only with --restart CHECKPOINT")
+    if args.out is not None and not args.out.strip():
+        _out_plan(args.out, args.overwrite)  # names the empty --out
     sets = list(args.set or [])
     cfg = load_config(args.case, sets + ([f"output.dir={json.dumps(args.out)}"] if args.out else []))
     try:
-        summary = run_config(cfg, command=command_line(), progress=not args.quiet, restart=args.restart)
+        summary = run_config(cfg, command=command_line(), progress=not args.quiet, restart=args.restart,
+                             overwrite=args.overwrite, allow_changes=args.allow_changes,
+                             out_name="--out" if args.out else "output.dir")
     except KeyboardInterrupt:
-        print(f"granrs: interrupted; the outputs written so far are in {cfg['output']['dir']}", file=sys.stderr)
-        return 130
+        return _interrupted(cfg["output"]["dir"])
     keys = ("runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error", "fluidised", "stop_reason")
     print(json.dumps({k: summary[k] for k in keys} | {"out": cfg["output"]["dir"]}, indent=2))
     return 0
@@ -65,7 +110,8 @@ def _sweep(args) -> int:
     from .sweep import run_sweep
 
     cfg = load_config(args.file, args.set or [])
-    result = run_sweep(cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out)
+    result = run_sweep(cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out,
+                       overwrite=args.overwrite)
     keys = [k for k in result.table[0] if k not in ("dir", "error", "member", "stop_reason", "wall_s", "mass_rel_error")]
     print(",".join(keys))
     for row in result.table:
@@ -80,30 +126,85 @@ def _sweep(args) -> int:
 def _run(args, parser) -> int:
     if args.case.endswith(".toml") or Path(args.case).is_file():
         return _run_file(args, parser)
-    if args.set or args.restart:
-        raise ParameterError("invalid parameter `--set/--restart`: allowed only with a run file (granrs run FILE.toml)")
+    if args.case not in ("column", "cavity") and (Path(args.case).exists() or "/" in args.case):
+        raise ParameterError(f"invalid parameter `case` = {args.case!r}: not a readable run file; allowed 'column', "
+                             "'cavity' or a run file FILE.toml")
+    for flag in ("set", "restart", "allow_changes"):
+        if getattr(args, flag):
+            raise ParameterError(f"invalid parameter `--{flag.replace('_', '-')}`: allowed only with a run file "
+                                 "(granrs run FILE.toml)")
+    if args.case not in ("column", "cavity"):
+        raise ParameterError(f"invalid parameter `case` = {args.case!r}: allowed 'column', 'cavity' or a run file "
+                             "FILE.toml (an existing file)")
     if args.out is None:
         raise ParameterError(f"invalid parameter `--out`: required for `granrs run {args.case}`")
+    other = _CAVITY_OPTIONS if args.case == "column" else tuple(k for k in _COLUMN_OPTIONS if k not in _CAVITY_OPTIONS
+                                                                 and k != "threads")
+    given = [f"--{k.replace('_', '-')}" for k in other if getattr(args, k) != parser.get_default(k)]
+    if given:
+        allowed = "--re, --n" if args.case == "cavity" else "the column's flags (granrs run --help)"
+        raise ParameterError(f"invalid parameter `{given[0]}` with `granrs run {args.case}`: not used by this case; "
+                             f"allowed {allowed}, --threads, --out, --overwrite, --quiet")
     if args.case == "column":
         from .cases.column import ColumnCase, run_column
 
-        case = ColumnCase(aspect_ratio=args.aspect_ratio, width=args.width, fluidised=args.fluidised,
-                          pore_pressure_ratio=args.pore_pressure_ratio, ny=args.ny if args.ny is not None else 32,
-                          t_end=args.t_end, rheology=args.rheology, cfl=args.cfl, threads=args.threads,
-                          length=args.length, model=args.model, active_region=args.active_region,
-                          active_region_sides=args.active_region_sides, channel_width=args.channel_width)
-        summary = run_column(case, Path(args.out), progress=not args.quiet,
-                             compare_with=Path(args.compare_with) if args.compare_with else None)
+        if args.active_region_sides is not None and args.active_region is None:
+            raise ParameterError(f"invalid parameter `--active-region-sides` = {args.active_region_sides!r}: allowed only "
+                                 "with --active-region BAND")
+        if args.model == "depth-averaged":
+            for flag, v in (("--active-region", args.active_region), ("--channel-width", args.channel_width),
+                            ("--rheology", args.rheology), ("--cfl", args.cfl), ("--threads", args.threads)):
+                if v is not None and v != parser.get_default(flag[2:].replace("-", "_")):
+                    raise ParameterError(f"invalid parameter `{flag}` = {v!r} with --model depth-averaged: not used by "
+                                         "the depth-averaged model; allowed only with --model two-phase, granular or auto")
+        compare = None
+        if args.compare_with is not None:
+            compare = Path(args.compare_with)
+            missing = [n for n in ("summary.json", "front.csv") if not (compare / n).is_file()]
+            if missing:
+                raise ParameterError(f"invalid parameter `--compare-with` = {args.compare_with!r}: "
+                                     f"{'no such folder' if not compare.is_dir() else 'no ' + ' or '.join(missing) + ' there'}"
+                                     "; allowed the output folder of a finished column run")
+        d = ColumnCase()
+        case = ColumnCase(aspect_ratio=_given(args.aspect_ratio, d.aspect_ratio), width=_given(args.width, d.width),
+                          fluidised=args.fluidised,
+                          pore_pressure_ratio=_given(args.pore_pressure_ratio, d.pore_pressure_ratio),
+                          ny=_given(args.ny, 32), t_end=_given(args.t_end, d.t_end),
+                          rheology=_given(args.rheology, d.rheology), cfl=_given(args.cfl, d.cfl),
+                          threads=_given(args.threads, 1), length=args.length, model=args.model,
+                          active_region=args.active_region,
+                          active_region_sides=_given(args.active_region_sides, d.active_region_sides),
+                          channel_width=args.channel_width)
+        case.validate()
+        if case.model in ("two-phase", "granular", "auto"):
+            lx = case.domain()[0]
+            if lx <= case.width:
+                raise ParameterError(f"invalid parameter `--length` = {lx!r}: allowed a length (m) greater than --width "
+                                     f"= {case.width!r} m (the gate)")
+        from .io.outputs import commit_output_dir
+
+        commit_output_dir(_out_plan(args.out, args.overwrite))
+        try:
+            summary = run_column(case, Path(args.out), progress=not args.quiet, compare_with=compare)
+        except KeyboardInterrupt:
+            return _interrupted(args.out)
         keys = ("model", "model_reason", "runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error",
                 "fluidised", "stop_reason")
         print(json.dumps({k: summary[k] for k in keys}, indent=2))
         return 0
-    if args.case == "cavity":
-        from .cases.cavity import run_cavity_case
+    from .cases.cavity import run_cavity_case
+    from .io.outputs import commit_output_dir
 
-        run_cavity_case(re=args.re, n=args.n, out=Path(args.out), threads=args.threads)
-        return 0
-    raise ParameterError(f"invalid parameter `case` = {args.case!r}: allowed 'column', 'cavity' or a run file FILE.toml")
+    commit_output_dir(_out_plan(args.out, args.overwrite))
+    try:
+        run_cavity_case(re=_given(args.re, 100.0), n=_given(args.n, 64), out=Path(args.out), threads=_given(args.threads, 1))
+    except KeyboardInterrupt:
+        return _interrupted(args.out)
+    return 0
+
+
+def _given(value, default):
+    return default if value is None else value
 
 
 def main(argv=None) -> int:
@@ -112,64 +213,80 @@ def main(argv=None) -> int:
 
     v = sub.add_parser("validate", help="run a named validation case and write its JSON record")
     v.add_argument("name", help="case name, or 'list'")
-    v.add_argument("--n", type=int, action="append", help="grid size (repeat for a convergence study)")
-    v.add_argument("--re", type=float, help="Reynolds number (cavity)")
-    v.add_argument("--steps", type=int, help="number of steps (hydrostatic)")
-    v.add_argument("--period", type=float, help="period T (single-vortex)")
-    v.add_argument("--redistance-every", dest="redistance_every", type=int, help="redistancing frequency (level-set cases)")
-    v.add_argument("--cfl", type=float, help="CFL number (level-set cases)")
-    v.add_argument("--ny", type=int, help="cells across the height (column-type cases)")
-    v.add_argument("--t-end", dest="t_end", type=float, help="end time (s)")
-    v.add_argument("--tau-y", dest="tau_y", type=float, help="yield stress (poiseuille-bingham, cessation)")
-    v.add_argument("--bn", type=float, action="append", help="Bingham number (cavity-bingham; repeat for several)")
+    v.add_argument("--n", type=_number("--n", "int", 2, 65536), action="append", help="grid size (repeat for a convergence study)")
+    v.add_argument("--re", type=_number("--re", "float", 0.0, 1e6, lo_open=True), help="Reynolds number (cavity)")
+    v.add_argument("--steps", type=_number("--steps", "int", 1, 10**7), help="number of steps (hydrostatic)")
+    v.add_argument("--period", type=_number("--period", "float", 0.0, 1e4, lo_open=True), help="period T (single-vortex)")
+    v.add_argument("--redistance-every", dest="redistance_every", type=_number("--redistance-every", "int", 0, 10**6),
+                   help="redistancing frequency (level-set cases)")
+    v.add_argument("--cfl", type=_number("--cfl", "float", 0.0, 10.0, lo_open=True), help="CFL number (level-set cases)")
+    v.add_argument("--ny", type=_number("--ny", "int", 8, 4096), help="cells across the height (column-type cases)")
+    v.add_argument("--t-end", dest="t_end", type=_number("--t-end", "float", 0.0, 1e4, lo_open=True), help="end time (s)")
+    v.add_argument("--tau-y", dest="tau_y", type=_number("--tau-y", "float", 0.0, 1e9),
+                   help="yield stress (poiseuille-bingham, cessation)")
+    v.add_argument("--bn", type=_number("--bn", "float", 0.0, 1e6), action="append",
+                   help="Bingham number (cavity-bingham; repeat for several)")
     v.add_argument("--geometry", choices=["couette", "poiseuille"], help="cessation geometry")
     v.add_argument("--regularised", action="store_true", default=None, help="also run the regularised law (heap-at-rest)")
-    v.add_argument("--slope", type=float, help="slope in degrees (sliding-block, heap-at-rest)")
-    v.add_argument("--dt", type=float, action="append", help="time step (cessation; repeat for a convergence study)")
-    v.add_argument("--theta", type=float, action="append", help="pseudo-relaxation (picard-ratio; repeat)")
+    v.add_argument("--slope", type=_number("--slope", "float", 0.0, 89.0), help="slope in degrees (sliding-block, heap-at-rest)")
+    v.add_argument("--dt", type=_number("--dt", "float", 0.0, 1e3, lo_open=True), action="append",
+                   help="time step (cessation; repeat for a convergence study)")
+    v.add_argument("--theta", type=_number("--theta", "float", 0.0, 1.0), action="append",
+                   help="pseudo-relaxation (picard-ratio; repeat)")
     v.add_argument("--air", choices=["resolved", "free-surface"],
                    help="dam-break: the two-phase model (resolved, default) or the granular-only model's free surface")
-    v.add_argument("--threads", type=int, default=1)
+    v.add_argument("--threads", type=_key_type("--threads", "numerics.threads"), default=1)
     v.add_argument("--json", help="write the JSON record to this file")
 
     r = sub.add_parser("run", help="run a case or a run file (FILE.toml) and write its outputs and plots")
     r.add_argument("case", help="'column', 'cavity', or a run file FILE.toml (see `granrs keys`)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="run file: override a key, e.g. --set numerics.cfl=0.3 (TOML value; repeat)")
-    r.add_argument("--restart", metavar="CHECKPOINT", help="run file: start from a checkpoint.npz")
-    r.add_argument("--re", type=float, default=100.0, help="Reynolds number (cavity)")
-    r.add_argument("--n", type=int, default=64, help="cells per side (cavity)")
-    r.add_argument("--aspect-ratio", dest="aspect_ratio", type=float, default=2.0, help="H_c / L_c (column)")
-    r.add_argument("--width", type=float, default=0.20, help="column width L_c in m")
+    r.add_argument("--restart", metavar="CHECKPOINT",
+                   help="run file: start from a checkpoint.npz (into its own folder: the run is continued, appended to)")
+    r.add_argument("--allow-changes", dest="allow_changes", action="store_true",
+                   help="with --restart: allow a configuration that differs from the checkpoint's")
+    r.add_argument("--overwrite", action="store_true", help="replace the outputs of a run already in --out")
+    r.add_argument("--re", type=_number("--re", "float", 0.0, 1e5, lo_open=True), help="Reynolds number (cavity; 100)")
+    r.add_argument("--n", type=_number("--n", "int", 8, 1024), help="cells per side (cavity; 64)")
+    r.add_argument("--aspect-ratio", dest="aspect_ratio", type=_key_type("--aspect-ratio", "case.aspect_ratio"),
+                   help="H_c / L_c (column; 2)")
+    r.add_argument("--width", type=_key_type("--width", "case.width"), help="column width L_c in m (0.2)")
     fl = r.add_mutually_exclusive_group()
     fl.add_argument("--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)")
     fl.add_argument("--no-fluidised", dest="fluidised", action="store_false", help="no pore pressure")
-    r.add_argument("--pore-pressure-ratio", dest="pore_pressure_ratio", type=float, default=0.9, help="β (0.9 in the paper)")
-    r.add_argument("--ny", type=int, help="cells over the domain height (column; 256 is the paper's grid)")
-    r.add_argument("--t-end", dest="t_end", type=float, default=3.0, help="end time in s (column)")
-    r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], default="drucker-prager")
-    r.add_argument("--model", default="two-phase", metavar="auto|two-phase|granular|depth-averaged",
+    r.add_argument("--pore-pressure-ratio", dest="pore_pressure_ratio",
+                   type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"), help="β (0.9 in the paper)")
+    r.add_argument("--ny", type=_key_type("--ny", "grid.ny"),
+                   help="cells over the domain height (column; 32; 256 is the paper's grid)")
+    r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "numerics.t_end"), help="end time in s (column; 3)")
+    r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], help="column: drucker-prager (default) or mu-i")
+    r.add_argument("--model", default="two-phase", choices=["auto", "two-phase", "granular", "depth-averaged"],
+                   metavar="auto|two-phase|granular|depth-averaged",
                    help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
                         "surface at p = 0), the depth-averaged one, or auto: the depth-averaged model only where it was "
                         "measured within 5%% of the two-phase run-out (docs/models.md)")
-    r.add_argument("--cfl", type=float, default=0.5)
-    r.add_argument("--active-region", dest="active_region", type=int, metavar="BAND",
+    r.add_argument("--cfl", type=_key_type("--cfl", "numerics.cfl"), help="CFL number (column; 0.5)")
+    r.add_argument("--active-region", dest="active_region", type=_number("--active-region", "int", 2, 100000),
+                   metavar="BAND",
                    help="column: run each step on a window around the granular phase with BAND cells of air "
                         "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
                         "is within 0.1 %% of the whole-domain run-out, BAND = 8 2.4 %% long); default: the whole domain")
-    r.add_argument("--active-region-sides", dest="active_region_sides", choices=ACTIVE_REGION_SIDES, default="walls",
+    r.add_argument("--active-region-sides", dest="active_region_sides", choices=ACTIVE_REGION_SIDES,
                    help="column, with --active-region: the window's right and top sides are walls (default), or its "
                         "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or "
                         "its right and top sides are open with backflow stabilisation (open-right-top; with the two-phase "
                         "model and --active-region 4: 4.3x faster at ny = 64, docs/models.md)")
-    r.add_argument("--channel-width", dest="channel_width", type=float, metavar="W",
+    r.add_argument("--channel-width", dest="channel_width", type=_number("--channel-width", "float", 0.0, 1000.0, lo_open=True),
+                   metavar="W",
                    help="column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
                         "not in the paper's 2D model; friction angle that of the base; docs/validation.md)")
-    r.add_argument("--length", type=float, help="domain length in m (default L_c + 8.25 H_c, rounded up to the grid)")
+    r.add_argument("--length", type=_key_type("--length", "grid.length"),
+                   help="domain length in m, beyond --width (default L_c + 8.25 H_c, rounded up to the grid)")
     r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--threads", type=int, default=1)
-    r.add_argument("--out", help="output folder (a run file's output.dir by default)")
+    r.add_argument("--threads", type=_key_type("--threads", "numerics.threads"), help="Rust threads (1)")
+    r.add_argument("--out", help="output folder, new or empty unless --overwrite (a run file's output.dir by default)")
 
     s = sub.add_parser("sweep", help="run the cartesian product of swept keys of a run file on dask")
     s.add_argument("file", help="the base run file FILE.toml")
@@ -177,9 +294,11 @@ def main(argv=None) -> int:
                    help="swept key: KEY=a:b:n (n values from a to b) or KEY=v1,v2,... (repeat for a product)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a key of the base file (repeat)")
     s.add_argument("--scheduler", help="address of a running dask scheduler (default: a LocalCluster)")
-    s.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes, one thread each (2)")
+    s.add_argument("--workers", type=_number("--workers", "int", 1, 256), default=2,
+                   help="LocalCluster worker processes, one thread each (2)")
     s.add_argument("--out", help="sweep folder: member-NNN/, sweep.csv, sweep.nc, sweep_runout.png "
-                                 "(default: the file's output.dir)")
+                                 "(default: the file's output.dir; new or empty unless --overwrite)")
+    s.add_argument("--overwrite", action="store_true", help="replace a sweep already in --out")
 
     sub.add_parser("keys", help="the keys of a run file: type, range, unit, default")
     a = sub.add_parser("animate", help="(re)make animation.gif from the fields saved in an output folder")
@@ -208,9 +327,14 @@ def main(argv=None) -> int:
             return 0
         print(json.dumps(build_info() | {"python_package": __version__}))
         return 0
-    except (ParameterError, SimulationError, SolverError, NotImplementedError) as err:
+    except (ParameterError, NotImplementedError) as err:
         print(f"granrs: {type(err).__name__}: {err}", file=sys.stderr)
         return 2
+    except (SimulationError, SolverError) as err:
+        print(f"\ngranrs: {type(err).__name__}: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return _interrupted(None)
 
 
 if __name__ == "__main__":

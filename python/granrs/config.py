@@ -25,6 +25,7 @@ from typing import Iterable, Optional, Union
 from ._granrs import ParameterError
 from .cases.column import ColumnCase
 from .model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS
+from .rheology import FRICTION_ANGLE_RANGE
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,7 @@ class Key:
     hi: Optional[float] = None
     hi_open: bool = False
     choices: tuple = ()
+    lo_open: bool = False
 
     @property
     def full(self) -> str:
@@ -52,7 +54,7 @@ class Key:
         """The allowed values, in words (used in error messages and in ``granrs keys``)."""
         if self.kind in ("float", "int"):
             what = "a number" if self.kind == "float" else "an integer"
-            rng = f"[{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
+            rng = f"{'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
             return f"{what} in {rng} ({self.unit_words})"
         if self.kind == "bool":
             return "true or false"
@@ -90,7 +92,8 @@ KEYS: tuple[Key, ...] = (
     Key("materials", "solid_fraction", "float", _D["solid_fraction"], "1", "φ, solid volume fraction of the column", 0.01, 0.74),
     Key("materials", "grain_density", "float", _D["grain_density"], "kg m-3", "ρ_s, density of the grains", 1.0, 25000.0),
     Key("materials", "grain_diameter", "float", _D["grain_diameter"], "m", "d_s, grain diameter (used by mu-i)", 1e-7, 0.1),
-    Key("materials", "friction_angle", "float", _D["friction_angle"], "degree", "α, internal friction angle", 0.0, 89.0),
+    Key("materials", "friction_angle", "float", _D["friction_angle"], "degree", "α, internal friction angle",
+        *FRICTION_ANGLE_RANGE, lo_open=True),
     Key("materials", "wall_friction_angle", "float", _D["wall_friction_angle"], "degree", "α_b, friction angle of the base and back wall", 0.0, 89.0),
     Key("materials", "granular_viscosity", "float", _D["granular_viscosity"], "Pa s", "η_s, viscosity of the granular phase", 1e-8, 1e6),
     Key("materials", "diffusivity", "float", _D["diffusivity"], "m2 s-1", "κ_f, pore pressure diffusivity", 1e-12, 1e6),
@@ -154,7 +157,8 @@ def _check_value(key: Key, value):
             raise _bad(key, value)
         number = float(value) if key.kind == "float" else value
         too_high = number >= key.hi if key.hi_open else number > key.hi
-        if not math.isfinite(number) or number < key.lo or too_high:
+        too_low = number <= key.lo if key.lo_open else number < key.lo
+        if not math.isfinite(number) or too_low or too_high:
             raise _bad(key, value)
         return number
     if key.kind == "bool":
@@ -260,6 +264,9 @@ def read_raw(path: Union[str, Path]) -> dict:
         text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise ParameterError(f"invalid run file `{path}`: cannot be read ({err.strerror or err})") from None
+    except UnicodeDecodeError as err:
+        raise ParameterError(f"invalid run file `{path}`: not UTF-8 text (byte {err.object[err.start]:#04x} at offset "
+                             f"{err.start}); allowed a TOML file in UTF-8") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:

@@ -22,12 +22,13 @@ class Grid:
     def __post_init__(self) -> None:
         for name in ("nx", "ny"):
             v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or not 2 <= v <= 65536:
+            if not isinstance(v, (int, np.integer)) or isinstance(v, (bool, np.bool_)) or not 2 <= v <= 65536:
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed an integer in [2, 65536]")
         for name in ("lx", "ly"):
             v = getattr(self, name)
-            if not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v) or v <= 0:
-                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a finite number > 0")
+            if (isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.floating, np.integer))
+                    or not math.isfinite(v) or v <= 0):
+                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a finite number > 0 (m)")
 
     @property
     def dx(self) -> float:

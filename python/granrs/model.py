@@ -91,6 +91,66 @@ def check_side_walls(width, friction_angle, width_name: str, angle_name: str) ->
         raise ParameterError(f"invalid parameter `{angle_name}` = {friction_angle!r}: allowed an angle in degrees in [0, 90)")
 
 
+# ---- memory ------------------------------------------------------------------------------------
+# Arrays of one float64 per cell (centre, face or node: all ~nx·ny) the core allocates, counted in
+# rust/granrs-core/src: the two-phase state u, v, their previous values and convection terms, p,
+# Φ (8) and the step's work arrays (13, models/two_phase.rs); the pressure projection (5,
+# projection/mod.rs) and its shifted system (5, solvers/mod.rs), CG (5, solvers/cg.rs) and
+# multigrid hierarchy (5 per level, 4/3 of the fine level, plus 2 × 1/3 of coarse vectors:
+# solvers/level.rs, multigrid.rs); the momentum solver (10, time_stepping/momentum.rs); the level
+# set's transport (2) and redistancing (11, levelset/); a yield stress or Coulomb wall adds the
+# plastic stage (15, rheology/stage.rs) and tensor (17, rheology/plastic.rs); the pore pressure
+# its fields (4) and a shifted system like the projection's (17.4); the granular-only model a
+# second projection (18.4); side walls 6; step retries a copy of the state (8 + 1 + 3 + 2); the
+# Simulation's copy of the last good state as many again.
+_ARRAYS = {"base": 21.0, "projection": 22.4, "momentum": 10.0, "levelset": 13.0, "plastic": 32.0, "pore": 21.4,
+           "free_surface": 18.4, "side_walls": 6.0, "state": 14.0}
+#: the estimate is the counted arrays times this margin (allocator and Python overheads, the
+#: Anderson and Picard histories, the thread pool's buffers): ``memory_check`` refuses above it
+MEMORY_MARGIN = 1.25
+
+
+def estimate_memory(grid: Grid, *, plastic: bool = True, pore_pressure: bool = False, air: str = "resolved",
+                    side_walls: bool = False, step_retries: int = 3, pressure_solver: str = "multigrid-cg") -> int:
+    """Bytes the core allocates for a model on ``grid`` with these options (see ``_ARRAYS``),
+    times ``MEMORY_MARGIN``; the direct pressure solver adds its Cholesky factor (8 bytes ×
+    cells × min(nx, ny), the band of a grid's natural ordering)."""
+    count = _ARRAYS["base"] + _ARRAYS["projection"] + _ARRAYS["momentum"] + _ARRAYS["levelset"] + _ARRAYS["state"]
+    count += _ARRAYS["plastic"] if plastic else 0.0
+    count += _ARRAYS["pore"] if pore_pressure else 0.0
+    count += _ARRAYS["free_surface"] if air == "free-surface" else 0.0
+    count += _ARRAYS["side_walls"] if side_walls else 0.0
+    count += _ARRAYS["state"] if step_retries else 0.0
+    cells = (grid.nx + 1) * (grid.ny + 1)
+    total = 8.0 * count * cells
+    if pressure_solver == "direct":
+        total += 8.0 * cells * min(grid.nx, grid.ny) * (2 if pore_pressure else 1)
+    return int(MEMORY_MARGIN * total)
+
+
+def available_memory() -> Optional[int]:
+    """MemAvailable of /proc/meminfo in bytes (None where it cannot be read)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def memory_check(grid: Grid, estimate: int, what: str = "the model") -> None:
+    """ParameterError naming the grid, the estimate and the memory available when ``estimate``
+    exceeds it (nothing is checked where /proc/meminfo is missing)."""
+    avail = available_memory()
+    if avail is not None and estimate > avail:
+        raise ParameterError(f"invalid parameter `grid` = {grid.nx} x {grid.ny} cells: {what} needs about "
+                             f"{estimate / 2**30:.3g} GiB, more than the {avail / 2**30:.3g} GiB of memory available "
+                             f"(MemAvailable); allowed a grid of at most about "
+                             f"{int(grid.cells * avail / estimate):d} cells on this machine")
+
+
 # the values of Numerics.active_region_sides (the Rust core parses the same names)
 ACTIVE_REGION_SIDES = ("walls", "open-right", "open-right-top")
 # where the plastic tensor lives (Numerics.sigma_location; Rust SigmaLocation)
@@ -275,7 +335,16 @@ class Model:
         self.dense = dense
         self.light = light
         self.bc = bc if bc is not None else BoundaryConditions()
+        if bc is not None and not isinstance(bc, BoundaryConditions):
+            raise ParameterError(f"invalid parameter `bc` = {bc!r}: allowed a granrs.BoundaryConditions or None")
+        if (isinstance(gravity, (str, bytes)) or not hasattr(gravity, "__len__") or len(gravity) != 2
+                or not all(isinstance(g, (int, float, np.integer, np.floating)) and not isinstance(g, bool)
+                           and math.isfinite(g) for g in gravity)):
+            raise ParameterError(f"invalid parameter `gravity` = {gravity!r}: allowed a pair of finite numbers (g_x, g_y) "
+                                 "in m/s², e.g. (0.0, -9.81)")
         self.gravity = tuple(float(g) for g in gravity)
+        if numerics is not None and not isinstance(numerics, Numerics):
+            raise ParameterError(f"invalid parameter `numerics` = {numerics!r}: allowed a granrs.Numerics or None")
         self.numerics = numerics if numerics is not None else Numerics()
         if pore_pressure is not None and not isinstance(pore_pressure, PorePressure):
             raise ParameterError(f"invalid parameter `pore_pressure` = {pore_pressure!r}: allowed a granrs.PorePressure or None")
@@ -284,6 +353,12 @@ class Model:
         for name, lo, hi, val in (("active_region", 2, 100000, n.active_region), ("active_region_align", 1, 4096, n.active_region_align)):
             if val is not None and (not isinstance(val, int) or isinstance(val, bool) or not lo <= val <= hi):
                 raise ParameterError(f"invalid parameter `{name}` = {val!r}: allowed None or an integer in [{lo}, {hi}] (cells)")
+        self.memory_estimate = estimate_memory(
+            grid, plastic=isinstance(rheology, (Bingham, DruckerPrager, MuI)) or any(
+                isinstance(getattr(self.bc, s), Coulomb) for s in ("left", "right", "bottom", "top")),
+            pore_pressure=pore_pressure is not None, air=air, side_walls=side_walls is not None,
+            step_retries=n.step_retries if n.dt is None else 0, pressure_solver=n.pressure_solver)
+        memory_check(grid, self.memory_estimate)
         self._rust = _granrs.RustModel(
             grid.nx, grid.ny, float(grid.lx), float(grid.ly), self.bc.spec(),
             (dense.density, dense.viscosity),
@@ -399,16 +474,40 @@ class Model:
         body force is balanced (one pressure solve)."""
         points = {"u": self.grid.xfaces, "v": self.grid.yfaces, "p": self.grid.centres, "phi": self.grid.centres,
                   "pf": self.grid.centres}
+        arrays = {}
         for name, value in (("phi", phi), ("pf", pf), ("u", u), ("v", v), ("p", p)):
             if value is None:
                 continue
+            if name == "pf" and self.pore_pressure is None:
+                raise ParameterError("invalid parameter `pf`: allowed only for a model with pore_pressure")
             x, y = points[name]()
+            what = "the value"
             if callable(value):
-                arr = np.asarray(value(x, y), dtype=float)
-            else:
-                arr = np.asarray(value, dtype=float)
-                if arr.ndim == 0:
-                    arr = np.full(x.shape, float(arr))
+                try:
+                    value = value(x, y)
+                except Exception as err:  # noqa: BLE001 - the user's function
+                    raise ParameterError(f"invalid parameter `{name}`: the function f(x, y) raised {type(err).__name__}: "
+                                         f"{err}; allowed a function of NumPy arrays x, y of shape {x.shape}") from None
+                what = "the function's result"
+                if value is None or np.ndim(value) == 0:
+                    raise ParameterError(f"invalid parameter `{name}`: {what} is {value!r}; allowed an array of shape "
+                                         f"{x.shape} (write f(x, y) with NumPy, e.g. np.where(...) or 0 * x + c)")
+            raw = np.asarray(value)
+            if raw.dtype.kind not in "biuf":
+                raise ParameterError(f"invalid parameter `{name}`: {what} has dtype {raw.dtype}; allowed real numbers "
+                                     f"(float64), shape {x.shape}")
+            arr = raw.astype(float)
+            if arr.ndim == 0:
+                arr = np.full(x.shape, float(arr))
+            if arr.shape != x.shape:
+                raise ParameterError(f"invalid parameter `{name}`: {what} has shape {arr.shape}; allowed shape {x.shape} "
+                                     f"(ny, nx) = ({self.grid.ny}, {self.grid.nx}) for {name}")
+            if not np.all(np.isfinite(arr)):
+                bad = np.argwhere(~np.isfinite(arr))[0]
+                raise ParameterError(f"invalid parameter `{name}`: {what} is not finite at (j, i) = ({bad[0]}, {bad[1]}); "
+                                     "allowed finite numbers")
+            arrays[name] = arr
+        for name, arr in arrays.items():
             self._rust.set_field(name, np.ascontiguousarray(arr))
         if p is None and balance_pressure:
             self._rust.initialise_pressure()
@@ -459,6 +558,15 @@ class Model:
         """Steps until ``t_end`` (landing on it exactly) or ``max_steps``; returns per-step
         diagnostics as lists (time, dt, max_speed, cfl, divergence, pressure_iterations,
         viscous_iterations, picard_iterations, picard_increment)."""
+        if t_end is None and max_steps is None:
+            raise ParameterError("invalid parameter `t_end/max_steps`: allowed at least one of them")
+        if t_end is not None and (isinstance(t_end, bool) or not isinstance(t_end, (int, float, np.floating))
+                                  or not math.isfinite(t_end) or t_end < self.time):
+            raise ParameterError(f"invalid parameter `t_end` = {t_end!r}: allowed a finite time >= the model time "
+                                 f"{self.time!r} s")
+        if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
+                                      or max_steps < 0):
+            raise ParameterError(f"invalid parameter `max_steps` = {max_steps!r}: allowed an integer >= 0")
         return self._rust.advance(t_end, max_steps)
 
     @property

@@ -35,6 +35,19 @@ def _number(name: str, v, lo: float = 0.0, strict: bool = False, hi: float = mat
     return float(v)
 
 
+#: The internal friction angle α of the granular phase, in degrees: (lo, hi], lo excluded (α = 0
+#: has no yield stress). DruckerPrager, the column case, run files and ``granrs keys`` use it.
+FRICTION_ANGLE_RANGE = (0.0, 89.0)
+
+
+def check_friction_angle(v, name: str = "friction_angle") -> float:
+    """``v`` as a float if it is an angle in FRICTION_ANGLE_RANGE; else ParameterError naming ``name``."""
+    lo, hi = FRICTION_ANGLE_RANGE
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo < v <= hi:
+        raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed an angle in degrees in ({lo:g}, {hi:g}]")
+    return float(v)
+
+
 @dataclass(frozen=True)
 class Newtonian:
     """No yield stress: T = 2η D(u)."""
@@ -63,7 +76,7 @@ class DruckerPrager:
     friction_angle: float
 
     def __post_init__(self):
-        _number("friction_angle", self.friction_angle, 0.0, strict=True, hi=90.0)
+        check_friction_angle(self.friction_angle)
 
     def spec(self):
         return ("drucker-prager", {"friction_angle": float(self.friction_angle)})

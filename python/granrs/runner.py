@@ -3,12 +3,17 @@
     cfg = granrs.config.load_config("examples/paper_fluidised.toml", sets=["numerics.t_end=0.1"])
     summary = run_config(cfg)          # what ``granrs run FILE.toml`` does
 
-Everything that can be checked is checked before the first step (optional dependencies,
-checkpoint support, the restart file). Outputs go to ``output.dir``: config.resolved.toml,
-the case's summary.json / front.csv / profiles.csv / history.npz / plots, fields.pvd +
-fields/*.vti and/or fields.nc, animation.gif, checkpoint.npz. A run that fails (SimulationError,
-SolverError) or is interrupted (KeyboardInterrupt) keeps every file written so far and its
-summary.json says why it stopped (``stop_reason``); the exception is then raised again.
+Everything is checked before anything is written (``preflight``): the configuration, the
+optional dependencies, the memory the model needs, the restart file and its configuration, and
+the output folder (``granrs.io.outputs``: a new or empty folder; an existing run's folder only
+with ``overwrite``, or by a restart from that folder's own checkpoint, which appends to its run).
+A refused run changes nothing on disk. Outputs go to ``output.dir``: config.resolved.toml (a
+restart appending to its run adds config.restart-NNNNNN.toml, NNNNNN its first step), the case's
+summary.json / front.csv / profiles.csv / history.npz / plots, fields.pvd + fields/*.vti and/or
+fields.nc, animation.gif, checkpoint.npz. summary.json, front.csv and history.npz are rewritten
+atomically during the run. A run that fails (SimulationError, SolverError, OutputError) or is
+interrupted (KeyboardInterrupt) keeps every file written so far and its summary.json says why it
+stopped (``stop_reason``); the exception is then raised again.
 """
 
 from __future__ import annotations
@@ -16,17 +21,22 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
+
 from ._granrs import ParameterError, SimulationError, SolverError
 from .cases.column import run_column
 from .config import Config, column_case, dumps, resolve, write_config
 from .io import checkpoint as ckpt
 from .io.netcdf import available as netcdf_available
+from .io.outputs import RunOutputs, commit_output_dir, plan_output_dir, resume_outputs
 from .io.provenance import header_lines, provenance
 from .simulation import Callback
 
 
-def preflight(cfg: Config, restart: Optional[str] = None) -> None:
-    """Checks that need more than the schema: optional dependencies, checkpoint support, restart file."""
+def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = False):
+    """Checks that need more than the schema: optional dependencies, checkpoint support, the
+    restart file (readable, finite, after t_end, same configuration unless ``allow_changes``).
+    Returns the loaded ``Checkpoint`` (None without a restart)."""
     out = cfg["output"]
     if "netcdf" in out["formats"] and out["fields_every_s"] > 0 and not netcdf_available():
         raise ParameterError("invalid parameter `output.formats` item 'netcdf': needs the optional dependency netCDF4 "
@@ -34,47 +44,98 @@ def preflight(cfg: Config, restart: Optional[str] = None) -> None:
     if out["checkpoint_every_s"] > 0 and not ckpt.supported():
         raise ParameterError("invalid parameter `output.checkpoint_every_s` = "
                              f"{out['checkpoint_every_s']!r}: allowed only 0 with this build. " + ckpt._MISSING)
-    if restart is not None:
-        if not ckpt.supported():
-            raise NotImplementedError(ckpt._MISSING)
-        meta = ckpt.load_checkpoint(restart).meta
-        if meta["time"] >= cfg["numerics"]["t_end"]:
-            raise ParameterError(f"invalid parameter `numerics.t_end` = {cfg['numerics']['t_end']!r}: allowed a time "
-                                 f"after the checkpoint's t = {meta['time']!r} s")
+    if restart is None:
+        return None
+    if not ckpt.supported():
+        raise NotImplementedError(ckpt._MISSING)
+    ck = ckpt.load_checkpoint(restart)
+    meta = ck.meta
+    if meta["time"] >= cfg["numerics"]["t_end"]:
+        raise ParameterError(f"invalid parameter `numerics.t_end` = {cfg['numerics']['t_end']!r}: allowed a time "
+                             f"after the checkpoint's t = {meta['time']!r} s")
+    grid = column_case(cfg).grid()
+    want = meta["grid"]
+    if (grid.nx, grid.ny) != (want["nx"], want["ny"]) or abs(grid.lx - want["lx"]) > 1e-12 * want["lx"] \
+            or abs(grid.ly - want["ly"]) > 1e-12 * want["ly"]:
+        raise ParameterError(f"invalid parameter `--restart` = {str(restart)!r}: the checkpoint's grid {want['nx']} x "
+                             f"{want['ny']} cells on {want['lx']:g} m x {want['ly']:g} m differs from this "
+                             f"configuration's {grid.nx} x {grid.ny} on {grid.lx:g} m x {grid.ly:g} m; allowed a "
+                             "checkpoint of the same grid")
+    changes = ckpt.configuration_changes(ck, cfg)
+    if changes and not allow_changes:
+        raise ParameterError(f"invalid parameter `--restart` = {str(restart)!r}: the configuration differs from the "
+                             f"checkpoint's in {'; '.join(changes)}; allowed the same configuration (except "
+                             f"{', '.join(ckpt.RESTART_FREE_KEYS)} and output.*), or --allow-changes to restart with "
+                             "these changes")
+    return ck
+
+
+def _own_run(out: Path, restart) -> bool:
+    """Whether ``restart`` is the checkpoint of the run in ``out`` (a restart appends to it)."""
+    try:
+        return Path(restart).resolve().parent == out.resolve() and (out / "summary.json").exists()
+    except OSError:
+        return False
 
 
 def run_config(cfg: Config, *, command: Optional[str] = None, progress: bool = True, restart: Optional[str] = None,
-               extra_callbacks: Optional[list] = None) -> dict:
+               extra_callbacks: Optional[list] = None, overwrite: bool = False, allow_changes: bool = False,
+               out_name: str = "output.dir") -> dict:
     """Runs the configuration (validated again here) and returns the case's summary dict.
 
     ``command``: the command line recorded in the provenance (default: this process's);
-    ``restart``: a checkpoint file to start from; ``extra_callbacks``: more ``Callback``s."""
+    ``restart``: a checkpoint file to start from; ``extra_callbacks``: more ``Callback``s;
+    ``overwrite``: replace the outputs of a run already in output.dir; ``allow_changes``: restart
+    with a configuration that differs from the checkpoint's; ``out_name``: the parameter the
+    output folder's errors name (``--out`` on the command line)."""
     cfg = resolve(cfg)
-    preflight(cfg, restart)
+    ck = preflight(cfg, restart, allow_changes)
     case = column_case(cfg)
     case.validate()
     out_cfg = cfg["output"]
     out = Path(out_cfg["dir"])
-    out.mkdir(parents=True, exist_ok=True)
+    append = restart is not None and _own_run(out, restart)
+    plan = plan_output_dir(out, overwrite=overwrite, append=append, name=out_name)
+    # ---- every check has passed: from here on the run writes
+    commit_output_dir(plan)
     prov = provenance(dumps(cfg), command)
-    write_config(cfg, out / "config.resolved.toml", header_lines(prov))
+    t_start = ck.meta["time"] if ck is not None else None
+    name = f"config.restart-{ck.meta['step_count']:06d}.toml" if plan.mode == "append" else "config.resolved.toml"
+    write_config(cfg, out / name, header_lines(prov))
+    front_prefix = history_prefix = None
+    if plan.mode == "append":
+        front_prefix, history_prefix = resume_outputs(out, t_start)
+    outputs = RunOutputs(out, front_prefix, history_prefix,
+                         start_area=float(np.ravel(ck.state["reference_area"])[0]) if ck is not None and "reference_area" in ck.state
+                         else None)
 
     callbacks = list(extra_callbacks or [])
     writer = None
     if out_cfg["fields_every_s"] > 0 and out_cfg["formats"]:
         from .io.writer import FieldWriter
 
-        writer = FieldWriter(out, case.grid(), out_cfg["formats"], prov)
+        writer = FieldWriter(out, case.grid(), out_cfg["formats"], prov,
+                             append_after=t_start if plan.mode == "append" else None)
         callbacks.append(Callback(writer, every_time=out_cfg["fields_every_s"]))
     if out_cfg["checkpoint_every_s"] > 0:
         callbacks.append(Callback(lambda sim: ckpt.save_checkpoint(sim.model, out / "checkpoint.npz", prov),
                                   every_time=out_cfg["checkpoint_every_s"]))
-    prepare = (lambda model: ckpt.restore_checkpoint(model, restart)) if restart is not None else None
+    prepare = (lambda model: ckpt.restore_checkpoint(model, ck)) if ck is not None else None
     extra = {"provenance": {k: v for k, v in prov.items() if k != "configuration"}, "config": cfg,
              "restart_from": str(restart) if restart is not None else None,
              "fields": {"formats": list(out_cfg["formats"]) if writer else [], "every_s": out_cfg["fields_every_s"]}}
+    if ck is not None:
+        whole = plan.mode == "append" and front_prefix is not None
+        extra["restart"] = {
+            "checkpoint": str(restart), "t_start_s": t_start, "step_start": ck.meta["step_count"],
+            "front_and_history_from": "the run's start (appended to this folder's run)" if whole else
+                                      f"the restart at t = {t_start:g} s",
+            "mass_rel_error_from": "the run's start (the checkpoint's reference area)",
+            "energy_from": f"the restart at t = {t_start:g} s (the budget starts again from a restored state)",
+            "configuration_changes": ckpt.configuration_changes(ck, cfg)}
     try:
-        summary = run_column(case, out, progress=progress, callbacks=callbacks, extra_summary=extra, prepare=prepare)
+        summary = run_column(case, out, progress=progress, callbacks=callbacks, extra_summary=extra, prepare=prepare,
+                             outputs=outputs)
     except (SimulationError, SolverError):
         _animate(out_cfg, out, writer)  # the failure is data: animate what was saved
         raise
@@ -86,4 +147,10 @@ def _animate(out_cfg: dict, out: Path, writer) -> None:
     if out_cfg["animation"] and writer is not None and writer.frames > 0:
         from .io.animation import make_animation
 
-        make_animation(out)
+        try:
+            make_animation(out)
+        except OSError as err:
+            from .io.outputs import OutputError
+
+            raise OutputError(f"cannot write {out / 'animation.gif'} ({err.strerror or err}); the files written before "
+                              f"are kept in {out}") from None

@@ -1,4 +1,21 @@
-"""The simulation owns the time loop: stop conditions, callbacks, diagnostics history."""
+"""The simulation owns the time loop: stop conditions, callbacks, diagnostics history, and the
+detection of a blow-up the core's own checks let through.
+
+After every chunk of steps (at most ``Simulation.chunk_steps``) the loop checks each step's
+diagnostics and raises ``SimulationError`` (with ``step``, ``time`` and ``location``, the cell
+(i, j) of the largest speed) when
+  * a speed, δt or CFL number is not finite;
+  * the CFL number after the step, max|u|·δt/h with the velocity the step produced, exceeds the
+    model's ``Numerics.cfl_abort``;
+  * the time step collapsed: δt fell below ``dt_collapse`` (1e-6) times the largest step taken
+    so far in this run (the clock stalls while the velocity grows);
+  * the largest speed exceeds ``speed_limit`` (default 100 × the free-fall speed √(2|g|(lx + ly))
+    over the domain, or 100 × the largest speed at the start or on a boundary, whichever is
+    larger): an unbounded growth no flow driven by gravity or by its boundaries reaches.
+The model is then put back at the state it had before that chunk (its last state known good,
+restored from a copy kept when the core exports its state) and ``history`` ends with the last
+step before that state.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +27,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ._granrs import ParameterError
+from ._granrs import ParameterError, SimulationError
+from .io.writer import deferred_interrupt
 from .model import Model
 
 
@@ -36,14 +54,38 @@ class Simulation:
     """Runs a model to ``stop_time`` and/or ``stop_iteration``, or until a callback sets
     ``simulation.stop = True`` (with ``stop_reason``). Per-step diagnostics accumulate in
     ``history`` (lists: time, dt, max_speed, cfl, divergence, pressure_iterations, viscous_iterations,
-    pore_iterations, and those the model adds)."""
+    pore_iterations, and those the model adds). ``speed_limit`` and ``dt_collapse``: the blow-up
+    checks of the module docstring. A Ctrl-C (KeyboardInterrupt) is raised once the chunk of steps
+    in progress is in ``history``, so an interrupted run keeps its last steps."""
+
+    #: most steps per call into the core between two blow-up checks
+    chunk_steps = 50
 
     def __init__(self, model: Model, stop_time: Optional[float] = None, stop_iteration: Optional[int] = None,
-                 callbacks: Optional[list] = None, progress: bool = False, wall_limit: Optional[float] = None):
+                 callbacks: Optional[list] = None, progress: bool = False, wall_limit: Optional[float] = None,
+                 speed_limit: Optional[float] = None, dt_collapse: float = 1e-6):
         if stop_time is None and stop_iteration is None:
             raise ParameterError("invalid parameter `stop_time/stop_iteration`: allowed at least one of them")
-        if stop_time is not None and not (math.isfinite(stop_time) and stop_time > model.time):
+        if stop_time is not None and (isinstance(stop_time, bool) or not isinstance(stop_time, (int, float))
+                                      or not (math.isfinite(stop_time) and stop_time > model.time)):
             raise ParameterError(f"invalid parameter `stop_time` = {stop_time!r}: allowed a finite time > the model time {model.time}")
+        if stop_iteration is not None and (isinstance(stop_iteration, bool) or not isinstance(stop_iteration, int)
+                                           or stop_iteration <= model.step_count):
+            raise ParameterError(f"invalid parameter `stop_iteration` = {stop_iteration!r}: allowed an integer > the model's "
+                                 f"step count {model.step_count}")
+        if wall_limit is not None and (isinstance(wall_limit, bool) or not isinstance(wall_limit, (int, float))
+                                       or not (math.isfinite(wall_limit) and wall_limit > 0)):
+            raise ParameterError(f"invalid parameter `wall_limit` = {wall_limit!r}: allowed a finite number of seconds > 0")
+        if callbacks is not None and not all(isinstance(cb, Callback) for cb in callbacks):
+            raise ParameterError(f"invalid parameter `callbacks` = {callbacks!r}: allowed a list of granrs.Callback")
+        if speed_limit is not None and (isinstance(speed_limit, bool) or not isinstance(speed_limit, (int, float))
+                                        or not (math.isfinite(speed_limit) and speed_limit > 0)):
+            raise ParameterError(f"invalid parameter `speed_limit` = {speed_limit!r}: allowed None or a finite speed > 0 (m/s)")
+        if isinstance(dt_collapse, bool) or not isinstance(dt_collapse, (int, float)) or not 0 <= dt_collapse < 1:
+            raise ParameterError(f"invalid parameter `dt_collapse` = {dt_collapse!r}: allowed a number in [0, 1)")
+        self.speed_limit = speed_limit if speed_limit is not None else _default_speed_limit(model)
+        self.dt_collapse = float(dt_collapse)
+        self._dt_max = 0.0
         self.model = model
         self.stop_time = stop_time
         self.stop_iteration = stop_iteration
@@ -92,17 +134,26 @@ class Simulation:
                 self.stop_reason = "wall_limit"
                 break
             t_next, n_next = self._next_stop()
+            n_next = self.chunk_steps if n_next is None else min(n_next, self.chunk_steps)
             t_before, n_before = m.time, m.step_count
-            try:
-                log = m.advance(t_end=t_next, max_steps=n_next)
-            except Exception as err:  # keep the steps done before the failure
-                for k, v in getattr(err, "history", {}).items():
+            good = _state(m)
+            with deferred_interrupt():  # a Ctrl-C waits until the chunk's steps are in the history
+                try:
+                    log = m.advance(t_end=t_next, max_steps=n_next)
+                except Exception as err:  # keep the steps done before the failure
+                    for k, v in getattr(err, "history", {}).items():
+                        self.history.setdefault(k, []).extend(v)
+                    self.wall_time = _time.perf_counter() - start
+                    self.stop_reason = f"error: {err}"
+                    raise
+                try:
+                    self._check_blow_up(log, good, t_before, n_before)
+                except SimulationError as err:
+                    self.wall_time = _time.perf_counter() - start
+                    self.stop_reason = f"error: {err}"
+                    raise
+                for k, v in log.items():
                     self.history.setdefault(k, []).extend(v)
-                self.wall_time = _time.perf_counter() - start
-                self.stop_reason = f"error: {err}"
-                raise
-            for k, v in log.items():
-                self.history.setdefault(k, []).extend(v)
             for cb in self.callbacks:
                 if self._due(cb, t_before, n_before):
                     cb.func(self)
@@ -112,6 +163,38 @@ class Simulation:
         if self.progress:
             sys.stderr.write("\n")
         return self
+
+    def _check_blow_up(self, log: dict, good, t_before: float, n_before: int) -> None:
+        """Raises SimulationError at the first step of ``log`` that blew up (module docstring),
+        after putting the model back at ``good`` (its state before the chunk)."""
+        m = self.model
+        h = m.grid.h
+        cfl_abort = m.numerics.cfl_abort
+        for k, (t, dt, speed) in enumerate(zip(log.get("time", ()), log.get("dt", ()), log.get("max_speed", ()))):
+            why = None
+            if not (math.isfinite(t) and math.isfinite(dt) and math.isfinite(speed)):
+                why = f"a non-finite step (δt = {dt!r}, max speed {speed!r} m/s)"
+            elif speed * dt / h > cfl_abort:
+                why = (f"the CFL number after the step, max|u| δt/h = {speed * dt / h:.4g}, exceeds cfl_abort = "
+                       f"{cfl_abort:g} (max speed {speed:.4g} m/s)")
+            elif speed > self.speed_limit:
+                why = (f"the largest speed {speed:.4g} m/s exceeds the limit {self.speed_limit:.4g} m/s (unbounded "
+                       "growth: Simulation(speed_limit=...))")
+            elif self._dt_max > 0 and dt < self.dt_collapse * self._dt_max:
+                why = (f"the time step collapsed: δt = {dt:.3g} s is below {self.dt_collapse:g} × the largest step "
+                       f"{self._dt_max:.3g} s (max speed {speed:.4g} m/s)")
+            if why is None:
+                self._dt_max = max(self._dt_max, dt)
+                continue
+            location = _fastest_cell(m)
+            restored = _restore(m, good)
+            where = f" at cell (i={location[0]}, j={location[1]})" if location is not None else ""
+            back = (f"; the model is back at t = {t_before:.6g} s, step {n_before}" if restored
+                    else "; the model holds the state after the blow-up")
+            err = SimulationError(f"blow-up at step {n_before + k + 1}, t = {t:.6g} s{where}: {why}{back}")
+            err.step, err.time, err.location = n_before + k + 1, t, location
+            err.history = {}
+            raise err
 
     def _print_progress(self, start: float) -> None:
         m = self.model
@@ -128,3 +211,51 @@ class Simulation:
 
     def history_arrays(self) -> dict:
         return {k: np.asarray(v) for k, v in self.history.items()}
+
+
+def _default_speed_limit(model: Model) -> float:
+    """100 × the largest of the free-fall speed over the domain, the largest initial speed and the
+    largest boundary speed (m/s)."""
+    g = math.hypot(*model.gravity)
+    scale = math.sqrt(2.0 * g * (model.grid.lx + model.grid.ly))
+    try:
+        scale = max(scale, float(np.max(np.abs(model.u))), float(np.max(np.abs(model.v))))
+    except ValueError:
+        pass
+    for side in ("left", "right", "bottom", "top"):
+        spec = getattr(model.bc, side, None)
+        for name in ("tangential", "normal", "velocity"):
+            v = getattr(spec, name, None)
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+                scale = max(scale, abs(float(v)))
+    return 100.0 * max(scale, 1e-3)
+
+
+def _state(model: Model):
+    """A copy of the model's state (None when the core cannot export it)."""
+    rust = model._rust
+    if not hasattr(rust, "checkpoint_state"):
+        return None
+    return rust.checkpoint_state()  # fresh arrays: the core copies its state out
+
+
+def _restore(model: Model, state) -> bool:
+    if state is None:
+        return False
+    try:
+        model._rust.restore_state(state)
+    except Exception:  # noqa: BLE001 - the blow-up is reported either way
+        return False
+    return True
+
+
+def _fastest_cell(model: Model):
+    """(i, j) of the cell with the largest (or a non-finite) centre speed."""
+    try:
+        uc, vc = model.centre_velocity()
+        speed = np.hypot(uc, vc)
+        speed = np.where(np.isfinite(speed), speed, np.inf)
+        j, i = np.unravel_index(int(np.argmax(speed)), speed.shape)
+        return int(i), int(j)
+    except Exception:  # noqa: BLE001
+        return None

@@ -43,14 +43,19 @@ from .._granrs import ParameterError, SimulationError, SolverError
 from ..boundary import BoundaryConditions, Coulomb, FreeSlip
 from ..grid import Grid
 from ..materials import AIR, Material
-from ..model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, Model, Numerics, PorePressure, SideWalls, check_side_walls
+from ..rheology import check_friction_angle
+from ..model import (ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, Model, Numerics, PorePressure, SideWalls, check_side_walls,
+                     estimate_memory, memory_check)
 from ..shapes import Rectangle
 from ..simulation import Callback, Simulation
+from ..io.outputs import RunOutputs
 
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
 PAPER_RUNOUT_EXP = 1.8443
 MODELS = ("auto", "two-phase", "granular", "depth-averaged")
+#: run_column rewrites summary.json, front.csv and history.npz every this many records (0.1 s)
+FLUSH_RECORDS = 10
 
 
 @dataclass
@@ -143,15 +148,30 @@ class ColumnCase:
     def validate(self) -> None:
         checks = [("aspect_ratio", self.aspect_ratio, 0.1, 20.0), ("width", self.width, 1e-3, 10.0),
                   ("pore_pressure_ratio", self.pore_pressure_ratio, 0.0, 1.0), ("t_end", self.t_end, 1e-6, 1e4),
-                  ("cfl", self.cfl, 1e-3, 1.0), ("friction_angle", self.friction_angle, 0.0, 89.0),
-                  ("wall_friction_angle", self.wall_friction_angle, 0.0, 89.0),
+                  ("cfl", self.cfl, 1e-3, 1.0), ("wall_friction_angle", self.wall_friction_angle, 0.0, 89.0),
                   ("granular_viscosity", self.granular_viscosity, 1e-8, 1e6), ("diffusivity", self.diffusivity, 1e-12, 1e6),
                   ("solid_fraction", self.solid_fraction, 0.01, 0.74), ("kappa_air", self.kappa_air, 1.0, 1e16)]
         for name, v, lo, hi in checks:
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not lo <= v <= hi:
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo}, {hi}]")
-        if not isinstance(self.ny, int) or not 8 <= self.ny <= 4096:
+        check_friction_angle(self.friction_angle)
+        if isinstance(self.ny, bool) or not isinstance(self.ny, int) or not 8 <= self.ny <= 4096:
             raise ParameterError(f"invalid parameter `ny` = {self.ny!r}: allowed an integer in [8, 4096]")
+        for name, v, lo, what in (("length", self.length, self.width, "the gate at x = width"),
+                                  ("height", self.height, self.column_height, "the column height aspect_ratio × width")):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                                  or not lo < v <= 1000.0):
+                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed None (the default) or a number of metres "
+                                     f"in ({lo:g}, 1000] (beyond {what} = {lo:g} m)")
+        for name, v, lo, hi in (("threads", self.threads, 1, 1024), ("step_retries", self.step_retries, 0, 20),
+                                ("r_neighbourhood", self.r_neighbourhood, 0, 4)):
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed an integer in [{lo}, {hi}]")
+        if self.active_region is not None and (isinstance(self.active_region, bool)
+                                               or not isinstance(self.active_region, int)
+                                               or not 2 <= self.active_region <= 100000):
+            raise ParameterError(f"invalid parameter `active_region` = {self.active_region!r}: allowed None or an integer "
+                                 "in [2, 100000] (cells of air)")
         if self.pore_formulation not in ("granular-only", "kappa-infinity", "kappa-infinity-smoothed"):
             raise ParameterError(f"invalid parameter `pore_formulation` = {self.pore_formulation!r}: allowed "
                                  "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")
@@ -189,6 +209,12 @@ class ColumnCase:
             raise ParameterError(f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]")
         if self.rheology not in ("drucker-prager", "mu-i"):
             raise ParameterError(f"invalid parameter `rheology` = {self.rheology!r}: allowed 'drucker-prager' or 'mu-i'")
+        if self.model != "depth-averaged":  # memory before any work (granrs.model.estimate_memory)
+            grid = self.grid()
+            memory_check(grid, estimate_memory(grid, pore_pressure=bool(self.fluidised and self.pore_pressure_ratio > 0),
+                                               air="free-surface" if self.model == "granular" else "resolved",
+                                               side_walls=self.channel_width is not None, step_retries=self.step_retries),
+                         f"the column's {self.model} model")
 
     @property
     def column_height(self) -> float:
@@ -352,14 +378,17 @@ def basal_pore_pressure_ratio(pf_base: np.ndarray, h: np.ndarray, weight: float,
 
 
 def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
-               callbacks: Optional[list] = None, extra_summary: Optional[dict] = None, prepare=None) -> dict:
+               callbacks: Optional[list] = None, extra_summary: Optional[dict] = None, prepare=None,
+               outputs: Optional[RunOutputs] = None) -> dict:
     """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``.
 
     ``callbacks``: more ``Callback``s for the Simulation (field output, checkpoints);
     ``extra_summary``: entries added to summary.json; ``prepare(model)``: called once the model
-    is built (a restart restores its state there). A SimulationError, SolverError or
-    KeyboardInterrupt still writes every output from the steps done, with the ``stop_reason``,
-    then is raised again."""
+    is built (a restart restores its state there); ``outputs``: the folder's ``RunOutputs`` (a
+    restart's earlier rows and original dense area). summary.json, front.csv and history.npz are
+    rewritten atomically every ``FLUSH_RECORDS`` records during the run (``stop_reason``
+    'incomplete: ...'). A SimulationError, SolverError or KeyboardInterrupt still writes every
+    output from the steps done, with the ``stop_reason``, then is raised again."""
     case.validate()
     model_name, model_reason = choose_model(case)
     if model_name == "depth-averaged":
@@ -377,7 +406,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         prepare(model)
     grid = model.grid
     lc = case.width
-    area0 = model.dense_area()
+    outputs = outputs if outputs is not None else RunOutputs(out)
+    area0 = outputs.start_area or model.dense_area()
     rec = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
     # fluidisation: the basal pore pressure over the weight, under the reservoir and in the channel
     fluid = model.pore_pressure is not None
@@ -422,6 +452,11 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
                 sim.stop, sim.stop_reason = True, "rest"
         else:
             state["rest_since"] = None
+        if len(rec["t"]) % FLUSH_RECORDS == 0:
+            front = rec["front"]
+            _progress(outputs, {"runout_m": front[-1], "max_front_m": max(front), "t_end_s": t, "steps": model.step_count,
+                                "nx": grid.nx, "ny": grid.ny, "model": model_name, "case": asdict(case)}
+                      | (extra_summary or {}), rec, sim.history_arrays(), t, model.step_count)
 
     sim = Simulation(model, stop_time=case.t_end, callbacks=[Callback(observe, every_time=0.01)] + list(callbacks or []),
                      progress=progress)
@@ -473,11 +508,11 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     if fluid and rec["t"]:
         summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
     summary.update(extra_summary or {})
-    write_outputs(out, summary, rec, profiles, xs_c - lc)
+    write_outputs(out, summary, rec, profiles, xs_c - lc, outputs)
+    outputs.write_history(hist)
     if rec["energy"]:
         write_energy(out, rec["t"], rec["energy"])
         plot_energy(out)
-    np.savez(out / "history.npz", **hist)
     if fluid and rec["t"]:
         plot_fluidisation(out)
     plot_front(out, compare_with)
@@ -597,23 +632,43 @@ def plot_fluidisation(out: Path) -> None:
     plt.close(fig)
 
 
-def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.ndarray) -> None:
+#: front.csv's name of a per-record series (with its unit); any other series of numbers the
+#: records hold is written under its own name
+FRONT_NAMES = {"t": "t_s", "front": "front_m", "area": "area_m2", "max_granular_speed": "max_granular_speed_m_s"}
+
+
+def front_columns(rec: dict) -> dict:
+    """front.csv's columns from the per-record series: every series of numbers in ``rec``."""
+    cols = {FRONT_NAMES[k]: rec[k] for k in FRONT_NAMES if k in rec}
+    n = len(rec.get("t", ()))
+    for k, v in rec.items():
+        if k not in FRONT_NAMES and len(v) == n and all(isinstance(x, (int, float)) for x in v):
+            cols[k] = v
+    return cols
+
+
+def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.ndarray, outputs=None) -> None:
     """summary.json, front.csv (t, front from the gate, area, largest speed; with pore pressure
     also the basal pore-pressure ratios under the reservoir and in the channel) and profiles.csv
-    (surface height at the recorded times against x − L_c): the same files for every model."""
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    extra = [k for k in ("pf_ratio_reservoir", "pf_ratio_channel") if k in rec]
-    with open(out / "front.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["t_s", "front_m", "area_m2", "max_granular_speed_m_s"] + extra)
-        for row in zip(rec["t"], rec["front"], rec["area"], rec["max_granular_speed"], *(rec[k] for k in extra)):
-            w.writerow([f"{v:.6g}" for v in row])
-    with open(out / "profiles.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        keys = list(profiles)
-        w.writerow(["x_from_gate_m"] + [f"h_{k}" if k != "final" else "h_final" for k in keys])
-        for i in range(len(xs)):
-            w.writerow([f"{xs[i]:.6g}"] + [f"{profiles[k][i]:.6g}" for k in keys])
+    (surface height at the recorded times against x − L_c): the same files for every model. Each
+    file is written atomically (``granrs.io.outputs``); ``outputs``: the run's ``RunOutputs``
+    (a restart's earlier rows)."""
+    outputs = outputs if outputs is not None else RunOutputs(out)
+    outputs.write_json("summary.json", summary)
+    outputs.write_columns("front.csv", front_columns(rec))
+    keys = list(profiles)
+    cols = {"x_from_gate_m": xs} | {(f"h_{k}" if k != "final" else "h_final"): profiles[k] for k in keys}
+    outputs.write_columns("profiles.csv", cols)
+
+
+def _progress(outputs, summary: dict, rec: dict, hist: dict, t: float, steps: int) -> None:
+    """The outputs written during the run: front.csv and history.npz so far, and a summary whose
+    ``stop_reason`` says the run had not finished when it was written."""
+    outputs.write_columns("front.csv", front_columns(rec))
+    outputs.write_history(hist)
+    outputs.write_json("summary.json", summary | {
+        "stop_reason": f"incomplete: written during the run at t = {t:.6g} s (step {steps}); a run that ends writes "
+                       "its final stop_reason here, so this one was killed or its disk filled"})
 
 
 # ---- model choice -----------------------------------------------------------------------------

@@ -78,22 +78,71 @@ def save_checkpoint(model, path, provenance: Optional[dict] = None) -> Path:
 
 
 def load_checkpoint(path) -> Checkpoint:
-    """Reads a checkpoint file (no model needed); ParameterError if it is not one."""
+    """Reads a checkpoint file (no model needed). A file that is missing, empty, truncated,
+    corrupted, of another format or holding non-finite values is a ParameterError naming it."""
     path = Path(path)
+    try:
+        size = path.stat().st_size
+    except OSError as err:
+        raise ParameterError(f"invalid checkpoint `{path}`: cannot be read ({err.strerror}); allowed a checkpoint.npz "
+                             "written by granrs") from None
+    if size == 0:
+        raise ParameterError(f"invalid checkpoint `{path}`: the file is empty; allowed a checkpoint.npz written by granrs")
     try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"][()]))
             arrays = {k: z[k] for k in z.files if k != "meta"}
-    except (OSError, ValueError, KeyError) as err:
-        raise ParameterError(f"invalid checkpoint `{path}`: cannot be read as a granrs checkpoint ({err})") from None
+        casts = {"bool": bool, "int": int, "float": float}
+        if meta.get("format") == FORMAT and meta.get("format_version") == FORMAT_VERSION:
+            scalars = {k: casts[meta["scalar_types"][k]](v) for k, v in meta["scalars"].items()}
+    except Exception as err:  # noqa: BLE001 - zipfile, zlib, EOF, JSON, KeyError...: all "not a checkpoint"
+        raise ParameterError(f"invalid checkpoint `{path}`: truncated or corrupted, cannot be read as a granrs checkpoint "
+                             f"({type(err).__name__}: {err}); allowed a checkpoint.npz written by granrs") from None
     if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
         raise ParameterError(f"invalid checkpoint `{path}`: allowed format {FORMAT} version {FORMAT_VERSION}, "
                              f"found {meta.get('format')} version {meta.get('format_version')}")
-    casts = {"bool": bool, "int": int, "float": float}
     state = {k[len("state/"):]: v for k, v in arrays.items() if k.startswith("state/")}
-    state.update({k: casts[meta["scalar_types"][k]](v) for k, v in meta["scalars"].items()})
+    for name, v in state.items():
+        finite = np.isfinite(v) if v.dtype.kind == "f" else np.ones(v.shape, bool)
+        if name == "dt_prev":  # NaN: no step before the checkpoint (the core's encoding of None)
+            finite = finite | np.isnan(v)
+        if not np.all(finite):
+            k = int(np.argmin(finite.ravel()))
+            raise ParameterError(f"invalid checkpoint `{path}`: entry `{name}` holds a non-finite value "
+                                 f"({v.ravel()[k]!r} at index {k}); allowed finite numbers")
+    state.update(scalars)
     fields = {k[len("fields/"):]: v for k, v in arrays.items() if k.startswith("fields/")}
     return Checkpoint(meta, state, fields)
+
+
+#: Keys that may differ between a checkpoint's configuration and its restart's without
+#: ``allow_changes`` (they change neither the state nor the equations).
+RESTART_FREE_KEYS = ("numerics.t_end", "numerics.threads")
+
+
+def configuration_changes(ck: Checkpoint, cfg: dict) -> list[str]:
+    """The keys (``section.key: old -> new``) whose value in ``cfg`` differs from the configuration
+    the checkpoint was written with (its provenance); output.* and RESTART_FREE_KEYS are not
+    compared. Empty when the checkpoint holds no configuration."""
+    import tomllib
+
+    text = (ck.meta.get("provenance") or {}).get("configuration") or ""
+    if not text:
+        return []
+    try:
+        old = tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        return ["(the checkpoint's configuration cannot be read)"]
+    changes = []
+    for section, table in cfg.items():
+        if section == "output" or not isinstance(table, dict):
+            continue
+        for key, value in table.items():
+            name = f"{section}.{key}"
+            before = old.get(section, {}).get(key)
+            if name not in RESTART_FREE_KEYS and before != value:
+                changes.append(f"{name}: {before!r} -> {value!r}")
+    return changes
 
 
 def restore_checkpoint(model, checkpoint) -> Checkpoint:
@@ -104,5 +153,9 @@ def restore_checkpoint(model, checkpoint) -> Checkpoint:
     if (g.nx, g.ny) != (want["nx"], want["ny"]) or not np.allclose((g.lx, g.ly), (want["lx"], want["ly"]), rtol=1e-12):
         raise ParameterError(f"invalid checkpoint: its grid {want} differs from the model's "
                              f"(nx={g.nx}, ny={g.ny}, lx={g.lx}, ly={g.ly})")
-    model._rust.restore_state(dict(ck.state))
+    try:
+        model._rust.restore_state(dict(ck.state))
+    except ParameterError as err:
+        raise ParameterError(f"invalid checkpoint `{checkpoint if not isinstance(checkpoint, Checkpoint) else 'object'}`: "
+                             f"{err}") from None
     return ck

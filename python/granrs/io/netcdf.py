@@ -72,7 +72,7 @@ class NetCDFWriter:
 
         ds = self._create(fields) if self.records == 0 else netCDF4.Dataset(self.path, "a")
         try:
-            n = len(ds.dimensions["time"])
+            n = self.records  # a restart's writer starts after the records it keeps
             ds["time"][n] = time
             for name, arr in fields.items():
                 ds[name][n, :, :] = arr

@@ -41,9 +41,12 @@ def deferred_interrupt():
 
 
 class FieldWriter:
-    """Writes snapshots of ``granrs.io.fields.snapshot(model)`` in the given formats."""
+    """Writes snapshots of ``granrs.io.fields.snapshot(model)`` in the given formats. A new writer
+    replaces the snapshots in ``out``; with ``append_after`` = t (a restart at t) it keeps those
+    up to t and numbers its own after them."""
 
-    def __init__(self, out, grid, formats: Iterable[str] = ("vtk",), provenance: dict | None = None):
+    def __init__(self, out, grid, formats: Iterable[str] = ("vtk",), provenance: dict | None = None,
+                 append_after: float | None = None):
         self.out = Path(out)
         self.formats = tuple(formats)
         for f in self.formats:
@@ -56,10 +59,25 @@ class FieldWriter:
         self.provenance = provenance
         self.entries: list[tuple[float, str]] = []
         self.times: list[float] = []
-        for stale in [self.out / "fields.pvd", self.out / "fields.nc", *self.out.glob("fields/fields_*.vti")]:
-            stale.unlink(missing_ok=True)  # a previous run's snapshots in the same folder
+        kept_nc = 0
+        if append_after is None:
+            for stale in [self.out / "fields.pvd", self.out / "fields.nc", *self.out.glob("fields/fields_*.vti")]:
+                stale.unlink(missing_ok=True)  # a previous run's snapshots in the same folder
+        else:
+            from .vtk import read_pvd
+
+            if (self.out / "fields.pvd").exists():
+                self.entries = [(t, str(Path(name).relative_to(self.out))) for t, name in read_pvd(self.out / "fields.pvd")
+                                if t <= append_after * (1 + 1e-12)]
+            if (self.out / "fields.nc").exists():
+                import netCDF4
+
+                with netCDF4.Dataset(self.out / "fields.nc") as ds:
+                    kept_nc = int((ds["time"][:] <= append_after * (1 + 1e-12)).sum())
         x, y = coordinates(grid)
         self.netcdf = NetCDFWriter(self.out / "fields.nc", x, y, provenance) if "netcdf" in self.formats else None
+        if self.netcdf is not None:
+            self.netcdf.records = kept_nc
         if "vtk" in self.formats:
             (self.out / "fields").mkdir(parents=True, exist_ok=True)
 
