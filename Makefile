@@ -10,7 +10,7 @@ OUT    ?= out
 $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q "maturin>=1.5,<2" "numpy>=1.23" "matplotlib>=3.6" "pytest>=7" \
+	$(PY) -m pip install -q "maturin>=1.5,<2" "numpy>=1.23" "matplotlib>=3.6" "pytest>=7" "hypothesis>=6" \
 		"netCDF4>=1.6" "xarray>=2023.1" "dask[distributed]>=2023.1" "vtk>=9.2"
 	touch $@
 

@@ -261,8 +261,7 @@ def main(argv=None) -> int:
                    help="cells over the domain height (column; 32; 256 is the paper's grid)")
     r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "numerics.t_end"), help="end time in s (column; 3)")
     r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], help="column: drucker-prager (default) or mu-i")
-    r.add_argument("--model", default="two-phase", choices=["auto", "two-phase", "granular", "depth-averaged"],
-                   metavar="auto|two-phase|granular|depth-averaged",
+    r.add_argument("--model", default="two-phase", metavar="auto|two-phase|granular|depth-averaged",
                    help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
                         "surface at p = 0), the depth-averaged one, or auto: the depth-averaged model only where it was "
                         "measured within 5%% of the two-phase run-out (docs/models.md)")

@@ -8,8 +8,12 @@
 A parameter is ``key=a:b:n`` (n values from a to b, linear) or ``key=v1,v2,...`` (TOML
 scalars). Every member's configuration is resolved and validated before any member runs; a
 member is a deterministic function of that configuration (its thread count is explicit in
-numerics.threads, its output folder is ``<out>/member-NNN``). A member that fails is reported
-(status "failed", the error text, what it computed before failing) and the others are kept.
+numerics.threads, its output folder is ``<out>/member-NNN``). Each member runs in its own child
+process of the dask worker, so a member that dies (killed by the system for its memory, or an
+abort) takes neither the worker nor the sweep with it. A member that fails or dies is reported
+(status "failed", the error text, what it computed before failing) and the others are kept;
+sweep.csv is rewritten after every finished member (status "pending" for those still to come).
+The sweep folder must be new or empty unless ``overwrite``.
 By default the members run on a LocalCluster of ``workers`` processes with one thread each;
 ``scheduler`` gives the address of an existing dask scheduler instead. Needs ``granrs[io]``.
 """
@@ -20,6 +24,9 @@ import csv
 import itertools
 import json
 import math
+import signal
+import subprocess
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -101,25 +108,69 @@ def members(config: Union[str, Path, Config], params, out: Optional[Union[str, P
     return result
 
 
-def run_member(cfg: Config) -> dict:
-    """Runs one member; never raises: a failure becomes status 'failed' with its error text, plus
-    what the run computed before failing (its summary.json, when written)."""
+def _record(rec: dict, summary: dict, t0: float) -> dict:
+    for k in ("runout_m", "t_end_s", "steps", "stop_reason", "mass_rel_error"):
+        rec[k] = summary.get(k, math.nan if k != "stop_reason" else "")
+    rec["wall_s"] = time.perf_counter() - t0
+    return rec
+
+
+def _read_summary(cfg: Config) -> dict:
+    path = Path(cfg["output"]["dir"]) / "summary.json"
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def run_member_here(cfg: Config) -> dict:
+    """Runs one member in this process; never raises: a failure becomes status 'failed' with its
+    error text, plus what the run computed before failing (its summary.json, when written)."""
     from .runner import run_config
 
     t0 = time.perf_counter()
     rec = {"status": "ok", "error": ""}
     summary = {}
     try:
-        summary = run_config(cfg, progress=False, command="granrs.sweep.run_member")
+        summary = run_config(cfg, progress=False, command="granrs.sweep.run_member", overwrite=True)
     except Exception as err:  # a member's failure is data
         rec.update(status="failed", error=f"{type(err).__name__}: {err}")
-        path = Path(cfg["output"]["dir"]) / "summary.json"
-        if path.exists():
-            summary = json.loads(path.read_text())
-    for k in ("runout_m", "t_end_s", "steps", "stop_reason", "mass_rel_error"):
-        rec[k] = summary.get(k, math.nan if k != "stop_reason" else "")
-    rec["wall_s"] = time.perf_counter() - t0
-    return rec
+        summary = _read_summary(cfg)
+    return _record(rec, summary, t0)
+
+
+def run_member(cfg: Config) -> dict:
+    """Runs one member in a child process (``python -m granrs.sweep member DIR``, the
+    configuration on stdin, the record on stdout); never raises. A child that dies (a signal:
+    SIGKILL from the system's out-of-memory killer, SIGABRT) or exits without a record is a
+    'failed' member naming how it ended, with what its summary.json held by then."""
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "granrs.sweep", "member", str(cfg["output"]["dir"])],
+                          input=json.dumps(cfg), capture_output=True, text=True)
+    lines = proc.stdout.strip().splitlines()
+    if proc.returncode == 0 and lines:
+        try:
+            return json.loads(lines[-1])
+        except ValueError:
+            pass
+    if proc.returncode < 0:
+        name = signal.Signals(-proc.returncode).name if -proc.returncode in signal.Signals._value2member_map_ else "?"
+        why = (f"the member's process died from signal {name} ({-proc.returncode})"
+               + (": killed from outside or by the system's out-of-memory killer" if name == "SIGKILL" else ""))
+    else:
+        tail = proc.stderr.strip().splitlines()[-1:] or [""]
+        why = f"the member's process exited with status {proc.returncode} without a result: {tail[0]}"
+    summary = _read_summary(cfg)
+    return _record({"status": "failed", "error": f"MemberDied: {why}"}, summary, t0)
+
+
+def _member_main(out: str) -> int:
+    cfg = json.loads(sys.stdin.read())
+    if str(cfg["output"]["dir"]) != out:
+        raise SystemExit(f"granrs.sweep member: the folder {out!r} is not the configuration's {cfg['output']['dir']!r}")
+    rec = run_member_here(cfg)
+    print(json.dumps(rec))
+    return 0
 
 
 @dataclass
@@ -133,19 +184,39 @@ class SweepResult:
 
 
 def run_sweep(config: Union[str, Path, Config], params, scheduler: Optional[str] = None, workers: int = 2,
-              out: Optional[Union[str, Path]] = None, plot: bool = True) -> SweepResult:
+              out: Optional[Union[str, Path]] = None, plot: bool = True, overwrite: bool = False) -> SweepResult:
     """Runs every member on dask.distributed and gathers the results (see the module docstring).
-    Writes ``<out>/sweep.csv``, ``sweep.nc`` and ``sweep_runout.png``."""
+    Writes ``<out>/sweep.csv`` (after every finished member), ``sweep.nc`` and ``sweep_runout.png``."""
+    from .io.outputs import commit_output_dir, plan_output_dir
+
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
         raise ParameterError(f"invalid parameter `workers` = {workers!r}: allowed an integer in [1, 256]")
     base = load_config(config) if isinstance(config, (str, Path)) else resolve(config)
     out = Path(out) if out is not None else Path(base["output"]["dir"])
     mems = members(base, params, out)
-    out.mkdir(parents=True, exist_ok=True)
-    records = _run_on_dask([m.config for m in mems], scheduler, workers)
-    table = []
-    for m, rec in zip(mems, records):
-        table.append({"member": m.index, **m.values, **{k: rec.get(k) for k in RECORD_KEYS}, "dir": m.config["output"]["dir"]})
+    from .config import column_case
+
+    for m in mems:  # memory and the other checks of the case, before any member runs
+        try:
+            column_case(m.config).validate()
+        except ParameterError as err:
+            raise ParameterError(f"sweep member {m.index} ({m.values}): {err}") from None
+    plan = plan_output_dir(out, overwrite=overwrite, name="--out")
+    commit_output_dir(plan)
+    if plan.mode == "overwrite":
+        for old in out.glob("member-*/"):
+            from .io.outputs import clear_run
+
+            clear_run(old)
+    table = [{"member": m.index, **m.values, **{k: ("pending" if k == "status" else None) for k in RECORD_KEYS},
+              "dir": m.config["output"]["dir"]} for m in mems]
+
+    def finished(i: int, rec: dict) -> None:
+        table[i].update({k: rec.get(k) for k in RECORD_KEYS})
+        _write_csv(out / "sweep.csv", table)
+
+    _write_csv(out / "sweep.csv", table)
+    _run_on_dask([m.config for m in mems], scheduler, workers, finished)
     prov = provenance(dumps(base))
     files = {"csv": _write_csv(out / "sweep.csv", table)}
     ds = to_dataset(table, list(mems[0].values), prov)
@@ -156,29 +227,33 @@ def run_sweep(config: Union[str, Path, Config], params, scheduler: Optional[str]
     return SweepResult(table, ds, files)
 
 
-def _run_on_dask(configs: list, scheduler: Optional[str], workers: int) -> list[dict]:
+def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished) -> None:
+    """Runs ``run_member`` on every configuration; ``finished(index, record)`` as each ends."""
     import logging
 
-    from dask.distributed import Client, LocalCluster
+    import dask
+    from dask.distributed import Client, LocalCluster, as_completed
 
     cluster = None
     if scheduler is None:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None,
-                               silence_logs=logging.ERROR)
+        with dask.config.set({"distributed.scheduler.allowed-failures": 0}):  # a dead worker: report, not retry
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                   dashboard_address=None, silence_logs=logging.ERROR)
         client = Client(cluster)
     else:
         client = Client(scheduler)
     try:
         futures = client.map(run_member, configs, pure=False)
-        records = []
-        for cfg, fut in zip(configs, futures):
+        index = {f.key: i for i, f in enumerate(futures)}
+        for fut in as_completed(futures):
+            i = index[fut.key]
             try:
-                records.append(fut.result())
+                rec = fut.result()
             except Exception as err:  # the worker itself died: still a reported failure
-                records.append({"status": "failed", "error": f"{type(err).__name__}: {err}", "runout_m": math.nan,
-                                "t_end_s": math.nan, "steps": math.nan, "stop_reason": "", "wall_s": math.nan,
-                                "mass_rel_error": math.nan})
-        return records
+                rec = _record({"status": "failed", "error": f"{type(err).__name__}: {err}"}, _read_summary(configs[i]),
+                              time.perf_counter())
+                rec["wall_s"] = math.nan
+            finished(i, rec)
     finally:
         client.close()
         if cluster is not None:
@@ -186,11 +261,13 @@ def _run_on_dask(configs: list, scheduler: Optional[str], workers: int) -> list[
 
 
 def _write_csv(path: Path, table: list) -> Path:
-    with open(path, "w", newline="") as f:
+    from .io.outputs import atomic_write
+
+    def write(f):
         w = csv.DictWriter(f, fieldnames=list(table[0]))
         w.writeheader()
         w.writerows(table)
-    return path
+    return atomic_write(path, write)
 
 
 def to_dataset(table: list, keys: list, prov: Optional[dict] = None):
@@ -264,3 +341,9 @@ def plot_runout(table: list, keys: list, path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "member":
+        sys.exit(_member_main(sys.argv[2]))
+    sys.exit("usage: python -m granrs.sweep member DIR  (the member's configuration as JSON on stdin)")

@@ -48,7 +48,7 @@ from ..model import (ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, Model, Numerics, Pore
                      estimate_memory, memory_check)
 from ..shapes import Rectangle
 from ..simulation import Callback, Simulation
-from ..io.outputs import RunOutputs
+from ..io.outputs import OutputError, RunOutputs
 
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
@@ -508,15 +508,19 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     if fluid and rec["t"]:
         summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
     summary.update(extra_summary or {})
-    write_outputs(out, summary, rec, profiles, xs_c - lc, outputs)
-    outputs.write_history(hist)
-    if rec["energy"]:
-        write_energy(out, rec["t"], rec["energy"])
-        plot_energy(out)
-    if fluid and rec["t"]:
-        plot_fluidisation(out)
-    plot_front(out, compare_with)
-    plot_profiles(out)
+    try:
+        write_outputs(out, summary, rec, profiles, xs_c - lc, outputs)
+        outputs.write_history(hist)
+        if rec["energy"]:
+            write_energy(out, rec["t"], rec["energy"])
+            plot_energy(out)
+        if fluid and rec["t"]:
+            plot_fluidisation(out)
+        plot_front(out, compare_with)
+        plot_profiles(out)
+    except OSError as err:  # a full disk: the files written before stay complete
+        raise OutputError(f"cannot write the outputs in {out} ({err.strerror or err}); the files written before are kept"
+                          + (f"; the run had stopped with: {error}" if error else "")) from None
     if isinstance(failure, KeyboardInterrupt):
         raise failure
     if error is not None:

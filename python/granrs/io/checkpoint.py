@@ -70,11 +70,9 @@ def save_checkpoint(model, path, provenance: Optional[dict] = None) -> Path:
     meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "time": model.time, "step_count": model.step_count,
             "grid": {"nx": g.nx, "ny": g.ny, "lx": g.lx, "ly": g.ly}, "scalars": scalars,
             "scalar_types": {k: type(v).__name__ for k, v in scalars.items()}, "provenance": provenance or {}}
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
-    os.replace(tmp, path)
-    return path
+    from .outputs import atomic_write
+
+    return atomic_write(path, lambda f: np.savez(f, meta=np.array(json.dumps(meta)), **arrays), binary=True)
 
 
 def load_checkpoint(path) -> Checkpoint:
@@ -109,7 +107,7 @@ def load_checkpoint(path) -> Checkpoint:
         if not np.all(finite):
             k = int(np.argmin(finite.ravel()))
             raise ParameterError(f"invalid checkpoint `{path}`: entry `{name}` holds a non-finite value "
-                                 f"({v.ravel()[k]!r} at index {k}); allowed finite numbers")
+                                 f"({float(v.ravel()[k])!r} at index {k}); allowed finite numbers")
     state.update(scalars)
     fields = {k[len("fields/"):]: v for k, v in arrays.items() if k.startswith("fields/")}
     return Checkpoint(meta, state, fields)

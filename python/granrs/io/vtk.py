@@ -40,9 +40,9 @@ def _data_array(name: str, data: np.ndarray, components: int = 1) -> str:
 
 def _atomic_write(path: Path, text: str) -> None:
     """Writes through a temporary file and a rename, so a reader never sees half a file."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    from .outputs import atomic_write
+
+    atomic_write(path, lambda f: f.write(text))
 
 
 def write_vti(path, fields: dict, spacing: tuple[float, float], time: float, provenance: Optional[dict] = None) -> Path:

@@ -40,6 +40,20 @@ def deferred_interrupt():
         raise KeyboardInterrupt
 
 
+@contextlib.contextmanager
+def _output_errors(out: Path):
+    """An OSError of a snapshot's write (a full disk) as an OutputError naming the folder."""
+    from .outputs import OutputError
+
+    try:
+        yield
+    except OutputError:
+        raise
+    except OSError as err:
+        raise OutputError(f"cannot write a field snapshot in {out} ({err.strerror or err}); the files written before "
+                          f"are kept in {out}") from None
+
+
 class FieldWriter:
     """Writes snapshots of ``granrs.io.fields.snapshot(model)`` in the given formats. A new writer
     replaces the snapshots in ``out``; with ``append_after`` = t (a restart at t) it keeps those
@@ -87,7 +101,7 @@ class FieldWriter:
     def write(self, model) -> None:
         fields = snapshot(model)
         t = float(model.time)
-        with deferred_interrupt():
+        with deferred_interrupt(), _output_errors(self.out):
             if "vtk" in self.formats:
                 name = f"fields/fields_{len(self.entries):05d}.vti"
                 write_vti(self.out / name, fields, (self.grid.dx, self.grid.dy), t, self.provenance)
