@@ -21,8 +21,8 @@ install: $(VENV)/.deps
 # The main job: the paper's fluidised column collapse on the coarse default grid (ny = 32), with
 # the non-fluidised run beside it on front.png; plots and tables in $(OUT)/column*/ (~1 min).
 demo: install
-	$(VENV)/bin/granrs run column --no-fluidised --out $(OUT)/column-dry
-	$(VENV)/bin/granrs run column --out $(OUT)/column --compare-with $(OUT)/column-dry
+	$(VENV)/bin/granrs run column --no-fluidised --overwrite --out $(OUT)/column-dry
+	$(VENV)/bin/granrs run column --overwrite --out $(OUT)/column --compare-with $(OUT)/column-dry
 
 # The whole fast test suite: Rust tests (release) then pytest.
 test: install
