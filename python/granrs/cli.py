@@ -45,9 +45,10 @@ def _out_plan(out, overwrite: bool, append: bool = False):
     return plan_output_dir(out, overwrite=overwrite, append=append, name="--out")
 
 
-def _interrupted(out) -> int:
+def _interrupted(out, progress: bool = False) -> int:
+    """One line on stderr (after the progress bar's), exit status 130."""
     where = f"; the outputs written so far are in {out} (summary.json says where it stopped)" if out else ""
-    print(f"\ngranrs: interrupted (Ctrl-C){where}", file=sys.stderr)
+    print(f"{chr(10) if progress else ''}granrs: interrupted (Ctrl-C){where}", file=sys.stderr)
     return 130
 
 
@@ -99,7 +100,7 @@ def _run_file(args, parser) -> int:
                              overwrite=args.overwrite, allow_changes=args.allow_changes,
                              out_name="--out" if args.out else "output.dir")
     except KeyboardInterrupt:
-        return _interrupted(cfg["output"]["dir"])
+        return _interrupted(cfg["output"]["dir"], not args.quiet)
     keys = ("runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error", "fluidised", "stop_reason")
     print(json.dumps({k: summary[k] for k in keys} | {"out": cfg["output"]["dir"]}, indent=2))
     return 0
@@ -187,7 +188,7 @@ def _run(args, parser) -> int:
         try:
             summary = run_column(case, Path(args.out), progress=not args.quiet, compare_with=compare)
         except KeyboardInterrupt:
-            return _interrupted(args.out)
+            return _interrupted(args.out, not args.quiet)
         keys = ("model", "model_reason", "runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error",
                 "fluidised", "stop_reason")
         print(json.dumps({k: summary[k] for k in keys}, indent=2))
@@ -330,7 +331,8 @@ def main(argv=None) -> int:
         print(f"granrs: {type(err).__name__}: {err}", file=sys.stderr)
         return 2
     except (SimulationError, SolverError) as err:
-        print(f"\ngranrs: {type(err).__name__}: {err}", file=sys.stderr)
+        newline = chr(10) if args.command == "run" and not args.quiet else ""
+        print(f"{newline}granrs: {type(err).__name__}: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return _interrupted(None)
