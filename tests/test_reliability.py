@@ -404,6 +404,11 @@ def test_refused_runs_into_an_existing_run_leave_it_byte_identical(tmp_path, cap
         rc, err = cli(capsys, "run", str(path), "--quiet", *argv)
         assert rc == 2 and message in err, (argv, err)
         assert snapshot(out) == before, argv
+    for argv in (["column", "--ny", "8"], ["column", "--ny", "8", "--length", "0.1", "--overwrite"],
+                 ["cavity", "--n", "8"]):
+        rc, err = cli(capsys, "run", *argv, "--quiet", "--out", str(out))
+        assert rc == 2 and ("the folder is not empty" in err or "`length` = 0.1" in err), (argv, err)
+        assert snapshot(out) == before, argv
     rc, err = cli(capsys, "run", str(path), "--quiet", "--overwrite")
     assert rc == 0, err
     assert set(snapshot(out)) == set(before)
