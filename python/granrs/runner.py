@@ -26,17 +26,12 @@ from .simulation import Callback
 
 
 def preflight(cfg: Config, restart: Optional[str] = None) -> None:
-    """Checks that need more than the schema: optional dependencies, checkpoint support, restart file."""
+    """Checks that need more than the schema: optional dependencies, the restart file."""
     out = cfg["output"]
     if "netcdf" in out["formats"] and out["fields_every_s"] > 0 and not netcdf_available():
         raise ParameterError("invalid parameter `output.formats` item 'netcdf': needs the optional dependency netCDF4 "
                              "(pip install 'granrs[io]')")
-    if out["checkpoint_every_s"] > 0 and not ckpt.supported():
-        raise ParameterError("invalid parameter `output.checkpoint_every_s` = "
-                             f"{out['checkpoint_every_s']!r}: allowed only 0 with this build. " + ckpt._MISSING)
     if restart is not None:
-        if not ckpt.supported():
-            raise NotImplementedError(ckpt._MISSING)
         meta = ckpt.load_checkpoint(restart).meta
         if meta["time"] >= cfg["numerics"]["t_end"]:
             raise ParameterError(f"invalid parameter `numerics.t_end` = {cfg['numerics']['t_end']!r}: allowed a time "
