@@ -105,7 +105,7 @@ def test_yielded_mask_is_trial_norm_above_one_inside_the_granular_phase(tmp_path
 
 
 def test_vti_reads_with_the_vtk_package(run):
-    # the issue asks for a VTK reader: VTK's own XML image-data reader, values compared exactly
+    # read back with VTK's own XML image-data reader, values compared exactly
     vtk = pytest.importorskip("vtk")
     from vtk.util.numpy_support import vtk_to_numpy
 

@@ -4,6 +4,7 @@ parser) and the run-file keys (from granrs.config.KEYS)."""
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
 
@@ -79,6 +80,42 @@ def generate(app) -> None:
     _write_if_changed(ref / "keys.md", keys_markdown())
 
 
+_SECTION = re.compile(r"^(Parameters|Returns|Raises|Examples|Notes|Attributes|Yields|See Also)\s*$")
+
+
+def plain_docstring(app, what, name, obj, options, lines) -> None:
+    """Makes granrs's plain-text docstrings valid reStructuredText before numpydoc reads them.
+
+    granrs writes |x| for magnitudes and continues an item (``name: text``) on indented lines;
+    in reST the first is a substitution and the second an unexpected indentation. Numpydoc
+    docstrings (with section headers) keep their layout; only the bars are escaped there."""
+    if not name.startswith("granrs"):
+        return
+    text = "\n".join(lines)
+    structured = any(_SECTION.match(l.strip()) for l in lines)
+    text = re.sub(r"(?<!\\)\|", r"\\|", text)
+    text = re.sub(r"(``[^`]+``)(?=\w)", r"\1\\ ", text)
+    out = text.split("\n")
+    if not structured:
+        merged: list[str] = []
+        literal = False
+        for line in out:
+            stripped = line.strip()
+            indent = len(line) - len(line.lstrip())
+            if merged and merged[-1].rstrip().endswith("::"):
+                literal = True
+            if literal and stripped and indent == 0:
+                literal = False
+            if (not literal and stripped and merged and merged[-1].strip()
+                    and indent > len(merged[-1]) - len(merged[-1].lstrip())):
+                merged[-1] = merged[-1].rstrip() + " " + stripped
+            else:
+                merged.append(line)
+        out = merged
+    lines[:] = out
+
+
 def setup(app):
     app.connect("builder-inited", generate)
+    app.connect("autodoc-process-docstring", plain_docstring, priority=400)
     return {"version": "1", "parallel_read_safe": True}

@@ -80,7 +80,7 @@ class ColumnCase:
     # κ_∞ of the 'kappa-infinity' formulations [m² s⁻¹] (the paper: 1e16). 1e8 places the same
     # boundary (κ_∞(1 − H_ε) exceeds κ_f wherever 1 − H_ε > 4e-10) and keeps the pore-pressure
     # CG in double precision: with 1e16 (κ_∞/κ_f = 3e17) it stalled at ny = 32, t = 2.23 s
-    # (docs/validation.md, "How long the flow stays fluidised")
+    # (measured on the fluidised column at ny = 32)
     kappa_air: float = 1e8
     # where the smoothed jump of the yield stress and of the basal friction sits across the
     # interface band (granrs.Numerics.interface_yield): the paper's 'paper' (default,
