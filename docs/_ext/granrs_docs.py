@@ -94,7 +94,7 @@ def plain_docstring(app, what, name, obj, options, lines) -> None:
     text = "\n".join(lines)
     structured = any(_SECTION.match(l.strip()) for l in lines)
     text = re.sub(r"(?<!\\)\|", r"\\|", text)
-    text = re.sub(r"(``[^`]+``)(?=\w)", r"\1\\ ", text)
+    text = re.sub(r"``[^`\n]+``(?=(\w?))", lambda m: m.group(0) + ("\\ " if m.group(1) else ""), text)
     out = text.split("\n")
     if not structured:
         merged: list[str] = []
