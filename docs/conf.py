@@ -45,6 +45,7 @@ numpydoc_xref_param_type = False
 html_theme = "furo"
 html_title = f"granrs {release}"
 html_static_path = []
+templates_path = ["_templates"]
 
 sphinx_gallery_conf = {
     "examples_dirs": str(HERE.parent / "examples" / "gallery"),

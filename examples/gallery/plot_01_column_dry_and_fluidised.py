@@ -63,17 +63,17 @@ fig.tight_layout()
 # ---------------------
 # ``model.phi`` is the level set (Φ > 0 in the grains) and ``model.pf`` the pore pressure, both
 # read-only NumPy views at the cell centres, shape (ny, nx).
-fig, axes = plt.subplots(2, 1, figsize=(7, 3.6), sharex=True)
+fig, axes = plt.subplots(2, 1, figsize=(7, 3.6), sharex=True, layout="constrained")
+pf_image = None
 for ax, (name, (case, model, _)) in zip(axes, runs.items()):
     g = model.grid
     extent = (0, g.lx, 0, g.ly)
     ax.imshow(np.where(model.phi > 0, 1.0, np.nan), origin="lower", extent=extent, cmap="Oranges",
               vmin=0, vmax=1.5, aspect="auto")
     if model.pore_pressure is not None:
-        im = ax.imshow(np.where(model.phi > 0, model.pf, np.nan), origin="lower", extent=extent,
-                       cmap="viridis", aspect="auto")
-        fig.colorbar(im, ax=ax, label="p_f (Pa)")
+        pf_image = ax.imshow(np.where(model.phi > 0, model.pf, np.nan), origin="lower", extent=extent,
+                             cmap="viridis", aspect="auto")
     ax.axvline(case.width, color="k", lw=0.8, ls="--")
     ax.set(xlim=(0, 2.0), ylabel="y (m)", title=f"{name}, t = {model.time:.1f} s")
-axes[-1].set_xlabel("x (m); dashed: the gate")
-fig.tight_layout()
+axes[-1].set_xlabel("x (m); dashed: the gate; orange: grains without pore pressure")
+fig.colorbar(pf_image, ax=list(axes), label="pore pressure p_f (Pa)")

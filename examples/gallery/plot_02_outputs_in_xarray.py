@@ -43,14 +43,16 @@ print(ds)
 # %%
 # Select by time and plot: the level set's zero contour is the grains' surface, coloured by the
 # pore pressure inside.
-fig, axes = plt.subplots(len(ds.time), 1, figsize=(7, 1.4 * len(ds.time)), sharex=True)
+fig, axes = plt.subplots(len(ds.time), 1, figsize=(7, 1.4 * len(ds.time)), sharex=True, layout="constrained")
+vmax = float(ds["pf"].max())
 for ax, t in zip(axes, ds.time.values):
     snap = ds.sel(time=t)
-    snap["pf"].where(snap["phi"] > 0).plot(ax=ax, x=snap["phi"].dims[-1], add_colorbar=False, cmap="viridis")
+    image = snap["pf"].where(snap["phi"] > 0).plot(ax=ax, x=snap["phi"].dims[-1], add_colorbar=False, cmap="viridis",
+                                                   vmin=0, vmax=vmax)
     snap["phi"].plot.contour(ax=ax, x=snap["phi"].dims[-1], levels=[0.0], colors="k", linewidths=0.8)
     ax.set(xlim=(0, 1.0), title=f"t = {float(t):.2f} s", xlabel="", ylabel="y (m)")
 axes[-1].set_xlabel("x (m)")
-fig.tight_layout()
+fig.colorbar(image, ax=list(axes), label="pore pressure p_f (Pa)")
 ds.close()
 
 # %%
