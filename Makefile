@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 OUT    ?= out
 
-.PHONY: demo test test-slow install bench lint clean
+.PHONY: demo test test-slow install bench lint clean docs docs-deps
 
 $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -42,3 +42,15 @@ lint:
 
 clean:
 	rm -rf $(VENV) target $(OUT)
+
+# The documentation's own requirements, into .venv (lower bounds: the versions it is built with).
+$(VENV)/.docs-deps: $(VENV)/.deps
+	$(PY) -m pip install -q "sphinx>=7.2" "myst-parser>=2.0" "furo>=2024.1.29" "numpydoc>=1.6" \
+		"sphinx-gallery>=0.15"
+	touch $@
+
+docs-deps: $(VENV)/.docs-deps
+
+# The documentation site into docs/_build/html; warnings are errors; the gallery runs (~2 min).
+docs: install docs-deps
+	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html

@@ -74,7 +74,7 @@ def column_cost(ny: int, threads: int, steps: int, repeats: int, model: str = "t
 def window_cost(ny: int, length: float, model: str, band: int | None, steps: int, repeats: int,
                 sides: str = "walls") -> dict:
     """Cost per step of the column's steps 11–30 on a channel of `length` m: with the active
-    region the cost should follow the granular area (fixed here), not the domain (issue 8)."""
+    region the cost should follow the granular area (fixed here), not the domain."""
     from granrs.cases.column import ColumnCase, build_model
 
     times = []
@@ -112,7 +112,7 @@ def main() -> None:
                     help="--column: the 2D model whose step is timed (granular: the granular-only model)")
     ap.add_argument("--repeats", type=int, default=None, help="--column: repeats per point (default 3 up to ny = 128, else 1)")
     ap.add_argument("--window", action="store_true",
-                    help="cost per step against the channel length, whole domain and active region (issue 8)")
+                    help="cost per step against the channel length, whole domain and active region")
     ap.add_argument("--band", type=int, default=8, help="--window: the active region's band in cells (default 8)")
     ap.add_argument("--sides", default="walls", choices=granrs.model.ACTIVE_REGION_SIDES,
                     help="--window: the window's sides (open ones: the two-phase model only)")

@@ -7,7 +7,7 @@
 Grids from ny = 128 up run on the active region with open right and top sides (BAND = ny/16
 cells of air, the same 28 mm at every grid; `--active-region BAND --active-region-sides
 open-right-top`, docs/models.md), coarser ones on the whole domain. Run time on the 2-core
-development machine, one thread per run, session 17 (default numerics, r_neighbourhood = 0):
+development machine, one thread per run (default numerics):
 ny = 32 about 10 s per run, ny = 64 about 1–2.5 min, ny = 128 about 2–3 min, ny = 256 about
 23 min dry and 25–30 min fluidised (about 1 h for the whole study, two runs at a time). Each
 finished run is kept in ``OUT/{fluidised,dry}-{ny}/`` and skipped when the script is run again,

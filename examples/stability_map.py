@@ -1,4 +1,4 @@
-"""The stability map (issue #7 item 4): for each method, the largest time step that stays stable
+"""The stability map: for each method, the largest time step that stays stable
 against the cell size h, and what failure looks like past it, classified from granrs's own error
 messages and metrics.
 

@@ -7,7 +7,7 @@ model or method variant granrs offers.
     python examples/work_precision.py                          # then the rest; stored runs are reused
     python examples/work_precision.py --plot-only              # redraw from the stored CSV
 
-Each run is the paper's column (``granrs run column``, validation-data.md §1) to t = 3 s, one
+Each run is the paper's column (``granrs run column``, docs/reference-data.md) to t = 3 s, one
 thread, fluidised and not, kept in ``OUT/<variant>/<fluidised|dry>-<ny>/`` and skipped when the
 script is run again (the same layout as ``examples/column_convergence.py``, whose runs can be
 pointed at with ``--reference-from``). Errors, for each run:

@@ -14,7 +14,7 @@ def test_validate_writes_the_json_record(tmp_path):
     r = run("validate", "hydrostatic", "--steps", "50", "--n", "16", "--json", str(out))
     assert r.returncode == 0, r.stderr
     rec = json.loads(out.read_text())
-    assert set(rec) == {"case", "params", "metrics", "reference", "passed", "wall_s"}
+    assert set(rec) == {"case", "kind", "params", "metrics", "reference", "passed", "wall_s"}
     assert rec["case"] == "hydrostatic" and rec["passed"] is True
 
 

@@ -1,7 +1,7 @@
 """The paper's column collapse end to end (granrs.cases.column, `granrs run column`).
 
 Fast tests run the coarse grid ny = 32 (about 10–20 s each on 2 cores) and check the outputs, not
-the timing. Measured at ny = 32 (docs/validation.md, "Column collapse", session 16): fluidised
+the timing. Measured at ny = 32 (docs/validation.md, "Column collapse"): fluidised
 run-out 2.31 m, non-fluidised 1.11 m (ratio 2.08); the paper's grid is ny = 256.
 """
 
@@ -85,7 +85,7 @@ def test_mass_is_conserved_with_the_default_correction(coarse_runs):
 
 def test_fluidisation_lengthens_the_runout(coarse_runs):
     # paper: the non-fluidised run-out is "almost halved"; at ny = 32 the measured ratio is 2.07,
-    # at the paper's grid the issue asks for 1.7–2.2. The coarse test asks only for the sign and
+    # at the paper's grid 1.7–2.2 (the paper's "almost doubled", ≈ 2, within 15 %). The coarse test asks only for the sign and
     # size of the effect: a ratio above 1.5, and run-outs within 50 % of the paper's (coarse grid).
     _, dry, wet = coarse_runs
     assert wet["runout_m"] / dry["runout_m"] > 1.5
@@ -163,7 +163,7 @@ def test_bad_side_walls_name_themselves(tmp_path, kwargs, name):
 @pytest.mark.parametrize("fluidised", [True, False])
 def test_side_wall_runouts_match_the_stored_reference(tmp_path, fluidised):
     """Regression of the column with side walls 0.1 m apart at ny = 32 against its round-off
-    ensemble (tests/data/column_ensemble.csv, 8 members, session 17): the run-out within mean ±
+    ensemble (tests/data/column_ensemble.csv, 8 members): the run-out within mean ±
     3 std (members 1.792–1.832 m fluidised, std 0.014; 0.774–0.808 m dry, std 0.012), the front at
     t = 1.0 s, identical in every member, within 1 % (the ensemble script's divergence threshold)."""
     ref = _ensemble(32, fluidised, 0.1)
@@ -206,7 +206,7 @@ def test_coarse_runouts_match_the_stored_reference(coarse_runs):
     # regression against the round-off ensembles of tests/data/column_ensemble.csv (8 members
     # each, widths scaled by 1 + k·1e-12; docs/validation.md "Predictability of the late
     # run-out"). The run-out at t = 3 s is chaotic at the per-cent level: with the default
-    # r_neighbourhood = 0 (session 16) the members span 2.299–2.325 m fluidised (std 0.008) and
+    # r_neighbourhood = 0 the members span 2.299–2.325 m fluidised (std 0.008) and
     # 1.108–1.121 m dry (std 0.004), so a round-off-level change of the code may move it anywhere
     # in that band: the bound is mean ± 3 std. The front at t = 1.0 s is deterministic (members
     # identical to 5 digits): 1 %, the ensemble script's divergence threshold.
@@ -220,10 +220,10 @@ def test_coarse_runouts_match_the_stored_reference(coarse_runs):
 @pytest.mark.slow
 def test_ny64_runouts_ratio_and_mass(tmp_path):
     # ny = 64 (about 2.5 + 2 min on 2 cores), against the 4-member ensembles of
-    # tests/data/column_ensemble.csv (session 16, r_neighbourhood = 0): run-outs within
+    # tests/data/column_ensemble.csv (r_neighbourhood = 0): run-outs within
     # mean ± 3 std, but at least ± 0.5 % (fluidised 2.5316–2.5330 m, std 0.0006; dry 1.244–1.258 m,
-    # std 0.006), fronts at t = 1.0 s within 1 % (members identical to 5 digits); the issue's ratio
-    # range 1.7–2.2 (2.01–2.04 over all pairs of members); dense area within 1 % (measured 1e-10
+    # std 0.006), fronts at t = 1.0 s within 1 % (members identical to 5 digits); the ratio within
+    # 1.7–2.2 (the paper's "almost doubled", ≈ 2, within 15 %) (2.01–2.04 over all pairs of members); dense area within 1 % (measured 1e-10
     # with the correction)
     wet = run_column(ColumnCase(ny=64), tmp_path / "wet", progress=False)
     dry = run_column(ColumnCase(ny=64, fluidised=False), tmp_path / "dry", progress=False)
@@ -240,11 +240,11 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
 
 @pytest.mark.slow
 def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path, monkeypatch):
-    """Session 16 (docs/validation.md, "The soft band under the surface"): at ny = 16, with the
+    """docs/validation.md, "The step size and the band under the surface": at ny = 16, with the
     plastic projection's r taken from each cell's own faces (r_neighbourhood = 0), the adaptive
     step (CFL 0.5, ~880 steps) runs out as far as a fixed δt = 1e-4 s (30 000 steps) to within
     the δt trend measured between 1e-4 and 1e-5 s (2.0 %: 2.154 ± 0.022 m, 8 members, against 2.197 m);
-    with r_neighbourhood = 2 (the default until session 16) the adaptive run-out is 26 % short of
+    with the option r_neighbourhood = 2 the adaptive run-out is 26 % short of
     its own δt = 1e-4 s run (1.52 against 2.05 m). About 2 min on one core."""
     import functools
     import granrs.cases.column as column
@@ -361,11 +361,11 @@ def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):
     work of gravity, integrated from the face velocities, against the drop of potential energy
     measured on Φ (independent; they differ by the level set's transport and mass correction:
     measured 0.2 % wet and 1.0 % dry at ny = 32), and the signs of the dissipations. Measured
-    shares at ny = 32 with the default r_neighbourhood = 0 (docs/validation.md, session 16):
+    shares at ny = 32 with the default r_neighbourhood = 0 (docs/validation.md, "The step size and the band under the surface"):
     friction 0.72 / 0.23, plastic 0.16 / 0.72 (its negative part −0.005 / −0.033), numerical
-    0.12 / 0.05 (wet / dry). With the soft band of r_neighbourhood = 2 the numerical share was
+    0.12 / 0.05 (wet / dry). With the soft band of the option r_neighbourhood = 2 the numerical share is
     0.47 / 0.48 and the negative plastic part −0.37 / −0.52: the bound on the numerical share
-    (0.25, twice the larger measured value and half the old one) guards that."""
+    (0.25, twice the larger measured value and half that one) guards that."""
     base, dry, wet = coarse_runs
     for run, s in (("dry", dry), ("wet", wet)):
         assert (base / run / "energy.csv").stat().st_size > 0 and (base / run / "energy.png").stat().st_size > 0

@@ -143,8 +143,8 @@ def test_heap_at_rest_case_reports_both_verdicts():
 
 # ---- a column run that fails keeps its outputs ----------------------------------------------
 def test_failed_column_run_keeps_summary_and_front(tmp_path):
-    # plain Uzawa (θ = 0) with a 1e-8 Picard tolerance and the wide neighbourhood of r (w = 2, the
-    # default until session 16, whose r is ~1600 times smaller under the surface): the iteration
+    # plain Uzawa (θ = 0) with a 1e-8 Picard tolerance and the wide neighbourhood of r (the option
+    # r_neighbourhood = 2, whose r is ~1600 times smaller under the surface): the iteration
     # does not converge within the case's 1000 iterations at the third step of the collapse
     # (increment 2.1e-8, t = 5.9 ms). With w = 0 the same run converges.
     with pytest.raises(SimulationError, match="Picard iteration .* did not converge.*outputs written to"):

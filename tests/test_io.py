@@ -16,7 +16,6 @@ from granrs.cases.column import build_model
 from granrs.config import column_case, load_config, resolve
 from granrs.io import (deferred_interrupt, load_checkpoint, read_pvd, read_vti, restore_checkpoint, save_checkpoint,
                        write_vti)
-from granrs.io.checkpoint import supported
 from granrs.runner import run_config
 
 xr = pytest.importorskip("xarray")
@@ -106,7 +105,7 @@ def test_yielded_mask_is_trial_norm_above_one_inside_the_granular_phase(tmp_path
 
 
 def test_vti_reads_with_the_vtk_package(run):
-    # the issue asks for a VTK reader: VTK's own XML image-data reader, values compared exactly
+    # read back with VTK's own XML image-data reader, values compared exactly
     vtk = pytest.importorskip("vtk")
     from vtk.util.numpy_support import vtk_to_numpy
 
@@ -217,19 +216,6 @@ def test_checkpoint_file_format_round_trip(tmp_path):
         load_checkpoint(tmp_path / "not.npz")
 
 
-@pytest.mark.skipif(supported(), reason="the core exports its state")
-def test_checkpoint_without_core_support_says_so(tmp_path):
-    model = build_model(column_case(tiny(tmp_path)))
-    with pytest.raises(NotImplementedError, match="checkpoint_state"):
-        save_checkpoint(model, tmp_path / "ck.npz")
-    cfg = resolve({**tiny(tmp_path / "out"), "output": {"dir": str(tmp_path / "out"), "checkpoint_every_s": 0.02,
-                                                        "animation": False}})
-    with pytest.raises(ParameterError, match="output.checkpoint_every_s"):
-        run_config(cfg, progress=False)
-    assert not (tmp_path / "out").exists()
-
-
-@pytest.mark.skipif(not supported(), reason="needs RustModel.checkpoint_state/restore_state in the core")
 def test_restart_is_bit_identical(tmp_path):
     case = column_case(tiny(tmp_path))
     a = build_model(case)

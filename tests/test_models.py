@@ -58,7 +58,7 @@ def test_depth_averaged_column_through_the_case_api(tmp_path):
 
 
 def test_auto_keeps_the_two_phase_model_where_no_agreement_was_measured():
-    # measured (docs/models.md, session 16): against the two-phase model with r_neighbourhood = 0
+    # measured (docs/models.md): against the two-phase model with r_neighbourhood = 0
     # the depth-averaged run-out is −11.3 % (dry) and −9.0 % (fluidised) at a = 0.5, the smallest
     # aspect ratio measured: no interval of agreement within 5 %, so auto keeps the two-phase model
     for a, fluidised in ((0.5, False), (2.0, False), (0.5, True)):
@@ -69,8 +69,8 @@ def test_auto_keeps_the_two_phase_model_where_no_agreement_was_measured():
 
 
 def test_auto_takes_the_depth_averaged_model_within_a_measured_interval(tmp_path, monkeypatch):
-    # the rule itself, with the criterion granrs had before session 16 (non-fluidised a <= 0.5,
-    # where the depth-averaged run-out was +0.1 % off the two-phase one with r_neighbourhood = 2)
+    # the rule itself, with an interval of agreement (non-fluidised a <= 0.5, where the
+    # depth-averaged run-out is +0.1 % off the two-phase one with the option r_neighbourhood = 2)
     import granrs.cases.column as column
 
     monkeypatch.setattr(column, "DEPTH_AVERAGED_MAX_ASPECT", {True: None, False: 0.5})

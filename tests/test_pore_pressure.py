@@ -44,7 +44,7 @@ def test_pf_is_only_a_field_of_fluidised_models():
 def test_granular_only_agrees_with_kappa_infinity_on_a_collapsing_column():
     rec = run_case("pore-formulations", ny=32, t_end=0.15)
     m = rec["metrics"]
-    # the bound: 1 %; the sharp κ∞ form and the granular-only solve differ only through
+    # a cross-check of two formulations, bound 1 %; the sharp κ∞ form and the granular-only solve differ only through
     # the air cells (p_f ≈ 0 to 1e-16 κ_f/κ∞ there), measured 1.4e-7
     assert m["pf_rel_l2_difference_kappa-infinity"] <= 0.01, m
     # the paper's smoothed κ(Φ) moves the p_f = 0 boundary about ε inside the grains: an O(h)
@@ -55,7 +55,7 @@ def test_granular_only_agrees_with_kappa_infinity_on_a_collapsing_column():
 def test_fluidised_layer_at_rest_dry_and_flowing_when_fluidised():
     rec = run_case("fluidised-layer", ny=32, t_end=1.0)
     m = rec["metrics"]
-    # the bounds: at rest below 1e-8 m/s without pore pressure (measured 1e-13 over 1 s),
+    # the bounds: at rest below 1e-8 m/s without pore pressure (measured 1e-13 over 1 s),
     # flowing with β = 0.95 (measured 0.64 m/s at 0.2 s: g sin θ t = 0.67 for a frictionless layer)
     assert rec["passed"], m
     assert m["max_speed_beta_0"] < 1e-8 and m["max_speed_beta_0.95"] > 0.3, m

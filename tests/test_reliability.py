@@ -27,7 +27,6 @@ from granrs.model import estimate_memory
 from granrs.runner import run_config
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-CORE_CHECKPOINTS = pytest.mark.skipif(not ckpt.supported(), reason="needs the core's state export")
 
 
 def cli(capsys, *argv):
@@ -466,7 +465,6 @@ def test_ctrl_c_prints_one_line_exits_130_and_keeps_the_last_steps(tmp_path):
     assert _rows(out) >= 10
 
 
-@CORE_CHECKPOINTS
 def test_kill_9_then_restart_appends_to_the_same_run(tmp_path, capsys):
     path = run_file(tmp_path, numerics={"t_end": 0.3}, output={"checkpoint_every_s": 0.05})
     out = tmp_path / "out"
@@ -495,7 +493,6 @@ def test_kill_9_then_restart_appends_to_the_same_run(tmp_path, capsys):
     assert hist["time"][0] < t_ck and np.all(np.diff(hist["time"]) > 0)
 
 
-@CORE_CHECKPOINTS
 def test_a_restart_with_another_configuration_is_refused_naming_the_keys(tmp_path, capsys):
     path, out = _tiny_run(tmp_path, output={"checkpoint_every_s": 0.02})
     before = snapshot(out)
@@ -513,7 +510,6 @@ def test_a_restart_with_another_configuration_is_refused_naming_the_keys(tmp_pat
     assert summary["restart"]["configuration_changes"] == ["materials.granular_viscosity: 0.1 -> 0.5"]
 
 
-@CORE_CHECKPOINTS
 @pytest.mark.parametrize("damage", ["truncated", "emptied", "corrupted", "not-finite"])
 def test_a_damaged_checkpoint_is_a_parameter_error_naming_the_file(tmp_path, capsys, damage):
     path, out = _tiny_run(tmp_path, output={"checkpoint_every_s": 0.02})

@@ -17,7 +17,7 @@ from granrs.validation.rheology import fit_ratio, run_poiseuille
 def test_poiseuille_plug_is_rigid_and_second_order():
     rec = run_case("poiseuille-bingham", tau_y=0.25, n=[16, 32, 64])
     m = rec["metrics"]
-    # validation-data §3: U_p = G/(2μ)(h − η₀)² = 0.28125; the discrete plug velocity is exact up
+    # docs/reference-data.md, "Bingham plane Poiseuille flow": U_p = G/(2μ)(h − η₀)² = 0.28125; the discrete plug velocity is exact up
     # to the Picard tolerance (1e-11), 1e-6 leaves room
     assert abs(m["plug_velocity"] - 0.28125) < 1e-6, m
     # rigid: the projection's argument stays inside the unit ball in every plug cell, and the
@@ -136,7 +136,7 @@ def cavity16():
 def test_cavity_vortex_weakens_and_rises_with_bn(cavity16):
     rows = cavity16["metrics"]["rows"]
     assert cavity16["metrics"]["psi_decreases_and_vortex_rises"], rows
-    # Bn = 0: Stokes |ψ|max = 0.1000 (validation-data §2); 2 % at 16 cells
+    # Bn = 0: Stokes |ψ|max = 0.1000 (docs/reference-data.md, "Lid-driven cavity"); 2 % at 16 cells
     assert abs(rows[0]["psi_max_abs"] - 0.1) < 0.002, rows
     assert rows[2]["unyielded_fraction"] > rows[1]["unyielded_fraction"] > 0, rows
     # published (Bleyer et al. 2015): the height of the vortex centre on the centreline, where u

@@ -209,9 +209,9 @@ class Numerics:
     slowly (docs/validation.md, fluidised layer).
     r_neighbourhood: half-width w (cells) of the neighbourhood over which the default local r of
         the plastic projection takes the largest velocity response (0: the cell's own faces; at
-        most 4; default 0 since session 16, 2 before). It sets how soft the relaxed fixed point of eq. (12) is within w cells
+        most 4; default 0). It sets how soft the relaxed fixed point of eq. (12) is within w cells
         of the air: a rigid zone there deforms at D = θ(Σ − Σ^n)/r, and r is set by the air's
-        faces. w = 0 makes the column's run-out independent of δt (docs/validation.md, session 16).
+        faces. w = 0 makes the column's run-out independent of δt (docs/validation.md, "The step size and the band under the surface").
     sigma_location: where the plastic tensor Σ lives on the MAC grid: 'staggered' (default: Σ_xx
         at cell centres, Σ_xy at nodes, each projected where its strain rate is exact) or
         'centres' (both at cell centres, as in the paper's Figure 3: D_xy averaged from the four

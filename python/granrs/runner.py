@@ -41,13 +41,8 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
     if "netcdf" in out["formats"] and out["fields_every_s"] > 0 and not netcdf_available():
         raise ParameterError("invalid parameter `output.formats` item 'netcdf': needs the optional dependency netCDF4 "
                              "(pip install 'granrs[io]')")
-    if out["checkpoint_every_s"] > 0 and not ckpt.supported():
-        raise ParameterError("invalid parameter `output.checkpoint_every_s` = "
-                             f"{out['checkpoint_every_s']!r}: allowed only 0 with this build. " + ckpt._MISSING)
     if restart is None:
         return None
-    if not ckpt.supported():
-        raise NotImplementedError(ckpt._MISSING)
     ck = ckpt.load_checkpoint(restart)
     meta = ck.meta
     if meta["time"] >= cfg["numerics"]["t_end"]:

@@ -1,6 +1,6 @@
 """The paper's experiment: collapse of a (fluidised) column of glass beads in a channel.
 
-Aravena, Chupin, Dubois & Roche, §4 (validation-data.md §1): a column L_c = 0.20 m wide and
+Aravena, Chupin, Dubois & Roche, §4 (docs/reference-data.md, "The paper"): a column L_c = 0.20 m wide and
 H_c = 0.40 m high (aspect ratio a = H_c/L_c = 2) of glass beads (φ = 0.58, ρ_s = 2500 kg m⁻³,
 d_s = 75 µm) with internal friction angle α = 27° and wall friction α_b = 15° on the base and the
 back wall, released at t = 0 from a reservoir whose gate is at x = L_c. Fluidised: the pore
@@ -85,7 +85,7 @@ class ColumnCase:
     # κ_∞ of the 'kappa-infinity' formulations [m² s⁻¹] (the paper: 1e16). 1e8 places the same
     # boundary (κ_∞(1 − H_ε) exceeds κ_f wherever 1 − H_ε > 4e-10) and keeps the pore-pressure
     # CG in double precision: with 1e16 (κ_∞/κ_f = 3e17) it stalled at ny = 32, t = 2.23 s
-    # (docs/validation.md, "How long the flow stays fluidised")
+    # (measured on the fluidised column at ny = 32)
     kappa_air: float = 1e8
     # where the smoothed jump of the yield stress and of the basal friction sits across the
     # interface band (granrs.Numerics.interface_yield): the paper's 'paper' (default,
@@ -116,7 +116,7 @@ class ColumnCase:
     theta: float = 0.8
     # half-width of the neighbourhood of the plastic projection's local r (granrs.Numerics.r_neighbourhood):
     # within this many cells of the air the relaxed fixed point of eq. (12) is as soft as the air's
-    # faces make it; 0 keeps the run-out independent of δt (docs/validation.md, session 16)
+    # faces make it; 0 keeps the run-out independent of δt (docs/validation.md)
     r_neighbourhood: int = 0
     # the friction of the channel's side walls (granrs.SideWalls; not in the paper's 2D model): None
     # (default, the paper) or the channel width W in m (the experiment's: 0.10), with the friction
@@ -682,10 +682,10 @@ def _progress(outputs, summary: dict, rec: dict, hist: dict, t: float, steps: in
 # a = 0.5, 1, 2, 4. auto takes the depth-averaged model only at or below the largest aspect
 # ratio of an unbroken run of measured agreements starting from the smallest one.
 # Measured (k: Savage–Hutter active) against the two-phase model with r_neighbourhood = 0
-# (session 16): fluidised −9.0, −15.3, −15.0, −7.3 %; non-fluidised −11.3, −9.7, +2.5, +16.8 % at
+# fluidised −9.0, −15.3, −15.0, −7.3 %; non-fluidised −11.3, −9.7, +2.5, +16.8 % at
 # a = 0.5, 1, 2, 4. No unbroken run of agreement starts at a = 0.5, so auto never takes the
-# depth-averaged model. (With the earlier r_neighbourhood = 2 the non-fluidised a = 0.5 agreed to
-# +0.1 % and auto took it there; docs/models.md.)
+# depth-averaged model. (With the option r_neighbourhood = 2 the non-fluidised a = 0.5 agrees to
+# +0.1 %; docs/models.md.)
 DEPTH_AVERAGED_MAX_ASPECT = {True: None, False: None}
 RUNOUT_TOLERANCE = 0.05
 

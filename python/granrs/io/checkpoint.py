@@ -30,22 +30,6 @@ from .._granrs import ParameterError
 from .fields import snapshot
 
 FORMAT, FORMAT_VERSION = "granrs-checkpoint", 1
-_MISSING = ("checkpoint/restart needs the core to export its state: RustModel.checkpoint_state() and "
-            "RustModel.restore_state(dict) are not in this build of granrs._granrs (the Python side and the "
-            "file format are ready; see docs/ecosystem.md, 'Checkpoint and restart')")
-
-
-def supported(model=None) -> bool:
-    """Whether this build (or this model) has the core's state export."""
-    from .. import _granrs
-
-    target = model._rust if model is not None else _granrs.RustModel
-    return hasattr(target, "checkpoint_state") and hasattr(target, "restore_state")
-
-
-def _require(model) -> None:
-    if not supported(model):
-        raise NotImplementedError(_MISSING)
 
 
 @dataclass
@@ -56,8 +40,7 @@ class Checkpoint:
 
 
 def save_checkpoint(model, path, provenance: Optional[dict] = None) -> Path:
-    """Writes the model's state to ``path`` (.npz); NotImplementedError without core support."""
-    _require(model)
+    """Writes the model's state to ``path`` (.npz)."""
     path = Path(path)
     state = model._rust.checkpoint_state()
     arrays = {f"state/{k}": np.asarray(v) for k, v in state.items() if isinstance(v, np.ndarray)}
@@ -145,7 +128,6 @@ def configuration_changes(ck: Checkpoint, cfg: dict) -> list[str]:
 
 def restore_checkpoint(model, checkpoint) -> Checkpoint:
     """Restores ``model`` (built from the same configuration) from a checkpoint file or object."""
-    _require(model)
     ck = checkpoint if isinstance(checkpoint, Checkpoint) else load_checkpoint(checkpoint)
     g, want = model.grid, ck.meta["grid"]
     if (g.nx, g.ny) != (want["nx"], want["ny"]) or not np.allclose((g.lx, g.ly), (want["lx"], want["ly"]), rtol=1e-12):

@@ -16,26 +16,40 @@ from ..model import Model, Numerics
 from ..shapes import Rectangle
 
 
+#: the exact area of Zalesak's slotted disk (radius 15, slot 5 wide and 25 deep, in the 100 × 100
+#: box; Zalesak 1979, docs/reference-data.md): after one revolution the disk is back where it started
+ZALESAK_AREA = 582.207
+#: the Rider–Kothe vortex (Rider & Kothe 1998) reverses at t = T/2, so at t = T the exact interface
+#: is the initial circle of radius 0.15: its area
+SINGLE_VORTEX_AREA = math.pi * 0.15 ** 2
+
+
 def zalesak(n: int, redistance_every: int = 0, cfl: float = 0.5, threads: int = 1):
-    """One revolution of Zalesak's disk (validation-data.md §6); area and symmetric difference."""
+    """One revolution of Zalesak's disk (docs/reference-data.md); area against the exact area, and
+    the symmetric difference with the exact disk."""
     m = _granrs.levelset_validation("zalesak", int(n), 628.0, int(redistance_every), float(cfl), threads)
+    m["area_rel_error"] = (m["area_final"] - ZALESAK_AREA) / ZALESAK_AREA
     limit = 0.02 if redistance_every else 0.01
     passed = abs(m["area_rel_error"]) <= limit and (redistance_every or m["symdiff_rel"] <= 0.05)
-    reference = {"area_exact": 582.207, "acceptance": f"|area_rel_error| <= {limit:.0%}" +
-                 ("" if redistance_every else ", symdiff_rel <= 5 %")}
+    reference = {"area_exact": ZALESAK_AREA, "source": "exact area of the slotted disk (Zalesak 1979)",
+                 "acceptance": f"|area_rel_error| <= {limit:.0%}" + ("" if redistance_every else ", symdiff_rel <= 5 %")}
     return m, reference, bool(passed)
 
 
 def single_vortex(n: int, period: float = 2.0, redistance_every: int = 0, cfl: float = 0.5, threads: int = 1):
-    """Rider–Kothe single vortex, evaluated at t = T against the initial circle."""
+    """Rider–Kothe single vortex, evaluated at t = T against the initial circle. The acceptance
+    (area within 1 %) is stated for T = 2; for other T (T = 8, the hard case, loses tens of per
+    cent with plain level sets) the metrics are reported with ``passed`` None."""
     m = _granrs.levelset_validation("single-vortex", int(n), float(period), int(redistance_every), float(cfl), threads)
-    passed = abs(m["area_rel_error"]) <= 0.01 if period <= 2.0 + 1e-12 else True
-    reference = {"acceptance": "|area_rel_error| <= 1 % for T = 2 (reported only for T = 8)"}
-    return m, reference, bool(passed)
+    m["area_rel_error"] = (m["area_final"] - SINGLE_VORTEX_AREA) / SINGLE_VORTEX_AREA
+    passed = abs(m["area_rel_error"]) <= 0.01 if abs(period - 2.0) <= 1e-12 else None
+    reference = {"area_exact": SINGLE_VORTEX_AREA, "source": "the initial circle (the flow reverses at T/2)",
+                 "acceptance": "|area_rel_error| <= 1 % for T = 2; other T: reported, passed null"}
+    return m, reference, passed
 
 
 # Martin & Moyce (1952), Phil. Trans. R. Soc. A 244, 312-324, a = 2.25 in, height 2a:
-# dimensionless front Z = x/a against T = t √(2g/a) (validation-data.md §7).
+# dimensionless front Z = x/a against T = t √(2g/a) (docs/reference-data.md, "Dam break").
 MARTIN_MOYCE = np.array([
     [0.0, 1.00], [0.41, 1.11], [0.84, 1.22], [1.19, 1.44], [1.43, 1.67], [1.63, 1.89], [1.83, 2.11], [1.98, 2.33],
     [2.20, 2.56], [2.32, 2.78], [2.51, 3.00], [2.65, 3.22], [2.83, 3.44], [2.98, 3.67], [3.11, 3.89], [3.33, 4.11]])
@@ -86,7 +100,7 @@ def run_dam_break(n: int = 32, threads: int = 1, cfl: float = 0.4, out: Path | N
     speed_exp = _speed_fit(MARTIN_MOYCE[:, 0], MARTIN_MOYCE[:, 1])
     area_change = float(np.max(np.abs(np.array(areas)[T <= 3.0] - area0)) / area0)
     table = [[float(t), float(np.interp(t, T, Z)), float(z)] for t, z in MARTIN_MOYCE]
-    # alignment at Z = 1.44 (validation-data.md §7): the simulation leads early because the gate
+    # alignment at Z = 1.44 (docs/reference-data.md, "Dam break"): the simulation leads early because the gate
     # is removed instantly; shift its time so that it reaches Z = 1.44 at the experiment's T = 1.19
     t_align = float(np.interp(1.44, Z, T)) - 1.19
     aligned_err = np.interp(MARTIN_MOYCE[:, 0] + t_align, T, Z) - MARTIN_MOYCE[:, 1]
@@ -117,7 +131,7 @@ def run_dam_break(n: int = 32, threads: int = 1, cfl: float = 0.4, out: Path | N
 def dam_break(n: int = 32, mass_correction: bool = True, threads: int = 1, air: str = "resolved"):
     m = run_dam_break(n, threads, out=Path("out/validation"), mass_correction=mass_correction, air=air)
     passed = abs(m["front_speed_rel_error"]) <= 0.10 and m["area_rel_change_max"] <= 0.01
-    reference = {"source": "Martin & Moyce 1952 (validation-data.md §7)",
+    reference = {"source": "Martin & Moyce 1952 (docs/reference-data.md, \"Dam break\")",
                  "acceptance": "front speed dZ/dT over T in [1.5, 3] within 10 %; area conserved within 1 % to T = 3",
                  "plot": "out/validation/" + ("dam_break_free_surface.png" if air == "free-surface" else "dam_break.png")}
     return m, reference, bool(passed)

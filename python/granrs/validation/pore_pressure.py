@@ -14,6 +14,17 @@ from ..model import Model, Numerics, PorePressure
 #: a layer of thickness H = 0.8 in a unit-height box, κ = 1, basal gradient G = −1:
 #: ∂_t p = κ ∂²p/∂y², p(H) = 0, ∂p/∂y(0) = G, p(y, 0) = 0. Non-dimensional.
 H, KAPPA, G = 0.8, 1.0, -1.0
+#: the bound on the relative L2 error at n = 64 against the exact series: the measured error is
+#: 7.9e-5 there (second order from 2.4e-3 at n = 16), so 0.5 % fails only a broken solve or a lost
+#: boundary condition
+PORE_DIFFUSION_L2_AT_64 = 0.005
+#: the sharp κ_∞ formulation and the granular-only solve must agree within this relative L2
+#: difference of p_f (measured 1.4e-7 at ny = 32): a cross-check of granrs with itself
+PORE_FORMULATIONS_AGREEMENT = 0.01
+#: the fluidised layer: at rest without pore pressure (round-off speeds, 1.2e-13 m/s measured) and
+#: flowing with it (0.638 m/s at 0.2 s, below the frictionless g sin θ t = 0.671 m/s)
+LAYER_REST_SPEED = 1e-8
+LAYER_FLOW_SPEED = 1e-3
 
 
 def exact_flux(y: np.ndarray, t: float, terms: int = 200) -> np.ndarray:
@@ -58,7 +69,9 @@ def pore_diffusion(n, dt_factor: float = 10.0, formulation: str = "granular-only
     ns = [int(x) for x in (n if isinstance(n, (list, tuple)) else [n])]
     errs = [pore_diffusion_error(k, dt_factor, formulation, threads)[0] for k in ns]
     metrics = {"n": ns, "l2_rel_error": errs if len(ns) > 1 else errs[0]}
-    passed = True
+    # judged against the exact series: the order needs two or more n, the 0.5 % bound is stated at
+    # n = 64; one n other than 64 has neither, and passed is None
+    passed = None
     if len(ns) > 1:
         orders = [math.log(errs[i] / errs[i + 1]) / math.log(ns[i + 1] / ns[i]) for i in range(len(ns) - 1)]
         metrics["successive_orders"] = orders
@@ -67,12 +80,13 @@ def pore_diffusion(n, dt_factor: float = 10.0, formulation: str = "granular-only
         # order is the least-squares slope over all grids
         slope = -np.polyfit(np.log(ns), np.log(errs), 1)[0]
         metrics["observed_order"] = float(slope)
-        passed = slope >= 1.8
+        passed = bool(slope >= 1.8)
     if 64 in ns:
         e64 = errs[ns.index(64)]
-        passed = passed and e64 <= 0.005
+        passed = (passed is not False) and e64 <= PORE_DIFFUSION_L2_AT_64
     reference = {"solution": "1D series, flux at the base, p_f = 0 on the interface",
-                 "acceptance": "l2_rel_error <= 0.5 % at n = 64; observed_order (least-squares slope) >= 1.8",
+                 "acceptance": "l2_rel_error <= 0.5 % at n = 64; observed_order (least-squares slope) >= 1.8 "
+                               "(two or more n); one n other than 64: passed null",
                  "dt": f"{dt_factor} x h^2/(4 kappa)"}
     return metrics, reference, passed
 
@@ -114,9 +128,10 @@ def pore_formulations(ny: int = 32, t_end: float = 0.15, kappa_air: float = 1e16
         metrics[f"wall_s_{form}"] = wb
         metrics[f"pore_iterations_median_{form}"] = float(np.median(lb["pore_iterations"]))
     diff = metrics["pf_rel_l2_difference_kappa-infinity"]
-    reference = {"acceptance": "granular-only and kappa-infinity (sharp) agree within 1 % (relative L2 of p_f over the "
+    reference = {"kind": "cross-check: granrs against itself, no external reference",
+                 "acceptance": "granular-only and kappa-infinity (sharp) agree within 1 % (relative L2 of p_f over the "
                                "granular phase); the smoothed form differs by O(eps) and is reported", "kappa_air": kappa_air}
-    return metrics, reference, diff <= 0.01
+    return metrics, reference, diff <= PORE_FORMULATIONS_AGREEMENT
 
 
 def fluidised_layer_speed(beta: float, ny: int = 32, slope_deg: float = 20.0, t_end: float = 0.2, threads: int = 1,
@@ -177,8 +192,11 @@ def fluidised_layer(ny: int = 32, slope_deg: float = 20.0, t_end: float = 1.0, t
                "friction_angle_deg": 27.0, "rest_ratio": rep["max_ratio"], "rest_ratio_bound": math.tan(math.radians(slope_deg)) / math.tan(math.radians(27.0)),
                "max_speed_beta_0_paper_band": paper, "rest_ratio_paper_band": rep_paper["max_ratio"],
                "clamped_nodes_paper_band": rep_paper["clamped"], "max_speed_beta_0_from_zero_stress": unbalanced}
-    reference = {"acceptance": "at rest without pore pressure (max_speed < 1e-8 m/s over t_end), flowing with it (> 1e-3 m/s "
-                               "within 0.2 s); rest_ratio is tan(slope)/tan(27°) up to the discretisation",
+    reference = {"source": "continuum: below its friction angle a dry layer rests; with its weight carried by the pore "
+                           "pressure its yield stress vanishes and it flows",
+                 "acceptance": f"at rest without pore pressure (max_speed < {LAYER_REST_SPEED:g} m/s over t_end), flowing "
+                               f"with it (> {LAYER_FLOW_SPEED:g} m/s within 0.2 s); rest_ratio is tan(slope)/tan(27°) up to "
+                               "the discretisation",
                  "note": "interface_yield 'density-support' and the balanced initial Σ; the paper's band and the start "
                          "from Σ = 0 are reported beside (docs/validation.md)"}
-    return metrics, reference, dry < 1e-8 and wet > 1e-3
+    return metrics, reference, dry < LAYER_REST_SPEED and wet > LAYER_FLOW_SPEED

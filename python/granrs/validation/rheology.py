@@ -33,7 +33,7 @@ def _orders(ns, errors):
 
 
 # ---------------------------------------------------------------------------------------------
-# Bingham plane Poiseuille flow (validation-data §3)
+# Bingham plane Poiseuille flow (docs/reference-data.md)
 # ---------------------------------------------------------------------------------------------
 def poiseuille_exact(eta: np.ndarray, tau_y: float, G: float = 1.0, mu: float = 1.0, h: float = 1.0) -> np.ndarray:
     """u(η) of the Bingham plane Poiseuille flow, η = distance from the centreline."""
@@ -92,12 +92,12 @@ def poiseuille_bingham(tau_y, n, threads: int = 1):
                                     "plug_velocity_spread")}
     metrics["n"] = ns
     metrics["per_n"] = per_n
-    u_p = 0.5 * (1 - tau_y) ** 2
+    u_p = float(poiseuille_exact(np.array(0.0), tau_y))   # the plug velocity G/(2μ)(h − η₀)²
     passed = abs(last["plug_velocity"] - u_p) <= 1e-6 and last["plug_trial_norm_max"] < 1 and last["l2_rel_error"] <= 0.01
     if len(ns) > 1:
         metrics["observed_order"] = _orders(ns, [p["l2_rel_error"] for p in per_n])
         passed = passed and min(metrics["observed_order"]) >= 1.8
-    reference = {"plug_velocity": u_p, "plug_half_width": tau_y, "source": "validation-data.md §3 (exact)",
+    reference = {"plug_velocity": u_p, "plug_half_width": tau_y, "source": "exact (docs/reference-data.md, \"Bingham plane Poiseuille flow\")",
                  "acceptance": "plug velocity within 1e-6, |Σ + rD| < 1 in the plug (rigid), l2 <= 1 % at the finest n, "
                                "order >= 1.8 (second order)"}
     return metrics, reference, passed
@@ -113,9 +113,9 @@ def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_
 
     The pressure update is the rotational one (``pressure_update='rotational'``): with the
     standard incremental update, ηδt/(ρh²) = 51 at n = 32 and δt = 0.05, and the grid-scale
-    pressure modes of the lid corners decay by only ~0.997 per step, so that the runs of
-    sessions 2–10 were still creeping at t = 40 (|ψ|max at Bn = 20 moved from 0.0366 to 0.0377
-    at n = 32 once converged). θ = 0.05 keeps the rigid zones of eq. (12) stiff (their elastic
+    pressure modes of the lid corners decay by only ~0.997 per step, so that runs with it are
+    still creeping at t = 40 (|ψ|max at Bn = 20 is 0.0366 there, against 0.0377 at n = 32 once
+    converged). θ = 0.05 keeps the rigid zones of eq. (12) stiff (their elastic
     modulus ∝ (1 − θ)/θ), with Anderson mixing (depth 10) for the slow 1 − θ contraction.
     With ``regularised = m`` the Papanastasiou law with that m replaces the projection: the
     independent check of the same discretisation."""
@@ -223,14 +223,14 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0, regularised_che
     monotone = all(psis[i + 1] < psis[i] for i in range(len(psis) - 1)) and all(ys[i + 1] > ys[i] for i in range(len(ys) - 1))
     metrics["psi_decreases_and_vortex_rises"] = monotone
     passed = monotone
-    reference = {"stokes_psi_max_abs": 0.1000, "stokes_vortex_y": 0.765,
+    reference = {"stokes_psi_max_abs": STOKES_CAVITY_PSI_MAX, "stokes_vortex_y": 0.765,
                  "stokes_centreline_u_min": STOKES_CAVITY_U_MIN,
-                 "source": "validation-data.md §2 (Stokes cavity, Bn = 0); centreline min u of the Stokes cavity: "
+                 "source": "Stokes cavity, Bn = 0 (docs/reference-data.md, \"Lid-driven cavity\"); centreline min u of the Stokes cavity: "
                            "Richardson limit of an independent biharmonic solution (stokes_cavity_biharmonic, n = 32, 64)",
                  "published_bingham": "Bleyer et al. 2015 (CMAME 283) centreline velocity, Bi = 0, 2, 5, 20: "
                                       "min u/U and the height of u = 0 (BLEYER2015_CENTRELINE)",
                  "acceptance": "|ψ| decreases and the vortex centre rises with Bn; Bn = 0: |ψ|max within 1 % of 0.1000; "
-                               "at n >= 64 the height of u = 0 within 2 % of Bleyer et al. 2015 and the projection "
+                               "below n = 64 without Bn = 0 no reference is gated (passed null); at n >= 64 the height of u = 0 within 2 % of Bleyer et al. 2015 and the projection "
                                "within 5 % of the regularised solution (|ψ|max); the centreline min u against "
                                "Bleyer et al. is reported, not gated (docs/validation.md: their Newtonian profile is "
                                "3.4 % below the converged Stokes value)"}
@@ -246,9 +246,13 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0, regularised_che
                 passed = passed and metrics[name] <= limit
     if 0.0 in bns:
         r0 = rows[bns.index(0.0)]
-        metrics["stokes_psi_rel_error"] = abs(r0["psi_max_abs"] - 0.1) / 0.1
+        metrics["stokes_psi_rel_error"] = abs(r0["psi_max_abs"] - STOKES_CAVITY_PSI_MAX) / STOKES_CAVITY_PSI_MAX
         metrics["stokes_u_min_rel_error"] = abs(r0["centreline_u_min"] / STOKES_CAVITY_U_MIN - 1)
         passed = passed and metrics["stokes_psi_rel_error"] <= 0.01
+    elif n < 64:
+        # below n = 64 the published comparisons are reported, not gated, and without Bn = 0 the
+        # Stokes value is not among the runs: the trend alone is no reference
+        passed = None
     return metrics, reference, passed
 
 
@@ -291,10 +295,12 @@ def stokes_cavity_biharmonic(n: int) -> tuple[float, float]:
 # The Stokes cavity's centreline min u: Richardson extrapolation (second order) of
 # stokes_cavity_biharmonic at n = 32 and 64 (-0.20616, -0.20735; tests/test_rheology.py recomputes it).
 STOKES_CAVITY_U_MIN = -0.20775
+# The Stokes cavity's |ψ|max (docs/reference-data.md, "Lid-driven cavity").
+STOKES_CAVITY_PSI_MAX = 0.1000
 
 
 # ---------------------------------------------------------------------------------------------
-# Cessation of a Bingham flow (validation-data §4)
+# Cessation of a Bingham flow (docs/reference-data.md)
 # ---------------------------------------------------------------------------------------------
 def cessation_bound(u0_l2: float, tau_y: float, rho: float = 1.0, mu: float = 1.0, L: float = 1.0) -> float:
     """T_f ≤ (ρ/(μλ₁)) ln(1 + μλ₁E₀/(τ_y β)), λ₁ = (π/L)², β = 2/√L (Glowinski 1984; Huilgol,
@@ -360,14 +366,14 @@ def cessation(geometry, tau_y, dt, n, threads: int = 1, regularisation: float = 
         metrics["stop_time_differences"] = diffs
         ok = ok and all(diffs[i + 1] < diffs[i] or diffs[i + 1] <= dts[i + 2] for i in range(len(diffs) - 1))
     ok = ok and at_stop > 1e-6
-    reference = {"bound": bound, "source": "validation-data.md §4 (Glowinski 1984; Huilgol, Mena & Piau 2002)",
+    reference = {"bound": bound, "source": "Glowinski 1984; Huilgol, Mena & Piau 2002 (docs/reference-data.md, \"Cessation of a Bingham flow\")",
                  "acceptance": "stops (max speed < 1e-9 of its initial value) before the bound for every δt, the stop "
                                "time converges as δt halves; the regularised law is still moving (> 1e-6) at that time"}
     return metrics, reference, ok
 
 
 # ---------------------------------------------------------------------------------------------
-# μ(I) Bagnold profile (validation-data §5)
+# μ(I) Bagnold profile (docs/reference-data.md)
 # ---------------------------------------------------------------------------------------------
 BAGNOLD = {"mu_s": 0.38, "mu_2": 0.64, "i0": 0.3, "slope": 0.43, "grain_diameter": 0.04, "h": 1.0, "g": 1.0}
 
@@ -421,7 +427,7 @@ def bagnold(n, threads: int = 1):
                "l2_rel_error": float(np.sqrt(np.sum((u - ex) ** 2) / np.sum(ex ** 2))),
                "steady_change_per_unit_time": change, "t_final": m.time}
     metrics["u_surface_rel_error"] = abs(u_surface - exact_surface) / exact_surface
-    reference = {"u_surface": exact_surface, "check_value": 2.0665, "source": "validation-data.md §5 (exact Bagnold profile)",
+    reference = {"u_surface": exact_surface, "check_value": 2.0665, "source": "exact Bagnold profile (docs/reference-data.md, \"Bagnold profile\")",
                  "acceptance": "l2 <= 2 % and u_surface within 2 %"}
     return metrics, reference, metrics["l2_rel_error"] <= 0.02 and metrics["u_surface_rel_error"] <= 0.02
 
@@ -462,10 +468,16 @@ def run_block(slope: float, n: int = 32, dt: float = 1e-3, t_end: float = 0.2, u
     return np.asarray(t), np.asarray(U), m
 
 
+def block_acceleration(slope: float, wall_friction_angle: float = 15.0, g: float = 9.81) -> float:
+    """The exact acceleration of a rigid block sliding on a Coulomb base: g (sin θ − tan α_b cos θ)
+    (negative below the friction angle: the deceleration)."""
+    ab = math.radians(wall_friction_angle)
+    return g * (math.sin(math.radians(slope)) - math.tan(ab) * math.cos(math.radians(slope)))
+
+
 def sliding_block(slope, stop_slope, n, threads: int = 1, wall_friction_angle: float = 15.0):
     slope, stop_slope, n = float(slope), float(stop_slope), int(n)
-    ab = math.radians(wall_friction_angle)
-    accel = lambda sl: 9.81 * (math.sin(math.radians(sl)) - math.tan(ab) * math.cos(math.radians(sl)))
+    accel = lambda sl: block_acceleration(sl, wall_friction_angle)
     t, U, _ = run_block(slope, n, threads=threads)
     sel = t >= 0.05
     a = float(np.polyfit(t[sel], U[sel], 1)[0])
@@ -477,7 +489,7 @@ def sliding_block(slope, stop_slope, n, threads: int = 1, wall_friction_angle: f
     d_ex = accel(stop_slope)
     t_stop_ex = u0 / -d_ex if d_ex < 0 else math.inf
     # the stop at δt = 0.5 ms: the relaxed fixed point of eq. (12) rings after the stop with an
-    # amplitude ∝ δt; with the stiffer band of r_neighbourhood = 0 (session 16) the block moved
+    # amplitude ∝ δt; with the stiff band of r_neighbourhood = 0 the block moves
     # 3.0 mm after its stop at δt = 1 ms (2.1 % of its slide) and moves 0.8 mm at 0.5 ms (0.6 %)
     t2, U2, _ = run_block(stop_slope, n, dt=5e-4, u0=u0, t_end=min(t_stop_ex + 0.4, 2.0), threads=threads)
     X = np.concatenate([[0.0], np.cumsum(0.5 * (U2[1:] + U2[:-1]) * np.diff(t2))])
@@ -551,7 +563,7 @@ def run_heap(slope: float = 20.0, n: int = 32, dt: float = 0.05, t_end: float = 
 def heap_at_rest(slope, n, regularised, threads: int = 1, regularisation: float = 1000.0):
     slope, n = float(slope), int(n)
     m, log = run_heap(slope, n, threads=threads)
-    creep = creep_verdict(log)
+    creep = creep_verdict(log, REST_SPEED)
     metrics = {"max_speed": creep["creep_speed"], "max_speed_over_run": float(np.max(log["max_speed"])),
                "picard_iterations_first_step": int(log["picard_iterations"][0]),
                "rest_speed": REST_SPEED, "verdict": creep["verdict"], "message": creep["message"]}
@@ -588,6 +600,12 @@ def fit_ratio(history, floor: float = 1e-11) -> float:
     return float(np.exp(np.polyfit(idx, np.log(h[idx]), 1)[0]))
 
 
+def picard_expected_ratio(theta: float) -> float:
+    """The contraction ratio of the Picard iteration of eq. (12), 1 − θ (paper §3.1; Chalayer,
+    Chupin & Dubois 2018)."""
+    return 1.0 - theta
+
+
 def picard_ratio(theta, n, threads: int = 1):
     """Third step of a Bingham cavity (Bn = 5, Stokes, δt = 0.05) for each θ: the fitted ratio of the
     Picard increments against the paper's 1 − θ."""
@@ -600,9 +618,9 @@ def picard_ratio(theta, n, threads: int = 1):
                                     picard_max_iterations=5000))
         m.advance(max_steps=3)
         h = m.picard_history()
-        rows.append({"theta": th, "ratio": fit_ratio(h), "expected": 1 - th, "iterations": len(h)})
+        rows.append({"theta": th, "ratio": fit_ratio(h), "expected": picard_expected_ratio(th), "iterations": len(h)})
     metrics = {"rows": rows}
-    passed = all(abs(r["ratio"] - r["expected"]) <= 0.1 for r in rows)
+    passed = all(abs(r["ratio"] - r["expected"]) <= 0.1 for r in rows)   # 0.1: the fit over a finite window
     reference = {"ratio": "1 − θ", "source": "Aravena et al. §3.1; Chalayer, Chupin & Dubois 2018",
                  "acceptance": "fitted ratio within 0.1 of 1 − θ"}
     return metrics, reference, passed

@@ -1,0 +1,121 @@
+"""Pages generated from the code at build time: the command line (from granrs.cli's argparse
+parser) and the run-file keys (from granrs.config.KEYS)."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+
+class _Captured(Exception):
+    def __init__(self, parser):
+        self.parser = parser
+
+
+def cli_parser() -> argparse.ArgumentParser:
+    """The parser that ``granrs.cli.main`` builds, captured when it parses (nothing is run)."""
+    from granrs import cli
+
+    original = argparse.ArgumentParser.parse_args
+
+    def capture(self, *args, **kwargs):
+        raise _Captured(self)
+
+    argparse.ArgumentParser.parse_args = capture
+    try:
+        cli.main(["info"])
+    except _Captured as cap:
+        return cap.parser
+    finally:
+        argparse.ArgumentParser.parse_args = original
+    raise RuntimeError("granrs.cli.main did not parse its arguments")
+
+
+def cli_markdown() -> str:
+    parser = cli_parser()
+    parser.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=100)
+    out = ["# Command line", "",
+           "Generated from the argument parser of `granrs.cli` when the documentation is built.", "",
+           "```text", parser.format_help().rstrip(), "```", ""]
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    for action in subs:
+        for name, sub in action.choices.items():
+            sub.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=100)
+            out += [f"## `granrs {name}`", "", "```text", sub.format_help().rstrip(), "```", ""]
+    return "\n".join(out)
+
+
+def keys_markdown() -> str:
+    from granrs import config
+
+    out = ["# Run-file keys", "",
+           "Generated from `granrs.config.KEYS` when the documentation is built; `granrs keys` prints the",
+           "same table. A run file is TOML with the sections "
+           + ", ".join(f"`[{s}]`" for s in config.SECTIONS)
+           + ". Every key is checked before any work: a bad key or value raises `granrs.ParameterError`",
+           "naming the full key, its allowed range and its unit.", ""]
+    for section in config.SECTIONS:
+        out += [f"## `[{section}]`", "", "| key | allowed | default | meaning |", "|---|---|---|---|"]
+        for k in config.KEYS:
+            if k.section != section:
+                continue
+            default = "derived" if k.default is None else config.toml_value(k.default)
+            doc = k.doc.replace("|", "\\|")
+            allowed = k.allowed().replace("|", "\\|")
+            out.append(f"| `{k.full}` | {allowed} | `{default}` | {doc} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+
+
+def generate(app) -> None:
+    ref = Path(app.srcdir) / "reference"
+    _write_if_changed(ref / "cli.md", cli_markdown())
+    _write_if_changed(ref / "keys.md", keys_markdown())
+
+
+_SECTION = re.compile(r"^(Parameters|Returns|Raises|Examples|Notes|Attributes|Yields|See Also)\s*$")
+
+
+def plain_docstring(app, what, name, obj, options, lines) -> None:
+    """Makes granrs's plain-text docstrings valid reStructuredText before numpydoc reads them.
+
+    granrs writes |x| for magnitudes and continues an item (``name: text``) on indented lines;
+    in reST the first is a substitution and the second an unexpected indentation. Numpydoc
+    docstrings (with section headers) keep their layout; only the bars are escaped there."""
+    if not name.startswith("granrs"):
+        return
+    text = "\n".join(lines)
+    structured = any(_SECTION.match(l.strip()) for l in lines)
+    text = re.sub(r"(?<!\\)\|", r"\\|", text)
+    text = re.sub(r"``[^`\n]+``(?=(\w?))", lambda m: m.group(0) + ("\\ " if m.group(1) else ""), text)
+    out = text.split("\n")
+    if not structured:
+        merged: list[str] = []
+        literal = False
+        for line in out:
+            stripped = line.strip()
+            indent = len(line) - len(line.lstrip())
+            if merged and merged[-1].rstrip().endswith("::"):
+                literal = True
+            if literal and stripped and indent == 0:
+                literal = False
+            if (not literal and stripped and merged and merged[-1].strip()
+                    and indent > len(merged[-1]) - len(merged[-1].lstrip())):
+                merged[-1] = merged[-1].rstrip() + " " + stripped
+            else:
+                merged.append(line)
+        out = merged
+    lines[:] = out
+
+
+def setup(app):
+    app.connect("builder-inited", generate)
+    app.connect("autodoc-process-docstring", plain_docstring, priority=400)
+    return {"version": "1", "parallel_read_safe": True}
