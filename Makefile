@@ -41,7 +41,7 @@ lint:
 	cargo clippy --workspace --release --all-targets -- -D warnings
 
 clean:
-	rm -rf $(VENV) target $(OUT)
+	rm -rf $(VENV) target $(OUT) docs/_build docs/auto_examples docs/reference/generated
 
 # The documentation's own requirements, into .venv (lower bounds: the versions it is built with).
 $(VENV)/.docs-deps: $(VENV)/.deps

@@ -34,14 +34,14 @@ def cli_parser() -> argparse.ArgumentParser:
 
 def cli_markdown() -> str:
     parser = cli_parser()
-    parser.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=100)
+    parser.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=84)
     out = ["# Command line", "",
            "Generated from the argument parser of `granrs.cli` when the documentation is built.", "",
            "```text", parser.format_help().rstrip(), "```", ""]
     subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     for action in subs:
         for name, sub in action.choices.items():
-            sub.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=100)
+            sub.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=84)
             out += [f"## `granrs {name}`", "", "```text", sub.format_help().rstrip(), "```", ""]
     return "\n".join(out)
 
