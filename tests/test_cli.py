@@ -34,3 +34,11 @@ def test_run_cavity_writes_plot_and_summary(tmp_path):
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "cavity.png").stat().st_size > 10_000
     assert json.loads((tmp_path / "summary.json").read_text())["n"] == 16
+
+
+def test_validate_exit_status_follows_the_verdict():
+    # one grid gives the Taylor-Green case no order to judge: passed is null, which is no failure
+    r = run("validate", "taylor-green", "--n", "16")
+    rec = json.loads(r.stdout)
+    assert rec["passed"] is None
+    assert r.returncode == 0 and "not judged" in r.stderr

@@ -71,7 +71,10 @@ def _validate(args) -> int:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(text + "\n")
     print(text)
-    return 0 if record["passed"] else 1
+    if record["passed"] is None:
+        print(f"granrs: {args.name}: not judged (passed: null): the parameters are outside the range of its "
+              "reference", file=sys.stderr)
+    return 1 if record["passed"] is False else 0
 
 
 _COLUMN_OPTIONS = ("aspect_ratio", "width", "fluidised", "pore_pressure_ratio", "ny", "t_end", "rheology", "cfl",
