@@ -15,8 +15,13 @@ channel); a free-slip lid at the top of the domain (with an open top the inner v
 stall near 1e-3 relative and floor the Picard increment above its tolerance).
 
 Rest criterion (documented): the run stops when the largest velocity in the granular phase
-(cells with Φ > 0) stays below ``rest_speed`` (default 5e-3 m/s, 0.18 % of √(2 g H_c)) for
-``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
+(cells with Φ > 0; the air side of the smoothed interface band, Φ ≤ 0, where H_ε still gives a
+cell some grains, is explicitly not looked at) stays below ``rest_speed`` (default 5e-3 m/s,
+0.18 % of √(2 g H_c)) for ``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
+summary.json says when (:func:`arrest_summary`): ``stop_reason`` is ``"rest"`` and
+``arrest_time_s`` the start of that quiet window (None for a run that did not come to rest),
+with the largest front, when it was reached and how far the front then moved back
+(docs/validation.md, "Arrest of the deposit").
 
 Models (``ColumnCase.model``, ``granrs run column --model``): ``two-phase`` (the paper's model,
 the default), ``granular`` (the same 2D model with the air not resolved: the granular phase has a
@@ -351,6 +356,21 @@ def basal_pore_pressure_ratio(pf_base: np.ndarray, h: np.ndarray, weight: float,
     return float(np.sum(pf_base[sel]) / w) if w > 0 else math.nan
 
 
+def arrest_summary(t, front, speed, stop_reason: str, rest_since: Optional[float]) -> dict:
+    """summary.json's arrest entries from the records (times ``t``, fronts ``front`` from the
+    gate, largest granular speeds ``speed``): ``arrest_time_s`` (``rest_since``, the start of the
+    window of rest that stopped the run, when ``stop_reason`` is ``"rest"``; else None), the time
+    ``max_front_time_s`` of the largest front (``max_front_m``), ``front_retreat_m`` (the largest
+    front minus the last one, ≥ 0) and ``final_granular_speed_m_s``."""
+    front = np.asarray(front, dtype=float)
+    if front.size == 0:
+        return {"arrest_time_s": None, "max_front_time_s": None, "front_retreat_m": 0.0, "final_granular_speed_m_s": None}
+    k = int(np.argmax(front))
+    return {"arrest_time_s": float(rest_since) if stop_reason == "rest" and rest_since is not None else None,
+            "max_front_time_s": float(t[k]), "front_retreat_m": float(front[k] - front[-1]),
+            "final_granular_speed_m_s": float(speed[-1])}
+
+
 def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
                callbacks: Optional[list] = None, extra_summary: Optional[dict] = None, prepare=None) -> dict:
     """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``.
@@ -461,6 +481,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "model": model_name, "model_reason": model_reason,
         "case": asdict(case),
     }
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], state["rest_since"]))
     for key in ("picard_iterations",):
         if key in hist:
             summary[key + "_median"] = float(np.median(hist[key]))
@@ -746,6 +767,7 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
         "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
         "model": "depth-averaged", "model_reason": reason, "case": asdict(case),
     }
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest_since))
     summary.update(extra_summary or {})
     write_outputs(out, summary, rec, profiles, m.x - lc)
     plot_front(out, compare_with)
