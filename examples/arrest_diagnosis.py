@@ -18,7 +18,9 @@ variants and records, every 0.01 s:
 Variants: ``default`` (the column's numerics: global mass correction on, redistancing every 10
 steps), ``no-mass-correction``, ``redistance-50`` (redistancing every 50 steps), the
 column's ``interface_yield`` choices ``density-support`` and ``granular-side``, and
-``theta-0.3`` (θ = 0.3 in eq. 12 instead of the column's 0.8).
+``theta-0.3`` and ``theta-0.1`` (θ in eq. 12 instead of the column's 0.8), and ``proximal-5``,
+``proximal-20`` (that many proximal restarts of the anchor Σⁿ per step,
+``ColumnCase(proximal_restarts=N)``). The runs do not stop at rest (the records go to t_end).
 
 Writes ``OUT/arrest_<variant>.csv`` (the records) and ``OUT/arrest_summary.json`` (per variant:
 largest front and when, the front at t_end, its retreat, the late speeds by group at
@@ -48,6 +50,9 @@ VARIANTS = {
     "density-support": {"case": {"interface_yield": "density-support"}},
     "granular-side": {"case": {"interface_yield": "granular-side"}},
     "theta-0.3": {"case": {"theta": 0.3}},
+    "theta-0.1": {"case": {"theta": 0.1}},
+    "proximal-5": {"case": {"proximal_restarts": 5}},
+    "proximal-20": {"case": {"proximal_restarts": 20}},
 }
 
 

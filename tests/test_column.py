@@ -181,7 +181,8 @@ def test_far_end_is_an_error_with_outputs_kept(tmp_path):
 
 @pytest.mark.parametrize("field,value", [("ny", 4), ("aspect_ratio", -1.0), ("pore_pressure_ratio", 1.5),
                                          ("cfl", 0.0), ("rheology", "bingham"), ("r_neighbourhood", 5),
-                                         ("r_neighbourhood", -1), ("sigma_location", "nodes")])
+                                         ("r_neighbourhood", -1), ("sigma_location", "nodes"),
+                                         ("proximal_restarts", -1), ("proximal_restarts", 2.0)])
 def test_bad_parameters_name_themselves(tmp_path, field, value):
     with pytest.raises(ParameterError, match=f"`{field}`"):
         run_column(ColumnCase(**{field: value}), tmp_path, progress=False)

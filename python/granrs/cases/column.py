@@ -114,6 +114,10 @@ class ColumnCase:
     # stalls transiently between 1e-4 and 5e-4 (see docs/validation.md), so 1e-4 stopped runs.
     picard_tol: float = 1e-3
     theta: float = 0.8
+    # proximal restarts of the anchor Σⁿ of eq. (12) per step (granrs.Numerics.proximal_restarts):
+    # 0 (default) the paper's iteration; 5 brings the relaxed fixed point towards eq. (11), whose
+    # rigid zones do not ring (docs/validation.md, "Arrest of the deposit")
+    proximal_restarts: int = 0
     # half-width of the neighbourhood of the plastic projection's local r (granrs.Numerics.r_neighbourhood):
     # within this many cells of the air the relaxed fixed point of eq. (12) is as soft as the air's
     # faces make it; 0 keeps the run-out independent of δt (docs/validation.md, session 16)
@@ -190,6 +194,8 @@ class ColumnCase:
                                                         or not 0.01 <= self.earth_pressure <= 100.0):
             raise ParameterError(f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
                                  "or a number in [0.01, 100]")
+        if not isinstance(self.proximal_restarts, int) or isinstance(self.proximal_restarts, bool) or not 0 <= self.proximal_restarts <= 1000:
+            raise ParameterError(f"invalid parameter `proximal_restarts` = {self.proximal_restarts!r}: allowed an integer in [0, 1000]")
         if not isinstance(self.da_resolution, int) or not 4 <= self.da_resolution <= 4096:
             raise ParameterError(f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]")
         if self.rheology not in ("drucker-prager", "mu-i"):
@@ -256,6 +262,7 @@ def build_model(case: ColumnCase) -> Model:
                                     sigma_location=case.sigma_location,
                                     picard_max_iterations=1000, convection_scheme="weno5", step_retries=case.step_retries,
                                     mass_correction=case.mass_correction, interface_yield=case.interface_yield,
+                                    proximal_restarts=case.proximal_restarts,
                                     wall_normal_stress=case.wall_normal_stress, yield_pressure=case.yield_pressure,
                                     active_region=case.active_region, active_region_sides=case.active_region_sides),
                   threads=case.threads, pore_pressure=pore,
