@@ -15,8 +15,13 @@ channel); a free-slip lid at the top of the domain (with an open top the inner v
 stall near 1e-3 relative and floor the Picard increment above its tolerance).
 
 Rest criterion (documented): the run stops when the largest velocity in the granular phase
-(cells with Φ > 0) stays below ``rest_speed`` (default 5e-3 m/s, 0.18 % of √(2 g H_c)) for
-``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
+(cells with Φ > 0; the air side of the smoothed interface band, Φ ≤ 0, where H_ε still gives a
+cell some grains, is explicitly not looked at) stays below ``rest_speed`` (default 5e-3 m/s,
+0.18 % of √(2 g H_c)) for ``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
+summary.json says when (:func:`arrest_summary`): ``stop_reason`` is ``"rest"`` and
+``arrest_time_s`` the start of that quiet window (None for a run that did not come to rest),
+with the largest front, when it was reached and how far the front then moved back
+(docs/validation.md, "Arrest of the deposit").
 
 Models (``ColumnCase.model``, ``granrs run column --model``): ``two-phase`` (the paper's model,
 the default), ``granular`` (the same 2D model with the air not resolved: the granular phase has a
@@ -114,6 +119,10 @@ class ColumnCase:
     # stalls transiently between 1e-4 and 5e-4 (see docs/validation.md), so 1e-4 stopped runs.
     picard_tol: float = 1e-3
     theta: float = 0.8
+    # proximal restarts of the anchor Σⁿ of eq. (12) per step (granrs.Numerics.proximal_restarts):
+    # 0 (default) the paper's iteration; 5 brings the relaxed fixed point towards eq. (11), whose
+    # rigid zones do not ring (docs/validation.md, "Arrest of the deposit")
+    proximal_restarts: int = 0
     # half-width of the neighbourhood of the plastic projection's local r (granrs.Numerics.r_neighbourhood):
     # within this many cells of the air the relaxed fixed point of eq. (12) is as soft as the air's
     # faces make it; 0 keeps the run-out independent of δt (docs/validation.md)
@@ -205,6 +214,8 @@ class ColumnCase:
                                                         or not 0.01 <= self.earth_pressure <= 100.0):
             raise ParameterError(f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
                                  "or a number in [0.01, 100]")
+        if not isinstance(self.proximal_restarts, int) or isinstance(self.proximal_restarts, bool) or not 0 <= self.proximal_restarts <= 1000:
+            raise ParameterError(f"invalid parameter `proximal_restarts` = {self.proximal_restarts!r}: allowed an integer in [0, 1000]")
         if not isinstance(self.da_resolution, int) or not 4 <= self.da_resolution <= 4096:
             raise ParameterError(f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]")
         if self.rheology not in ("drucker-prager", "mu-i"):
@@ -277,6 +288,7 @@ def build_model(case: ColumnCase) -> Model:
                                     sigma_location=case.sigma_location,
                                     picard_max_iterations=1000, convection_scheme="weno5", step_retries=case.step_retries,
                                     mass_correction=case.mass_correction, interface_yield=case.interface_yield,
+                                    proximal_restarts=case.proximal_restarts,
                                     wall_normal_stress=case.wall_normal_stress, yield_pressure=case.yield_pressure,
                                     active_region=case.active_region, active_region_sides=case.active_region_sides),
                   threads=case.threads, pore_pressure=pore,
@@ -375,6 +387,21 @@ def basal_pore_pressure_ratio(pf_base: np.ndarray, h: np.ndarray, weight: float,
     sel = mask & (h > 0)
     w = weight * float(np.sum(h[sel]))
     return float(np.sum(pf_base[sel]) / w) if w > 0 else math.nan
+
+
+def arrest_summary(t, front, speed, stop_reason: str, rest_since: Optional[float]) -> dict:
+    """summary.json's arrest entries from the records (times ``t``, fronts ``front`` from the
+    gate, largest granular speeds ``speed``): ``arrest_time_s`` (``rest_since``, the start of the
+    window of rest that stopped the run, when ``stop_reason`` is ``"rest"``; else None), the time
+    ``max_front_time_s`` of the largest front (``max_front_m``), ``front_retreat_m`` (the largest
+    front minus the last one, ≥ 0) and ``final_granular_speed_m_s``."""
+    front = np.asarray(front, dtype=float)
+    if front.size == 0:
+        return {"arrest_time_s": None, "max_front_time_s": None, "front_retreat_m": 0.0, "final_granular_speed_m_s": None}
+    k = int(np.argmax(front))
+    return {"arrest_time_s": float(rest_since) if stop_reason == "rest" and rest_since is not None else None,
+            "max_front_time_s": float(t[k]), "front_retreat_m": float(front[k] - front[-1]),
+            "final_granular_speed_m_s": float(speed[-1])}
 
 
 def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
@@ -496,6 +523,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "model": model_name, "model_reason": model_reason,
         "case": asdict(case),
     }
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], state["rest_since"]))
     for key in ("picard_iterations",):
         if key in hist:
             summary[key + "_median"] = float(np.median(hist[key]))
@@ -805,6 +833,7 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
         "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
         "model": "depth-averaged", "model_reason": reason, "case": asdict(case),
     }
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest_since))
     summary.update(extra_summary or {})
     write_outputs(out, summary, rec, profiles, m.x - lc)
     plot_front(out, compare_with)

@@ -1,0 +1,166 @@
+"""Where does the column's late motion live, and what moves its front back?
+
+    python examples/arrest_diagnosis.py --ny 32 --dry        # 10-25 s per variant at ny = 32, 2 min at 64
+    python examples/arrest_diagnosis.py --ny 32 --dry --variants default no-mass-correction
+    python examples/arrest_diagnosis.py --ny 32 --out out/arrest-wet
+
+Runs the paper's column (granrs.cases.column.build_model) to ``--t-end`` under several level-set
+variants and records, every 0.01 s:
+
+* the front on the lowest row of cells (``front_position``) and its largest value so far;
+* the largest speed at cell centres in three groups of granular cells: the **bulk**
+  (Φ > 2ε, ε = 1.5 h the Heaviside half-width: beyond the smoothed band), the **band on the
+  granular side** (0 < Φ ≤ 2ε), and the **air side of the band** (−ε < Φ ≤ 0, where H_ε still
+  gives the cell grains);
+* the largest trial norm |Σ + rD + θ(Σⁿ − Σ)| over the bulk (≤ 1: rigid);
+* the dense-phase area, and the energy budget's plastic work and its negative part.
+
+Variants: ``default`` (the column's numerics: global mass correction on, redistancing every 10
+steps), ``no-mass-correction``, ``redistance-50`` (redistancing every 50 steps), the
+column's ``interface_yield`` choices ``density-support`` and ``granular-side``, and
+``theta-0.3`` and ``theta-0.1`` (θ in eq. 12 instead of the column's 0.8), and ``proximal-5``,
+``proximal-20`` (that many proximal restarts of the anchor Σⁿ per step,
+``ColumnCase(proximal_restarts=N)``). The runs do not stop at rest (the records go to t_end).
+
+Writes ``OUT/arrest_<variant>.csv`` (the records) and ``OUT/arrest_summary.json`` (per variant:
+largest front and when, the front at t_end, its retreat, the late speeds by group at
+t = 1.5-t_end, the area drift, the give-back of the plastic work after 1.5 s, the deposit
+profile's change from 2.5 s to t_end). docs/validation.md, "Arrest of the deposit", quotes it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from granrs.cases import column as col
+from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
+
+VARIANTS = {
+    "default": {},
+    "no-mass-correction": {"mass_correction": False},
+    "redistance-50": {"redistance_every": 50},
+    # the column's own settings (ColumnCase fields), for comparison
+    "density-support": {"case": {"interface_yield": "density-support"}},
+    "granular-side": {"case": {"interface_yield": "granular-side"}},
+    "theta-0.3": {"case": {"theta": 0.3}},
+    "theta-0.1": {"case": {"theta": 0.1}},
+    "proximal-5": {"case": {"proximal_restarts": 5}},
+    "proximal-20": {"case": {"proximal_restarts": 20}},
+}
+
+
+def build(case: ColumnCase, numerics: dict):
+    """build_model with the Numerics fields of ``numerics`` replaced (the ColumnCase fields of
+    ``numerics["case"]`` replaced in the case)."""
+    numerics = dict(numerics)
+    case = dataclasses.replace(case, **numerics.pop("case", {}))
+    if not numerics:
+        return build_model(case)
+    original = col.Numerics
+
+    def patched(**kw):
+        kw.update(numerics)
+        return original(**kw)
+
+    col.Numerics = patched
+    try:
+        return build_model(case)
+    finally:
+        col.Numerics = original
+
+
+def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) -> dict:
+    m = build(case, VARIANTS[name])
+    g = m.grid
+    eps = 1.5 * g.dy
+    lc = case.width
+    rows = []
+    profiles = {}
+    t0 = time.perf_counter()
+    k = 0
+    while m.time < t_end - 1e-12:
+        k += 1
+        m.advance(min(t_end, k * every))
+        phi = m.phi
+        uc, vc = m.centre_velocity()
+        speed = np.hypot(uc, vc)
+        groups = {"bulk": phi > 2 * eps, "band": (phi > 0) & (phi <= 2 * eps), "air_band": (phi > -eps) & (phi <= 0)}
+        row = {"t": m.time, "front": front_position(phi, g.dx) - lc, "area": m.dense_area()}
+        for key, mask in groups.items():
+            row[f"speed_{key}"] = float(speed[mask].max()) if mask.any() else 0.0
+        granular = phi > 0
+        j, i = np.unravel_index(np.argmax(np.where(granular, speed, -1.0)), speed.shape)
+        row["speed_granular"] = float(speed[j, i])
+        row["where_x"], row["where_y"], row["where_phi_over_h"] = (i + 0.5) * g.dx - lc, (j + 0.5) * g.dy, phi[j, i] / g.dy
+        tn = m.trial_norm
+        row["trial_norm_bulk_max"] = float(tn[groups["bulk"]].max()) if groups["bulk"].any() else 0.0
+        b = m.energy_budget()
+        row["plastic_work"], row["plastic_negative_work"] = b["plastic_work"], b["plastic_negative_work"]
+        row["gravity_work"] = b["gravity_work"]
+        rows.append(row)
+        for tp in (1.5, 2.0, 2.5, t_end):
+            if abs(m.time - tp) < 1e-9:
+                profiles[tp] = surface_profile(phi, g.dy)
+    wall = time.perf_counter() - t0
+    t = np.array([r["t"] for r in rows])
+    front = np.array([r["front"] for r in rows])
+    area = np.array([r["area"] for r in rows])
+    imax = int(np.argmax(front))
+    late = t >= 1.5
+    out = {
+        "variant": name, "wall_s": wall, "steps": m.step_count,
+        "max_front_m": float(front[imax]), "max_front_time_s": float(t[imax]), "front_end_m": float(front[-1]),
+        "retreat_m": float(front[imax] - front[-1]), "retreat_cells": float((front[imax] - front[-1]) / g.dx),
+        "area_rel_drift": float(np.max(np.abs(area / area[0] - 1.0))),
+        "late_speed_max": {key: float(max(r[f"speed_{key}"] for r, l in zip(rows, late) if l))
+                           for key in ("bulk", "band", "air_band", "granular")},
+        "speed_at_end": {key: rows[-1][f"speed_{key}"] for key in ("bulk", "band", "air_band", "granular")},
+        "trial_norm_bulk_max_late": float(max(r["trial_norm_bulk_max"] for r, l in zip(rows, late) if l)),
+        "where_at_end": {"x_from_gate_m": rows[-1]["where_x"], "y_m": rows[-1]["where_y"],
+                         "phi_over_h": rows[-1]["where_phi_over_h"]},
+    }
+    i15 = int(np.searchsorted(t, 1.5 - 1e-9))
+    out["plastic_work_after_1p5_J_m"] = rows[-1]["plastic_work"] - rows[i15]["plastic_work"]
+    out["plastic_negative_work_after_1p5_J_m"] = rows[-1]["plastic_negative_work"] - rows[i15]["plastic_negative_work"]
+    out["gravity_work_after_1p5_J_m"] = rows[-1]["gravity_work"] - rows[i15]["gravity_work"]
+    if 2.5 in profiles and t_end in profiles:
+        out["profile_change_2p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[2.5])))
+    if 1.5 in profiles and t_end in profiles:
+        out["profile_change_1p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[1.5])))
+    return out, rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--ny", type=int, default=32)
+    ap.add_argument("--dry", action="store_true", help="the non-fluidised column")
+    ap.add_argument("--t-end", type=float, default=3.0)
+    ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    ap.add_argument("--out", type=Path, default=Path("out/arrest"))
+    a = ap.parse_args()
+    a.out.mkdir(parents=True, exist_ok=True)
+    case = ColumnCase(ny=a.ny, fluidised=not a.dry, t_end=a.t_end)
+    summary_path = a.out / "arrest_summary.json"
+    summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+    for name in a.variants:
+        s, rows = run_variant(case, name, a.t_end)
+        s["case"] = {"ny": a.ny, "fluidised": not a.dry, "t_end": a.t_end}
+        summary[name] = s
+        with open(a.out / f"arrest_{name}.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: f"{v:.6g}" for k, v in r.items()})
+        summary_path.write_text(json.dumps(summary, indent=2) + "\n")
+        print(json.dumps(s, indent=1))
+
+
+if __name__ == "__main__":
+    main()
