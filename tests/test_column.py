@@ -52,6 +52,44 @@ def test_outputs_are_complete(coarse_runs):
     assert np.all(np.diff(t) > 0) and t[-1] == pytest.approx(wet["t_end_s"], abs=0.011)
 
 
+def test_observables_are_reported_for_the_two_phase_runs(coarse_runs):
+    from granrs.observables import observable_keys
+
+    base, dry, wet = coarse_runs
+    for name, s in (("dry", dry), ("wet", wet)):
+        o = s["observables"]
+        for key in observable_keys() + ["centre_of_mass_travel_m", "max_front_h1mm_m", "profile_definition"]:
+            assert key in o, (name, key)
+        # thinner fronts lie ahead of thicker ones; quantiles in order, behind the 1 mm front
+        fronts = [o[k] for k in ("front_h20mm_m", "front_h10mm_m", "front_h5mm_m", "front_h2mm_m", "front_h1mm_m")]
+        assert fronts == sorted(fronts), (name, fronts)
+        assert o["q50_m"] < o["q90_m"] < o["q95_m"] < o["q99_m"] <= o["front_h1mm_m"] + o["cell_m"]
+        # the column starts centred L_c/2 behind the gate and its centre of mass moves downstream
+        assert o["centre_of_mass_travel_m"] > 0.1 and o["centre_of_mass_m"] == pytest.approx(
+            -0.1 + o["centre_of_mass_travel_m"], abs=0.011)
+        # the volume profile holds the dense area: Σ h Δx against the sub-cell dense_area(),
+        # measured within 0.2 % (the fill fraction ½ + Φ/Δy is exact for level interfaces only)
+        assert o["profile_area_m2"] == pytest.approx(0.08, rel=0.01)
+        assert 0.0 < o["h_gate_m"] < o["h_back_wall_m"] < 0.4
+        header = (base / name / "front.csv").read_text().splitlines()[0].split(",")
+        assert set(observable_keys()) <= set(header)
+        header = (base / name / "profiles.csv").read_text().splitlines()[0].split(",")
+        assert header[-2:] == ["h_final", "hvol_final"]
+
+
+def test_depth_averaged_run_reports_the_observables(tmp_path):
+    # the depth-averaged layer's h is its own volume profile; its fronts in cells use the
+    # two-phase grid's Δy of the same ny
+    s = run_column(ColumnCase(model="depth-averaged", ny=32, t_end=0.5), tmp_path, progress=False)
+    o = s["observables"]
+    assert o["cell_m"] == pytest.approx(0.45 / 32)
+    assert o["profile_area_m2"] == pytest.approx(0.08, rel=1e-6)
+    assert o["front_h0.5cell_m"] == pytest.approx(s["runout_m"], abs=s["h_m"])
+    assert o["front_h20mm_m"] < o["front_h1mm_m"] and o["centre_of_mass_travel_m"] > 0
+    header = (tmp_path / "front.csv").read_text().splitlines()[0].split(",")
+    assert "q99_m" in header and "centre_of_mass_m" in header
+
+
 def test_deposit_quantile_run_out_is_reported(coarse_runs):
     # the 99 % area quantile of the final deposit lies beyond the gate and behind the farthest
     # material (droplets included)
