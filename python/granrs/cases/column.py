@@ -91,6 +91,11 @@ class ColumnCase:
     # the normal stress of the Coulomb base and back wall (granrs.Numerics.wall_normal_stress):
     # 'pressure' (default, −σ_n = p) or 'total' (the paper's −σ_n = p − T_nn); docs/validation.md
     wall_normal_stress: str = "pressure"
+    # the sign of the air supply through the reservoir's base: 'injection' (default: ∂p_f/∂y =
+    # −β φρ_s g, the gas flows up into the column, as the text describes and the initial p_f
+    # implies) or 'literal' (the printed ∂p_f/∂n = −β φρ_s g with n the base's outward normal,
+    # ∂p_f/∂y = +β φρ_s g: an outflow); docs/validation.md, "Observables"
+    air_supply: str = "injection"
     # the back wall (x = 0): 'coulomb' (default, the paper's: friction angle wall_friction_angle)
     # or 'free-slip' (the cross-code check against Basilisk, docs/validation.md)
     back_wall: str = "coulomb"
@@ -171,6 +176,8 @@ class ColumnCase:
         elif self.side_wall_friction_angle is not None:
             raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
                                  "allowed only with a channel_width")
+        if self.air_supply not in ("injection", "literal"):
+            raise ParameterError(f"invalid parameter `air_supply` = {self.air_supply!r}: allowed 'injection' or 'literal'")
         if self.back_wall not in ("coulomb", "free-slip"):
             raise ParameterError(f"invalid parameter `back_wall` = {self.back_wall!r}: allowed 'coulomb' or 'free-slip'")
         if self.sigma_location not in SIGMA_LOCATIONS:
@@ -247,7 +254,7 @@ def build_model(case: ColumnCase) -> Model:
     rho = case.mixture_density
     pore = None
     if case.fluidised and case.pore_pressure_ratio > 0:
-        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=-case.pore_pressure_ratio * rho * G,
+        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=(1.0 if case.air_supply == "literal" else -1.0) * case.pore_pressure_ratio * rho * G,
                             formulation=case.pore_formulation, kappa_air=case.kappa_air,
                             basal_x_min=0.0, basal_x_max=lc)
     model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
