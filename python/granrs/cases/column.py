@@ -24,6 +24,12 @@ free surface at p = 0, ``Model(air='free-surface')``), ``depth-averaged`` (Savag
 layer with a depth-averaged pore pressure, ``granrs.depth_averaged``; seconds instead of minutes)
 and ``auto``, which takes the depth-averaged model only where its measured run-out is within 5 %
 of the two-phase one (docs/models.md, :func:`choose_model`). All models write the same outputs.
+
+Observables (granrs.observables; docs/validation.md, "Observables"): every record (0.01 s) adds to
+front.csv the fronts of the volume profile h = Σ_j f Δy at 1, 2, 5, 10 and 20 mm and at ½, 1 and
+2 cells, the 50/90/95/99 % deposit quantiles, the centre of mass and the heights at the back wall
+and the gate; summary.json["observables"] holds those of the final deposit with the centre of
+mass's travel, and profiles.csv the final volume profile (``hvol_final``).
 """
 
 from __future__ import annotations
@@ -254,7 +260,8 @@ def build_model(case: ColumnCase) -> Model:
     rho = case.mixture_density
     pore = None
     if case.fluidised and case.pore_pressure_ratio > 0:
-        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=(1.0 if case.air_supply == "literal" else -1.0) * case.pore_pressure_ratio * rho * G,
+        sign = 1.0 if case.air_supply == "literal" else -1.0
+        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=sign * case.pore_pressure_ratio * rho * G,
                             formulation=case.pore_formulation, kappa_air=case.kappa_air,
                             basal_x_min=0.0, basal_x_max=lc)
     model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
