@@ -3,6 +3,8 @@
     python examples/column_convergence.py                      # ny = 32, 64, 128, 256: what docs/validation.md reports
     python examples/column_convergence.py --ny 32 64 --threads 2 --out out/convergence
     python examples/column_convergence.py --channel-width 0.1 --out out/convergence-walls   # with side walls
+    python examples/column_convergence.py --ny 32 64 --literal-sign --out out/convergence  # + the literal air supply
+    python examples/column_convergence.py --ensemble fluidised=out/ens-fl32 dry=out/ens-dry32   # round-off spreads
 
 Grids from ny = 128 up run on the active region with open right and top sides (BAND = ny/16
 cells of air, the same 28 mm at every grid; `--active-region BAND --active-region-sides
@@ -19,7 +21,16 @@ What it writes into ``OUT``:
   successive grids, wall times;
 * ``runout_vs_h.png``: run-out against h with the paper's simulated (1.6874 m) and experimental
   (1.8443 m) fluidised run-outs;
-* ``front_curves.png``: front position against time for every run.
+* ``front_curves.png``: front position against time for every run;
+* ``observables.csv``: every observable of summary.json["observables"] (granrs.observables:
+  thickness fronts, deposit quantiles, centre of mass and its travel, heights at the back wall and
+  the gate) and the lowest-row run-out, per state (fluidised, dry, and with ``--literal-sign`` the
+  fluidised column with the printed sign of the air supply, an outflow: ColumnCase.air_supply =
+  'literal'), at each grid, with the successive differences d_k = x_k − x_{k−1}, their ratio
+  r = d_k/d_{k−1}, a Richardson extrapolation x_∞ = x_N + d_N r/(1 − r) with the error bar |x_∞ − x_N|
+  where the last three grids give 0 < r < 1 (monotone convergence), and the round-off spread (the
+  standard deviation of the ny = 32 round-off ensemble, tests/data/column_observables_ensemble.csv)
+  beside it.
 """
 
 from __future__ import annotations
@@ -32,27 +43,92 @@ from pathlib import Path
 import numpy as np
 
 from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column
+from granrs.observables import observable_keys
+
+#: the round-off spread of every observable at ny = 32 (std over the members of
+#: examples/runout_ensemble.py, tests/data/column_observables_ensemble.csv)
+ENSEMBLE = Path(__file__).resolve().parents[1] / "tests" / "data" / "column_observables_ensemble.csv"
 
 
 # from this grid up the runs take the active region with open right and top sides
 ACTIVE_REGION_FROM_NY = 128
 
 
-def case_for(ny: int, fluidised: bool, threads: int, channel_width) -> ColumnCase:
+def case_for(ny: int, fluidised: bool, threads: int, channel_width, air_supply: str = "injection") -> ColumnCase:
     """The study's case on the grid ny: the whole domain below ACTIVE_REGION_FROM_NY, the open
     active window (BAND = ny/16) from it up."""
     window = dict(active_region=ny // 16, active_region_sides="open-right-top") if ny >= ACTIVE_REGION_FROM_NY else {}
-    return ColumnCase(ny=ny, fluidised=fluidised, threads=threads, channel_width=channel_width, **window)
+    return ColumnCase(ny=ny, fluidised=fluidised, threads=threads, channel_width=channel_width, air_supply=air_supply,
+                      **window)
 
 
-def run_or_load(ny: int, fluidised: bool, out: Path, threads: int, channel_width=None) -> dict:
+def run_or_load(ny: int, fluidised: bool, out: Path, threads: int, channel_width=None, air_supply: str = "injection") -> dict:
     """The run's summary.json, running the case first if it is not there yet."""
-    folder = out / f"{'fluidised' if fluidised else 'dry'}-{ny}"
+    name = ("fluidised" if fluidised else "dry") + ("-literal" if air_supply == "literal" else "")
+    folder = out / f"{name}-{ny}"
     summary = folder / "summary.json"
     if not summary.exists():
-        print(f"running ny = {ny}, {'fluidised' if fluidised else 'dry'} ...", flush=True)
-        run_column(case_for(ny, fluidised, threads, channel_width), folder, progress=True)
+        print(f"running ny = {ny}, {name} ...", flush=True)
+        run_column(case_for(ny, fluidised, threads, channel_width, air_supply), folder, progress=True)
     return json.loads(summary.read_text())
+
+
+def round_off_spread() -> dict:
+    """(state, observable) → the standard deviation over the ny = 32 round-off ensemble."""
+    if not ENSEMBLE.exists():
+        return {}
+    lines = [line for line in ENSEMBLE.read_text().splitlines() if line and not line.startswith("#")]
+    rows = csv.DictReader(lines)
+    return {(r["state"], r["observable"]): float(r["std_m"]) for r in rows if int(r["ny"]) == 32}
+
+
+def convergence_rows(state: str, summaries: list) -> list:
+    """One row per observable of ``summaries`` (one per grid, coarse to fine): the values, the
+    successive differences, their last ratio and, where it shows monotone convergence, the
+    Richardson extrapolation with its error bar."""
+    spread = round_off_spread()
+    rows = []
+    for key in ["runout_m"] + observable_keys() + ["centre_of_mass_travel_m"]:
+        vals = [s["runout_m"] if key == "runout_m" else s["observables"].get(key) for s in summaries]
+        row = {"state": state, "observable": key}
+        for s, v in zip(summaries, vals):
+            row[f"ny{s['ny']}"] = v
+        diffs = [b - a if a is not None and b is not None else None for a, b in zip(vals, vals[1:])]
+        for s, d in zip(summaries[1:], diffs):
+            row[f"d{s['ny']}"] = d
+        if len(diffs) >= 2 and diffs[-2] and diffs[-1] is not None:
+            r = diffs[-1] / diffs[-2]
+            row["ratio"] = r
+            if 0.0 < r < 1.0:
+                row["extrapolated"] = vals[-1] + diffs[-1] * r / (1.0 - r)
+                row["error_bar"] = abs(row["extrapolated"] - vals[-1])
+        row["round_off_std_ny32"] = spread.get((state, key))
+        rows.append(row)
+    return rows
+
+
+def write_ensemble_statistics(specs: list, path: Path = ENSEMBLE) -> None:
+    """``--ensemble STATE=DIR ...``: the mean, standard deviation (ddof = 1), min and max of every
+    observable over the members ``DIR/member-K/summary.json`` of examples/runout_ensemble.py
+    ensembles, into ``path`` (tests/data/column_observables_ensemble.csv)."""
+    rows = []
+    for spec in specs:
+        state, folder = spec.split("=", 1)
+        members = sorted(Path(folder).glob("member-*/summary.json"))
+        summaries = [json.loads(m.read_text()) for m in members]
+        for key in ["runout_m"] + observable_keys() + ["centre_of_mass_travel_m"]:
+            vals = np.array([s["runout_m"] if key == "runout_m" else s["observables"][key] for s in summaries], dtype=float)
+            rows.append({"ny": summaries[0]["ny"], "state": state, "observable": key, "members": len(vals),
+                         "mean_m": vals.mean(), "std_m": vals.std(ddof=1), "min_m": vals.min(), "max_m": vals.max()})
+    with open(path, "w", newline="") as f:
+        f.write("# Round-off ensembles of the column's observables (granrs.observables; summary.json[\"observables\"]):\n"
+                "# examples/runout_ensemble.py --ny 32 --members 8 [--dry], member k with the column width scaled by\n"
+                "# 1 + k*1e-12, then examples/column_convergence.py --ensemble fluidised=DIR dry=DIR.\n"
+                "# 2-core x86-64 VM, 2026-12-01. Statistics over the members (std with ddof = 1): regression reference.\n")
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        for row in rows:
+            w.writerow({k: (f"{v:.8g}" if isinstance(v, float) else v) for k, v in row.items()})
 
 
 def main() -> None:
@@ -62,7 +138,14 @@ def main() -> None:
     ap.add_argument("--out", default="out/convergence")
     ap.add_argument("--channel-width", dest="channel_width", type=float, default=None,
                     help="friction of side walls this far apart (m; not in the paper's 2D model)")
+    ap.add_argument("--literal-sign", dest="literal_sign", action="store_true",
+                    help="also run the fluidised column with the printed sign of the air supply (an outflow)")
+    ap.add_argument("--ensemble", nargs="+", metavar="STATE=DIR", default=None,
+                    help="write the round-off spreads of the observables of these ensembles and stop")
     args = ap.parse_args()
+    if args.ensemble:
+        write_ensemble_statistics(args.ensemble)
+        return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
@@ -83,6 +166,22 @@ def main() -> None:
             w.writerow({k: (f"{row[k]:.6g}" if isinstance(row.get(k), float) else row.get(k, "")) for k in keys})
     for row in rows:
         print(json.dumps(row))
+
+    states = [("fluidised", True, "injection"), ("dry", False, "injection")]
+    if args.literal_sign:
+        states.append(("fluidised-literal", True, "literal"))
+    obs_rows = []
+    for state, fl, supply in states:
+        summaries = [run_or_load(ny, fl, out, args.threads, args.channel_width, supply) for ny in sorted(args.ny)]
+        obs_rows += convergence_rows(state, summaries)
+    keys = ["state", "observable"] + [f"ny{ny}" for ny in sorted(args.ny)] + [f"d{ny}" for ny in sorted(args.ny)[1:]] + [
+        "ratio", "extrapolated", "error_bar", "round_off_std_ny32"]
+    with open(out / "observables.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        for row in obs_rows:
+            w.writerow({k: (f"{row[k]:.5g}" if isinstance(row.get(k), float) else ("" if row.get(k) is None else row[k]))
+                        for k in keys})
 
     import matplotlib
 

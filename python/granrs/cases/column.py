@@ -29,6 +29,12 @@ free surface at p = 0, ``Model(air='free-surface')``), ``depth-averaged`` (Savag
 layer with a depth-averaged pore pressure, ``granrs.depth_averaged``; seconds instead of minutes)
 and ``auto``, which takes the depth-averaged model only where its measured run-out is within 5 %
 of the two-phase one (docs/models.md, :func:`choose_model`). All models write the same outputs.
+
+Observables (granrs.observables; docs/validation.md, "Observables"): every record (0.01 s) adds to
+front.csv the fronts of the volume profile h = Σ_j f Δy at 1, 2, 5, 10 and 20 mm and at ½, 1 and
+2 cells, the 50/90/95/99 % deposit quantiles, the centre of mass and the heights at the back wall
+and the gate; summary.json["observables"] holds those of the final deposit with the centre of
+mass's travel, and profiles.csv the final volume profile (``hvol_final``).
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ from typing import Optional
 import numpy as np
 
 from .. import __version__
+from .. import observables as obs
 from .._granrs import ParameterError, SimulationError, SolverError
 from ..boundary import BoundaryConditions, Coulomb, FreeSlip
 from ..grid import Grid
@@ -100,6 +107,14 @@ class ColumnCase:
     # the normal stress of the Coulomb base and back wall (granrs.Numerics.wall_normal_stress):
     # 'pressure' (default, −σ_n = p) or 'total' (the paper's −σ_n = p − T_nn); docs/validation.md
     wall_normal_stress: str = "pressure"
+    # the sign of the air supply through the reservoir's base: 'injection' (default: ∂p_f/∂y =
+    # −β φρ_s g, the gas flows up into the column, as the text describes and the initial p_f
+    # implies) or 'literal' (the printed ∂p_f/∂n = −β φρ_s g with n the base's outward normal,
+    # ∂p_f/∂y = +β φρ_s g: an outflow); docs/validation.md, "Observables"
+    air_supply: str = "injection"
+    # the back wall (x = 0): 'coulomb' (default, the paper's: friction angle wall_friction_angle)
+    # or 'free-slip' (the cross-code check against Basilisk, docs/validation.md)
+    back_wall: str = "coulomb"
     # the pressure of the yield stress and the walls' normal stress (granrs.Numerics.yield_pressure):
     # 'absolute' (default, the paper's p) or 'surface-air' (p minus the mean air pressure on the
     # granular surface: independent of the pressure gauge; docs/models.md, active region)
@@ -196,6 +211,10 @@ class ColumnCase:
         elif self.side_wall_friction_angle is not None:
             raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
                                  "allowed only with a channel_width")
+        if self.air_supply not in ("injection", "literal"):
+            raise ParameterError(f"invalid parameter `air_supply` = {self.air_supply!r}: allowed 'injection' or 'literal'")
+        if self.back_wall not in ("coulomb", "free-slip"):
+            raise ParameterError(f"invalid parameter `back_wall` = {self.back_wall!r}: allowed 'coulomb' or 'free-slip'")
         if self.sigma_location not in SIGMA_LOCATIONS:
             raise ParameterError(f"invalid parameter `sigma_location` = {self.sigma_location!r}: allowed "
                                  + " or ".join(repr(n) for n in SIGMA_LOCATIONS))
@@ -278,11 +297,13 @@ def build_model(case: ColumnCase) -> Model:
     rho = case.mixture_density
     pore = None
     if case.fluidised and case.pore_pressure_ratio > 0:
-        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=-case.pore_pressure_ratio * rho * G,
+        sign = 1.0 if case.air_supply == "literal" else -1.0
+        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=sign * case.pore_pressure_ratio * rho * G,
                             formulation=case.pore_formulation, kappa_air=case.kappa_air,
                             basal_x_min=0.0, basal_x_max=lc)
     model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
-                  bc=BoundaryConditions(left=Coulomb(case.wall_friction_angle), right=FreeSlip(),
+                  bc=BoundaryConditions(left=FreeSlip() if case.back_wall == "free-slip" else Coulomb(case.wall_friction_angle),
+                                        right=FreeSlip(),
                                         bottom=Coulomb(case.wall_friction_angle), top=FreeSlip()),
                   numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta, r_neighbourhood=case.r_neighbourhood,
                                     sigma_location=case.sigma_location,
@@ -467,6 +488,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         rec["area"].append(model.dense_area())
         rec["max_granular_speed"].append(speed)
         rec["energy"].append(model.energy_budget())
+        _record_observables(rec, obs.volume_profile(model.phi, grid.dy), grid.dx, grid.dy, lc)
         if fluid:
             h, pf0, weight = surface_profile(model.phi, grid.dy), model.pf[0], case.mixture_density * G
             rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pf0, h, weight, under_reservoir))
@@ -496,6 +518,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         error = str(err) if not isinstance(err, KeyboardInterrupt) else "KeyboardInterrupt"
     wall = time.perf_counter() - t0
     profiles["final"] = surface_profile(model.phi, grid.dy)
+    profiles["hvol_final"] = obs.volume_profile(model.phi, grid.dy)
     hist = sim.history_arrays()
     front = np.array(rec["front"])
     area = np.array(rec["area"])
@@ -533,6 +556,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         summary["step_retries_total"] = int(np.sum(hist["step_retries"]))
     if rec["energy"]:
         summary["energy"] = energy_summary(rec["energy"][-1])
+    summary["observables"] = _observables_summary(rec, profiles["hvol_final"], grid.dx, grid.dy, lc)
     if fluid and rec["t"]:
         summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
     summary.update(extra_summary or {})
@@ -689,7 +713,8 @@ def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.nd
     outputs.write_json("summary.json", summary)
     outputs.write_columns("front.csv", front_columns(rec))
     keys = list(profiles)
-    cols = {"x_from_gate_m": xs} | {(f"h_{k}" if k != "final" else "h_final"): profiles[k] for k in keys}
+    cols = {"x_from_gate_m": xs} | {(("h_final" if k == "final" else k) if isinstance(k, str) else f"h_{k}"): profiles[k]
+                                    for k in keys}
     outputs.write_columns("profiles.csv", cols)
 
 
@@ -701,6 +726,26 @@ def _progress(outputs, summary: dict, rec: dict, hist: dict, t: float, steps: in
     outputs.write_json("summary.json", summary | {
         "stop_reason": f"incomplete: written during the run at t = {t:.6g} s (step {steps}); a run that ends writes "
                        "its final stop_reason here, so this one was killed or its disk filled"})
+
+
+def _record_observables(rec: dict, h: np.ndarray, dx: float, cell: float, x_gate: float) -> None:
+    """Appends the observables of the profile h (granrs.observables, distances from the gate; fronts
+    in cells of size ``cell``) to the record lists of ``rec`` (front.csv's columns)."""
+    for k, v in obs.observe_profile(h, dx, cell, x_gate).items():
+        rec.setdefault(k, []).append(v)
+
+
+def _observables_summary(rec: dict, h_final: np.ndarray, dx: float, cell: float, x_gate: float) -> dict:
+    """summary.json["observables"]: those of the final volume profile (profiles.csv's hvol_final),
+    the centre of mass's travel since the first record, the fronts' largest values over the
+    records, the thicknesses in cells in metres and the profile's definition."""
+    final = obs.observe_profile(h_final, dx, cell, x_gate)
+    keys = obs.observable_keys()
+    initial = {k: rec[k][0] for k in keys} if rec.get(keys[0]) else final
+    out = obs.summarise(final, initial, {k: rec[k] for k in keys if k in rec})
+    out["cell_m"] = cell
+    out["distances_from"] = "the gate, x = L_c"
+    return out
 
 
 # ---- model choice -----------------------------------------------------------------------------
@@ -797,6 +842,7 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
             rec["front"].append(xf - lc)
             rec["area"].append(m.mass())
             rec["max_granular_speed"].append(speed)
+            _record_observables(rec, m.h, m.dx, 2 * threshold, lc)
             while pending and t >= pending[0] - 1e-9:
                 profiles[round(pending.pop(0), 6)] = m.h.copy()
             if t > 0.1 and speed < case.rest_speed:
@@ -834,6 +880,9 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
         "model": "depth-averaged", "model_reason": reason, "case": asdict(case),
     }
     summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest_since))
+    summary["observables"] = _observables_summary(rec, profiles["final"], m.dx, threshold * 2, lc)
+    summary["observables"]["profile_definition"] = "h(x), the depth-averaged layer's thickness"
+    profiles["hvol_final"] = profiles["final"]
     summary.update(extra_summary or {})
     write_outputs(out, summary, rec, profiles, m.x - lc)
     plot_front(out, compare_with)
@@ -873,24 +922,49 @@ def _front_label(meta: dict) -> str:
     return _label(meta) + f": front {meta['runout_m']:.3f} m at t = {meta.get('t_end_s', 0.0):g} s ({why})"
 
 
+def _front_band(path: Path) -> Optional[dict]:
+    """The thickness fronts of front.csv in ``path`` by thickness in metres (None for a front.csv
+    without them)."""
+    d = np.genfromtxt(path / "front.csv", delimiter=",", names=True)
+    keys = [k for k in obs.front_keys(cells=()) if k in (d.dtype.names or ())]
+    if not keys or d.ndim == 0:
+        return None
+    return {"t": d["t_s"], "fronts": [(k, d[k]) for k in keys]}
+
+
 def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
+    """front.png: the lowest-row front (bold) and the band of the thickness fronts of the volume
+    profile (from 1 to 20 mm, shaded; each thickness a thin line) against time, for this run and
+    for ``compare_with``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
     runs = [out] + ([compare_with] if compare_with is not None and (compare_with / "front.csv").exists() else [])
     for k, path in enumerate(runs):
         t, x, meta = _read_front(path)
         label = _front_label(meta)
         ax.plot(t, x, f"C{k}-", lw=2, label=label)
+        band = _front_band(path) if t.size > 1 else None
+        if band is not None:
+            lo, hi = band["fronts"][-1][1], band["fronts"][0][1]  # the thickest and the thinnest
+            ax.fill_between(band["t"], np.nan_to_num(lo), np.nan_to_num(hi), color=f"C{k}", alpha=0.15, lw=0,
+                            label=f"fronts at h = {band['fronts'][0][0][7:-2]} to {band['fronts'][-1][0][7:-2]} "
+                                  "(volume profile)")
+            for name, xf in band["fronts"]:
+                ax.plot(band["t"], xf, f"C{k}", lw=0.6, alpha=0.8)
+                ax.annotate(name[7:-2], (band["t"][-1], xf[-1]), fontsize=6, color=f"C{k}",
+                            xytext=(2, 0), textcoords="offset points", va="center")
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation: {PAPER_RUNOUT_SIM} m")
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"paper, experiment: {PAPER_RUNOUT_EXP} m")
-    ax.set(xlabel="t (s)", ylabel="front position from the gate (m)", title="Column collapse: front position")
+    ax.set(xlabel="t (s)", ylabel="front position from the gate (m)",
+           title="Column collapse: front (bold: lowest row of cells) and thickness fronts")
+    ax.title.set_fontsize(10)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     fig.savefig(out / "front.png", dpi=120)
     plt.close(fig)
@@ -912,10 +986,13 @@ def plot_profiles(out: Path) -> None:
         label = "final deposit" if name == "h_final" else f"t = {float(name[2:]):g} s"
         style = dict(color="k", lw=2) if name == "h_final" else dict(color=cmap(n / max(1, len(cols) - 1)), lw=1)
         ax.plot(data[:, 0], data[:, k], label=label, **style)
+    if "hvol_final" in header and meta.get("model") != "depth-averaged":
+        ax.plot(data[:, 0], data[:, header.index("hvol_final")], color="C3", ls="--", lw=1.2,
+                label="final, volume per column")
     ax.axvline(0.0, color="grey", lw=0.8)
     ax.axvline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label="paper run-out (simulation)")
     ax.axvline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label="paper run-out (experiment)")
-    ax.set(xlabel="x − L_c (m), gate at 0", ylabel="surface height h (m)",
+    ax.set(xlabel="x − L_c (m), gate at 0", ylabel="h (m): surface height; dashed: volume per column",
            title=_label(meta) + " column: surface profiles\n"
                  "(paper: thickest near the gate, gentle decrease downstream)")
     ax.title.set_fontsize(9)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from . import levelset, navier_stokes, pore_pressure, rheology
+from . import levelset, navier_stokes, peer, pore_pressure, rheology
 
 #: name → (function(**params) → (metrics, reference, passed), default params, help)
 CASES: dict[str, tuple[Callable, dict, str]] = {
@@ -45,6 +45,8 @@ CASES: dict[str, tuple[Callable, dict, str]] = {
                      "granular layer inclined below its friction angle stays at rest"),
     "picard-ratio": (rheology.picard_ratio, {"theta": [0.1, 0.25, 0.5, 0.75], "n": 32},
                      "geometric convergence of the Picard iteration against 1 - theta"),
+    "peer-dry-column": (peer.peer_dry_column, {"n": [32, 64], "t_end": 3.0},
+                        "dry column, free-slip back wall, against Basilisk (n: cells per H_c; docs/validation.md)"),
 }
 
 

@@ -1,0 +1,310 @@
+"""Cross-code check: granrs's dry column collapse against the same column computed with Basilisk.
+
+The reference (data/basilisk_dry_column/, README.md there) is the final deposit and the fronts of a
+dry column computed with Basilisk, an independent solver (VOF interface, regularised
+Drucker–Prager viscosity η = min(μ p/(√2 D₂) + η_s, η_max), regularised Coulomb base
+η ∂u/∂y = μ_w p u/(|u| + ε)). The shared set-up (:func:`peer_case`): a column L_c = 0.20 m ×
+H_c = 0.40 m of mixture density φρ_s = 1450 kg m⁻³ released from rest; Drucker–Prager with
+μ = tan 27° and η_s = 0.1 Pa s; Coulomb base μ_w = tan 15°; **free-slip back wall** and right
+wall; domain 6 H_c × 2 H_c = 2.4 m × 0.8 m; 32 or 64 cells per H_c (Δ = 12.5 or 6.25 mm); run to
+rest (largest granular speed below 5 mm s⁻¹ for 0.05 s). granrs solves it with its own numerics
+(level set, exact plastic projection, unregularised Coulomb walls, a free-slip lid at y = 0.8 m
+where Basilisk's top is open): nothing is fitted to the reference.
+
+Both deposits are compared as the granular *volume* per column of cells (Basilisk's Σ_j f Δ,
+granrs's :func:`granrs.observables.volume_profile`), on the reference's column centres, x measured
+from the gate:
+
+* pointwise relative difference |h − h_B| / h_B and the L1 difference Σ|h − h_B| / Σ h_B over the
+  bulk, from the back wall to ``BULK_END_M`` = 0.3 m past the gate;
+* the centre of mass x_c = Σ h x / Σ h from the gate, the back-wall height (first column) and the
+  height at the gate;
+* the thickness fronts (farthest x where h > τ) at τ = Δ/2, 1, 2, 5, 10 and 20 mm;
+* the front against time: granrs's front.csv (every 0.01 s) read at the reference's times (every
+  0.05 s) for the three fronts the reference records (h > Δ/2, h > 2 cm, the end of the material
+  on the lowest row of cells).
+
+Acceptance (the cross-code tolerance of the task, against a 5–7 % agreement seen near the gate
+and the back wall): at the finer resolution every point of the bulk within ``BULK_TOLERANCE`` =
+10 %, and at every resolution with reference data the centre of mass within
+``CENTRE_OF_MASS_TOLERANCE`` = 10 %. A resolution without reference data is run and reported with
+``passed`` None. The tail (beyond the bulk) is reported, not judged: the two codes' thin-front
+definitions do not converge (docs/validation.md, "Cross-code check: Basilisk").
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from .. import observables as obs
+
+DATA = Path(__file__).parent / "data" / "basilisk_dry_column"
+#: the shared set-up (data/basilisk_dry_column/README.md)
+WIDTH, HEIGHT, LENGTH, DOMAIN_HEIGHT = 0.20, 0.40, 2.4, 0.8
+#: resolutions of the reference, in cells per H_c
+REFERENCE_RESOLUTIONS = (32, 64)
+#: end of the bulk of the deposit (m past the gate) for the pointwise check
+BULK_END_M = 0.3
+BULK_TOLERANCE = 0.10
+CENTRE_OF_MASS_TOLERANCE = 0.10
+#: thicknesses (m) of the compared fronts besides Δ/2
+FRONT_THICKNESSES_M = obs.FRONT_THICKNESSES_M
+
+
+def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0):
+    """The granrs ColumnCase of the shared set-up at ``cells_per_hc`` cells per H_c (the grid has
+    ny = 2 cells_per_hc rows over the 0.8 m domain, nx = 6 cells_per_hc columns over 2.4 m)."""
+    from .._granrs import ParameterError
+    from ..cases.column import ColumnCase
+
+    if not isinstance(cells_per_hc, int) or isinstance(cells_per_hc, bool) or not 4 <= cells_per_hc <= 512:
+        raise ParameterError(f"invalid parameter `n` = {cells_per_hc!r}: allowed an integer number of cells per H_c "
+                             "in [4, 512]")
+    return ColumnCase(aspect_ratio=HEIGHT / WIDTH, width=WIDTH, fluidised=False, ny=2 * cells_per_hc,
+                      length=LENGTH, height=DOMAIN_HEIGHT, back_wall="free-slip", friction_angle=27.0,
+                      wall_friction_angle=15.0, granular_viscosity=0.1, solid_fraction=0.58, grain_density=2500.0,
+                      t_end=t_end, threads=threads)
+
+
+def load_reference(cells_per_hc: int) -> Optional[dict]:
+    """The Basilisk deposit and fronts at ``cells_per_hc`` (None where there are none):
+    ``x`` (column centres from the gate), ``h``, ``dx`` and the front table ``fronts`` (arrays by
+    the CSV's column names)."""
+    dep, fr = DATA / f"deposit_{cells_per_hc}_cells_per_Hc.csv", DATA / f"front_{cells_per_hc}_cells_per_Hc.csv"
+    if not dep.exists():
+        return None
+    d = np.genfromtxt(dep, delimiter=",", names=True)
+    f = read_csv_columns(fr)
+    return {"x": d["x_from_gate_m"], "h": d["h_m"], "dx": HEIGHT / cells_per_hc,
+            "fronts": f}
+
+
+def read_csv_columns(path: Path) -> dict:
+    """The columns of a CSV file of numbers by their header's names, verbatim (numpy's
+    ``genfromtxt(names=True)`` drops the dot of ``front_h0.5cell_m``); empty cells are NaN."""
+    lines = [line for line in Path(path).read_text().splitlines() if line and not line.startswith("#")]
+    names = lines[0].split(",")
+    rows = [[float(v) if v not in ("", "nan") else math.nan for v in line.split(",")] for line in lines[1:]]
+    data = np.array(rows, dtype=float).reshape(len(rows), len(names))
+    return {name: data[:, k] for k, name in enumerate(names)}
+
+
+def read_run(folder: Path) -> dict:
+    """A granrs column run's final volume profile (profiles.csv's hvol_final), front time series
+    (front.csv) and summary."""
+    header = (folder / "profiles.csv").read_text().splitlines()[0].split(",")
+    p = np.genfromtxt(folder / "profiles.csv", delimiter=",", skip_header=1)
+    f = read_csv_columns(folder / "front.csv")
+    summary = json.loads((folder / "summary.json").read_text())
+    return {"x": p[:, 0], "h": p[:, header.index("hvol_final")], "dx": summary["h_m"],
+            "fronts": f, "summary": summary}
+
+
+def _profile_observables(x: np.ndarray, h: np.ndarray, dx: float) -> dict:
+    x0 = float(x[0] - dx / 2)  # the back wall, from the gate
+    out = {"centre_of_mass_m": obs.centre_of_mass(h, dx, x0), "h_back_wall_m": float(h[0]),
+           "h_gate_m": obs.height_at(h, dx, 0.0, x0), "area_m2": float(np.sum(h) * dx),
+           "front_h_half_cell_m": obs.thickness_front(h, dx, dx / 2, x0)}
+    for tau in FRONT_THICKNESSES_M:
+        out[f"front_h{1e3 * tau:g}mm_m"] = obs.thickness_front(h, dx, tau, x0)
+    for q in obs.DEPOSIT_QUANTILES:
+        out[f"q{100 * q:g}_m"] = obs.area_quantile(h, dx, q, x0)
+    return out
+
+
+def _rel(a: float, b: float) -> float:
+    return (a - b) / abs(b) if b != 0 and math.isfinite(a) and math.isfinite(b) else math.nan
+
+
+def compare(run: dict, ref: dict, finer: bool) -> dict:
+    """Point-by-point comparison of a granrs run (:func:`read_run`) with the reference
+    (:func:`load_reference`) at the same resolution.
+
+    Parameters
+    ----------
+    run, ref : dict
+        ``x`` (column centres from the gate), ``h`` (volume per column), ``dx``, ``fronts``.
+    finer : bool
+        Whether this is the finest resolution of the reference (the pointwise bulk tolerance
+        applies there only).
+
+    Returns
+    -------
+    dict
+        The metrics, with ``passed`` (bool) and the reason of a failure in ``failures``.
+    """
+    xr, hr = np.asarray(ref["x"]), np.asarray(ref["h"])
+    hg = np.interp(xr, np.asarray(run["x"]), np.asarray(run["h"]), right=0.0)
+    bulk = xr <= BULK_END_M
+    rel = np.abs(hg[bulk] - hr[bulk]) / hr[bulk]
+    worst = int(np.argmax(rel))
+    og, orf = _profile_observables(xr, hg, ref["dx"]), _profile_observables(xr, hr, ref["dx"])
+    m = {"bulk_end_m": BULK_END_M,
+         "bulk_max_rel_diff": float(rel.max()), "bulk_max_rel_diff_at_m": float(xr[bulk][worst]),
+         "bulk_l1_rel_diff": float(np.sum(np.abs(hg[bulk] - hr[bulk])) / np.sum(hr[bulk])),
+         "tail_l1_rel_diff": float(np.sum(np.abs(hg[~bulk] - hr[~bulk])) / np.sum(hr[~bulk])),
+         "tail_area_granrs_m2": float(np.sum(hg[~bulk]) * ref["dx"]),
+         "tail_area_basilisk_m2": float(np.sum(hr[~bulk]) * ref["dx"]),
+         "granrs": og, "basilisk": orf,
+         "rel_diff": {k: _rel(og[k], orf[k]) for k in og},
+         "abs_diff_m": {k: og[k] - orf[k] for k in og}}
+    # the tail's film: its thickness at 1 m, in mm and in cells (a film of the same thickness in mm
+    # at both resolutions is a property of the law; one of a fixed number of cells, of the numerics)
+    for xx in (0.5, 1.0, 1.5):
+        for name, h in (("granrs", hg), ("basilisk", hr)):
+            v = float(np.interp(xx, xr, h))
+            m.setdefault("film", {})[f"{name}_h_at_{xx:g}m_mm"] = 1e3 * v
+            m["film"][f"{name}_h_at_{xx:g}m_cells"] = v / ref["dx"]
+    # fronts against time, at the reference's times within both records
+    ft, fr = run["fronts"], ref["fronts"]
+    pairs = (("front_h_half_cell_m", "front_h0.5cell_m"), ("front_h_2cm_m", "front_h20mm_m"),
+             ("front_first_row_m", "front_m"))
+    t = fr["t_s"][fr["t_s"] <= ft["t_s"][-1] + 1e-9]
+    m["front_vs_time"] = {}
+    for rk, gk in pairs:
+        if gk not in ft:
+            continue
+        d = np.interp(t, ft["t_s"], np.nan_to_num(ft[gk])) - fr[rk][: t.size]
+        apart = np.nonzero(np.abs(d) > 0.05)[0]
+        m["front_vs_time"][rk] = {"max_abs_diff_m": float(np.max(np.abs(d))) if d.size else math.nan,
+                                  "final_diff_m": float(d[-1]) if d.size else math.nan,
+                                  "first_apart_5cm_s": float(t[apart[0]]) if apart.size else None}
+    failures = []
+    com = abs(m["rel_diff"]["centre_of_mass_m"])
+    if not com <= CENTRE_OF_MASS_TOLERANCE:
+        failures.append(f"centre of mass {og['centre_of_mass_m']:.4f} m vs {orf['centre_of_mass_m']:.4f} m "
+                        f"({com:.1%} > {CENTRE_OF_MASS_TOLERANCE:.0%})")
+    if finer and not m["bulk_max_rel_diff"] <= BULK_TOLERANCE:
+        failures.append(f"bulk {m['bulk_max_rel_diff']:.1%} > {BULK_TOLERANCE:.0%} at x = "
+                        f"{m['bulk_max_rel_diff_at_m']:.3f} m")
+    m["failures"] = failures
+    m["passed"] = not failures
+    return _finite(m)
+
+
+def _finite(v):
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def run_or_load(cells_per_hc: int, out: Path, threads: int = 1, t_end: float = 3.0, progress: bool = False) -> dict:
+    """granrs's run of the shared set-up in ``out/n{cells_per_hc}`` (run first if its summary is not
+    there), as :func:`read_run`."""
+    from ..cases.column import run_column
+
+    folder = Path(out) / f"n{cells_per_hc}"
+    if not (folder / "summary.json").exists():
+        run_column(peer_case(cells_per_hc, threads, t_end), folder, progress=progress)
+    return read_run(folder)
+
+
+def peer_dry_column(n=REFERENCE_RESOLUTIONS, threads: int = 1, t_end: float = 3.0, out: Optional[str] = None):
+    """``granrs validate peer-dry-column``: runs the shared set-up at ``n`` cells per H_c and
+    compares each with the reference at that resolution (:func:`compare`). Returns (metrics,
+    reference, passed): passed is None when no run has reference data, else True only when every
+    compared run passes."""
+    ns = [int(k) for k in (n if isinstance(n, (list, tuple)) else [n])]
+    for k in ns:
+        peer_case(k)  # the parameter's check, before any run
+    finest = max((k for k in ns if load_reference(k) is not None), default=None)
+    tmp = tempfile.TemporaryDirectory() if out is None else None
+    base = Path(out) if out is not None else Path(tmp.name)
+    metrics = {"cells_per_hc": ns, "runs": {}}
+    verdicts = []
+    try:
+        for k in ns:
+            run = run_or_load(k, base, threads, t_end)
+            s = run["summary"]
+            entry = {"stop_reason": s["stop_reason"], "t_end_s": s["t_end_s"], "wall_s": s["wall_s"],
+                     "nx": s["nx"], "ny": s["ny"], "mass_rel_error": s["mass_rel_error"],
+                     "runout_m": s["runout_m"], "observables": s["observables"]}
+            ref = load_reference(k)
+            if ref is None:
+                entry["passed"] = None
+            else:
+                entry.update(compare(run, ref, finer=(k == finest)))
+                verdicts.append(entry["passed"])
+            metrics["runs"][str(k)] = entry
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+    passed = None if not verdicts else all(verdicts)
+    reference = {"solver": "Basilisk (VOF, regularised Drucker-Prager and Coulomb base, eps = 1e-3), "
+                           "data/basilisk_dry_column/README.md",
+                 "resolutions_cells_per_hc": list(REFERENCE_RESOLUTIONS),
+                 "acceptance": f"bulk (back wall to {BULK_END_M} m past the gate) within {BULK_TOLERANCE:.0%} pointwise "
+                               f"at the finest resolution with data; centre of mass within "
+                               f"{CENTRE_OF_MASS_TOLERANCE:.0%} at every resolution with data",
+                 "profile": "volume per column of cells in both codes"}
+    return metrics, reference, passed
+
+
+def plot_comparison(runs: dict, png: Path) -> None:
+    """One figure: both codes' final deposits (top) and fronts against time (bottom) at each
+    resolution of ``runs`` (cells per H_c → :func:`read_run`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(2, 1, figsize=(9, 7.5))
+    for c, (k, run) in enumerate(sorted(runs.items())):
+        ref = load_reference(k)
+        a.plot(run["x"], run["h"], f"C{c}-", lw=1.8, label=f"granrs, {k} cells per H_c")
+        if ref is not None:
+            a.plot(ref["x"], ref["h"], f"C{c}--", lw=1.2, label=f"Basilisk, {k} cells per H_c")
+        f = run["fronts"]
+        b.plot(f["t_s"], f["front_m"], f"C{c}-", lw=1.8, label=f"granrs {k}: lowest row")
+        b.plot(f["t_s"], f["front_h20mm_m"], f"C{c}-", lw=0.9, alpha=0.7, label=f"granrs {k}: h > 2 cm")
+        b.plot(f["t_s"], f["front_h0.5cell_m"], f"C{c}:", lw=1.2, label=f"granrs {k}: h > Δ/2")
+        if ref is not None:
+            r = ref["fronts"]
+            b.plot(r["t_s"], r["front_first_row_m"], f"C{c}o", ms=3, mfc="none", label=f"Basilisk {k}: lowest row")
+            b.plot(r["t_s"], r["front_h_2cm_m"], f"C{c}s", ms=2.5, label=f"Basilisk {k}: h > 2 cm")
+            b.plot(r["t_s"], r["front_h_half_cell_m"], f"C{c}^", ms=2.5, mfc="none", label=f"Basilisk {k}: h > Δ/2")
+    a.axvline(0.0, color="grey", lw=0.8)
+    a.axvline(BULK_END_M, color="k", ls=":", lw=0.8, label=f"end of the bulk ({BULK_END_M} m)")
+    a.set(xlabel="x − L_c (m), gate at 0", ylabel="deposit h (m), volume per column",
+          title="Dry column, free-slip back wall: granrs against Basilisk")
+    a.grid(alpha=0.3)
+    a.legend(fontsize=7)
+    b.set(xlabel="t (s)", ylabel="front from the gate (m)")
+    b.grid(alpha=0.3)
+    b.legend(fontsize=6, ncol=2, loc="upper left")
+    fig.tight_layout()
+    Path(png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    """``python -m granrs.validation.peer --out DIR [--png FILE] [--n 32 64]``: the case with its
+    runs kept in DIR (reused when run again), its JSON record in DIR/record.json, and the figure."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description="granrs's dry column against Basilisk")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--png", default=None)
+    ap.add_argument("--n", type=int, nargs="+", default=list(REFERENCE_RESOLUTIONS))
+    ap.add_argument("--threads", type=int, default=1)
+    args = ap.parse_args(argv)
+    metrics, reference, passed = peer_dry_column(args.n, threads=args.threads, out=args.out)
+    record = {"case": "peer-dry-column", "metrics": metrics, "reference": reference, "passed": passed}
+    Path(args.out, "record.json").write_text(json.dumps(record, indent=2) + "\n")
+    plot_comparison({k: read_run(Path(args.out) / f"n{k}") for k in args.n},
+                    Path(args.png) if args.png else Path(args.out) / "peer_dry_column.png")
+    print(json.dumps(record, indent=2))
+    return 0 if passed else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
