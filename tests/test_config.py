@@ -146,3 +146,12 @@ def test_cli_rejects_a_bad_file_before_any_work(tmp_path):
     assert r.returncode == 2 and "--set" in r.stderr
     r = cli("run", str(EXAMPLES / "paper_dry.toml"), "--set", "materials.friction_angle=95", "--out", str(out))
     assert r.returncode == 2 and "`materials.friction_angle`" in r.stderr and not out.exists()
+
+
+def test_no_saved_fields_turns_the_default_animation_off():
+    # the animation's default gives way when no fields are saved; asked for explicitly, it is refused (above)
+    cfg = resolve({"output": {"fields_every_s": 0.0}})
+    assert cfg["output"]["animation"] is False
+    cfg = resolve({"output": {"formats": []}})
+    assert cfg["output"]["animation"] is False
+    assert resolve({})["output"]["animation"] is True

@@ -201,11 +201,14 @@ def resolve(raw: dict) -> Config:
             cfg[key.section][key.name] = _check_value(key, table[key.name])
         else:
             cfg[key.section][key.name] = list(key.default) if isinstance(key.default, list) else key.default
-    _derive_and_cross_check(cfg)
+    _derive_and_cross_check(cfg, given={(s, k) for s, t in raw.items() if isinstance(t, dict) for k in t})
     return cfg
 
 
-def _derive_and_cross_check(cfg: Config) -> None:
+def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -> None:
+    """Derived values and the checks between keys. ``given``: the (section, key) pairs the run file
+    set; a default that another key makes meaningless gives way (the animation's default when no
+    fields are saved) instead of being refused."""
     case, grid, out = cfg["case"], cfg["grid"], cfg["output"]
     if grid["length"] is None:
         length = ColumnCase(aspect_ratio=case["aspect_ratio"], width=case["width"]).domain()[0]
@@ -214,8 +217,10 @@ def _derive_and_cross_check(cfg: Config) -> None:
         raise ParameterError(f"invalid parameter `grid.length` = {grid['length']!r}: allowed a length (m) greater than "
                              f"case.width = {case['width']!r} m (the gate)")
     if out["animation"] and not (out["fields_every_s"] > 0 and out["formats"]):
-        raise ParameterError(f"invalid parameter `output.animation` = true: allowed only with output.fields_every_s > 0 "
-                             f"and a non-empty output.formats (the animation is made from the saved fields)")
+        if ("output", "animation") in given:
+            raise ParameterError(f"invalid parameter `output.animation` = true: allowed only with output.fields_every_s "
+                                 f"> 0 and a non-empty output.formats (the animation is made from the saved fields)")
+        out["animation"] = False  # the default animates saved fields: with none saved there is nothing to animate
 
 
 def parse_scalar(text: str):
