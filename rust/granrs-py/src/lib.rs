@@ -7,10 +7,10 @@ use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
 use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel, WindowSides};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
-use granrs_core::walls::side::SideWalls;
 use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, SigmaLocation, WallNormalStress, YieldPressure, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
+use granrs_core::walls::side::SideWalls;
 use granrs_core::Error;
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::create_exception;
@@ -63,11 +63,7 @@ fn parse_bc(side: &str, kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyRes
         "coulomb" => VelocityBc::Coulomb,
         "fully-developed" => VelocityBc::FullyDeveloped,
         other => {
-            return Err(param_err(
-                &format!("bc.{side}"),
-                other,
-                "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb', 'fully-developed'",
-            ))
+            return Err(param_err(&format!("bc.{side}"), other, "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb', 'fully-developed'"))
         }
     })
 }
@@ -150,11 +146,7 @@ impl PyModel {
                 }
             }
             other => {
-                return Err(param_err(
-                    "name",
-                    other,
-                    "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'trial_norm', 'yield_stress'",
-                ))
+                return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'trial_norm', 'yield_stress'"))
             }
         })
     }
@@ -207,7 +199,15 @@ fn parse_shape(spec: &Bound<'_, PyAny>) -> PyResult<Shape> {
 /// Runs a level-set benchmark ('zalesak' or 'single-vortex') in Rust; returns its metrics.
 #[pyfunction]
 #[pyo3(signature = (case, n, period, redistance_every, cfl, threads=1))]
-fn levelset_validation<'py>(py: Python<'py>, case: &str, n: usize, period: f64, redistance_every: usize, cfl: f64, threads: usize) -> PyResult<Bound<'py, PyDict>> {
+fn levelset_validation<'py>(
+    py: Python<'py>,
+    case: &str,
+    n: usize,
+    period: f64,
+    redistance_every: usize,
+    cfl: f64,
+    threads: usize,
+) -> PyResult<Bound<'py, PyDict>> {
     let pool = granrs_core::exec::build_pool(threads).map_err(to_py)?;
     let exec = Exec::with_threads(threads);
     let every = if redistance_every == 0 { None } else { Some(redistance_every) };
@@ -358,9 +358,7 @@ impl PyModel {
                         let name = format!("bc.{}.friction_angle", side.name());
                         let a: f64 = a.extract().map_err(|_| param_err(&name, &a, "an angle in degrees"))?;
                         match wall_friction_angle {
-                            Some(b) if b != a => {
-                                return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)")))
-                            }
+                            Some(b) if b != a => return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)"))),
                             _ => wall_friction_angle = Some(a),
                         }
                     }
@@ -719,9 +717,7 @@ impl PyModel {
             let name: String = k.extract()?;
             let data: Vec<f64> = match v.extract::<numpy::PyReadonlyArray1<f64>>() {
                 Ok(a) => a.as_slice()?.to_vec(),
-                Err(_) => vec![v.extract::<f64>().map_err(|_| {
-                    to_py(Error::param("state", &name, "1-D float64 arrays or numbers"))
-                })?],
+                Err(_) => vec![v.extract::<f64>().map_err(|_| to_py(Error::param("state", &name, "1-D float64 arrays or numbers")))?],
             };
             entries.push((name, data));
         }

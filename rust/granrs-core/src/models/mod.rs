@@ -7,8 +7,8 @@
 //! [`DepthAveragedModel`] is the cheap rung of the ladder: a Savage–Hutter shallow layer along the
 //! channel with a depth-averaged pore pressure (`depth_averaged.rs`, docs/models.md).
 
-mod checkpoint;
 pub mod active_region;
+mod checkpoint;
 pub mod depth_averaged;
 mod two_phase;
 

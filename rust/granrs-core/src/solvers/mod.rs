@@ -293,17 +293,14 @@ impl PoissonSolver {
                 *v = -fv;
             }
         });
-        let rhs_mean_removed =
-            if self.singular { -cg::remove_mean(exec, rhs, nx, &mut self.work.partials1) } else { 0.0 };
+        let rhs_mean_removed = if self.singular { -cg::remove_mean(exec, rhs, nx, &mut self.work.partials1) } else { 0.0 };
         let bnorm = cg::dot(exec, rhs, rhs, nx, &mut self.work.partials1).sqrt();
         if bnorm == 0.0 {
             p.iter_mut().for_each(|v| *v = 0.0);
             return Ok(SolveInfo { iterations: 0, residual: 0.0, initial_residual: 0.0, rhs_mean_removed });
         }
         let mut info = match self.settings.kind {
-            PressureSolverKind::MultigridCg => {
-                cg::pcg(&mut self.mg, &mut self.work, p, bnorm, &self.settings, self.singular, exec)?
-            }
+            PressureSolverKind::MultigridCg => cg::pcg(&mut self.mg, &mut self.work, p, bnorm, &self.settings, self.singular, exec)?,
             PressureSolverKind::Direct => self.solve_direct(p, bnorm, exec),
         };
         info.rhs_mean_removed = rhs_mean_removed;
@@ -378,26 +375,16 @@ impl PoissonSolver {
 
 impl fmt::Display for PoissonSolver {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let bc: Vec<&str> =
-            self.bc.iter().map(|b| if *b == PressureBc::Neumann { "Neumann" } else { "Dirichlet" }).collect();
+        let bc: Vec<&str> = self.bc.iter().map(|b| if *b == PressureBc::Neumann { "Neumann" } else { "Dirichlet" }).collect();
         writeln!(f, "PoissonSolver ({})", self.solver_name())?;
         writeln!(f, "├── grid: {} × {} cells, dx = {:e}, dy = {:e}", self.nx, self.ny, self.dx, self.dy)?;
-        writeln!(
-            f,
-            "├── bc (left, right, bottom, top): {}{}",
-            bc.join(", "),
-            if self.singular { " (singular)" } else { "" }
-        )?;
+        writeln!(f, "├── bc (left, right, bottom, top): {}{}", bc.join(", "), if self.singular { " (singular)" } else { "" })?;
         let levels: Vec<String> = self.mg.levels.iter().map(|l| format!("{}×{}", l.nx, l.ny)).collect();
         writeln!(f, "├── levels: {} (coarsest solved by sparse Cholesky)", levels.join(" → "))?;
         write!(
             f,
             "└── rtol = {:e}, max_iterations = {}, {:?}({}, {})-cycle, piecewise-constant transfers",
-            self.settings.rtol,
-            self.settings.max_iterations,
-            self.settings.cycle,
-            self.settings.pre_smooth,
-            self.settings.post_smooth
+            self.settings.rtol, self.settings.max_iterations, self.settings.cycle, self.settings.pre_smooth, self.settings.post_smooth
         )
     }
 }

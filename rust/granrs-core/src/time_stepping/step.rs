@@ -43,13 +43,13 @@
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
+use crate::levelset::blend_harmonic;
 use crate::models::{ConvectionScheme, TwoPhaseModel};
 use crate::operators::{
     cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
     BcMode,
 };
 use crate::projection::fill_pressure_ghosts;
-use crate::levelset::blend_harmonic;
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
@@ -435,9 +435,7 @@ impl TwoPhaseModel {
         match r {
             Ok(_) => Ok(()),
             // an unstable or non-finite p_f: the room names the cell, the step and time are added here
-            Err(Error::Simulation { what, location, .. }) => {
-                Err(Error::Simulation { what, step: self.step_count + 1, time: self.time + dt, location })
-            }
+            Err(Error::Simulation { what, location, .. }) => Err(Error::Simulation { what, step: self.step_count + 1, time: self.time + dt, location }),
             Err(e) => Err(self.at_step(Error::SolverFailure { solver: "pore-pressure solve".into(), message: e.to_string() })),
         }
     }
@@ -507,7 +505,9 @@ impl TwoPhaseModel {
             // surface act on the grains only and no light-phase dynamics enters the predictor
             let cf = FROZEN_FACE * a0 * cfg.dense.density / dt;
             let (ps, sp) = (self.phi.slice(), self.phi.stride());
-            for (rhs, c, un, um, horizontal) in [(&mut wk.rhs_u, &mut wk.c_u, &self.u, &self.u_prev, true), (&mut wk.rhs_v, &mut wk.c_v, &self.v, &self.v_prev, false)] {
+            for (rhs, c, un, um, horizontal) in
+                [(&mut wk.rhs_u, &mut wk.c_u, &self.u, &self.u_prev, true), (&mut wk.rhs_v, &mut wk.c_v, &self.v, &self.v_prev, false)]
+            {
                 let (mx, st) = (rhs.nx, rhs.stride());
                 let (us, ums) = (un.slice(), um.slice());
                 // the cell before the face: left (u) or below (v); row by row (elementwise)
@@ -639,12 +639,9 @@ impl TwoPhaseModel {
     /// Attaches the step and time to a solver error.
     fn at_step(&self, e: Error) -> Error {
         match e {
-            Error::NotConverged { .. } | Error::SolverFailure { .. } => Error::Simulation {
-                what: e.to_string(),
-                step: self.step_count + 1,
-                time: self.time,
-                location: None,
-            },
+            Error::NotConverged { .. } | Error::SolverFailure { .. } => {
+                Error::Simulation { what: e.to_string(), step: self.step_count + 1, time: self.time, location: None }
+            }
             other => other,
         }
     }
@@ -676,8 +673,14 @@ pub fn interior_to_vec(src: &Field) -> Vec<f64> {
 /// the free-surface model's predictor), `ptot` a work field.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn pressure_gradient(
-    p: Option<&Field>, pore: Option<&mut crate::pore_pressure::PorePressure>, ptot: &mut Field, gx: &mut Field, gy: &mut Field, grid: &crate::grid::Grid,
-    bc: &crate::grid::BoundaryConditions, exec: Exec,
+    p: Option<&Field>,
+    pore: Option<&mut crate::pore_pressure::PorePressure>,
+    ptot: &mut Field,
+    gx: &mut Field,
+    gy: &mut Field,
+    grid: &crate::grid::Grid,
+    bc: &crate::grid::BoundaryConditions,
+    exec: Exec,
 ) {
     match (p, pore) {
         (Some(p), None) => gradient(p, grid, gx, gy, exec),
