@@ -60,8 +60,10 @@ impl PyDepthAveraged {
         Ok(PyDepthAveraged { inner: DepthAveragedModel::new(cfg).map_err(to_py)? })
     }
 
-    /// Full storage (2 ghost cells at each end) of "h", "u" or "beta" as a zero-copy NumPy array
-    /// that keeps the model alive; buffers are never reallocated, so the view stays live.
+    /// Full storage (2 ghost cells at each end) of "h", "u" or "beta" as a zero-copy, read-only
+    /// NumPy array that keeps the model alive; buffers are never reallocated, so the view stays
+    /// live. A view read from another thread while a step runs (the GIL is released) races the
+    /// step's writes.
     fn field_storage<'py>(slf: Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let borrowed = slf.borrow();
         let field = match name {
@@ -74,7 +76,9 @@ impl PyDepthAveraged {
         let container = slf.clone().into_any();
         // SAFETY: the array lives inside the model object, which `container` keeps alive; the
         // buffers are allocated once in DepthAveragedModel::new and never reallocated or moved.
-        Ok(unsafe { PyArray1::borrow_from_array(field, container) })
+        let arr = unsafe { PyArray1::borrow_from_array(field, container) };
+        crate::read_only(arr.as_any())?;
+        Ok(arr)
     }
 
     /// Sets h, u, β (interior values, n each).

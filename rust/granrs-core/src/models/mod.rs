@@ -10,9 +10,11 @@
 pub mod active_region;
 mod checkpoint;
 pub mod depth_averaged;
+pub mod memory;
 mod two_phase;
 
 pub use active_region::{ActiveRegion, WindowSides};
 pub use checkpoint::StateEntry;
 pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
+pub use memory::available_memory;
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};

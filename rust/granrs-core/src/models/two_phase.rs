@@ -285,7 +285,7 @@ pub(crate) struct LevelSetWork {
 /// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model.
 pub struct TwoPhaseModel {
     pub(crate) config: ModelConfig,
-    pub(crate) pool: rayon::ThreadPool,
+    pub(crate) pool: std::sync::Arc<rayon::ThreadPool>,
     /// x-velocity u^n on XFace.
     pub u: Field,
     /// y-velocity v^n on YFace.
@@ -344,8 +344,10 @@ impl TwoPhaseModel {
     /// Builds a model at rest (u = 0, p = 0, Φ = +1 everywhere: only the dense phase).
     pub fn new(config: ModelConfig) -> Result<Self> {
         config.validate()?;
+        // refused before anything is allocated when it would not fit (models/memory.rs)
+        config.check_memory()?;
         let g = &config.grid;
-        let pool = build_pool(config.threads)?;
+        let pool = std::sync::Arc::new(build_pool(config.threads)?);
         let c = || Field::zeros(g, Location::Centre);
         let xf = || Field::zeros(g, Location::XFace);
         let yf = || Field::zeros(g, Location::YFace);

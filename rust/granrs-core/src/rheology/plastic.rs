@@ -643,7 +643,7 @@ impl IncrementSite {
     }
 }
 
-/// How the message of a Picard non-convergence begins (the time stepper retakes such steps).
+/// How the message of a Picard non-convergence ([`Error::PicardNotConverged`]) begins.
 pub const PICARD_FAILURE: &str = "Picard iteration of the plastic projection did not converge";
 
 /// The error of a Picard iteration that reached its cap, naming where the largest increment was.
@@ -659,13 +659,12 @@ pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta:
         }
         None => String::new(),
     };
-    Error::Simulation {
+    Error::PicardNotConverged {
         what: format!(
             "{PICARD_FAILURE}: increment {increment:.3e} after {iterations} iterations \
              (picard_tol = {tol:.1e}, r = {r:.3e} (smallest), theta = {theta}){place}; raise picard_max_iterations or theta, or lower r"
         ),
         step,
         time,
-        location: None,
     }
 }

@@ -461,3 +461,38 @@ fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<(
 fn check_finite_array(name: &str, v: &[f64], stride: usize) -> Result<()> {
     check_array(name, v, stride, |x| x.abs() < f64::INFINITY, "a finite number")
 }
+
+impl PoissonSolver {
+    /// The f64 values a solver on nx × ny cells holds ([`PoissonSolver::new`]): per level the
+    /// face coefficients β and c, the shift, the diagonal and its inverse, the coarse levels'
+    /// solution and right-hand side; the conjugate-gradient vectors; the direct factorisation of
+    /// the coarsest level (with [`PressureSolverKind::Direct`] the whole grid), bounded by the
+    /// band Cholesky factor n · min(nx, ny) with its row indices (the fill-reducing ordering
+    /// keeps below it). For the memory estimate of a model (models/memory.rs).
+    pub fn memory_values(nx: usize, ny: usize, s: &SolverSettings) -> u64 {
+        let mut sizes = multigrid::level_sizes(nx, ny, s.min_coarse_size);
+        if s.kind == PressureSolverKind::Direct {
+            sizes.truncate(1);
+        }
+        let mut total = 0u64;
+        for (l, &(lx, ly)) in sizes.iter().enumerate() {
+            let n = (lx * ly) as u64;
+            let faces = (ly * (lx + 1) + (ly + 1) * lx) as u64;
+            total += 2 * faces + 3 * n + lx as u64;
+            if l > 0 {
+                total += 2 * n;
+            }
+        }
+        let &(cx, cy) = sizes.last().expect("at least the fine level");
+        let nc = (cx * cy) as u64;
+        total += 2 * nc * cx.min(cy) as u64 + nc;
+        total + 5 * (nx * ny) as u64
+    }
+}
+
+impl ShiftedSystem {
+    /// The f64 values [`ShiftedSystem::new`] allocates (its solver, β on faces, shift, rhs, x).
+    pub fn memory_values(nx: usize, ny: usize, s: &SolverSettings) -> u64 {
+        PoissonSolver::memory_values(nx, ny, s) + (ny * (nx + 1) + (ny + 1) * nx) as u64 + 3 * (nx * ny) as u64
+    }
+}
