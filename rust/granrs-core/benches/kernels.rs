@@ -99,13 +99,11 @@ fn triad(c: &mut Criterion) {
             g.bench_with_input(BenchmarkId::new(format!("n{n}"), threads), &threads, |bch, _| {
                 pool.install(|| {
                     bch.iter(|| {
-                        a_arr.par_chunks_mut(1 << 14).zip(b_arr.par_chunks(1 << 14)).zip(c_arr.par_chunks(1 << 14)).for_each(
-                            |((a, b), c)| {
-                                for k in 0..a.len() {
-                                    a[k] = b[k] + 3.0 * c[k];
-                                }
-                            },
-                        );
+                        a_arr.par_chunks_mut(1 << 14).zip(b_arr.par_chunks(1 << 14)).zip(c_arr.par_chunks(1 << 14)).for_each(|((a, b), c)| {
+                            for k in 0..a.len() {
+                                a[k] = b[k] + 3.0 * c[k];
+                            }
+                        });
                         black_box(&a_arr);
                     })
                 })

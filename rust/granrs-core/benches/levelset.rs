@@ -7,10 +7,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use granrs_core::exec::build_pool;
-use granrs_core::levelset::{
-    init_signed_distance, stable_dt, InterfaceTreatment, LevelSetTransport, RedistanceSettings, Redistancer, Shape,
-    WenoWeights,
-};
+use granrs_core::levelset::{init_signed_distance, stable_dt, InterfaceTreatment, LevelSetTransport, RedistanceSettings, Redistancer, Shape, WenoWeights};
 use granrs_core::{Exec, Field, Grid, Location};
 use std::hint::black_box;
 use std::time::Duration;
@@ -35,14 +32,10 @@ fn bench(c: &mut Criterion) {
     for (name, weights) in [("advect_rk3_weno5js", WenoWeights::JiangShu), ("advect_rk3_weno5m", WenoWeights::Mapped)] {
         let mut tr = LevelSetTransport::with_weights(&grid, weights);
         let mut phi = phi0.clone();
-        group.bench_function(format!("{name}_serial"), |b| {
-            b.iter(|| tr.advect(black_box(&mut phi), &u, &v, &grid, dt, Exec::SERIAL).unwrap())
-        });
+        group.bench_function(format!("{name}_serial"), |b| b.iter(|| tr.advect(black_box(&mut phi), &u, &v, &grid, dt, Exec::SERIAL).unwrap()));
         let mut phi = phi0.clone();
         group.bench_function(format!("{name}_2threads"), |b| {
-            b.iter(|| {
-                pool.install(|| tr.advect(black_box(&mut phi), &u, &v, &grid, dt, Exec { parallel: true }).unwrap())
-            })
+            b.iter(|| pool.install(|| tr.advect(black_box(&mut phi), &u, &v, &grid, dt, Exec { parallel: true }).unwrap()))
         });
     }
 
@@ -54,10 +47,7 @@ fn bench(c: &mut Criterion) {
     }
     for (name, settings) in [
         ("redistance_closest_point", RedistanceSettings::default()),
-        (
-            "redistance_subcell_pde",
-            RedistanceSettings { interface: InterfaceTreatment::SubcellPde, ..Default::default() },
-        ),
+        ("redistance_subcell_pde", RedistanceSettings { interface: InterfaceTreatment::SubcellPde, ..Default::default() }),
         ("redistance_closest_point_band12", RedistanceSettings { band: Some(12.0), ..Default::default() }),
     ] {
         let mut rd = Redistancer::new(&grid, settings).unwrap();

@@ -61,8 +61,7 @@ fn rhs() -> Vec<f64> {
         .map(|k| {
             let (i, j) = (k % NX, k / NX);
             let (xc, yc) = ((i as f64 + 0.5) * dx, (j as f64 + 0.5) * dy);
-            (u((i + 1) as f64 * dx, yc) - u(i as f64 * dx, yc)) / dx
-                + (v(xc, (j + 1) as f64 * dy) - v(xc, j as f64 * dy)) / dy
+            (u((i + 1) as f64 * dx, yc) - u(i as f64 * dx, yc)) / dx + (v(xc, (j + 1) as f64 * dy) - v(xc, j as f64 * dy)) / dy
         })
         .collect()
 }
@@ -97,16 +96,12 @@ fn pressure(c: &mut Criterion) {
 
         let p = rhs();
         let mut out = vec![0.0; NX * NY];
-        group.bench_function(format!("apply/{label}"), |b| {
-            b.iter(|| run(&mut || w.apply(black_box(&p), &mut out, exec)))
-        });
+        group.bench_function(format!("apply/{label}"), |b| b.iter(|| run(&mut || w.apply(black_box(&p), &mut out, exec))));
 
         for (name, cycle) in [("W(2,2)", Cycle::W), ("V(2,2)", Cycle::V)] {
             let mut s = solver(SolverSettings { cycle, ..SolverSettings::default() }, &bx, &by);
             let mut z = vec![0.0; NX * NY];
-            group.bench_function(format!("cycle_{name}/{label}"), |b| {
-                b.iter(|| run(&mut || s.precondition(black_box(&f), &mut z, exec).unwrap()))
-            });
+            group.bench_function(format!("cycle_{name}/{label}"), |b| b.iter(|| run(&mut || s.precondition(black_box(&f), &mut z, exec).unwrap())));
         }
 
         let mut s = solver(SolverSettings::default(), &bx, &by);
@@ -120,9 +115,7 @@ fn pressure(c: &mut Criterion) {
             })
         });
 
-        group.bench_function(format!("set_coefficients/{label}"), |b| {
-            b.iter(|| run(&mut || s.set_coefficients(black_box(&bx), &by, exec).unwrap()))
-        });
+        group.bench_function(format!("set_coefficients/{label}"), |b| b.iter(|| run(&mut || s.set_coefficients(black_box(&bx), &by, exec).unwrap())));
     }
     group.finish();
 }

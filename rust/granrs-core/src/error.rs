@@ -26,6 +26,18 @@ pub enum Error {
     /// A simulation blew up or left its domain of validity: says what, where and when.
     #[error("simulation stopped at step {step}, t = {time:.6e} s: {what}{}", location.map(|(i, j)| format!(" at cell (i={i}, j={j})")).unwrap_or_default())]
     Simulation { what: String, step: u64, time: f64, location: Option<(usize, usize)> },
+
+    /// The Picard iteration of the bi-projection (eq. 12) did not reach its tolerance within its
+    /// cap. A step with retries (`TimeConfig::step_retries`) is retaken with δt halved on this
+    /// error; the step that fails for good reports it as [`Error::Simulation`] with the same
+    /// message ([`Error::into_reported`]).
+    #[error("simulation stopped at step {step}, t = {time:.6e} s: {what}")]
+    PicardNotConverged { what: String, step: u64, time: f64 },
+
+    /// A linear solver failed during a step: the solver's own error ([`Error::NotConverged`] or
+    /// [`Error::SolverFailure`]) with the step and time (Python: `granrs.SolverError`).
+    #[error("simulation stopped at step {step}, t = {time:.6e} s: {source}")]
+    SolverInStep { step: u64, time: f64, source: Box<Error> },
 }
 
 /// Result alias used throughout the core.
@@ -35,6 +47,24 @@ impl Error {
     /// Shorthand for [`Error::InvalidParameter`].
     pub fn param(name: &str, value: impl std::fmt::Display, allowed: &str) -> Self {
         Error::InvalidParameter { name: name.to_string(), value: value.to_string(), allowed: allowed.to_string() }
+    }
+
+    /// A solver's error raised during step `step` at time `time`: [`Error::SolverInStep`] for
+    /// [`Error::NotConverged`] and [`Error::SolverFailure`], any other error unchanged.
+    pub fn in_step(self, step: u64, time: f64) -> Self {
+        match self {
+            Error::NotConverged { .. } | Error::SolverFailure { .. } => Error::SolverInStep { step, time, source: Box::new(self) },
+            other => other,
+        }
+    }
+
+    /// The error as a step reports it: a Picard non-convergence becomes [`Error::Simulation`]
+    /// (the same message), every other error is unchanged.
+    pub fn into_reported(self) -> Self {
+        match self {
+            Error::PicardNotConverged { what, step, time } => Error::Simulation { what, step, time, location: None },
+            other => other,
+        }
     }
 }
 

@@ -42,13 +42,19 @@ fn ritter(x: f64, t: f64, x0: f64) -> f64 {
 
 /// L1 error of the cell averages of h against Ritter (4-point Gauss average of the exact h).
 fn ritter_l1(m: &DepthAveragedModel, x0: f64) -> f64 {
-    let (gx, gw) = ([-0.861_136_311_594_053, -0.339_981_043_584_856, 0.339_981_043_584_856, 0.861_136_311_594_053],
-                    [0.347_854_845_137_454, 0.652_145_154_862_546, 0.652_145_154_862_546, 0.347_854_845_137_454]);
+    let (gx, gw) = (
+        [-0.861_136_311_594_053, -0.339_981_043_584_856, 0.339_981_043_584_856, 0.861_136_311_594_053],
+        [0.347_854_845_137_454, 0.652_145_154_862_546, 0.652_145_154_862_546, 0.347_854_845_137_454],
+    );
     let dx = m.dx();
-    m.depth().iter().enumerate().map(|(i, &h)| {
-        let exact: f64 = (0..4).map(|k| 0.5 * gw[k] * ritter(m.x(i) + 0.5 * dx * gx[k], m.time, x0)).sum();
-        (h - exact).abs() * dx
-    }).sum()
+    m.depth()
+        .iter()
+        .enumerate()
+        .map(|(i, &h)| {
+            let exact: f64 = (0..4).map(|k| 0.5 * gw[k] * ritter(m.x(i) + 0.5 * dx * gx[k], m.time, x0)).sum();
+            (h - exact).abs() * dx
+        })
+        .sum()
 }
 
 #[test]
@@ -65,8 +71,12 @@ fn ritter_dam_break_profile_front_and_convergence_order() {
         assert!((m.time - t).abs() < 1e-12);
         errors.push(ritter_l1(&m, x0));
         lags.push(exact_front - m.front(eps));
-        println!("n = {n}: L1(h) = {:.3e}, front lag at 1 % of h0 = {:.2e} ({:.2} cells)", errors.last().unwrap(),
-                 lags.last().unwrap(), lags.last().unwrap() / m.dx());
+        println!(
+            "n = {n}: L1(h) = {:.3e}, front lag at 1 % of h0 = {:.2e} ({:.2} cells)",
+            errors.last().unwrap(),
+            lags.last().unwrap(),
+            lags.last().unwrap() / m.dx()
+        );
     }
     let orders: Vec<f64> = errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
     let lag_orders: Vec<f64> = lags.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
@@ -252,7 +262,6 @@ fn a_blow_up_is_reported_with_step_time_and_cell() {
         other => panic!("expected a Simulation error, got {other:?}"),
     }
 }
-
 
 #[test]
 fn savage_hutter_active_coefficient_limits() {

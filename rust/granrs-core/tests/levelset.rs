@@ -30,11 +30,7 @@ fn weno_error(n: usize, mapped: bool) -> f64 {
     for k in 3..n + 4 {
         let w = window(&vals, k, 1);
         let x = (k as f64 - 3.0) * h;
-        let (m, p) = if mapped {
-            (weno5_minus_with::<true>(&w), weno5_plus_with::<true>(&w))
-        } else {
-            (weno5_minus(&w), weno5_plus(&w))
-        };
+        let (m, p) = if mapped { (weno5_minus_with::<true>(&w), weno5_plus_with::<true>(&w)) } else { (weno5_minus(&w), weno5_plus(&w)) };
         err = err.max((m / h - df(x)).abs()).max((p / h - df(x)).abs());
     }
     err
@@ -86,8 +82,7 @@ fn uniform_transport_error(n: usize) -> f64 {
         for i in 0..n {
             let (x, y) = (grid.xc(i as isize), grid.yc(j as isize));
             if (x - xe).hypot(y - ye) < 0.3 {
-                err +=
-                    (phi.at(i as isize, j as isize) - bump(x - ux * t_end, y - vy * t_end)).abs() * grid.dx * grid.dy;
+                err += (phi.at(i as isize, j as isize) - bump(x - ux * t_end, y - vy * t_end)).abs() * grid.dx * grid.dy;
             }
         }
     }
@@ -166,18 +161,13 @@ fn single_vortex_t2_conserves_area() {
 #[ignore]
 fn zalesak_table() {
     for weights in [WenoWeights::JiangShu, WenoWeights::Mapped] {
-        for (every, interface) in [
-            (None, InterfaceTreatment::ClosestPoint),
-            (Some(10), InterfaceTreatment::ClosestPoint),
-            (Some(10), InterfaceTreatment::SubcellPde),
-        ] {
+        for (every, interface) in
+            [(None, InterfaceTreatment::ClosestPoint), (Some(10), InterfaceTreatment::ClosestPoint), (Some(10), InterfaceTreatment::SubcellPde)]
+        {
             let redistance = RedistanceSettings { interface, ..Default::default() };
             let opts = CaseOptions { weights, redistance, ..CaseOptions::new(every, 0.5) };
             let m = zalesak_with(100, &opts, Exec::SERIAL).unwrap();
-            println!(
-                "zalesak 100² {weights:?} redistance={every:?} {interface:?}: area_rel_error {:+.4e} symdiff_rel {:.4e}",
-                m.area_rel_error, m.symdiff_rel
-            );
+            println!("zalesak 100² {weights:?} redistance={every:?} {interface:?}: area_rel_error {:+.4e} symdiff_rel {:.4e}", m.area_rel_error, m.symdiff_rel);
         }
     }
 }
@@ -188,9 +178,7 @@ fn zalesak_table() {
 #[ignore]
 fn single_vortex_t8_table() {
     for n in [64, 128, 256] {
-        for (every, weights) in
-            [(None, WenoWeights::JiangShu), (Some(10), WenoWeights::JiangShu), (Some(10), WenoWeights::Mapped)]
-        {
+        for (every, weights) in [(None, WenoWeights::JiangShu), (Some(10), WenoWeights::JiangShu), (Some(10), WenoWeights::Mapped)] {
             let opts = CaseOptions { weights, ..CaseOptions::new(every, 0.5) };
             let m = single_vortex_with(n, 8.0, &opts, Exec::SERIAL).unwrap();
             println!(
@@ -233,12 +221,10 @@ fn redistancing_stretched_ellipse_keeps_interface_and_gives_unit_gradient() {
         // A non-distance function with the ellipse as zero set: |∇Φ⁰| runs from 0.57 to 2.
         let mut phi = Field::from_fn(&grid, Location::Centre, |x, y| -(x * x / (a * a) + y * y / (b * b) - 1.0) * 0.1);
         let e0 = eikonal_error(&phi, &grid, 3.0 * h);
-        let before: Vec<f64> =
-            interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
+        let before: Vec<f64> = interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
         let mut r = Redistancer::new(&grid, RedistanceSettings { interface, ..Default::default() }).unwrap();
         let info = r.redistance(&mut phi, &grid, Exec::SERIAL).unwrap();
-        let after: Vec<f64> =
-            interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
+        let after: Vec<f64> = interface_points(&phi, &grid).iter().map(|p| ellipse_distance(p[0], p[1], a, b)).collect();
         let max_before = before.iter().cloned().fold(0.0, f64::max) / h;
         let max_after = after.iter().cloned().fold(0.0, f64::max) / h;
         let mean_after = after.iter().sum::<f64>() / after.len() as f64 / h;
@@ -266,13 +252,11 @@ fn repeated_redistancing_does_not_creep() {
     // The paper redistances every 10 steps: thousands of calls in a run. A distance function
     // redistanced 100 times must keep its area: circle of radius 6 cells and a square (corners).
     let grid = Grid::new(64, 64, 64.0, 64.0).unwrap();
-    for (shape, tol_closest, creeps) in [
-        (Shape::Circle { xc: 31.3, yc: 32.6, radius: 6.0 }, 4e-4, true),
-        (Shape::Rectangle { x0: 20.3, x1: 40.6, y0: 22.2, y1: 41.7 }, 1e-4, false),
-    ] {
+    for (shape, tol_closest, creeps) in
+        [(Shape::Circle { xc: 31.3, yc: 32.6, radius: 6.0 }, 4e-4, true), (Shape::Rectangle { x0: 20.3, x1: 40.6, y0: 22.2, y1: 41.7 }, 1e-4, false)]
+    {
         let mut area = [0.0; 2];
-        for (m, interface) in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde].into_iter().enumerate()
-        {
+        for (m, interface) in [InterfaceTreatment::ClosestPoint, InterfaceTreatment::SubcellPde].into_iter().enumerate() {
             let mut phi = Field::zeros(&grid, Location::Centre);
             init_signed_distance(&shape, &grid, &mut phi).unwrap();
             let a0 = dense_area(&phi, &grid, Exec::SERIAL);
@@ -282,10 +266,7 @@ fn repeated_redistancing_does_not_creep() {
             }
             area[m] = dense_area(&phi, &grid, Exec::SERIAL) / a0 - 1.0;
         }
-        println!(
-            "{shape:?}: relative area change after 100 calls: closest point {:+.2e}, subcell PDE {:+.2e}",
-            area[0], area[1]
-        );
+        println!("{shape:?}: relative area change after 100 calls: closest point {:+.2e}, subcell PDE {:+.2e}", area[0], area[1]);
         // Closest point: measured +1.5e-4 (circle r = 6h) and −1.2e-5 (square); the subcell PDE
         // shrinks the circle by 2.6e-2 (0.04 h (h/r)² per call), which this test documents.
         assert!(area[0].abs() < tol_closest, "closest point: area change {:.2e}", area[0]);
@@ -356,11 +337,7 @@ fn paper_column_rectangle_is_subcell_exact() {
         init_signed_distance(&shape, &grid, &mut phi).unwrap();
         let area = dense_area(&phi, &grid, Exec::SERIAL);
         let refined = dense_area_refined(&phi, &grid, 8, Exec::SERIAL);
-        println!(
-            "column {what}: area {area:.9} (relative error {:.2e}), refined {:.2e}",
-            area / exact - 1.0,
-            refined / exact - 1.0
-        );
+        println!("column {what}: area {area:.9} (relative error {:.2e}), refined {:.2e}", area / exact - 1.0, refined / exact - 1.0);
         assert!((refined / exact - 1.0).abs() < 1e-3);
         // Acceptance: 1e-3 relative. Straight edges are exact for the piecewise-linear
         // reconstruction; only the O(h²) rounding at convex corners remains (h²/0.08 ≈ 4e-5).
@@ -512,12 +489,7 @@ fn serial_and_parallel_give_identical_fields() {
     let grid = Grid::new(160, 120, 100.0, 75.0).unwrap();
     let run = |exec: Exec| -> (Field, f64) {
         let mut phi = Field::zeros(&grid, Location::Centre);
-        init_signed_distance(
-            &Shape::SlottedDisk { xc: 50.0, yc: 45.0, radius: 15.0, slot_width: 5.0, slot_top: 55.0 },
-            &grid,
-            &mut phi,
-        )
-        .unwrap();
+        init_signed_distance(&Shape::SlottedDisk { xc: 50.0, yc: 45.0, radius: 15.0, slot_width: 5.0, slot_top: 55.0 }, &grid, &mut phi).unwrap();
         let w = PI / 314.0;
         let u = Field::from_fn(&grid, Location::XFace, |_, y| w * (37.5 - y) + 0.1);
         let v = Field::from_fn(&grid, Location::YFace, |x, _| w * (x - 50.0));

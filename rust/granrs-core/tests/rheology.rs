@@ -166,10 +166,7 @@ fn bad_parameters_name_themselves() {
     assert_eq!(name(cfg_with(|c| c.law = RheologyLaw::Bingham { yield_stress: -1.0 })), "yield_stress");
     assert_eq!(name(cfg_with(|c| c.law = RheologyLaw::DruckerPrager { friction_angle: 90.0 })), "friction_angle");
     assert_eq!(name(cfg_with(|c| c.wall_friction_angle = Some(f64::NAN))), "wall_friction_angle");
-    assert_eq!(
-        name(cfg_with(|c| c.law = RheologyLaw::MuI { mu_s: 0.5, mu_2: 0.4, i0: 0.3, grain_diameter: 1e-3, grain_density: 2500.0 })),
-        "mu_2"
-    );
+    assert_eq!(name(cfg_with(|c| c.law = RheologyLaw::MuI { mu_s: 0.5, mu_2: 0.4, i0: 0.3, grain_diameter: 1e-3, grain_density: 2500.0 })), "mu_2");
     assert_eq!(name(cfg_with(|c| c.treatment = YieldTreatment::Papanastasiou { m: 0.0 })), "regularisation");
     assert_eq!(name(cfg_with(|c| c.picard_max_iterations = 0)), "picard_max_iterations");
 }
@@ -297,7 +294,9 @@ fn restart_from_a_checkpoint_is_bit_identical() {
     assert_eq!(a.time.to_bits(), b.time.to_bits());
     // a Newtonian model has no Σ: the entry is refused by name
     let grid = Grid::new(16, 16, 1.0, 1.0).unwrap();
-    let mut c = TwoPhaseModel::new(ModelConfig::single_phase(grid, BoundaryConditions::uniform(VelocityBc::NoSlip), Material { density: 1.0, viscosity: 0.05 })).unwrap();
+    let mut c =
+        TwoPhaseModel::new(ModelConfig::single_phase(grid, BoundaryConditions::uniform(VelocityBc::NoSlip), Material { density: 1.0, viscosity: 0.05 }))
+            .unwrap();
     match c.restore(&state) {
         Err(Error::InvalidParameter { value, .. }) => assert!(value.starts_with("sigma"), "{value}"),
         other => panic!("accepted a foreign checkpoint: {other:?}"),
@@ -369,9 +368,7 @@ fn band_layer(depth: f64, configure: impl Fn(&mut ModelConfig)) -> TwoPhaseModel
     use granrs_core::levelset::Shape;
     let (nx, ny, h) = (4, BAND_LAYER_NY, BAND_LAYER_H);
     let grid = Grid::new(nx, ny, nx as f64 * h, ny as f64 * h).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped)
-        .with(Side::Bottom, VelocityBc::Coulomb)
-        .with(Side::Top, VelocityBc::FreeSlip);
+    let bc = BoundaryConditions::uniform(VelocityBc::FullyDeveloped).with(Side::Bottom, VelocityBc::Coulomb).with(Side::Top, VelocityBc::FreeSlip);
     let mut cfg = dp_layer_under_air(grid, bc, Material { density: 1.0, viscosity: 2e-5 });
     cfg.rheology.wall_friction_angle = Some(15.0);
     configure(&mut cfg);
@@ -417,7 +414,9 @@ fn interface_yield_sets_the_coulomb_ratio_of_the_band() {
     };
     let (paper_in, paper_air, paper_b) = ratios(&build(InterfaceYield::Paper));
     let (side_in, side_air, side_b) = ratios(&build(InterfaceYield::GranularSide));
-    println!("min τ/(tan α p) where Φ > 0: paper {paper_in:.4}, granular-side {side_in:.4}; air τ {paper_air:.1e} / {side_air:.1e}; base {paper_b:.4} / {side_b:.4}");
+    println!(
+        "min τ/(tan α p) where Φ > 0: paper {paper_in:.4}, granular-side {side_in:.4}; air τ {paper_air:.1e} / {side_air:.1e}; base {paper_b:.4} / {side_b:.4}"
+    );
     // τ was set from p^n, compared here with p^{n+1}: a layer at rest changes p by ~1e-12
     assert!((side_in - 1.0).abs() < 1e-9, "granular-side ratio {side_in}");
     // H_ε(0.44 ε) = 0.876 at the first cell under the surface
@@ -753,7 +752,11 @@ fn r_neighbourhood_sets_how_soft_the_band_under_the_surface_is() {
         for j in 0..ny {
             if m.phi.at(1, j as isize) > 0.0 {
                 let s = m.u.at(1, j as isize).abs();
-                if j == 0 { base = s } else { rest = rest.max(s) }
+                if j == 0 {
+                    base = s
+                } else {
+                    rest = rest.max(s)
+                }
             }
         }
         (base, rest)

@@ -170,12 +170,7 @@ fn grad_beta_smooth(x: f64, y: f64) -> (f64, f64) {
 
 /// RMS error of the discrete solution against `exact` on the unit square with n × n cells.
 /// `exact` returns (p, ∂p/∂x, ∂p/∂y, Δp); f = β Δp + ∇β·∇p is sampled at cell centres.
-fn manufactured_error(
-    n: usize,
-    bc: [PressureBc; 4],
-    kind: PressureSolverKind,
-    exact: impl Fn(f64, f64) -> [f64; 4],
-) -> f64 {
+fn manufactured_error(n: usize, bc: [PressureBc; 4], kind: PressureSolverKind, exact: impl Fn(f64, f64) -> [f64; 4]) -> f64 {
     let h = 1.0 / n as f64;
     let (bx, by) = faces_from_fn(n, n, h, h, beta_smooth);
     let mut f = vec![0.0; n * n];
@@ -319,12 +314,7 @@ fn density_jump_converges_like_constant_coefficients() {
         // constant-coefficient count on the same grid and right-hand side.
         assert!(jump.residual <= 1e-8);
         assert!(jump.iterations <= 15, "{name}: {} iterations with the jump", jump.iterations);
-        assert!(
-            jump.iterations.abs_diff(constant.iterations) <= 3,
-            "{name}: jump {} vs constant {}",
-            jump.iterations,
-            constant.iterations
-        );
+        assert!(jump.iterations.abs_diff(constant.iterations) <= 3, "{name}: jump {} vs constant {}", jump.iterations, constant.iterations);
     }
 }
 
@@ -361,10 +351,7 @@ fn multigrid_cg_agrees_with_direct() {
                 let s = SolverSettings { rtol: 1e-12, cycle, ..SolverSettings::default() };
                 let (pm, infom, _) = mgcg_solve(n, n, h, h, bc, (bx, by), &f, s);
                 let d = rel_diff(&pm, &pd);
-                println!(
-                    "{name}, bc {bc:?}, {cycle:?}-cycle: ‖p_mg − p_direct‖/‖p_direct‖ = {d:.2e} ({} its)",
-                    infom.iterations
-                );
+                println!("{name}, bc {bc:?}, {cycle:?}-cycle: ‖p_mg − p_direct‖/‖p_direct‖ = {d:.2e} ({} its)", infom.iterations);
                 assert!(d < 1e-7, "{name} {bc:?} {cycle:?}: MGCG and direct differ by {d:e}");
             }
         }
@@ -419,10 +406,7 @@ fn warm_start_needs_at_most_one_iteration() {
         let mut p = vec![0.0; nx * ny];
         let first = solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
         let second = solver.solve(&f, &mut p, Exec::SERIAL).unwrap();
-        println!(
-            "{bc:?}: cold {} iterations, warm {} (initial residual {:.1e})",
-            first.iterations, second.iterations, second.initial_residual
-        );
+        println!("{bc:?}: cold {} iterations, warm {} (initial residual {:.1e})", first.iterations, second.iterations, second.initial_residual);
         assert!(first.iterations > 3);
         // The previous solution already satisfies the tolerance (residual ≤ 1e-8).
         assert!(second.iterations <= 1, "warm start took {} iterations", second.iterations);
@@ -468,13 +452,7 @@ fn invalid_inputs_are_rejected_with_the_parameter_name() {
     assert_eq!(param_name(SolverSettings { rtol: 0.0, ..s }.validate().unwrap_err()), "rtol");
     assert_eq!(param_name(SolverSettings { max_iterations: 0, ..s }.validate().unwrap_err()), "max_iterations");
     assert_eq!(param_name(SolverSettings { post_smooth: 3, ..s }.validate().unwrap_err()), "post_smooth");
-    assert_eq!(
-        param_name(
-            PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, SolverSettings { pre_smooth: 0, post_smooth: 0, ..s })
-                .unwrap_err()
-        ),
-        "pre_smooth"
-    );
+    assert_eq!(param_name(PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, SolverSettings { pre_smooth: 0, post_smooth: 0, ..s }).unwrap_err()), "pre_smooth");
 
     let mut solver = PoissonSolver::new(nx, ny, h, h, TOP_DIRICHLET, s).unwrap();
     let (mut bx, by) = (vec![1.0; ny * (nx + 1)], vec![1.0; (ny + 1) * nx]);
@@ -587,11 +565,9 @@ fn solve_apply_and_set_coefficients_do_not_allocate() {
     let a0 = allocations();
     let v = std::hint::black_box(vec![1.0; 10]);
     assert!(allocations() > a0 && v.len() == 10);
-    for (kind, bc) in [
-        (PressureSolverKind::MultigridCg, ALL_NEUMANN),
-        (PressureSolverKind::MultigridCg, TOP_DIRICHLET),
-        (PressureSolverKind::Direct, ALL_NEUMANN),
-    ] {
+    for (kind, bc) in
+        [(PressureSolverKind::MultigridCg, ALL_NEUMANN), (PressureSolverKind::MultigridCg, TOP_DIRICHLET), (PressureSolverKind::Direct, ALL_NEUMANN)]
+    {
         let mut solver = PoissonSolver::new(nx, ny, dx, dy, bc, settings(kind, 1e-8)).unwrap();
         let mut p = vec![0.0; nx * ny];
         let mut out = vec![0.0; nx * ny];
@@ -662,17 +638,12 @@ fn harder_density_fields_converge() {
             })
             .collect()
     };
-    let centres: Vec<(f64, f64, f64)> = random_vec(180, 99)
-        .chunks(3)
-        .map(|c| ((c[0] + 1.0) * 0.5 * lx, (c[1] + 1.0) * 0.5 * ly, (4.0 + 2.0 * c[2]) * dx))
-        .collect();
+    let centres: Vec<(f64, f64, f64)> =
+        random_vec(180, 99).chunks(3).map(|c| ((c[0] + 1.0) * 0.5 * lx, (c[1] + 1.0) * 0.5 * ly, (4.0 + 2.0 * c[2]) * dx)).collect();
     let cases: Vec<(&str, Vec<f64>)> = vec![
         ("column, ρ ratio 2500", cells(&|x, y| (x < 0.2 && y < 0.4) || y < 0.05, 2500.0)),
         ("slumped column (diagonal)", cells(&|x, y| y < 0.4 * (1.0 - x / 0.9) || y < 0.02, 1450.0)),
-        (
-            "60 droplets",
-            cells(&|x, y| centres.iter().any(|&(cx, cy, r)| (x - cx).powi(2) + (y - cy).powi(2) < r * r), 1450.0),
-        ),
+        ("60 droplets", cells(&|x, y| centres.iter().any(|&(cx, cy, r)| (x - cx).powi(2) + (y - cy).powi(2) < r * r), 1450.0)),
     ];
     for (name, rho) in &cases {
         let (bx, by) = faces_from_density(nx, ny, rho);

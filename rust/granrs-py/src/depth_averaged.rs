@@ -28,8 +28,18 @@ impl PyDepthAveraged {
     #[pyo3(signature = (cells, length, gravity=9.81, earth_pressure=1.0, basal_friction_angle=0.0, cfl=0.4,
                         dry_depth=1e-6, max_dt=1e-2, pore=None, internal_friction_angle=None))]
     #[allow(clippy::too_many_arguments)]
-    fn new(cells: usize, length: f64, gravity: f64, earth_pressure: f64, basal_friction_angle: f64, cfl: f64,
-           dry_depth: f64, max_dt: f64, pore: Option<&Bound<'_, PyDict>>, internal_friction_angle: Option<f64>) -> PyResult<Self> {
+    fn new(
+        cells: usize,
+        length: f64,
+        gravity: f64,
+        earth_pressure: f64,
+        basal_friction_angle: f64,
+        cfl: f64,
+        dry_depth: f64,
+        max_dt: f64,
+        pore: Option<&Bound<'_, PyDict>>,
+        internal_friction_angle: Option<f64>,
+    ) -> PyResult<Self> {
         let pore = match pore {
             None => None,
             Some(d) => {
@@ -39,11 +49,7 @@ impl PyDepthAveraged {
                         None => Err(param_err(&format!("pore.{key}"), "missing", "a number")),
                     }
                 };
-                Some(DepthAveragedPore {
-                    diffusivity: get("diffusivity")?,
-                    supply_ratio: get("supply_ratio")?,
-                    supply_x_max: get("supply_x_max")?,
-                })
+                Some(DepthAveragedPore { diffusivity: get("diffusivity")?, supply_ratio: get("supply_ratio")?, supply_x_max: get("supply_x_max")? })
             }
         };
         let earth_pressure = match internal_friction_angle {
@@ -54,8 +60,10 @@ impl PyDepthAveraged {
         Ok(PyDepthAveraged { inner: DepthAveragedModel::new(cfg).map_err(to_py)? })
     }
 
-    /// Full storage (2 ghost cells at each end) of "h", "u" or "beta" as a zero-copy NumPy array
-    /// that keeps the model alive; buffers are never reallocated, so the view stays live.
+    /// Full storage (2 ghost cells at each end) of "h", "u" or "beta" as a zero-copy, read-only
+    /// NumPy array that keeps the model alive; buffers are never reallocated, so the view stays
+    /// live. A view read from another thread while a step runs (the GIL is released) races the
+    /// step's writes.
     fn field_storage<'py>(slf: Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let borrowed = slf.borrow();
         let field = match name {
@@ -68,7 +76,9 @@ impl PyDepthAveraged {
         let container = slf.clone().into_any();
         // SAFETY: the array lives inside the model object, which `container` keeps alive; the
         // buffers are allocated once in DepthAveragedModel::new and never reallocated or moved.
-        Ok(unsafe { PyArray1::borrow_from_array(field, container) })
+        let arr = unsafe { PyArray1::borrow_from_array(field, container) };
+        crate::read_only(arr.as_any())?;
+        Ok(arr)
     }
 
     /// Sets h, u, β (interior values, n each).

@@ -7,10 +7,10 @@ use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
 use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel, WindowSides};
 use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
-use granrs_core::walls::side::SideWalls;
 use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, SigmaLocation, WallNormalStress, YieldPressure, YieldTreatment};
 use granrs_core::solvers::{PressureSolverKind, SolveInfo};
 use granrs_core::time_stepping::{StepInfo, ViscousScheme};
+use granrs_core::walls::side::SideWalls;
 use granrs_core::Error;
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::create_exception;
@@ -21,25 +21,39 @@ use pyo3::types::{PyDict, PyTuple};
 mod depth_averaged;
 
 create_exception!(_granrs, ParameterError, PyValueError, "A parameter is outside its allowed range, or an array has the wrong shape.");
-create_exception!(_granrs, SolverError, PyRuntimeError, "A linear solver failed or did not converge.");
 create_exception!(_granrs, SimulationError, PyRuntimeError, "A simulation stopped: what failed, where and when.");
+create_exception!(
+    _granrs,
+    SolverError,
+    SimulationError,
+    "A linear solver failed or did not converge (during a step: a SimulationError with its step and time)."
+);
+
+/// Sets the `step`, `time` and `location` attributes of a raised error.
+fn with_place(err: PyErr, step: u64, time: f64, location: Option<(usize, usize)>) -> PyErr {
+    Python::attach(|py| {
+        let v = err.value(py);
+        let _ = v.setattr("step", step);
+        let _ = v.setattr("time", time);
+        let _ = v.setattr("location", location);
+    });
+    err
+}
 
 /// Maps the core's one error type to the Python exception classes.
 fn to_py(e: Error) -> PyErr {
     match &e {
         Error::InvalidParameter { .. } | Error::Shape { .. } => ParameterError::new_err(e.to_string()),
         Error::NotConverged { .. } | Error::SolverFailure { .. } => SolverError::new_err(e.to_string()),
-        Error::Simulation { step, time, location, .. } => {
-            let err = SimulationError::new_err(e.to_string());
-            Python::attach(|py| {
-                let v = err.value(py);
-                let _ = v.setattr("step", *step);
-                let _ = v.setattr("time", *time);
-                let _ = v.setattr("location", *location);
-            });
-            err
-        }
+        Error::SolverInStep { step, time, .. } => with_place(SolverError::new_err(e.to_string()), *step, *time, None),
+        Error::Simulation { step, time, location, .. } => with_place(SimulationError::new_err(e.to_string()), *step, *time, *location),
+        Error::PicardNotConverged { step, time, .. } => with_place(SimulationError::new_err(e.to_string()), *step, *time, None),
     }
+}
+
+/// Clears the WRITEABLE flag of a view of the model's storage: the model is its only writer.
+pub(crate) fn read_only(arr: &Bound<'_, PyAny>) -> PyResult<()> {
+    arr.getattr("flags")?.setattr("writeable", false)
 }
 
 fn param_err(name: &str, value: impl std::fmt::Display, allowed: &str) -> PyErr {
@@ -63,11 +77,7 @@ fn parse_bc(side: &str, kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyRes
         "coulomb" => VelocityBc::Coulomb,
         "fully-developed" => VelocityBc::FullyDeveloped,
         other => {
-            return Err(param_err(
-                &format!("bc.{side}"),
-                other,
-                "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb', 'fully-developed'",
-            ))
+            return Err(param_err(&format!("bc.{side}"), other, "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb', 'fully-developed'"))
         }
     })
 }
@@ -150,11 +160,7 @@ impl PyModel {
                 }
             }
             other => {
-                return Err(param_err(
-                    "name",
-                    other,
-                    "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'trial_norm', 'yield_stress'",
-                ))
+                return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'trial_norm', 'yield_stress'"))
             }
         })
     }
@@ -207,7 +213,15 @@ fn parse_shape(spec: &Bound<'_, PyAny>) -> PyResult<Shape> {
 /// Runs a level-set benchmark ('zalesak' or 'single-vortex') in Rust; returns its metrics.
 #[pyfunction]
 #[pyo3(signature = (case, n, period, redistance_every, cfl, threads=1))]
-fn levelset_validation<'py>(py: Python<'py>, case: &str, n: usize, period: f64, redistance_every: usize, cfl: f64, threads: usize) -> PyResult<Bound<'py, PyDict>> {
+fn levelset_validation<'py>(
+    py: Python<'py>,
+    case: &str,
+    n: usize,
+    period: f64,
+    redistance_every: usize,
+    cfl: f64,
+    threads: usize,
+) -> PyResult<Bound<'py, PyDict>> {
     let pool = granrs_core::exec::build_pool(threads).map_err(to_py)?;
     let exec = Exec::with_threads(threads);
     let every = if redistance_every == 0 { None } else { Some(redistance_every) };
@@ -264,6 +278,213 @@ fn parse_pore(d: &Bound<'_, PyDict>) -> PyResult<PorePressureConfig> {
     };
     let cfg = PorePressureConfig { diffusivity, formulation, basal_flux, time_scheme };
     cfg.validate().map_err(to_py)?;
+    Ok(cfg)
+}
+
+/// The core's configuration from the arguments of `Model(...)` (see its signature).
+#[allow(clippy::too_many_arguments)]
+fn build_config(
+    nx: i64,
+    ny: i64,
+    lx: f64,
+    ly: f64,
+    bc: &Bound<'_, PyDict>,
+    dense: (f64, f64),
+    light: Option<(f64, f64)>,
+    gravity: (f64, f64),
+    interface_width: f64,
+    transport_interface: bool,
+    redistance_every: i64,
+    viscous: &str,
+    cfl: f64,
+    dt: Option<f64>,
+    max_dt: f64,
+    max_growth: f64,
+    cfl_abort: f64,
+    pressure_solver: &str,
+    pressure_rtol: f64,
+    pressure_max_iterations: i64,
+    threads: i64,
+    rheology: Option<(String, Option<Bound<'_, PyDict>>)>,
+    plastic: &str,
+    regularisation: Option<f64>,
+    r: Option<f64>,
+    r_wall: Option<f64>,
+    theta: f64,
+    picard_tol: f64,
+    picard_max_iterations: i64,
+    convection: bool,
+    viscous_rtol: f64,
+    pore_pressure: Option<&Bound<'_, PyDict>>,
+    mass_correction: bool,
+    convection_scheme: &str,
+    pressure_gauge: &str,
+    viscous_max_iterations: i64,
+    interface_yield: &str,
+    ambient_hydrostatic: bool,
+    proximal_restarts: i64,
+    wall_normal_stress: &str,
+    active_region: Option<(i64, i64, String)>,
+    step_retries: i64,
+    air: &str,
+    anderson_depth: i64,
+    pressure_update: &str,
+    picard_solve_max_iterations: i64,
+    yield_pressure: &str,
+    r_neighbourhood: i64,
+    sigma_location: &str,
+    side_walls: Option<(f64, f64)>,
+) -> PyResult<ModelConfig> {
+    let pos = |name: &str, v: i64| -> PyResult<usize> {
+        if v < 0 {
+            Err(param_err(name, v, "a non-negative integer"))
+        } else {
+            Ok(v as usize)
+        }
+    };
+    let grid = Grid::new(pos("nx", nx)?, pos("ny", ny)?, lx, ly).map_err(to_py)?;
+    let mut conds = BoundaryConditions::uniform(VelocityBc::NoSlip);
+    let mut wall_friction_angle: Option<f64> = None;
+    for key in bc.keys() {
+        let k: String = key.extract()?;
+        if !["left", "right", "bottom", "top"].contains(&k.as_str()) {
+            return Err(param_err("bc", &k, "keys 'left', 'right', 'bottom', 'top'"));
+        }
+    }
+    for side in Side::ALL {
+        if let Some(item) = bc.get_item(side.name())? {
+            let t = item.cast::<PyTuple>().map_err(|_| param_err(&format!("bc.{}", side.name()), &item, "a (kind, params) tuple"))?;
+            let kind: String = t.get_item(0)?.extract()?;
+            let params = t.get_item(1)?;
+            let params = params.cast::<PyDict>().ok();
+            conds = conds.with(side, parse_bc(side.name(), &kind, params)?);
+            if kind == "coulomb" {
+                if let Some(a) = params.as_ref().and_then(|p| p.get_item("friction_angle").ok().flatten()) {
+                    let name = format!("bc.{}.friction_angle", side.name());
+                    let a: f64 = a.extract().map_err(|_| param_err(&name, &a, "an angle in degrees"))?;
+                    match wall_friction_angle {
+                        Some(b) if b != a => return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)"))),
+                        _ => wall_friction_angle = Some(a),
+                    }
+                }
+            }
+        }
+    }
+    let viscous = match viscous {
+        "implicit" => ViscousScheme::Implicit,
+        "explicit" => ViscousScheme::Explicit,
+        other => return Err(param_err("viscous", other, "'implicit' or 'explicit'")),
+    };
+    let mut cfg = ModelConfig::single_phase(grid, conds, Material { density: dense.0, viscosity: dense.1 });
+    cfg.light = light.map(|(r, e)| Material { density: r, viscosity: e });
+    cfg.gravity = [gravity.0, gravity.1];
+    cfg.interface_width = interface_width;
+    cfg.transport_interface = transport_interface;
+    cfg.redistance_every = pos("redistance_every", redistance_every)?;
+    cfg.viscous = viscous;
+    cfg.time.cfl = cfl;
+    cfg.time.fixed_dt = dt;
+    cfg.time.max_dt = max_dt;
+    cfg.time.max_growth = max_growth;
+    cfg.time.cfl_abort = cfl_abort;
+    cfg.time.step_retries = pos("step_retries", step_retries)?;
+    cfg.pressure_solver.kind = match pressure_solver {
+        "multigrid-cg" => PressureSolverKind::MultigridCg,
+        "direct" => PressureSolverKind::Direct,
+        other => return Err(param_err("pressure_solver", other, "'multigrid-cg' or 'direct'")),
+    };
+    cfg.pressure_solver.rtol = pressure_rtol;
+    cfg.pressure_solver.max_iterations = pos("pressure_max_iterations", pressure_max_iterations)?;
+    cfg.threads = pos("threads", threads)?;
+    cfg.pore = pore_pressure.map(parse_pore).transpose()?;
+    cfg.mass_correction = mass_correction;
+    cfg.convection = convection;
+    cfg.convection_scheme = match convection_scheme {
+        "centred" => ConvectionScheme::Centred,
+        "weno5" => ConvectionScheme::Weno5,
+        other => return Err(param_err("convection_scheme", other, "'centred' or 'weno5'")),
+    };
+    cfg.rotational_pressure = match pressure_update {
+        "standard" => false,
+        "rotational" => true,
+        other => return Err(param_err("pressure_update", other, "'standard' or 'rotational'")),
+    };
+    cfg.pressure_gauge = match pressure_gauge {
+        "auto" => PressureGauge::Auto,
+        "mean" => PressureGauge::Mean,
+        "top" => PressureGauge::Top,
+        other => return Err(param_err("pressure_gauge", other, "'auto', 'mean' or 'top'")),
+    };
+    cfg.viscous_rtol = viscous_rtol;
+    cfg.ambient_hydrostatic = ambient_hydrostatic;
+    cfg.viscous_max_iterations = pos("viscous_max_iterations", viscous_max_iterations)?;
+    let law = match &rheology {
+        Some((kind, params)) => parse_rheology(kind, params.as_ref())?,
+        None => RheologyLaw::Newtonian,
+    };
+    let need_reg = |what: &str| -> PyResult<f64> {
+        regularisation.ok_or_else(|| param_err("regularisation", "None", &format!("a number ({what}) for plastic = '{plastic}'")))
+    };
+    let treatment = match plastic {
+        "projection" => YieldTreatment::Projection,
+        "papanastasiou" => YieldTreatment::Papanastasiou { m: need_reg("the exponent m in s")? },
+        "bi-viscous" => YieldTreatment::BiViscous { yield_viscosity: need_reg("the viscosity below yield in Pa s")? },
+        other => return Err(param_err("plastic", other, "'projection', 'papanastasiou' or 'bi-viscous'")),
+    };
+    cfg.rheology = RheologyConfig {
+        law,
+        treatment,
+        wall_friction_angle,
+        r,
+        r_wall,
+        theta,
+        picard_tol,
+        picard_max_iterations: pos("picard_max_iterations", picard_max_iterations)?,
+        picard_solve_max_iterations: pos("picard_solve_max_iterations", picard_solve_max_iterations)?,
+        interface_yield: match interface_yield {
+            "paper" => InterfaceYield::Paper,
+            "granular-side" => InterfaceYield::GranularSide,
+            "density-support" => InterfaceYield::DensitySupport,
+            other => return Err(param_err("interface_yield", other, "'paper', 'granular-side' or 'density-support'")),
+        },
+        proximal_restarts: match proximal_restarts {
+            0..=1_000_000 => proximal_restarts as usize,
+            other => return Err(param_err("proximal_restarts", other, "an integer in [0, 1000000]")),
+        },
+        anderson_depth: pos("anderson_depth", anderson_depth)?,
+        r_neighbourhood: pos("r_neighbourhood", r_neighbourhood)?,
+        wall_normal_stress: match wall_normal_stress {
+            "pressure" => WallNormalStress::Pressure,
+            "total" => WallNormalStress::Total,
+            other => return Err(param_err("wall_normal_stress", other, "'pressure' or 'total'")),
+        },
+        yield_pressure: match yield_pressure {
+            "absolute" => YieldPressure::Absolute,
+            "surface-air" => YieldPressure::SurfaceAir,
+            other => return Err(param_err("yield_pressure", other, "'absolute' or 'surface-air'")),
+        },
+        sigma_location: SigmaLocation::from_name(sigma_location).ok_or_else(|| {
+            let names: Vec<String> = SigmaLocation::ALL.iter().map(|l| format!("'{}'", l.name())).collect();
+            param_err("sigma_location", sigma_location, &names.join(" or "))
+        })?,
+        side_walls: side_walls.map(|(width, friction_angle)| SideWalls { width, friction_angle }),
+    };
+    cfg.active_region = match active_region {
+        None => None,
+        Some((band, align, sides)) => {
+            let sides = WindowSides::from_name(&sides).ok_or_else(|| {
+                let names: Vec<String> = WindowSides::ALL.iter().map(|s| format!("'{}'", s.name())).collect();
+                let (last, rest) = names.split_last().expect("WindowSides has values");
+                param_err("active_region_sides", &sides, &format!("{} or {last}", rest.join(", ")))
+            })?;
+            Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)?, sides })
+        }
+    };
+    cfg.free_surface = match air {
+        "resolved" => false,
+        "free-surface" => true,
+        other => return Err(param_err("air", other, "'resolved' (the two-phase model) or 'free-surface' (the granular-only model)")),
+    };
     Ok(cfg)
 }
 
@@ -330,164 +551,188 @@ impl PyModel {
         sigma_location: &str,
         side_walls: Option<(f64, f64)>,
     ) -> PyResult<Self> {
-        let pos = |name: &str, v: i64| -> PyResult<usize> {
-            if v < 0 {
-                Err(param_err(name, v, "a non-negative integer"))
-            } else {
-                Ok(v as usize)
-            }
-        };
-        let grid = Grid::new(pos("nx", nx)?, pos("ny", ny)?, lx, ly).map_err(to_py)?;
-        let mut conds = BoundaryConditions::uniform(VelocityBc::NoSlip);
-        let mut wall_friction_angle: Option<f64> = None;
-        for key in bc.keys() {
-            let k: String = key.extract()?;
-            if !["left", "right", "bottom", "top"].contains(&k.as_str()) {
-                return Err(param_err("bc", &k, "keys 'left', 'right', 'bottom', 'top'"));
-            }
-        }
-        for side in Side::ALL {
-            if let Some(item) = bc.get_item(side.name())? {
-                let t = item.cast::<PyTuple>().map_err(|_| param_err(&format!("bc.{}", side.name()), &item, "a (kind, params) tuple"))?;
-                let kind: String = t.get_item(0)?.extract()?;
-                let params = t.get_item(1)?;
-                let params = params.cast::<PyDict>().ok();
-                conds = conds.with(side, parse_bc(side.name(), &kind, params)?);
-                if kind == "coulomb" {
-                    if let Some(a) = params.as_ref().and_then(|p| p.get_item("friction_angle").ok().flatten()) {
-                        let name = format!("bc.{}.friction_angle", side.name());
-                        let a: f64 = a.extract().map_err(|_| param_err(&name, &a, "an angle in degrees"))?;
-                        match wall_friction_angle {
-                            Some(b) if b != a => {
-                                return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)")))
-                            }
-                            _ => wall_friction_angle = Some(a),
-                        }
-                    }
-                }
-            }
-        }
-        let viscous = match viscous {
-            "implicit" => ViscousScheme::Implicit,
-            "explicit" => ViscousScheme::Explicit,
-            other => return Err(param_err("viscous", other, "'implicit' or 'explicit'")),
-        };
-        let mut cfg = ModelConfig::single_phase(grid, conds, Material { density: dense.0, viscosity: dense.1 });
-        cfg.light = light.map(|(r, e)| Material { density: r, viscosity: e });
-        cfg.gravity = [gravity.0, gravity.1];
-        cfg.interface_width = interface_width;
-        cfg.transport_interface = transport_interface;
-        cfg.redistance_every = pos("redistance_every", redistance_every)?;
-        cfg.viscous = viscous;
-        cfg.time.cfl = cfl;
-        cfg.time.fixed_dt = dt;
-        cfg.time.max_dt = max_dt;
-        cfg.time.max_growth = max_growth;
-        cfg.time.cfl_abort = cfl_abort;
-        cfg.time.step_retries = pos("step_retries", step_retries)?;
-        cfg.pressure_solver.kind = match pressure_solver {
-            "multigrid-cg" => PressureSolverKind::MultigridCg,
-            "direct" => PressureSolverKind::Direct,
-            other => return Err(param_err("pressure_solver", other, "'multigrid-cg' or 'direct'")),
-        };
-        cfg.pressure_solver.rtol = pressure_rtol;
-        cfg.pressure_solver.max_iterations = pos("pressure_max_iterations", pressure_max_iterations)?;
-        cfg.threads = pos("threads", threads)?;
-        cfg.pore = pore_pressure.map(parse_pore).transpose()?;
-        cfg.mass_correction = mass_correction;
-        cfg.convection = convection;
-        cfg.convection_scheme = match convection_scheme {
-            "centred" => ConvectionScheme::Centred,
-            "weno5" => ConvectionScheme::Weno5,
-            other => return Err(param_err("convection_scheme", other, "'centred' or 'weno5'")),
-        };
-        cfg.rotational_pressure = match pressure_update {
-            "standard" => false,
-            "rotational" => true,
-            other => return Err(param_err("pressure_update", other, "'standard' or 'rotational'")),
-        };
-        cfg.pressure_gauge = match pressure_gauge {
-            "auto" => PressureGauge::Auto,
-            "mean" => PressureGauge::Mean,
-            "top" => PressureGauge::Top,
-            other => return Err(param_err("pressure_gauge", other, "'auto', 'mean' or 'top'")),
-        };
-        cfg.viscous_rtol = viscous_rtol;
-        cfg.ambient_hydrostatic = ambient_hydrostatic;
-        cfg.viscous_max_iterations = pos("viscous_max_iterations", viscous_max_iterations)?;
-        let law = match &rheology {
-            Some((kind, params)) => parse_rheology(kind, params.as_ref())?,
-            None => RheologyLaw::Newtonian,
-        };
-        let need_reg = |what: &str| -> PyResult<f64> {
-            regularisation.ok_or_else(|| param_err("regularisation", "None", &format!("a number ({what}) for plastic = '{plastic}'")))
-        };
-        let treatment = match plastic {
-            "projection" => YieldTreatment::Projection,
-            "papanastasiou" => YieldTreatment::Papanastasiou { m: need_reg("the exponent m in s")? },
-            "bi-viscous" => YieldTreatment::BiViscous { yield_viscosity: need_reg("the viscosity below yield in Pa s")? },
-            other => return Err(param_err("plastic", other, "'projection', 'papanastasiou' or 'bi-viscous'")),
-        };
-        cfg.rheology = RheologyConfig {
-            law,
-            treatment,
-            wall_friction_angle,
+        let cfg = build_config(
+            nx,
+            ny,
+            lx,
+            ly,
+            bc,
+            dense,
+            light,
+            gravity,
+            interface_width,
+            transport_interface,
+            redistance_every,
+            viscous,
+            cfl,
+            dt,
+            max_dt,
+            max_growth,
+            cfl_abort,
+            pressure_solver,
+            pressure_rtol,
+            pressure_max_iterations,
+            threads,
+            rheology,
+            plastic,
+            regularisation,
             r,
             r_wall,
             theta,
             picard_tol,
-            picard_max_iterations: pos("picard_max_iterations", picard_max_iterations)?,
-            picard_solve_max_iterations: pos("picard_solve_max_iterations", picard_solve_max_iterations)?,
-            interface_yield: match interface_yield {
-                "paper" => InterfaceYield::Paper,
-                "granular-side" => InterfaceYield::GranularSide,
-                "density-support" => InterfaceYield::DensitySupport,
-                other => return Err(param_err("interface_yield", other, "'paper', 'granular-side' or 'density-support'")),
-            },
-            proximal_restarts: match proximal_restarts {
-                0..=1_000_000 => proximal_restarts as usize,
-                other => return Err(param_err("proximal_restarts", other, "an integer in [0, 1000000]")),
-            },
-            anderson_depth: pos("anderson_depth", anderson_depth)?,
-            r_neighbourhood: pos("r_neighbourhood", r_neighbourhood)?,
-            wall_normal_stress: match wall_normal_stress {
-                "pressure" => WallNormalStress::Pressure,
-                "total" => WallNormalStress::Total,
-                other => return Err(param_err("wall_normal_stress", other, "'pressure' or 'total'")),
-            },
-            yield_pressure: match yield_pressure {
-                "absolute" => YieldPressure::Absolute,
-                "surface-air" => YieldPressure::SurfaceAir,
-                other => return Err(param_err("yield_pressure", other, "'absolute' or 'surface-air'")),
-            },
-            sigma_location: SigmaLocation::from_name(sigma_location).ok_or_else(|| {
-                let names: Vec<String> = SigmaLocation::ALL.iter().map(|l| format!("'{}'", l.name())).collect();
-                param_err("sigma_location", sigma_location, &names.join(" or "))
-            })?,
-            side_walls: side_walls.map(|(width, friction_angle)| SideWalls { width, friction_angle }),
-        };
-        cfg.active_region = match active_region {
-            None => None,
-            Some((band, align, sides)) => {
-                let sides = WindowSides::from_name(&sides).ok_or_else(|| {
-                    let names: Vec<String> = WindowSides::ALL.iter().map(|s| format!("'{}'", s.name())).collect();
-                    let (last, rest) = names.split_last().expect("WindowSides has values");
-                    param_err("active_region_sides", &sides, &format!("{} or {last}", rest.join(", ")))
-                })?;
-                Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)?, sides })
-            }
-        };
-        cfg.free_surface = match air {
-            "resolved" => false,
-            "free-surface" => true,
-            other => return Err(param_err("air", other, "'resolved' (the two-phase model) or 'free-surface' (the granular-only model)")),
-        };
+            picard_max_iterations,
+            convection,
+            viscous_rtol,
+            pore_pressure,
+            mass_correction,
+            convection_scheme,
+            pressure_gauge,
+            viscous_max_iterations,
+            interface_yield,
+            ambient_hydrostatic,
+            proximal_restarts,
+            wall_normal_stress,
+            active_region,
+            step_retries,
+            air,
+            anderson_depth,
+            pressure_update,
+            picard_solve_max_iterations,
+            yield_pressure,
+            r_neighbourhood,
+            sigma_location,
+            side_walls,
+        )?;
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
         Ok(PyModel { inner })
     }
 
-    /// Full storage (halos included) of a field as a zero-copy NumPy array; the array keeps the
-    /// model alive. The buffers are never reallocated, so the view stays valid and live.
+    /// The bytes a model built with these arguments would hold (models/memory.rs: its arrays,
+    /// as counted from the grid and the options) and the memory available (MemAvailable of
+    /// /proc/meminfo; None where it cannot be read), as (estimate, available). Nothing is
+    /// allocated; invalid arguments raise ParameterError as the constructor does. The
+    /// constructor refuses a model whose estimate exceeds the memory available.
+    #[staticmethod]
+    #[pyo3(signature = (nx, ny, lx, ly, bc, dense, light=None, gravity=(0.0, 0.0), interface_width=1.5,
+        transport_interface=true, redistance_every=10, viscous="implicit", cfl=0.5, dt=None,
+        max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
+        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
+        regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
+        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute", r_neighbourhood=0, sigma_location="staggered", side_walls=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn estimate_memory(
+        nx: i64,
+        ny: i64,
+        lx: f64,
+        ly: f64,
+        bc: &Bound<'_, PyDict>,
+        dense: (f64, f64),
+        light: Option<(f64, f64)>,
+        gravity: (f64, f64),
+        interface_width: f64,
+        transport_interface: bool,
+        redistance_every: i64,
+        viscous: &str,
+        cfl: f64,
+        dt: Option<f64>,
+        max_dt: f64,
+        max_growth: f64,
+        cfl_abort: f64,
+        pressure_solver: &str,
+        pressure_rtol: f64,
+        pressure_max_iterations: i64,
+        threads: i64,
+        rheology: Option<(String, Option<Bound<'_, PyDict>>)>,
+        plastic: &str,
+        regularisation: Option<f64>,
+        r: Option<f64>,
+        r_wall: Option<f64>,
+        theta: f64,
+        picard_tol: f64,
+        picard_max_iterations: i64,
+        convection: bool,
+        viscous_rtol: f64,
+        pore_pressure: Option<&Bound<'_, PyDict>>,
+        mass_correction: bool,
+        convection_scheme: &str,
+        pressure_gauge: &str,
+        viscous_max_iterations: i64,
+        interface_yield: &str,
+        ambient_hydrostatic: bool,
+        proximal_restarts: i64,
+        wall_normal_stress: &str,
+        active_region: Option<(i64, i64, String)>,
+        step_retries: i64,
+        air: &str,
+        anderson_depth: i64,
+        pressure_update: &str,
+        picard_solve_max_iterations: i64,
+        yield_pressure: &str,
+        r_neighbourhood: i64,
+        sigma_location: &str,
+        side_walls: Option<(f64, f64)>,
+    ) -> PyResult<(u64, Option<u64>)> {
+        let cfg = build_config(
+            nx,
+            ny,
+            lx,
+            ly,
+            bc,
+            dense,
+            light,
+            gravity,
+            interface_width,
+            transport_interface,
+            redistance_every,
+            viscous,
+            cfl,
+            dt,
+            max_dt,
+            max_growth,
+            cfl_abort,
+            pressure_solver,
+            pressure_rtol,
+            pressure_max_iterations,
+            threads,
+            rheology,
+            plastic,
+            regularisation,
+            r,
+            r_wall,
+            theta,
+            picard_tol,
+            picard_max_iterations,
+            convection,
+            viscous_rtol,
+            pore_pressure,
+            mass_correction,
+            convection_scheme,
+            pressure_gauge,
+            viscous_max_iterations,
+            interface_yield,
+            ambient_hydrostatic,
+            proximal_restarts,
+            wall_normal_stress,
+            active_region,
+            step_retries,
+            air,
+            anderson_depth,
+            pressure_update,
+            picard_solve_max_iterations,
+            yield_pressure,
+            r_neighbourhood,
+            sigma_location,
+            side_walls,
+        )?;
+        cfg.validate().map_err(to_py)?;
+        Ok((cfg.memory_estimate(), granrs_core::models::available_memory()))
+    }
+
+    /// Full storage (halos included) of a field as a zero-copy, read-only NumPy array; the array
+    /// keeps the model alive. The buffers are never reallocated, so the view stays valid and
+    /// live. Only the model writes them (`set_field` copies into them); a view read from another
+    /// thread while a step runs (the step releases the GIL) races the step's writes and may see
+    /// a half-updated field.
     fn field_storage<'py>(slf: Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let borrowed = slf.borrow();
         let field = borrowed.field_ref(name)?;
@@ -495,6 +740,7 @@ impl PyModel {
         // SAFETY: the array lives inside the model object, which `container` keeps alive; field
         // buffers are allocated once and never reallocated or moved for the model's lifetime.
         let arr = unsafe { PyArray2::borrow_from_array(&field.data, container) };
+        read_only(arr.as_any())?;
         Ok(arr)
     }
 
@@ -719,9 +965,7 @@ impl PyModel {
             let name: String = k.extract()?;
             let data: Vec<f64> = match v.extract::<numpy::PyReadonlyArray1<f64>>() {
                 Ok(a) => a.as_slice()?.to_vec(),
-                Err(_) => vec![v.extract::<f64>().map_err(|_| {
-                    to_py(Error::param("state", &name, "1-D float64 arrays or numbers"))
-                })?],
+                Err(_) => vec![v.extract::<f64>().map_err(|_| to_py(Error::param("state", &name, "1-D float64 arrays or numbers")))?],
             };
             entries.push((name, data));
         }

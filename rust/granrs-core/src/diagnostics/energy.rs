@@ -119,8 +119,28 @@ fn base(f: &Field, j: isize) -> usize {
 /// two periodic (fully developed) sides the last column (row) is the first one again and weighs 0.
 #[inline]
 fn node_weight(i: usize, j: usize, nx: usize, ny: usize, per: (bool, bool)) -> f64 {
-    let wx = if per.0 { if i == nx { 0.0 } else { 1.0 } } else if i == 0 || i == nx { 0.5 } else { 1.0 };
-    let wy = if per.1 { if j == ny { 0.0 } else { 1.0 } } else if j == 0 || j == ny { 0.5 } else { 1.0 };
+    let wx = if per.0 {
+        if i == nx {
+            0.0
+        } else {
+            1.0
+        }
+    } else if i == 0 || i == nx {
+        0.5
+    } else {
+        1.0
+    };
+    let wy = if per.1 {
+        if j == ny {
+            0.0
+        } else {
+            1.0
+        }
+    } else if j == 0 || j == ny {
+        0.5
+    } else {
+        1.0
+    };
     wx * wy
 }
 
@@ -148,7 +168,11 @@ impl TwoPhaseModel {
         let eps = cfg.interface_width * g.h();
         let rho_c = |phi: f64| -> f64 {
             if cfg.free_surface {
-                if phi > 0.0 { cfg.dense.density - light } else { 0.0 }
+                if phi > 0.0 {
+                    cfg.dense.density - light
+                } else {
+                    0.0
+                }
             } else if cfg.light.is_some() {
                 (cfg.dense.density - light) * heaviside(phi, eps)
             } else {
@@ -159,32 +183,34 @@ impl TwoPhaseModel {
         let (u, v) = (&self.u, &self.v);
         let per = periodicity(self);
         let (nxu, nyv) = (if per.0 { nx - 1 } else { nx }, if per.1 { ny - 1 } else { ny });
-        let s = self.pool.install(|| sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
-            let mut out = [0.0; 4];
-            let ji = j as isize;
-            if j < ny {
-                let (bp, bu) = (base(phi, ji), base(u, ji));
-                for i in 0..=nxu {
-                    // Φ beside the u face (the wall faces take the inner cell twice)
-                    let (a, b) = (ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]);
-                    if cfg.face_is_solved(a, b) {
-                        out[0] += 0.5 * cfg.face_density(a, b) * us[bu + i] * us[bu + i];
+        let s = self.pool.install(|| {
+            sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
+                let mut out = [0.0; 4];
+                let ji = j as isize;
+                if j < ny {
+                    let (bp, bu) = (base(phi, ji), base(u, ji));
+                    for i in 0..=nxu {
+                        // Φ beside the u face (the wall faces take the inner cell twice)
+                        let (a, b) = (ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]);
+                        if cfg.face_is_solved(a, b) {
+                            out[0] += 0.5 * cfg.face_density(a, b) * us[bu + i] * us[bu + i];
+                        }
+                    }
+                    let y = g.yc(ji);
+                    for i in 0..nx {
+                        out[1] += rho_c(ps[bp + i]) * (-gx * g.xc(i as isize) - gy * y);
                     }
                 }
-                let y = g.yc(ji);
-                for i in 0..nx {
-                    out[1] += rho_c(ps[bp + i]) * (-gx * g.xc(i as isize) - gy * y);
+                let (b0, b1, bv) = (base(phi, (ji - 1).max(0)), base(phi, ji.min(ny as isize - 1)), base(v, ji));
+                for i in 0..if j <= nyv { nx } else { 0 } {
+                    let (a, b) = (ps[b0 + i], ps[b1 + i]);
+                    if cfg.face_is_solved(a, b) {
+                        out[0] += 0.5 * cfg.face_density(a, b) * vs[bv + i] * vs[bv + i];
+                    }
                 }
-            }
-            let (b0, b1, bv) = (base(phi, (ji - 1).max(0)), base(phi, ji.min(ny as isize - 1)), base(v, ji));
-            for i in 0..if j <= nyv { nx } else { 0 } {
-                let (a, b) = (ps[b0 + i], ps[b1 + i]);
-                if cfg.face_is_solved(a, b) {
-                    out[0] += 0.5 * cfg.face_density(a, b) * vs[bv + i] * vs[bv + i];
-                }
-            }
-            out
-        }));
+                out
+            })
+        });
         let area = g.dx * g.dy;
         (s[0] * area, s[1] * area)
     }
@@ -216,63 +242,65 @@ impl TwoPhaseModel {
         let per = periodicity(self);
         let (nxu, nyv) = (if per.0 { nx - 1 } else { nx }, if per.1 { ny - 1 } else { ny });
         // rows 0..=ny: centres and u faces of row j < ny, v faces and nodes of row j
-        let s = self.pool.install(|| sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
-            let mut out = [0.0; 4]; // gravity, plastic, plastic negative, viscous
-            let ji = j as isize;
-            if j < ny {
-                let (bp, bu, bv0, bv1) = (base(phi, ji), base(u, ji), base(v, ji), base(v, ji + 1));
-                let bru = base(rho_u, ji);
-                for i in 0..=nxu {
-                    if cfg.face_is_solved(ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]) {
-                        out[0] += (ru[bru + i] - rho_ref) * gx * us[bu + i];
+        let s = self.pool.install(|| {
+            sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
+                let mut out = [0.0; 4]; // gravity, plastic, plastic negative, viscous
+                let ji = j as isize;
+                if j < ny {
+                    let (bp, bu, bv0, bv1) = (base(phi, ji), base(u, ji), base(v, ji), base(v, ji + 1));
+                    let bru = base(rho_u, ji);
+                    for i in 0..=nxu {
+                        if cfg.face_is_solved(ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]) {
+                            out[0] += (ru[bru + i] - rho_ref) * gx * us[bu + i];
+                        }
+                    }
+                    let bc = base(eta_c, ji);
+                    for i in 0..nx {
+                        if free_surface && ps[bp + i] <= 0.0 {
+                            continue;
+                        }
+                        let dxx = (us[bu + i + 1] - us[bu + i]) * idx;
+                        let dyy = (vs[bv1 + i] - vs[bv0 + i]) * idy;
+                        out[3] += 2.0 * ec[bc + i] * (dxx * dxx + dyy * dyy);
+                        if let Some((tau_c, _, sxx, _)) = plastic {
+                            let k = base(tau_c, ji) + i;
+                            let w = tau_c.slice()[k] * sxx.slice()[base(sxx, ji) + i] * (dxx - dyy);
+                            out[1] += w;
+                            out[2] += w.min(0.0);
+                        }
                     }
                 }
-                let bc = base(eta_c, ji);
-                for i in 0..nx {
-                    if free_surface && ps[bp + i] <= 0.0 {
-                        continue;
+                let (b0, b1, bv) = (base(phi, (ji - 1).max(0)), base(phi, ji.min(ny as isize - 1)), base(v, ji));
+                let brv = base(rho_v, ji);
+                for i in 0..if j <= nyv { nx } else { 0 } {
+                    if cfg.face_is_solved(ps[b0 + i], ps[b1 + i]) {
+                        out[0] += (rv[brv + i] - rho_ref) * gy * vs[bv + i];
                     }
-                    let dxx = (us[bu + i + 1] - us[bu + i]) * idx;
-                    let dyy = (vs[bv1 + i] - vs[bv0 + i]) * idy;
-                    out[3] += 2.0 * ec[bc + i] * (dxx * dxx + dyy * dyy);
-                    if let Some((tau_c, _, sxx, _)) = plastic {
-                        let k = base(tau_c, ji) + i;
-                        let w = tau_c.slice()[k] * sxx.slice()[base(sxx, ji) + i] * (dxx - dyy);
+                }
+                // nodes (i, j), i = 0..=nx: D_xy from the faces around the node (ghosts at walls)
+                let (bu0, bu1, bvn, bn) = (base(u, ji - 1), base(u, ji), base(v, ji), base(eta_n, ji));
+                for i in 0..=nx {
+                    if free_surface {
+                        // an air node: its Φ (the mean of its four cells, as `cell_to_node` gives the
+                        // node viscosity) ≤ 0
+                        let c = |ii: isize, jj: isize| ps[base(phi, jj.clamp(0, ny as isize - 1)) + ii.clamp(0, nx as isize - 1) as usize];
+                        let (ii, jj) = (i as isize, ji);
+                        if c(ii - 1, jj - 1) + c(ii, jj - 1) + c(ii - 1, jj) + c(ii, jj) <= 0.0 {
+                            continue;
+                        }
+                    }
+                    let dxy = 0.5 * ((us[bu1 + i] - us[bu0 + i]) * idy + (vs[bvn + i] - vs[bvn + i - 1]) * idx);
+                    let wgt = node_weight(i, j, nx, ny, per);
+                    out[3] += wgt * 4.0 * en[bn + i] * dxy * dxy;
+                    if let Some((_, tau_n, _, sxy)) = plastic {
+                        let w = wgt * tau_n.slice()[base(tau_n, ji) + i] * 2.0 * sxy.slice()[base(sxy, ji) + i] * dxy;
                         out[1] += w;
                         out[2] += w.min(0.0);
                     }
                 }
-            }
-            let (b0, b1, bv) = (base(phi, (ji - 1).max(0)), base(phi, ji.min(ny as isize - 1)), base(v, ji));
-            let brv = base(rho_v, ji);
-            for i in 0..if j <= nyv { nx } else { 0 } {
-                if cfg.face_is_solved(ps[b0 + i], ps[b1 + i]) {
-                    out[0] += (rv[brv + i] - rho_ref) * gy * vs[bv + i];
-                }
-            }
-            // nodes (i, j), i = 0..=nx: D_xy from the faces around the node (ghosts at walls)
-            let (bu0, bu1, bvn, bn) = (base(u, ji - 1), base(u, ji), base(v, ji), base(eta_n, ji));
-            for i in 0..=nx {
-                if free_surface {
-                    // an air node: its Φ (the mean of its four cells, as `cell_to_node` gives the
-                    // node viscosity) ≤ 0
-                    let c = |ii: isize, jj: isize| ps[base(phi, jj.clamp(0, ny as isize - 1)) + ii.clamp(0, nx as isize - 1) as usize];
-                    let (ii, jj) = (i as isize, ji);
-                    if c(ii - 1, jj - 1) + c(ii, jj - 1) + c(ii - 1, jj) + c(ii, jj) <= 0.0 {
-                        continue;
-                    }
-                }
-                let dxy = 0.5 * ((us[bu1 + i] - us[bu0 + i]) * idy + (vs[bvn + i] - vs[bvn + i - 1]) * idx);
-                let wgt = node_weight(i, j, nx, ny, per);
-                out[3] += wgt * 4.0 * en[bn + i] * dxy * dxy;
-                if let Some((_, tau_n, _, sxy)) = plastic {
-                    let w = wgt * tau_n.slice()[base(tau_n, ji) + i] * 2.0 * sxy.slice()[base(sxy, ji) + i] * dxy;
-                    out[1] += w;
-                    out[2] += w.min(0.0);
-                }
-            }
-            out
-        }));
+                out
+            })
+        });
         let area = g.dx * g.dy;
         let mut wall = [0.0; 4];
         if let Some(r) = self.rheology.as_ref() {
@@ -294,9 +322,11 @@ impl TwoPhaseModel {
                 }
             }
         }
-        let side_walls = self.rheology.as_ref().and_then(|r| r.side_walls.as_ref()).map_or(0.0, |sw| {
-            sw.dissipation(&self.u, &self.v, &g, |i, _| !(per.0 && i == nx), |_, j| !(per.1 && j == ny))
-        });
+        let side_walls = self
+            .rheology
+            .as_ref()
+            .and_then(|r| r.side_walls.as_ref())
+            .map_or(0.0, |sw| sw.dissipation(&self.u, &self.v, &g, |i, _| !(per.0 && i == nx), |_, j| !(per.1 && j == ny)));
         EnergyRates { gravity: s[0] * area, plastic: s[1] * area, plastic_negative: s[2] * area, viscous: s[3] * area, wall, side_walls }
     }
 

@@ -197,13 +197,7 @@ fn quad_fraction(f00: f64, f10: f64, f01: f64, f11: f64) -> f64 {
 
 /// Area of the symmetric difference between {Φ > 0} and the exact region {exact(x, y)}, with
 /// `sub` × `sub` bilinear samples per cell (`sub` ≥ 1).
-pub fn symmetric_difference_area(
-    phi: &Field,
-    grid: &Grid,
-    exact: impl Fn(f64, f64) -> bool + Sync + Send,
-    sub: usize,
-    exec: Exec,
-) -> f64 {
+pub fn symmetric_difference_area(phi: &Field, grid: &Grid, exact: impl Fn(f64, f64) -> bool + Sync + Send, sub: usize, exec: Exec) -> f64 {
     let sub = sub.max(1);
     let d = Dual::new(phi);
     let (nx, ny) = (grid.nx, grid.ny);
@@ -226,8 +220,8 @@ pub fn symmetric_difference_area(
                     let fx = (si as f64 + 0.5) / sub as f64;
                     let x = grid.x0 + (i as f64 + fx) * grid.dx;
                     let (a, tx) = locate(i, fx, nx, grid.x0, grid.dx);
-                    let v = (1.0 - ty) * ((1.0 - tx) * d.value(a, b) + tx * d.value(a + 1, b))
-                        + ty * ((1.0 - tx) * d.value(a, b + 1) + tx * d.value(a + 1, b + 1));
+                    let v =
+                        (1.0 - ty) * ((1.0 - tx) * d.value(a, b) + tx * d.value(a + 1, b)) + ty * ((1.0 - tx) * d.value(a, b + 1) + tx * d.value(a + 1, b + 1));
                     if (v > 0.0) != exact(x, y) {
                         count += 1;
                     }

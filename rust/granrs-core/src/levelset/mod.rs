@@ -47,12 +47,8 @@ pub mod transport;
 pub mod validation;
 pub mod weno5;
 
-pub use diagnostics::{
-    dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError,
-};
-pub use heaviside::{
-    blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS,
-};
+pub use diagnostics::{dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError};
+pub use heaviside::{blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS};
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};
 pub use subcell::{interface_diagonal, interface_faces, interface_fraction, THETA_MIN};

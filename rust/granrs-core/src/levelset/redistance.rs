@@ -224,7 +224,13 @@ impl Redistancer {
                 for c in (j + HALO) * st + HALO..(j + HALO) * st + HALO + grid.nx {
                     let (f0, v) = (p0[c], ps[c]);
                     let bound = f0.abs() + tau;
-                    let fixed = if v * f0 < 0.0 { f0 } else if v.abs() > bound { bound.copysign(f0) } else { v };
+                    let fixed = if v * f0 < 0.0 {
+                        f0
+                    } else if v.abs() > bound {
+                        bound.copysign(f0)
+                    } else {
+                        v
+                    };
                     if fixed != v {
                         ps[c] = fixed;
                         clamped += 1;
@@ -247,10 +253,7 @@ impl Redistancer {
         });
         if !last_change.is_finite() {
             let (_, (i, j)) = phi.max_abs_with_location();
-            return Err(Error::SolverFailure {
-                solver: "level-set redistancing".into(),
-                message: format!("non-finite level set near cell (i={i}, j={j})"),
-            });
+            return Err(Error::SolverFailure { solver: "level-set redistancing".into(), message: format!("non-finite level set near cell (i={i}, j={j})") });
         }
         Ok(RedistanceInfo {
             iterations: st.iterations,
@@ -398,9 +401,7 @@ impl Redistancer {
             });
         }
         let sub = &self.sub;
-        exec.sum_rows(ny, grid.cells(), |j| {
-            (0..nx as isize).filter(|&i| sub.iter().any(|f| f.at(i, j as isize).is_finite())).count() as f64
-        }) as usize
+        exec.sum_rows(ny, grid.cells(), |j| (0..nx as isize).filter(|&i| sub.iter().any(|f| f.at(i, j as isize).is_finite())).count() as f64) as usize
     }
 }
 
@@ -539,17 +540,9 @@ impl Ctx<'_> {
                     let (dxa, dxb) = one_sided(&window(s, k, 1), phi, lxm, lxp, inv_dx, inv_dx2);
                     let (dya, dyb) = one_sided(&window(s, k, stride), phi, lym, lyp, inv_dy, inv_dy2);
                     let (gx2, gy2, sign) = if f0 > 0.0 {
-                        (
-                            dxa.max(0.0).powi(2).max(dxb.min(0.0).powi(2)),
-                            dya.max(0.0).powi(2).max(dyb.min(0.0).powi(2)),
-                            1.0,
-                        )
+                        (dxa.max(0.0).powi(2).max(dxb.min(0.0).powi(2)), dya.max(0.0).powi(2).max(dyb.min(0.0).powi(2)), 1.0)
                     } else {
-                        (
-                            dxa.min(0.0).powi(2).max(dxb.max(0.0).powi(2)),
-                            dya.min(0.0).powi(2).max(dyb.max(0.0).powi(2)),
-                            -1.0,
-                        )
+                        (dxa.min(0.0).powi(2).max(dxb.max(0.0).powi(2)), dya.min(0.0).powi(2).max(dyb.max(0.0).powi(2)), -1.0)
                     };
                     let dtau = dtau_far.min(cfl * lxm.min(lxp).min(lym).min(lyp));
                     dphi = -dtau * sign * ((gx2 + gy2).sqrt() - 1.0);

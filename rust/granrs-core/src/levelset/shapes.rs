@@ -69,11 +69,7 @@ impl Shape {
                 let ymax = yc + (radius * radius - hw * hw).sqrt();
                 let ymin = yc - (radius * radius - hw * hw).sqrt();
                 if !(slot_top.is_finite() && *slot_top > ymin && *slot_top < ymax) {
-                    return Err(Error::param(
-                        "slot_top",
-                        slot_top,
-                        &format!("a number in ({ymin}, {ymax}) (the slot top inside the disk)"),
-                    ));
+                    return Err(Error::param("slot_top", slot_top, &format!("a number in ({ymin}, {ymax}) (the slot top inside the disk)")));
                 }
                 Ok(())
             }
@@ -100,9 +96,7 @@ impl Shape {
         match self {
             Shape::Rectangle { x0, x1, y0, y1 } => rectangle_sd(x, y, *x0, *x1, *y0, *y1),
             Shape::Circle { xc, yc, radius } => radius - (x - xc).hypot(y - yc),
-            Shape::SlottedDisk { xc, yc, radius, slot_width, slot_top } => {
-                slotted_disk_sd(x, y, *xc, *yc, *radius, *slot_width, *slot_top)
-            }
+            Shape::SlottedDisk { xc, yc, radius, slot_width, slot_top } => slotted_disk_sd(x, y, *xc, *yc, *radius, *slot_width, *slot_top),
             Shape::HalfPlane { px, py, nx, ny } => {
                 let n = nx.hypot(*ny);
                 -((x - px) * nx + (y - py) * ny) / n

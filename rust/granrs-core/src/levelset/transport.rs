@@ -38,11 +38,7 @@ pub const DEFAULT_CFL: f64 = 0.5;
 pub(crate) fn check_field(name: &str, f: &Field, grid: &Grid, loc: Location) -> Result<()> {
     let (nx, ny) = loc.interior_shape(grid.nx, grid.ny);
     if f.loc != loc || f.nx != nx || f.ny != ny || f.data.dim() != (ny + 2 * HALO, nx + 2 * HALO) {
-        return Err(Error::Shape {
-            name: format!("{name} ({:?} field, expected {:?})", f.loc, loc),
-            got: vec![f.ny, f.nx],
-            expected: vec![ny, nx],
-        });
+        return Err(Error::Shape { name: format!("{name} ({:?} field, expected {:?})", f.loc, loc), got: vec![f.ny, f.nx], expected: vec![ny, nx] });
     }
     Ok(())
 }
@@ -63,11 +59,7 @@ impl LevelSetTransport {
 
     /// Same as [`new`](Self::new) with a choice of WENO weights.
     pub fn with_weights(grid: &Grid, weights: WenoWeights) -> Self {
-        LevelSetTransport {
-            weights,
-            phi1: Field::zeros(grid, Location::Centre),
-            phi2: Field::zeros(grid, Location::Centre),
-        }
+        LevelSetTransport { weights, phi1: Field::zeros(grid, Location::Centre), phi2: Field::zeros(grid, Location::Centre) }
     }
 
     /// The WENO weights in use.
@@ -85,14 +77,7 @@ impl LevelSetTransport {
     /// Same as [`advect`](Self::advect) with one velocity per Runge–Kutta stage: `vel[0]` at
     /// tⁿ, `vel[1]` at tⁿ + δt, `vel[2]` at tⁿ + δt/2 (the stage times of TVD-RK3). Used when the
     /// velocity is a known function of time (single-vortex test), keeping third order in time.
-    pub fn advect_stages(
-        &mut self,
-        phi: &mut Field,
-        vel: [(&Field, &Field); 3],
-        grid: &Grid,
-        dt: f64,
-        exec: Exec,
-    ) -> Result<()> {
+    pub fn advect_stages(&mut self, phi: &mut Field, vel: [(&Field, &Field); 3], grid: &Grid, dt: f64, exec: Exec) -> Result<()> {
         check_field("phi", phi, grid, Location::Centre)?;
         for (u, v) in vel {
             check_field("u", u, grid, Location::XFace)?;
@@ -133,17 +118,7 @@ enum Base<'a> {
 
 /// out = a·base + b·(src + δt·L(src)) on the interior; `src` must have valid ghosts.
 #[allow(clippy::too_many_arguments)]
-fn stage<const MAPPED: bool>(
-    out: &mut Field,
-    base: Base,
-    a: f64,
-    b: f64,
-    src: &Field,
-    (u, v): (&Field, &Field),
-    grid: &Grid,
-    dt: f64,
-    exec: Exec,
-) {
+fn stage<const MAPPED: bool>(out: &mut Field, base: Base, a: f64, b: f64, src: &Field, (u, v): (&Field, &Field), grid: &Grid, dt: f64, exec: Exec) {
     let (nx, ny) = (grid.nx, grid.ny);
     let stride = out.stride();
     let (ustride, vstride) = (u.stride(), v.stride());

@@ -201,13 +201,7 @@ pub fn zalesak_with(n: usize, opts: &CaseOptions, exec: Exec) -> Result<LevelSet
 
 /// Rider–Kothe single vortex of period `period` (T) on an n × n grid of \[0,1\]², evaluated at
 /// t = T against the initial circle.
-pub fn single_vortex(
-    n: usize,
-    period: f64,
-    redistance_every: Option<usize>,
-    cfl: f64,
-    exec: Exec,
-) -> Result<LevelSetMetrics> {
+pub fn single_vortex(n: usize, period: f64, redistance_every: Option<usize>, cfl: f64, exec: Exec) -> Result<LevelSetMetrics> {
     single_vortex_with(n, period, &CaseOptions::new(redistance_every, cfl), exec)
 }
 

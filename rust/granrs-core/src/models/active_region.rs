@@ -203,7 +203,11 @@ impl TwoPhaseModel {
             ));
         }
         if !cfg.free_surface && cfg.resolved_pressure_gauge() != Some(PressureGauge::Top) {
-            return Err(Error::param("active_region", "with this pressure gauge", "the 'top' pressure gauge (pressure_gauge 'top', or 'auto' with a pressure-dependent law)"));
+            return Err(Error::param(
+                "active_region",
+                "with this pressure gauge",
+                "the 'top' pressure gauge (pressure_gauge 'top', or 'auto' with a pressure-dependent law)",
+            ));
         }
         Ok(())
     }
@@ -288,11 +292,7 @@ impl TwoPhaseModel {
         if open_top && nyw < g.ny {
             // open top side: outflow at p_a, its k-th face centre at ((k + ½) dx, n_y^W dy)
             let p0 = cfg.pressure_top_value + c * (gx * (0.5 * g.dx - x_top) + gy * (nyw as f64 * g.dy - y_top));
-            wc.bc = wc
-                .bc
-                .with(Side::Top, VelocityBc::Outflow)
-                .with_outlet_pressure(Side::Top, p0, c * gx * g.dx)
-                .with_backflow_stabilisation(Side::Top);
+            wc.bc = wc.bc.with(Side::Top, VelocityBc::Outflow).with_outlet_pressure(Side::Top, p0, c * gx * g.dx).with_backflow_stabilisation(Side::Top);
         }
         let mut w = TwoPhaseModel::new(wc)?;
         for (src, dst) in flow_state(self).into_iter().zip(flow_state_mut(&mut w)) {

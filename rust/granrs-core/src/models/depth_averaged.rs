@@ -161,9 +161,7 @@ impl DepthAveragedConfig {
         check_positive("gravity", self.gravity)?;
         match self.earth_pressure {
             EarthPressure::Constant(k) => check_positive("earth_pressure", k)?,
-            EarthPressure::SavageHutterActive { internal_friction_angle } => {
-                check_range("internal_friction_angle", internal_friction_angle, 0.0, 89.0)?
-            }
+            EarthPressure::SavageHutterActive { internal_friction_angle } => check_range("internal_friction_angle", internal_friction_angle, 0.0, 89.0)?,
         }
         check_range("basal_friction_angle", self.basal_friction_angle, 0.0, 89.0)?;
         if !(self.cfl.is_finite() && self.cfl > 0.0 && self.cfl <= 0.5) {
@@ -658,10 +656,6 @@ fn hll(h_l: f64, u_l: f64, kg_l: f64, h_r: f64, u_r: f64, kg_r: f64) -> (f64, f6
         (fh_r, fq_r, s)
     } else {
         let d = 1.0 / (s_r - s_l);
-        (
-            (s_r * fh_l - s_l * fh_r + s_l * s_r * (h_r - h_l)) * d,
-            (s_r * fq_l - s_l * fq_r + s_l * s_r * (q_r - q_l)) * d,
-            s,
-        )
+        ((s_r * fh_l - s_l * fh_r + s_l * s_r * (h_r - h_l)) * d, (s_r * fq_l - s_l * fq_r + s_l * s_r * (q_r - q_l)) * d, s)
     }
 }

@@ -7,12 +7,14 @@
 //! [`DepthAveragedModel`] is the cheap rung of the ladder: a Savage–Hutter shallow layer along the
 //! channel with a depth-averaged pore pressure (`depth_averaged.rs`, docs/models.md).
 
-mod checkpoint;
 pub mod active_region;
+mod checkpoint;
 pub mod depth_averaged;
+pub mod memory;
 mod two_phase;
 
 pub use active_region::{ActiveRegion, WindowSides};
 pub use checkpoint::StateEntry;
 pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
+pub use memory::available_memory;
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};

@@ -3,6 +3,7 @@
 //! State at t_n: u^n, v^n (MAC faces), u^{n−1}, v^{n−1} and (u·∇u)^{n−1} for BDF2, p^n (cell
 //! centres), Φ^n (cell centres). The stages of a step are listed in `time_stepping/step.rs`.
 
+use crate::diagnostics::EnergyLedger;
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
@@ -13,7 +14,6 @@ use crate::projection::PressureProjection;
 use crate::rheology::stage::RheologyState;
 use crate::rheology::{RheologyConfig, RheologyLaw};
 use crate::solvers::{SolveInfo, SolverSettings};
-use crate::diagnostics::EnergyLedger;
 use crate::time_stepping::{MomentumSolver, StepInfo, TimeConfig, ViscousScheme};
 
 /// A Newtonian material (or the Newtonian part of a granular one).
@@ -243,7 +243,11 @@ impl ModelConfig {
             return Err(Error::param("free_surface", "true", "false for a single-phase model (the free surface is the interface Φ = 0 with a light phase)"));
         }
         if self.free_surface && self.rotational_pressure {
-            return Err(Error::param("pressure_update", "rotational", "'standard' with the granular-only model (its free-surface projection has the standard update only)"));
+            return Err(Error::param(
+                "pressure_update",
+                "rotational",
+                "'standard' with the granular-only model (its free-surface projection has the standard update only)",
+            ));
         }
         TwoPhaseModel::validate_active_region(self)?;
         check_finite("pressure_top_value", self.pressure_top_value)?;
@@ -281,7 +285,7 @@ pub(crate) struct LevelSetWork {
 /// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model.
 pub struct TwoPhaseModel {
     pub(crate) config: ModelConfig,
-    pub(crate) pool: rayon::ThreadPool,
+    pub(crate) pool: std::sync::Arc<rayon::ThreadPool>,
     /// x-velocity u^n on XFace.
     pub u: Field,
     /// y-velocity v^n on YFace.
@@ -340,8 +344,10 @@ impl TwoPhaseModel {
     /// Builds a model at rest (u = 0, p = 0, Φ = +1 everywhere: only the dense phase).
     pub fn new(config: ModelConfig) -> Result<Self> {
         config.validate()?;
+        // refused before anything is allocated when it would not fit (models/memory.rs)
+        config.check_memory()?;
         let g = &config.grid;
-        let pool = build_pool(config.threads)?;
+        let pool = std::sync::Arc::new(build_pool(config.threads)?);
         let c = || Field::zeros(g, Location::Centre);
         let xf = || Field::zeros(g, Location::XFace);
         let yf = || Field::zeros(g, Location::YFace);
@@ -372,10 +378,7 @@ impl TwoPhaseModel {
             Some(pc) => Some(PorePressure::new(g, *pc, config.pressure_solver)?),
             None => None,
         };
-        let levelset = LevelSetWork {
-            transport: LevelSetTransport::new(g),
-            redistancer: Redistancer::new(g, config.redistance)?,
-        };
+        let levelset = LevelSetWork { transport: LevelSetTransport::new(g), redistancer: Redistancer::new(g, config.redistance)? };
         let mut model = TwoPhaseModel {
             levelset,
             u: xf(),

@@ -106,16 +106,7 @@ pub fn strain_rate_norm_centre(dxx: &Field, dyy: &Field, dxy: &Field, out: &mut 
 /// u-face (i, j): [2η_c D_xx]_{i−1}^{i} / dx + [2η_n D_xy]_{j}^{j+1} / dy;
 /// v-face (i, j): [2η_n D_xy]_{i}^{i+1} / dx + [2η_c D_yy]_{j−1}^{j} / dy.
 #[allow(clippy::too_many_arguments)]
-pub fn viscous(
-    u: &Field,
-    v: &Field,
-    eta_c: &Field,
-    eta_n: &Field,
-    grid: &Grid,
-    out_u: &mut Field,
-    out_v: &mut Field,
-    exec: Exec,
-) {
+pub fn viscous(u: &Field, v: &Field, eta_c: &Field, eta_n: &Field, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
     let (us, vs, ec, en) = (u.slice(), v.slice(), eta_c.slice(), eta_n.slice());
     let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
     for_each_interior_row(exec, out_u, |j, row| {
@@ -271,8 +262,5 @@ pub fn max_speed(u: &Field, v: &Field, exec: Exec) -> (f64, f64) {
         }
         m
     };
-    (
-        exec.max_rows(u.ny, u.nx * u.ny, |j| row_max(u, j)),
-        exec.max_rows(v.ny, v.nx * v.ny, |j| row_max(v, j)),
-    )
+    (exec.max_rows(u.ny, u.nx * u.ny, |j| row_max(u, j)), exec.max_rows(v.ny, v.nx * v.ny, |j| row_max(v, j)))
 }

@@ -53,9 +53,9 @@
 use crate::error::{check_positive, Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, PressureBc, HALO};
+use crate::levelset::{heaviside, interface_diagonal};
 use crate::operators::for_each_interior_row;
 use crate::solvers::{ShiftedSystem, SolveInfo, SolverSettings};
-use crate::levelset::{heaviside, interface_diagonal};
 
 /// What p_f does outside the granular phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -246,7 +246,11 @@ impl PorePressure {
                         let h = heaviside(0.5 * (a + b), eps);
                         kf * h + kappa_air * (1.0 - h)
                     } else if inside(a) == inside(b) {
-                        if inside(a) { kf } else { kappa_air }
+                        if inside(a) {
+                            kf
+                        } else {
+                            kappa_air
+                        }
                     } else {
                         let (pin, pout) = if inside(a) { (a, b) } else { (b, a) };
                         let theta = pin / (pin - pout);

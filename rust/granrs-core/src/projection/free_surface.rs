@@ -93,7 +93,16 @@ impl FreeSurfaceProjection {
     /// ρ_s, `phi` the level set with ghosts filled, `dt_over_a0` δt/a₀.
     #[allow(clippy::too_many_arguments)]
     pub fn project(
-        &mut self, u: &mut Field, v: &mut Field, p: &mut Field, phi: &Field, rho: f64, dt_over_a0: f64, grid: &Grid, bc: &BoundaryConditions, exec: Exec,
+        &mut self,
+        u: &mut Field,
+        v: &mut Field,
+        p: &mut Field,
+        phi: &Field,
+        rho: f64,
+        dt_over_a0: f64,
+        grid: &Grid,
+        bc: &BoundaryConditions,
+        exec: Exec,
     ) -> Result<SolveInfo> {
         let (nx, ny) = (grid.nx, grid.ny);
         let beta = 1.0 / rho;
@@ -231,12 +240,8 @@ impl FreeSurfaceProjection {
         let (ps, sp) = (phi.slice(), phi.stride());
         let c = |i: usize, j: usize| (j + HALO) * sp + i + HALO;
         // u faces: (nx + 1) × ny, beside cells i − 1 and i
-        extend_faces(u, &mut self.known_u, nx + 1, ny, ru, 0..ny, exec, |i, j| {
-            (i > 0 && inside(ps[c(i - 1, j)])) || (i < nx && inside(ps[c(i, j)]))
-        });
-        extend_faces(v, &mut self.known_v, nx, ny + 1, 0..nx, rv, exec, |i, j| {
-            (j > 0 && inside(ps[c(i, j - 1)])) || (j < ny && inside(ps[c(i, j)]))
-        });
+        extend_faces(u, &mut self.known_u, nx + 1, ny, ru, 0..ny, exec, |i, j| (i > 0 && inside(ps[c(i - 1, j)])) || (i < nx && inside(ps[c(i, j)])));
+        extend_faces(v, &mut self.known_v, nx, ny + 1, 0..nx, rv, exec, |i, j| (j > 0 && inside(ps[c(i, j - 1)])) || (j < ny && inside(ps[c(i, j)])));
     }
 }
 
@@ -247,8 +252,14 @@ impl FreeSurfaceProjection {
 /// starts, which no row writes during the layer.
 #[allow(clippy::too_many_arguments)]
 fn extend_faces(
-    f: &mut Field, known: &mut [Vec<u8>; 2], mx: usize, my: usize, ri: std::ops::Range<usize>, rj: std::ops::Range<usize>,
-    exec: Exec, fluid: impl Fn(usize, usize) -> bool + Sync,
+    f: &mut Field,
+    known: &mut [Vec<u8>; 2],
+    mx: usize,
+    my: usize,
+    ri: std::ops::Range<usize>,
+    rj: std::ops::Range<usize>,
+    exec: Exec,
+    fluid: impl Fn(usize, usize) -> bool + Sync,
 ) {
     let [cur, next] = known;
     let parallel = exec.use_parallel(mx * my);

@@ -79,9 +79,7 @@ fn fill_ghosts(p: &mut Field, bc: &BoundaryConditions, boundary_values: bool) {
 /// kinetic energy), which is what removes the backflow instability of open sides. Faces where
 /// the flow leaves are untouched, so a side with outflow only is the plain Dirichlet side.
 #[allow(clippy::too_many_arguments)]
-pub fn add_backflow_pressure(
-    u: &Field, v: &Field, rho_u: &Field, rho_v: &Field, gx: &mut Field, gy: &mut Field, grid: &Grid, bc: &BoundaryConditions,
-) {
+pub fn add_backflow_pressure(u: &Field, v: &Field, rho_u: &Field, rho_v: &Field, gx: &mut Field, gy: &mut Field, grid: &Grid, bc: &BoundaryConditions) {
     let (nx, ny) = (grid.nx as isize, grid.ny as isize);
     for side in Side::ALL.into_iter().filter(|&s| bc.backflow_on(s)) {
         // the side's normal velocity, density and gradient; its faces along it; the outward sign

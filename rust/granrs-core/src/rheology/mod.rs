@@ -408,8 +408,7 @@ impl RheologyConfig {
 
     /// Whether the viscosity of the dense phase changes from step to step.
     pub fn variable_viscosity(&self) -> bool {
-        matches!(self.law, RheologyLaw::MuI { .. })
-            || (self.law.has_yield_stress() && self.treatment != YieldTreatment::Projection)
+        matches!(self.law, RheologyLaw::MuI { .. }) || (self.law.has_yield_stress() && self.treatment != YieldTreatment::Projection)
     }
 
     /// Checks every parameter, naming the first offending one.

@@ -352,11 +352,17 @@ impl PlasticState {
             });
         }
         let tau_ref = self.tau_max;
-        let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec)
-            .max(weighted_max_abs_diff(&self.new_n, &self.sigma_xy, &self.tau_n, tau_ref, exec));
+        let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec).max(weighted_max_abs_diff(
+            &self.new_n,
+            &self.sigma_xy,
+            &self.tau_n,
+            tau_ref,
+            exec,
+        ));
         if self.locate {
             let mut best: Option<(f64, Location, usize, usize)> = None;
-            for (new, old, w, loc) in [(&self.new_c, &self.sigma_xx, &self.tau_c, Location::Centre), (&self.new_n, &self.sigma_xy, &self.tau_n, Location::Node)] {
+            for (new, old, w, loc) in [(&self.new_c, &self.sigma_xx, &self.tau_c, Location::Centre), (&self.new_n, &self.sigma_xy, &self.tau_n, Location::Node)]
+            {
                 for j in 0..new.ny {
                     for i in 0..new.nx {
                         let (ii, jj) = (i as isize, j as isize);
@@ -421,8 +427,13 @@ impl PlasticState {
             });
         }
         let tau_ref = self.tau_max;
-        let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec)
-            .max(weighted_max_abs_diff(&cs.new, &cs.sigma, &self.tau_c, tau_ref, exec));
+        let inc = weighted_max_abs_diff(&self.new_c, &self.sigma_xx, &self.tau_c, tau_ref, exec).max(weighted_max_abs_diff(
+            &cs.new,
+            &cs.sigma,
+            &self.tau_c,
+            tau_ref,
+            exec,
+        ));
         if self.locate {
             let mut best: Option<(f64, Location, usize, usize)> = None;
             for (new, old) in [(&self.new_c, &self.sigma_xx), (&cs.new, &cs.sigma)] {
@@ -511,7 +522,18 @@ impl PlasticState {
     }
 
     #[allow(clippy::too_many_arguments)]
-    pub fn set_r(&mut self, r: Option<f64>, theta: f64, neighbourhood: usize, eta_c: &Field, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid, exec: Exec) -> f64 {
+    pub fn set_r(
+        &mut self,
+        r: Option<f64>,
+        theta: f64,
+        neighbourhood: usize,
+        eta_c: &Field,
+        rho_u: &Field,
+        rho_v: &Field,
+        a0_over_dt: f64,
+        grid: &Grid,
+        exec: Exec,
+    ) -> f64 {
         if let Some(r) = r {
             self.r_c.fill(r);
             self.r_n.fill(r);
@@ -621,7 +643,7 @@ impl IncrementSite {
     }
 }
 
-/// How the message of a Picard non-convergence begins (the time stepper retakes such steps).
+/// How the message of a Picard non-convergence ([`Error::PicardNotConverged`]) begins.
 pub const PICARD_FAILURE: &str = "Picard iteration of the plastic projection did not converge";
 
 /// The error of a Picard iteration that reached its cap, naming where the largest increment was.
@@ -632,16 +654,17 @@ pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta:
             let what = if location == Location::Node { "Sigma_xy at node" } else { "Sigma_xx at cell" };
             format!("; largest increment {increment:.3e} in {what} (i={i}, j={j})")
         }
-        Some(IncrementSite::Wall { side, face, increment }) => format!("; largest increment {increment:.3e} in the wall friction of the {side:?} side, face {face}"),
+        Some(IncrementSite::Wall { side, face, increment }) => {
+            format!("; largest increment {increment:.3e} in the wall friction of the {side:?} side, face {face}")
+        }
         None => String::new(),
     };
-    Error::Simulation {
+    Error::PicardNotConverged {
         what: format!(
             "{PICARD_FAILURE}: increment {increment:.3e} after {iterations} iterations \
              (picard_tol = {tol:.1e}, r = {r:.3e} (smallest), theta = {theta}){place}; raise picard_max_iterations or theta, or lower r"
         ),
         step,
         time,
-        location: None,
     }
 }

@@ -56,11 +56,19 @@ impl TwoPhaseModel {
         self.window = None;
         let exec = self.exec();
         if !self.rheology.as_ref().is_some_and(|r| r.has_plastic_tensor()) {
-            return Err(Error::param("rheology", self.config.rheology.law.name(), "a law with a yield stress treated by projection \
-                 (Bingham, Drucker-Prager, mu(I) with treatment 'projection') for balance_plastic_stress"));
+            return Err(Error::param(
+                "rheology",
+                self.config.rheology.law.name(),
+                "a law with a yield stress treated by projection \
+                 (Bingham, Drucker-Prager, mu(I) with treatment 'projection') for balance_plastic_stress",
+            ));
         }
         if self.config.rheology.sigma_location != super::SigmaLocation::Staggered {
-            return Err(Error::param("sigma_location", self.config.rheology.sigma_location.name(), "'staggered' for balance_plastic_stress (it builds Σ_xy at nodes)"));
+            return Err(Error::param(
+                "sigma_location",
+                self.config.rheology.sigma_location.name(),
+                "'staggered' for balance_plastic_stress (it builds Σ_xy at nodes)",
+            ));
         }
         self.properties(exec);
         // τ at centres and nodes from the current p and Φ (δt does not enter τ)
@@ -97,7 +105,13 @@ impl TwoPhaseModel {
                 if node_held(&z, i, j, nxn, nyn) {
                     continue;
                 }
-                let ratio = if t.abs() <= floor { 0.0 } else if tau > 0.0 { t.abs() / tau } else { f64::INFINITY };
+                let ratio = if t.abs() <= floor {
+                    0.0
+                } else if tau > 0.0 {
+                    t.abs() / tau
+                } else {
+                    f64::INFINITY
+                };
                 if ratio > out.max_ratio {
                     out.max_ratio = ratio;
                     out.node = (i, j);

@@ -16,13 +16,13 @@ use super::{RheologyConfig, WallNormalStress, YieldPressure, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
+use crate::levelset::heaviside;
 use crate::models::TwoPhaseModel;
 use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate, strain_rate_norm_centre, BcMode};
 use crate::projection::fill_pressure_ghosts;
 use crate::solvers::par::{n_blocks, sum_rows};
 use crate::solvers::SolveInfo;
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
-use crate::levelset::heaviside;
 use crate::walls::side::SideWallFriction;
 use crate::walls::{default_r_wall, CoulombWalls, NormalStress};
 
@@ -149,7 +149,11 @@ impl TwoPhaseModel {
         let iy = rc.interface_yield;
         let hv = |phi: f64| if two_phase { heaviside(iy.shift(phi, eps), eps) } else { 1.0 };
         // the pressure the yield stress reads: p, or p − p_s (YieldPressure::SurfaceAir)
-        rs.p_surface = if two_phase && rc.yield_pressure == YieldPressure::SurfaceAir { surface_air_pressure(&self.p, &self.phi, eps, grid.h(), &mut rs.surface_partials, exec) } else { 0.0 };
+        rs.p_surface = if two_phase && rc.yield_pressure == YieldPressure::SurfaceAir {
+            surface_air_pressure(&self.p, &self.phi, eps, grid.h(), &mut rs.surface_partials, exec)
+        } else {
+            0.0
+        };
         let p_s = rs.p_surface;
         // yield stress τ(Φ) = τ(p − p_s) H_ε(Φ + sε) at centres and nodes
         for (tau, p, phi) in [(&mut rs.plastic.tau_c, &self.p, &self.phi), (&mut rs.plastic.tau_n, &rs.p_n, &rs.phi_n)] {
@@ -223,12 +227,22 @@ impl TwoPhaseModel {
                 dx: grid.dx,
             });
             rs.walls.set_friction(&self.p, p_s, tnn, &self.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
-            rs.r_wall = rc.r_wall.unwrap_or_else(|| {
-                default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid))
-            });
+            rs.r_wall = rc.r_wall.unwrap_or_else(|| default_r_wall(rc.theta, rs.walls.max_response(&self.work.rho_u, &self.work.rho_v, a0_over_dt, grid)));
         }
         if let (Some(sw), Some(walls)) = (rs.side_walls.as_mut(), rc.side_walls) {
-            sw.set_friction(walls, &self.p, p_s, &self.phi, two_phase.then_some(eps), rc.interface_yield, &self.work.rho_u, &self.work.rho_v, a0_over_dt, rc.theta, exec);
+            sw.set_friction(
+                walls,
+                &self.p,
+                p_s,
+                &self.phi,
+                two_phase.then_some(eps),
+                rc.interface_yield,
+                &self.work.rho_u,
+                &self.work.rho_v,
+                a0_over_dt,
+                rc.theta,
+                exec,
+            );
         }
         Ok(())
     }

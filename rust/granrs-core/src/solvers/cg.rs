@@ -77,15 +77,7 @@ pub(crate) fn remove_mean(exec: Exec, v: &mut [f64], nx: usize, partials: &mut [
 
 /// Solves A x = w.rhs by MGCG from the initial guess in `x`. `bnorm` = ‖w.rhs‖₂ > 0. The
 /// returned `rhs_mean_removed` is 0: the caller fills it in.
-pub(crate) fn pcg(
-    mg: &mut Multigrid,
-    w: &mut CgWork,
-    x: &mut [f64],
-    bnorm: f64,
-    settings: &SolverSettings,
-    singular: bool,
-    exec: Exec,
-) -> Result<SolveInfo> {
+pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64, settings: &SolverSettings, singular: bool, exec: Exec) -> Result<SolveInfo> {
     let nx = mg.levels[0].nx;
     let (rtol, max_iterations) = (settings.rtol, settings.max_iterations);
     if singular {
@@ -139,10 +131,7 @@ pub(crate) fn pcg(
         });
         rel = rr.sqrt() / bnorm;
         if !rel.is_finite() {
-            return Err(Error::SolverFailure {
-                solver: SOLVER.to_string(),
-                message: format!("residual became {rel} at iteration {iterations}"),
-            });
+            return Err(Error::SolverFailure { solver: SOLVER.to_string(), message: format!("residual became {rel} at iteration {iterations}") });
         }
         if rel <= rtol {
             // Check the true residual.
@@ -187,9 +176,7 @@ fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec, 
     } else {
         Err(Error::SolverFailure {
             solver: SOLVER.to_string(),
-            message: format!(
-                "breakdown at iteration {iteration}: rᵀMr = {rho:e} (the multigrid preconditioner is not positive definite)"
-            ),
+            message: format!("breakdown at iteration {iteration}: rᵀMr = {rho:e} (the multigrid preconditioner is not positive definite)"),
         })
     }
 }

@@ -18,9 +18,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
-};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
@@ -99,10 +97,7 @@ impl DirectSolver {
                 col_ptr.push(row_idx.len());
             }
         }
-        let failure = |what: &str, e: &dyn std::fmt::Debug| Error::SolverFailure {
-            solver: SOLVER.to_string(),
-            message: format!("{what}: {e:?}"),
-        };
+        let failure = |what: &str, e: &dyn std::fmt::Debug| Error::SolverFailure { solver: SOLVER.to_string(), message: format!("{what}: {e:?}") };
         let symbolic = {
             let a = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
             factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
@@ -115,19 +110,7 @@ impl DirectSolver {
         let mem = MemBuffer::try_new(req).map_err(|e| failure("workspace allocation", &e))?;
         let l_values = vec![0.0; symbolic.len_val()];
         let values = vec![0.0; row_idx.len()];
-        Ok(DirectSolver {
-            n,
-            pinned,
-            col_ptr,
-            row_idx,
-            sources,
-            values,
-            symbolic,
-            l_values,
-            mem,
-            work: vec![0.0; n],
-            factorised: false,
-        })
+        Ok(DirectSolver { n, pinned, col_ptr, row_idx, sources, values, symbolic, l_values, mem, work: vec![0.0; n], factorised: false })
     }
 
     /// Numeric factorisation of the operator of `level` (same size as at construction).
@@ -143,20 +126,9 @@ impl DirectSolver {
             };
         }
         self.factorised = false;
-        let a = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx),
-            &self.values,
-        );
+        let a = SparseColMatRef::new(SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx), &self.values);
         self.symbolic
-            .factorize_numeric_llt(
-                &mut self.l_values,
-                a,
-                Side::Upper,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
-            )
+            .factorize_numeric_llt(&mut self.l_values, a, Side::Upper, LltRegularization::default(), Par::Seq, MemStack::new(&mut self.mem), Default::default())
             .map_err(|e| Error::SolverFailure {
                 solver: SOLVER.to_string(),
                 message: format!("numeric factorisation failed ({e:?}): the operator is not positive definite"),
@@ -174,12 +146,7 @@ impl DirectSolver {
             self.work[0] = 0.0;
         }
         let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.l_values);
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut self.work, self.n, 1),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-        );
+        llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(&mut self.work, self.n, 1), Par::Seq, MemStack::new(&mut self.mem));
         x.copy_from_slice(&self.work);
     }
 }

@@ -293,17 +293,14 @@ impl PoissonSolver {
                 *v = -fv;
             }
         });
-        let rhs_mean_removed =
-            if self.singular { -cg::remove_mean(exec, rhs, nx, &mut self.work.partials1) } else { 0.0 };
+        let rhs_mean_removed = if self.singular { -cg::remove_mean(exec, rhs, nx, &mut self.work.partials1) } else { 0.0 };
         let bnorm = cg::dot(exec, rhs, rhs, nx, &mut self.work.partials1).sqrt();
         if bnorm == 0.0 {
             p.iter_mut().for_each(|v| *v = 0.0);
             return Ok(SolveInfo { iterations: 0, residual: 0.0, initial_residual: 0.0, rhs_mean_removed });
         }
         let mut info = match self.settings.kind {
-            PressureSolverKind::MultigridCg => {
-                cg::pcg(&mut self.mg, &mut self.work, p, bnorm, &self.settings, self.singular, exec)?
-            }
+            PressureSolverKind::MultigridCg => cg::pcg(&mut self.mg, &mut self.work, p, bnorm, &self.settings, self.singular, exec)?,
             PressureSolverKind::Direct => self.solve_direct(p, bnorm, exec),
         };
         info.rhs_mean_removed = rhs_mean_removed;
@@ -378,26 +375,16 @@ impl PoissonSolver {
 
 impl fmt::Display for PoissonSolver {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let bc: Vec<&str> =
-            self.bc.iter().map(|b| if *b == PressureBc::Neumann { "Neumann" } else { "Dirichlet" }).collect();
+        let bc: Vec<&str> = self.bc.iter().map(|b| if *b == PressureBc::Neumann { "Neumann" } else { "Dirichlet" }).collect();
         writeln!(f, "PoissonSolver ({})", self.solver_name())?;
         writeln!(f, "├── grid: {} × {} cells, dx = {:e}, dy = {:e}", self.nx, self.ny, self.dx, self.dy)?;
-        writeln!(
-            f,
-            "├── bc (left, right, bottom, top): {}{}",
-            bc.join(", "),
-            if self.singular { " (singular)" } else { "" }
-        )?;
+        writeln!(f, "├── bc (left, right, bottom, top): {}{}", bc.join(", "), if self.singular { " (singular)" } else { "" })?;
         let levels: Vec<String> = self.mg.levels.iter().map(|l| format!("{}×{}", l.nx, l.ny)).collect();
         writeln!(f, "├── levels: {} (coarsest solved by sparse Cholesky)", levels.join(" → "))?;
         write!(
             f,
             "└── rtol = {:e}, max_iterations = {}, {:?}({}, {})-cycle, piecewise-constant transfers",
-            self.settings.rtol,
-            self.settings.max_iterations,
-            self.settings.cycle,
-            self.settings.pre_smooth,
-            self.settings.post_smooth
+            self.settings.rtol, self.settings.max_iterations, self.settings.cycle, self.settings.pre_smooth, self.settings.post_smooth
         )
     }
 }
@@ -473,4 +460,39 @@ fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<(
 /// Checks that every value is finite; the error names the array and the cell.
 fn check_finite_array(name: &str, v: &[f64], stride: usize) -> Result<()> {
     check_array(name, v, stride, |x| x.abs() < f64::INFINITY, "a finite number")
+}
+
+impl PoissonSolver {
+    /// The f64 values a solver on nx × ny cells holds ([`PoissonSolver::new`]): per level the
+    /// face coefficients β and c, the shift, the diagonal and its inverse, the coarse levels'
+    /// solution and right-hand side; the conjugate-gradient vectors; the direct factorisation of
+    /// the coarsest level (with [`PressureSolverKind::Direct`] the whole grid), bounded by the
+    /// band Cholesky factor n · min(nx, ny) with its row indices (the fill-reducing ordering
+    /// keeps below it). For the memory estimate of a model (models/memory.rs).
+    pub fn memory_values(nx: usize, ny: usize, s: &SolverSettings) -> u64 {
+        let mut sizes = multigrid::level_sizes(nx, ny, s.min_coarse_size);
+        if s.kind == PressureSolverKind::Direct {
+            sizes.truncate(1);
+        }
+        let mut total = 0u64;
+        for (l, &(lx, ly)) in sizes.iter().enumerate() {
+            let n = (lx * ly) as u64;
+            let faces = (ly * (lx + 1) + (ly + 1) * lx) as u64;
+            total += 2 * faces + 3 * n + lx as u64;
+            if l > 0 {
+                total += 2 * n;
+            }
+        }
+        let &(cx, cy) = sizes.last().expect("at least the fine level");
+        let nc = (cx * cy) as u64;
+        total += 2 * nc * cx.min(cy) as u64 + nc;
+        total + 5 * (nx * ny) as u64
+    }
+}
+
+impl ShiftedSystem {
+    /// The f64 values [`ShiftedSystem::new`] allocates (its solver, β on faces, shift, rhs, x).
+    pub fn memory_values(nx: usize, ny: usize, s: &SolverSettings) -> u64 {
+        PoissonSolver::memory_values(nx, ny, s) + (ny * (nx + 1) + (ny + 1) * nx) as u64 + 3 * (nx * ny) as u64
+    }
 }

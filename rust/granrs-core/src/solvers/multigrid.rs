@@ -80,18 +80,8 @@ impl Multigrid {
     /// arrays and the symbolic factorisation of the coarsest level. With `max_levels == 1` the
     /// "cycle" is an exact solve of the fine level.
     #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        nx: usize,
-        ny: usize,
-        dx: f64,
-        dy: f64,
-        bc: [PressureBc; 4],
-        settings: &SolverSettings,
-        max_levels: usize,
-        singular: bool,
-    ) -> Result<Self> {
-        let sizes: Vec<(usize, usize)> =
-            level_sizes(nx, ny, settings.min_coarse_size).into_iter().take(max_levels.max(1)).collect();
+    pub fn new(nx: usize, ny: usize, dx: f64, dy: f64, bc: [PressureBc; 4], settings: &SolverSettings, max_levels: usize, singular: bool) -> Result<Self> {
+        let sizes: Vec<(usize, usize)> = level_sizes(nx, ny, settings.min_coarse_size).into_iter().take(max_levels.max(1)).collect();
         let levels: Vec<Level> = sizes
             .iter()
             .enumerate()
@@ -158,15 +148,11 @@ impl Multigrid {
         if self.singular {
             let nx = self.levels[self.levels.len() - 1].nx;
             let ny = b.len() / nx;
-            let [s] = par::sum_rows(Exec::SERIAL, ny, b.len(), &mut self.partials, |j| {
-                [b[j * nx..(j + 1) * nx].iter().sum()]
-            });
+            let [s] = par::sum_rows(Exec::SERIAL, ny, b.len(), &mut self.partials, |j| [b[j * nx..(j + 1) * nx].iter().sum()]);
             let m = s / n;
             b.iter_mut().for_each(|v| *v -= m);
             self.coarse.solve(b, x);
-            let [s] = par::sum_rows(Exec::SERIAL, ny, x.len(), &mut self.partials, |j| {
-                [x[j * nx..(j + 1) * nx].iter().sum()]
-            });
+            let [s] = par::sum_rows(Exec::SERIAL, ny, x.len(), &mut self.partials, |j| [x[j * nx..(j + 1) * nx].iter().sum()]);
             let m = s / n;
             x.iter_mut().for_each(|v| *v -= m);
         } else {

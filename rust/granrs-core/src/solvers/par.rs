@@ -35,13 +35,7 @@ where
 /// deterministic sum of the values `f` returns: per-block partial sums are stored in `partials`
 /// (length ≥ number of blocks) and added in block order. Each component of the returned array is
 /// reduced the same way.
-pub(crate) fn rows_sum<const K: usize, F>(
-    exec: Exec,
-    data: &mut [f64],
-    stride: usize,
-    partials: &mut [[f64; K]],
-    f: F,
-) -> [f64; K]
+pub(crate) fn rows_sum<const K: usize, F>(exec: Exec, data: &mut [f64], stride: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
 where
     F: Fn(usize, &mut [f64]) -> [f64; K] + Sync + Send,
 {
@@ -59,10 +53,7 @@ where
         s
     };
     if exec.use_parallel(data.len()) {
-        data.par_chunks_mut(stride * ROW_BLOCK)
-            .zip(partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(b, (chunk, out))| *out = block(b, chunk));
+        data.par_chunks_mut(stride * ROW_BLOCK).zip(partials.par_iter_mut()).enumerate().for_each(|(b, (chunk, out))| *out = block(b, chunk));
     } else {
         for (b, (chunk, out)) in data.chunks_mut(stride * ROW_BLOCK).zip(partials.iter_mut()).enumerate() {
             *out = block(b, chunk);
@@ -79,13 +70,7 @@ where
 
 /// Deterministic sum over rows `0..nrows` of `f(row)` (nothing written), with the same block
 /// structure as [`rows_sum`].
-pub(crate) fn sum_rows<const K: usize, F>(
-    exec: Exec,
-    nrows: usize,
-    cells: usize,
-    partials: &mut [[f64; K]],
-    f: F,
-) -> [f64; K]
+pub(crate) fn sum_rows<const K: usize, F>(exec: Exec, nrows: usize, cells: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
 where
     F: Fn(usize) -> [f64; K] + Sync + Send,
 {

@@ -7,4 +7,4 @@ pub mod step;
 
 pub use clock::{bdf_coefficients, stable_dt, TimeConfig, DT_CEILING_RECOVERY};
 pub use momentum::{MomentumSolver, ViscousScheme};
-pub use step::StepInfo;
+pub use step::{StepInfo, SPEED_BOUND};

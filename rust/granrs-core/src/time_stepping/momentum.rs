@@ -72,10 +72,7 @@ pub struct MomentumSolver {
 }
 
 fn ranges(grid: &Grid, bc: &BoundaryConditions) -> (Range<usize>, Range<usize>) {
-    (
-        unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx),
-        unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), grid.ny),
-    )
+    (unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx), unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), grid.ny))
 }
 
 /// Σ a·b over the unknown faces of one component (deterministic block sum; row slices so the
@@ -185,15 +182,7 @@ impl MomentumSolver {
 
     /// Solves A ũ = rhs on the unknown faces by Jacobi-preconditioned CG. On entry `u`, `v` hold
     /// the initial guess; their boundary values are set from the boundary conditions.
-    pub fn solve_implicit(
-        &mut self,
-        sys: &ViscousSystem,
-        u: &mut Field,
-        v: &mut Field,
-        rhs_u: &Field,
-        rhs_v: &Field,
-        exec: Exec,
-    ) -> Result<SolveInfo> {
+    pub fn solve_implicit(&mut self, sys: &ViscousSystem, u: &mut Field, v: &mut Field, rhs_u: &Field, rhs_v: &Field, exec: Exec) -> Result<SolveInfo> {
         let (ru, rv) = ranges(sys.grid, sys.bc);
         fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
         self.diagonal(sys, exec);
@@ -233,9 +222,7 @@ impl MomentumSolver {
             });
         }
         let bnorm = bnorm2.sqrt();
-        let rnorm0 = (dot(&self.ru, &self.ru, &ru, &(0..sys.grid.ny), exec)
-            + dot(&self.rv, &self.rv, &(0..sys.grid.nx), &rv, exec))
-        .sqrt();
+        let rnorm0 = (dot(&self.ru, &self.ru, &ru, &(0..sys.grid.ny), exec) + dot(&self.rv, &self.rv, &(0..sys.grid.nx), &rv, exec)).sqrt();
         if !rnorm0.is_finite() {
             return Err(Error::SolverFailure {
                 solver: "viscous CG".into(),
@@ -249,12 +236,7 @@ impl MomentumSolver {
         let mut it = 0;
         while res > self.rtol && rnorm0 > 0.0 {
             if it >= self.max_iterations {
-                return Err(Error::NotConverged {
-                    solver: "viscous CG (momentum predictor)".into(),
-                    iterations: it,
-                    residual: res,
-                    tolerance: self.rtol,
-                });
+                return Err(Error::NotConverged { solver: "viscous CG (momentum predictor)".into(), iterations: it, residual: res, tolerance: self.rtol });
             }
             fill_velocity_ghosts(&mut self.du, &mut self.dv, sys.bc, sys.grid, BcMode::Homogeneous);
             Self::apply(sys, &self.du, &self.dv, &mut self.qu, &mut self.qv, exec);
@@ -308,10 +290,7 @@ impl MomentumSolver {
         let (ru, rv) = ranges(sys.grid, sys.bc);
         fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
         viscous(u, v, sys.eta_c, sys.eta_n, sys.grid, &mut self.qu, &mut self.qv, exec);
-        for (x, q, rhs, c, ri, rj) in [
-            (&mut *u, &self.qu, rhs_u, sys.c_u, ru, 0..sys.grid.ny),
-            (&mut *v, &self.qv, rhs_v, sys.c_v, 0..sys.grid.nx, rv),
-        ] {
+        for (x, q, rhs, c, ri, rj) in [(&mut *u, &self.qu, rhs_u, sys.c_u, ru, 0..sys.grid.ny), (&mut *v, &self.qv, rhs_v, sys.c_v, 0..sys.grid.nx, rv)] {
             let st = x.stride();
             let (qs, rs, cs) = (q.slice(), rhs.slice(), c.slice());
             let rj2 = rj.clone();
@@ -337,7 +316,16 @@ impl MomentumSolver {
 /// of two `dot` calls after the update, serial or parallel, with one pass over the rows and one
 /// parallel region instead of three.
 #[allow(clippy::too_many_arguments)]
-fn rows3_dots<F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, cols: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], f: F) -> (f64, f64)
+fn rows3_dots<F>(
+    exec: Exec,
+    st: usize,
+    rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
+    x: &mut [f64],
+    r: &mut [f64],
+    z: &mut [f64],
+    f: F,
+) -> (f64, f64)
 where
     F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
 {
@@ -356,12 +344,7 @@ where
     let blk = st * ROW_BLOCK;
     let partial: Vec<(f64, f64)> = if exec.use_parallel(x.len()) {
         use rayon::prelude::*;
-        x.par_chunks_mut(blk)
-            .zip(r.par_chunks_mut(blk))
-            .zip(z.par_chunks_mut(blk))
-            .enumerate()
-            .map(|(b, ((xb, rb), zb))| block(b, xb, rb, zb))
-            .collect()
+        x.par_chunks_mut(blk).zip(r.par_chunks_mut(blk)).zip(z.par_chunks_mut(blk)).enumerate().map(|(b, ((xb, rb), zb))| block(b, xb, rb, zb)).collect()
     } else {
         x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).enumerate().map(|(b, ((xb, rb), zb))| block(b, xb, rb, zb)).collect()
     };
@@ -381,11 +364,7 @@ where
     let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
     if exec.use_parallel(x.len()) {
         use rayon::prelude::*;
-        x.par_chunks_mut(st)
-            .zip(r.par_chunks_mut(st))
-            .zip(z.par_chunks_mut(st))
-            .enumerate()
-            .for_each(|(k, ((a, b), c))| f(rows.start + k, a, b, c));
+        x.par_chunks_mut(st).zip(r.par_chunks_mut(st)).zip(z.par_chunks_mut(st)).enumerate().for_each(|(k, ((a, b), c))| f(rows.start + k, a, b, c));
     } else {
         for (k, ((a, b), c)) in x.chunks_mut(st).zip(r.chunks_mut(st)).zip(z.chunks_mut(st)).enumerate() {
             f(rows.start + k, a, b, c);

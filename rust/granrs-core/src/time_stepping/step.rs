@@ -43,13 +43,13 @@
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
-use crate::models::{ConvectionScheme, TwoPhaseModel};
+use crate::levelset::blend_harmonic;
+use crate::models::{ConvectionScheme, ModelConfig, TwoPhaseModel};
 use crate::operators::{
     cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
     BcMode,
 };
 use crate::projection::fill_pressure_ghosts;
-use crate::levelset::blend_harmonic;
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
@@ -109,11 +109,10 @@ impl TwoPhaseModel {
             return self.step_active(ar);
         }
         let retries = if self.config.time.fixed_dt.is_none() { self.config.time.step_retries } else { 0 };
-        if retries > 0 {
-            let mut snapshot = std::mem::take(&mut self.step_snapshot);
-            self.checkpoint_into(&mut snapshot);
-            self.step_snapshot = snapshot;
-        }
+        // the last accepted state, restored when the step fails (reused buffers)
+        let mut snapshot = std::mem::take(&mut self.step_snapshot);
+        self.checkpoint_into(&mut snapshot);
+        self.step_snapshot = snapshot;
         let land = self.time_to_land;
         let mut attempt = 0usize;
         loop {
@@ -124,16 +123,16 @@ impl TwoPhaseModel {
                     self.dt_ceiling *= crate::time_stepping::DT_CEILING_RECOVERY;
                     return Ok(info);
                 }
-                Err(e) if attempt < retries && is_rejectable(&e) => {
+                Err(e @ Error::PicardNotConverged { .. }) if attempt < retries => {
+                    drop(e);
                     self.undo_step(land)?;
                     self.dt_ceiling = 0.5 * self.dt_attempt;
                     attempt += 1;
                 }
                 Err(e) => {
-                    if retries > 0 {
-                        // the model is left as it was before the failed step
-                        self.undo_step(land)?;
-                    }
+                    // the model is left at its last accepted state
+                    self.undo_step(land)?;
+                    let e = e.into_reported();
                     return Err(if attempt > 0 { with_retries(e, attempt) } else { e });
                 }
             }
@@ -149,12 +148,11 @@ impl TwoPhaseModel {
         out
     }
 
+    /// The stages on the model's rayon pool (built once, in [`TwoPhaseModel::new`]).
     fn step_pooled(&mut self) -> Result<StepInfo> {
         let exec = self.exec();
-        let pool = std::mem::replace(&mut self.pool, rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap());
-        let out = pool.install(|| self.step_stages(exec));
-        self.pool = pool;
-        out
+        let pool = std::sync::Arc::clone(&self.pool);
+        pool.install(|| self.step_stages(exec))
     }
 
     fn step_stages(&mut self, exec: Exec) -> Result<StepInfo> {
@@ -435,9 +433,7 @@ impl TwoPhaseModel {
         match r {
             Ok(_) => Ok(()),
             // an unstable or non-finite p_f: the room names the cell, the step and time are added here
-            Err(Error::Simulation { what, location, .. }) => {
-                Err(Error::Simulation { what, step: self.step_count + 1, time: self.time + dt, location })
-            }
+            Err(Error::Simulation { what, location, .. }) => Err(Error::Simulation { what, step: self.step_count + 1, time: self.time + dt, location }),
             Err(e) => Err(self.at_step(Error::SolverFailure { solver: "pore-pressure solve".into(), message: e.to_string() })),
         }
     }
@@ -507,7 +503,9 @@ impl TwoPhaseModel {
             // surface act on the grains only and no light-phase dynamics enters the predictor
             let cf = FROZEN_FACE * a0 * cfg.dense.density / dt;
             let (ps, sp) = (self.phi.slice(), self.phi.stride());
-            for (rhs, c, un, um, horizontal) in [(&mut wk.rhs_u, &mut wk.c_u, &self.u, &self.u_prev, true), (&mut wk.rhs_v, &mut wk.c_v, &self.v, &self.v_prev, false)] {
+            for (rhs, c, un, um, horizontal) in
+                [(&mut wk.rhs_u, &mut wk.c_u, &self.u, &self.u_prev, true), (&mut wk.rhs_v, &mut wk.c_v, &self.v, &self.v_prev, false)]
+            {
                 let (mx, st) = (rhs.nx, rhs.stride());
                 let (us, ums) = (un.slice(), um.slice());
                 // the cell before the face: left (u) or below (v); row by row (elementwise)
@@ -529,7 +527,6 @@ impl TwoPhaseModel {
         // buffers of u, v, p, Φ never move, Python holds views of them)
         let (we, wm) = if first { (1.0, 0.0) } else { (1.0 + w, w) };
         for (x, xm) in [(&mut self.u, &mut self.u_prev), (&mut self.v, &mut self.v_prev)] {
-            let st = x.stride();
             let n = x.nx;
             for_each_interior_row2(exec, x, xm, |_, row, rowm| {
                 for i in HALO..HALO + n {
@@ -538,7 +535,6 @@ impl TwoPhaseModel {
                     rowm[i] = un;
                 }
             });
-            let _ = st;
         }
         std::mem::swap(&mut wk.conv_u, &mut self.conv_prev_u);
         std::mem::swap(&mut wk.conv_v, &mut self.conv_prev_v);
@@ -611,6 +607,39 @@ impl TwoPhaseModel {
                 location: Some(loc),
             });
         }
+        // the other fields of the state (a NaN there does not always reach u within the step)
+        let pf = self.pore.as_ref().map(|pore| &pore.pf);
+        for (name, f) in [("p", Some(&self.p)), ("phi", Some(&self.phi)), ("pf", pf)] {
+            if let Some(loc) = f.and_then(first_non_finite) {
+                return Err(Error::Simulation {
+                    what: format!("non-finite {name} (NaN or inf) after the step (blow-up)"),
+                    step: self.step_count + 1,
+                    time: next_time,
+                    location: Some(loc),
+                });
+            }
+        }
+        // the step collapsing: the adaptive rule's next step at the speeds reached
+        if cfg.time.fixed_dt.is_none() {
+            if let Some((floor, u_ref)) = dt_floor(cfg) {
+                let gmag = (cfg.gravity[0].powi(2) + cfg.gravity[1].powi(2)).sqrt();
+                let dt_next = stable_dt(cfg.time.cfl, umax, vmax, g.dx, g.dy, gmag, 0.0);
+                if dt_next < floor {
+                    let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
+                    let loc = if fu.0 / g.dx >= fv.0 / g.dy { fu.1 } else { fv.1 };
+                    return Err(Error::Simulation {
+                        what: format!(
+                            "the time step collapsed (blow-up): the CFL rule gives δt = {dt_next:.3e} s at max|u| = {umax:.3e}, max|v| = {vmax:.3e} m/s, \
+                             below the floor {floor:.3e} s (the step at {SPEED_BOUND} times the reference speed {u_ref:.3e} m/s, \
+                             the free-fall speed √(2|g|(Lx + Ly)) or the largest boundary speed)"
+                        ),
+                        step: self.step_count + 1,
+                        time: next_time,
+                        location: Some(loc),
+                    });
+                }
+            }
+        }
         let divergence = if self.free_surface.is_some() {
             crate::projection::free_surface::divergence_max_abs_granular(&self.u, &self.v, &self.phi, g)
         } else {
@@ -636,24 +665,41 @@ impl TwoPhaseModel {
         Ok(self.last)
     }
 
-    /// Attaches the step and time to a solver error.
+    /// Attaches the step and time to a solver error ([`Error::SolverInStep`]).
     fn at_step(&self, e: Error) -> Error {
-        match e {
-            Error::NotConverged { .. } | Error::SolverFailure { .. } => Error::Simulation {
-                what: e.to_string(),
-                step: self.step_count + 1,
-                time: self.time,
-                location: None,
-            },
-            other => other,
-        }
+        e.in_step(self.step_count + 1, self.time)
     }
 }
 
-/// Whether a step that failed with `e` may be retaken with a smaller δt: the Picard iteration
-/// of the bi-projection did not converge (its contraction degrades as δt grows).
-fn is_rejectable(e: &Error) -> bool {
-    matches!(e, Error::Simulation { what, .. } if what.starts_with(crate::rheology::plastic::PICARD_FAILURE))
+/// A flow faster than this many times its reference speed (the free-fall speed over the domain,
+/// √(2|g|(Lx + Ly)), or the largest prescribed boundary speed) is a blow-up: the adaptive step
+/// collapses below the CFL step at that speed. The default column stays below the reference
+/// speed itself (ny = 32: max|u| = 2.2 m/s dry and 2.4 m/s fluidised, against
+/// √(2g(Lx + Ly)) = 8.9 m/s for its 3.6 m × 0.45 m box), some 400 times below the bound.
+pub const SPEED_BOUND: f64 = 100.0;
+
+/// The floor of the adaptive step ([`SPEED_BOUND`]) and the reference speed; None when the flow
+/// has no forcing that sets a speed (no gravity, no moving boundary).
+fn dt_floor(cfg: &ModelConfig) -> Option<(f64, f64)> {
+    let g = &cfg.grid;
+    let gmag = (cfg.gravity[0].powi(2) + cfg.gravity[1].powi(2)).sqrt();
+    let mut u_ref = (2.0 * gmag * (g.lx + g.ly)).sqrt();
+    for side in crate::grid::Side::ALL {
+        if let crate::grid::VelocityBc::Velocity { normal, tangential } = cfg.bc.get(side) {
+            u_ref = u_ref.max(normal.abs()).max(tangential.abs());
+        }
+    }
+    let u_bound = SPEED_BOUND * u_ref;
+    (u_ref > 0.0).then(|| (stable_dt(cfg.time.cfl, u_bound, u_bound, g.dx, g.dy, gmag, 0.0), u_ref))
+}
+
+/// The first interior cell (i, j) of `f` holding NaN or inf, if any.
+fn first_non_finite(f: &Field) -> Option<(usize, usize)> {
+    let a = f.interior();
+    if a.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    a.indexed_iter().find(|(_, x)| !x.is_finite()).map(|((j, i), _)| (i, j))
 }
 
 /// `e` with the number of rejected attempts before it in its message.
@@ -676,8 +722,14 @@ pub fn interior_to_vec(src: &Field) -> Vec<f64> {
 /// the free-surface model's predictor), `ptot` a work field.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn pressure_gradient(
-    p: Option<&Field>, pore: Option<&mut crate::pore_pressure::PorePressure>, ptot: &mut Field, gx: &mut Field, gy: &mut Field, grid: &crate::grid::Grid,
-    bc: &crate::grid::BoundaryConditions, exec: Exec,
+    p: Option<&Field>,
+    pore: Option<&mut crate::pore_pressure::PorePressure>,
+    ptot: &mut Field,
+    gx: &mut Field,
+    gy: &mut Field,
+    grid: &crate::grid::Grid,
+    bc: &crate::grid::BoundaryConditions,
+    exec: Exec,
 ) {
     match (p, pore) {
         (Some(p), None) => gradient(p, grid, gx, gy, exec),

@@ -32,8 +32,8 @@
 pub mod side;
 
 use crate::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
-use crate::operators::unknown_face_range;
 use crate::levelset::heaviside;
+use crate::operators::unknown_face_range;
 use crate::rheology::InterfaceYield;
 use std::ops::Range;
 
@@ -120,7 +120,17 @@ impl CoulombWalls {
     /// the smoothed jump ([`InterfaceYield::shift`]); `p_s` the reference pressure of
     /// [`crate::rheology::YieldPressure`] (0: p itself).
     #[allow(clippy::too_many_arguments)]
-    pub fn set_friction(&mut self, p: &Field, p_s: f64, tnn: Option<NormalStress>, phi: &Field, tan_alpha_b: f64, eps: Option<f64>, iy: InterfaceYield, grid: &Grid) {
+    pub fn set_friction(
+        &mut self,
+        p: &Field,
+        p_s: f64,
+        tnn: Option<NormalStress>,
+        phi: &Field,
+        tan_alpha_b: f64,
+        eps: Option<f64>,
+        iy: InterfaceYield,
+        grid: &Grid,
+    ) {
         let hv = |x: f64| eps.map_or(1.0, |e| heaviside(iy.shift(x, e), e));
         let (nx, ny) = (grid.nx as isize, grid.ny as isize);
         // value extrapolated to the wall from the cells (i, j) inward

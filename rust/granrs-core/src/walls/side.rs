@@ -116,7 +116,20 @@ impl SideWallFriction {
     /// pressure p_s, Φ (ghosts filled), the face densities and c = a₀ρ/δt. `walls` the channel,
     /// `eps` the interface half-width (None: one phase, H = 1 wherever Φ > 0 counts as granular).
     #[allow(clippy::too_many_arguments)]
-    pub fn set_friction(&mut self, walls: SideWalls, p: &Field, p_s: f64, phi: &Field, eps: Option<f64>, iy: InterfaceYield, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, theta: f64, exec: Exec) {
+    pub fn set_friction(
+        &mut self,
+        walls: SideWalls,
+        p: &Field,
+        p_s: f64,
+        phi: &Field,
+        eps: Option<f64>,
+        iy: InterfaceYield,
+        rho_u: &Field,
+        rho_v: &Field,
+        a0_over_dt: f64,
+        theta: f64,
+        exec: Exec,
+    ) {
         let coeff = 2.0 * walls.friction_angle.to_radians().tan() / walls.width;
         let hv = move |f: f64| match eps {
             Some(e) => heaviside(iy.shift(f, e), e),
@@ -172,10 +185,9 @@ impl SideWallFriction {
     /// projection of each component with the other averaged from its four neighbours). s = 0
     /// where τ_w = 0. Returns max (2/W)τ_w|s^{k+1} − s^k| / max (2/W)τ_w.
     pub fn update(&mut self, u: &Field, v: &Field, theta: f64, exec: Exec) -> f64 {
-        for (trial, s, s_n, tau, r, vel) in [
-            (&mut self.trial_u, &self.s_u, &self.s_u_n, &self.tau_u, &self.r_u, u),
-            (&mut self.trial_v, &self.s_v, &self.s_v_n, &self.tau_v, &self.r_v, v),
-        ] {
+        for (trial, s, s_n, tau, r, vel) in
+            [(&mut self.trial_u, &self.s_u, &self.s_u_n, &self.tau_u, &self.r_u, u), (&mut self.trial_v, &self.s_v, &self.s_v_n, &self.tau_v, &self.r_v, v)]
+        {
             let (ss, sn, ts, rs, vs, n) = (s.slice(), s_n.slice(), tau.slice(), r.slice(), vel.slice(), trial.nx);
             for_each_interior_row(exec, trial, |j, row| {
                 let b = base(tau, j as isize);
