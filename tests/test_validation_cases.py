@@ -67,8 +67,14 @@ OUT_OF_RANGE = [
 ]
 
 
+# cases whose verdict runs for minutes at the reference's resolutions: their passed is shown to
+# follow the reference on stored and perturbed data in the file named
+VERDICT_TESTED_IN = {"peer-dry-column": "tests/test_peer.py"}
+
+
 def test_every_case_is_covered():
-    assert set(PERTURBED) == set(CASES)
+    assert set(PERTURBED) | set(VERDICT_TESTED_IN) == set(CASES)
+    assert not set(PERTURBED) & set(VERDICT_TESTED_IN)
     assert CROSS_CHECKS <= set(CASES)
 
 
