@@ -130,7 +130,7 @@ fn area_change(nx: usize, ny: usize, free_surface: bool, t_end: f64) -> f64 {
 fn the_area_drift_without_mass_correction_stays_within_one_percent() {
     // The extension is not divergence-free in the air, so the level set's area drifts, as the
     // two-phase model's does (the column case runs with the mass correction). Without it, the
-    // drift to t = 0.15 s stays within the 1 % the column issue asks of the corrected runs, on
+    // drift to t = 0.15 s stays within the 1 % required of the corrected runs, on
     // each grid (measured 0.34 / 0.41 / 0.26 %; the two-phase model 0.62 / 1.05 / -0.85 %).
     let t = 0.15;
     let e: Vec<f64> = [(48, 16), (96, 32), (192, 64)].iter().map(|&(nx, ny)| area_change(nx, ny, true, t)).collect();

@@ -76,7 +76,7 @@ fn hydrostatic_two_density_layer_stays_at_rest() {
         worst = worst.max(info.max_speed);
     }
     println!("hydrostatic: max speed over 1000 steps {worst:.3e}, final {:.3e}, t = {}", m.last.max_speed, m.time);
-    // round-off level: |g| δt ε_machine ρ-ratio ≈ 1e-12; 1e-8 is the bound
+    // round-off level: |g| δt ε_machine ρ-ratio ≈ 1e-12; 1e-8 is the required bound
     assert!(worst < 1e-8, "max speed {worst}");
 }
 

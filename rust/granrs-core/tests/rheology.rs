@@ -76,7 +76,7 @@ fn poiseuille_plug_exact_and_second_order() {
     }
     let orders: Vec<f64> = errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
     println!("orders {orders:?}");
-    // issue: l2 <= 1 % at n = 64, second order
+    // required: l2 <= 1 % at n = 64, second order
     assert!(errors[2] <= 0.01 && orders.iter().all(|&o| o >= 1.9));
 }
 
@@ -107,7 +107,7 @@ fn centred_plastic_tensor_converges_to_the_bingham_poiseuille_profile() {
     // measured: the staggered layout's l2 errors (7.46e-3, 1.87e-3, 4.66e-4) to three digits, and
     // the plug speed within 2e-6 of exact; but the stress settles slowly (166 steps at n = 16, the
     // 400-step cap at 32 and 64, against 29 staggered): the cell-averaged D_xy leaves the zig-zag
-    // of D_xy between node rows to the viscosity alone. Bounds: the issue's 1 % at n = 64, second
+    // of D_xy between node rows to the viscosity alone. Bounds: the required 1 % at n = 64, second
     // order, the plug within 1e-5 (the cap's residual, 5× the measured).
     assert!(errors[2].0 <= 0.01 && orders.iter().all(|&o| o >= 1.9), "{errors:?} {orders:?}");
     assert!(errors.iter().all(|e| e.1 < 1e-5), "plug speeds {errors:?}");
