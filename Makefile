@@ -37,8 +37,11 @@ test-slow: install
 bench: install
 	cargo bench -p granrs-core
 
+# The Rust tree's layout, clippy's lints as errors, and the core's floors (rust/granrs-core/src/lib.rs).
 lint:
+	cargo fmt --all -- --check
 	cargo clippy --workspace --release --all-targets -- -D warnings
+	python3 scripts/check_layers.py
 
 clean:
 	rm -rf $(VENV) target $(OUT) docs/_build docs/auto_examples docs/reference/generated

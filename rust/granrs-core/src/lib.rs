@@ -5,19 +5,46 @@
 //! granular flows: numerical simulations versus experiments*. No Python here: `cargo test` and
 //! `cargo bench` run on their own; the `granrs-py` crate binds this to Python.
 //!
-//! Rooms (one folder per concept, the paper's names):
-//! - [`grid`]: the grid, MAC locations, fields with halos, boundary conditions;
-//! - [`operators`]: staggered differences, interpolations, divergence/gradient, strain rate, viscous operator;
-//! - [`solvers`]: multigrid-preconditioned CG and faer sparse Cholesky for the pressure equation;
-//! - [`levelset`]: WENO5 + TVD-RK3 transport, redistancing, smoothed Heaviside and material laws;
-//! - [`pore_pressure`]: advection–diffusion of the pore gas pressure p_f and its boundary conditions;
-//! - [`projection`]: the variable-density pressure projection;
-//! - [`rheology`]: Newtonian, Bingham, Drucker–Prager and μ(I) laws; `plastic.rs`, the plastic
-//!   projection Σ = P(Σ + r D(u)) and its Picard iteration (the bi-projection scheme);
-//! - [`walls`]: Coulomb friction walls (the friction projection s = P_b(s − r_b u_t));
-//! - [`time_stepping`]: clock, CFL, and `step.rs`, the one ordered list of the stages of a step;
-//! - [`models`]: the two-phase model that owns the state and takes one step;
-//! - [`diagnostics`]: what is measured on the state, not a stage of the step (the energy budget).
+//! ## Where each equation is discretised
+//!
+//! The paper's equations (Aravena et al. §2.4 and §3.1) and the file and function that
+//! discretise each; every such file opens with its equation.
+//!
+//! | equation | what | file | function |
+//! |---|---|---|---|
+//! | (10a) | ∂_t Φ + u·∇Φ = 0 (step 1, WENO5 + TVD-RK3) | `levelset/transport.rs` | [`levelset::LevelSetTransport::advect`] |
+//! | (10b) | momentum: ρ(∂_t u + u·∇u) + ∇(p + p_f) = ρg + div(2ηD) + div(τΣ) | `models/step.rs`, `time_stepping/momentum.rs` | `TwoPhaseModel::predictor`, [`time_stepping::MomentumSolver::solve_implicit`] |
+//! | (10c) | div u = 0 | `projection/mod.rs` | [`projection::PressureProjection::project`] |
+//! | (10d) | Σ = P(Σ + r D(u)), the plastic projection | `rheology/plastic.rs` | [`rheology::PlasticState::update`] |
+//! | (10e) | σ_t = τ_b s, s = P_b(s − r_b u_t), the Coulomb walls | `walls/mod.rs` | [`walls::CoulombWalls::update`] |
+//! | (10f) | ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (step 3) | `pore_pressure/mod.rs` | [`pore_pressure::PorePressure::advance`] |
+//! | (11) | the predictor ũ^{n+1} with Σ^{n+1}, s^{n+1} (step 4, BDF2) | `models/step.rs`, `models/rheology_stage.rs` | `TwoPhaseModel::predictor`, `TwoPhaseModel::momentum_solve` |
+//! | (12) | the Picard iteration of the bi-projection (pseudo-relaxation θ) | `models/rheology_stage.rs` | `TwoPhaseModel::picard_loop` |
+//! | step 5 | the pressure projection: a₀ρ(u^{n+1} − ũ)/δt + ∇δp = 0, div u^{n+1} = 0 | `projection/mod.rs` (granular-only: `projection/free_surface.rs`) | [`projection::PressureProjection::project`] ([`projection::free_surface::FreeSurfaceProjection::project`]) |
+//!
+//! The order of the stages of a step (steps 1–5 of the paper) is stated once, in `models/step.rs`.
+//!
+//! ## Rooms and floors
+//!
+//! One folder per concept, the paper's names. A room imports only rooms on a lower floor, or
+//! rooms of its own floor without a cycle (checked by `scripts/check_layers.py` in CI):
+//!
+//! 5. [`models`]: the two-phase model (the state, its configuration, `step.rs`: the one ordered
+//!    list of the stages of a step and the rejected-step rule, the rheology's stages on the
+//!    model, checkpoints, the active window, the energy budget, the memory estimate) and the
+//!    depth-averaged model;
+//! 4. [`time_stepping`]: clock (δt, BDF2 coefficients, the step's floor), the momentum
+//!    predictor's viscous solver, what a step did;
+//! 3. physics rooms: [`levelset`] (transport, redistancing, smoothed Heaviside and material
+//!    laws), [`pore_pressure`], [`projection`] (the pressure projections), [`rheology`] (laws,
+//!    the plastic projection and its state), [`walls`] (Coulomb and side-wall friction),
+//!    [`plasticity`] (what rheology and walls share: the unit-ball projection, the increment of
+//!    a projected field, the interface blending of yield and friction), [`diagnostics`] (the
+//!    energy budget's terms);
+//! 2. [`operators`] (staggered differences, interpolations, WENO5, strain rate, viscous
+//!    operator) and [`solvers`] (multigrid-preconditioned CG, sparse Cholesky);
+//! 1. [`grid`]: the grid, MAC locations, fields with halos, boundary conditions;
+//! 0. [`error`] and [`exec`] (the execution policy: serial or the model's rayon pool).
 
 pub mod diagnostics;
 pub mod error;
@@ -26,6 +53,7 @@ pub mod grid;
 pub mod levelset;
 pub mod models;
 pub mod operators;
+pub mod plasticity;
 pub mod pore_pressure;
 pub mod projection;
 pub mod rheology;

@@ -1,5 +1,5 @@
 //! A step that fails leaves the model at its last accepted state, bit for bit, and a blow-up is
-//! reported with its step, time and cell (time_stepping/step.rs, stage 7).
+//! reported with its step, time and cell (models/step.rs, stage 7).
 
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};

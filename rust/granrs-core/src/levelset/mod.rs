@@ -13,7 +13,7 @@
 //! | [`diagnostics`] | dense-phase area, symmetric difference, eikonal error | — |
 //! | [`validation`] | Zalesak disk, Rider–Kothe vortex | validation-data.md §6 |
 //!
-//! Typical use inside a time step (the order lives in `time_stepping/step.rs`):
+//! Typical use inside a time step (the order lives in `models/step.rs`):
 //!
 //! ```
 //! use granrs_core::{Exec, Field, Grid, Location};
@@ -45,7 +45,7 @@ pub mod shapes;
 pub mod subcell;
 pub mod transport;
 pub mod validation;
-pub mod weno5;
+pub use crate::operators::weno5;
 
 pub use diagnostics::{dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError};
 pub use heaviside::{blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS};

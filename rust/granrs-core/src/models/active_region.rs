@@ -1,8 +1,8 @@
-//! Active region of the two-phase model (issue 8): each step runs on a window of the grid around
+//! Active region of the two-phase model: each step runs on a window of the grid around
 //! the dense phase instead of on the whole domain.
 //!
 //! Equations: the same as the whole-domain model (Aravena et al. eq. 10a–f, stages in
-//! `time_stepping/step.rs`), on the window W = (x0, x0 + n_x^W dx) × (y0, y0 + n_y^W dy) anchored at
+//! `models/step.rs`), on the window W = (x0, x0 + n_x^W dx) × (y0, y0 + n_y^W dy) anchored at
 //! the domain's lower-left corner, with the domain's own boundary conditions on all four sides of
 //! W (but open right and top sides with [`WindowSides`], below). Outside W the light phase is taken at
 //! rest with its hydrostatic pressure, so that on the window's right and top sides (walls: no
@@ -89,8 +89,8 @@ pub enum WindowSides {
     #[default]
     Walls,
     /// The right side is open: an outflow side at the ambient light phase's hydrostatic
-    /// pressure, through which the air the advancing front pushes leaves W (the session-14
-    /// form, kept bit for bit: no backflow stabilisation). The top is a wall.
+    /// pressure, through which the air the advancing front pushes leaves W (no backflow
+    /// stabilisation). The top is a wall.
     OpenRight,
     /// The right and top sides are open, both with backflow stabilisation (p_b − ½ρ(u·n)² where
     /// air enters, [`crate::grid::BoundaryConditions::backflow`]), which keeps an open top over

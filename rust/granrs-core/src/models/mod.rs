@@ -10,7 +10,11 @@
 pub mod active_region;
 mod checkpoint;
 pub mod depth_averaged;
+mod energy;
 pub mod memory;
+mod rest;
+mod rheology_stage;
+mod step;
 mod two_phase;
 
 pub use active_region::{ActiveRegion, WindowSides};

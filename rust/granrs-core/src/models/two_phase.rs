@@ -1,7 +1,7 @@
 //! The two-phase model: configuration, state, and the work arrays of a step.
 //!
 //! State at t_n: u^n, v^n (MAC faces), u^{n−1}, v^{n−1} and (u·∇u)^{n−1} for BDF2, p^n (cell
-//! centres), Φ^n (cell centres). The stages of a step are listed in `time_stepping/step.rs`.
+//! centres), Φ^n (cell centres). The stages of a step are listed in `models/step.rs`.
 
 use crate::diagnostics::EnergyLedger;
 use crate::error::{check_finite, check_positive, Error, Result};

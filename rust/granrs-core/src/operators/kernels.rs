@@ -167,7 +167,7 @@ pub fn convection(u: &Field, v: &Field, grid: &Grid, out_u: &mut Field, out_v: &
 }
 
 /// Convective acceleration (u·∇)u on every face, advective form, each derivative by the upwind
-/// WENO5 reconstruction of Jiang & Shu (1996) (the level set's scheme, `levelset::weno5`),
+/// WENO5 reconstruction of Jiang & Shu (1996) (the level set's scheme, `operators::weno5`),
 /// upwinded by the sign of the advecting component; the transverse velocity is the average of
 /// the four nearest values. Dissipative where the velocity is under-resolved (the shear layer of
 /// the light phase over a flowing dense phase), where the centred form of [`convection`] feeds
@@ -176,7 +176,7 @@ pub fn convection(u: &Field, v: &Field, grid: &Grid, out_u: &mut Field, out_v: &
 /// interval), and at a cell Reynolds number of ~10³ (air) viscosity does not damp them.
 /// Needs three valid ghost layers of u and v.
 pub fn convection_weno5(u: &Field, v: &Field, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
-    use crate::levelset::weno5::{weno5_minus, weno5_plus, window};
+    use super::weno5::{weno5_minus, weno5_plus, window};
     let (us, vs) = (u.slice(), v.slice());
     let (sx, sy) = (1.0 / grid.dx, 1.0 / grid.dy);
     let nx = grid.nx;

@@ -15,6 +15,7 @@
 
 mod ghosts;
 mod kernels;
+pub mod weno5;
 
 pub use ghosts::{fill_velocity_ghosts, periodic_pair, unknown_face_range, BcMode};
 pub use kernels::{

@@ -1,4 +1,4 @@
-//! Free-surface projection of the granular-only model (issue 8: the air is not resolved; the
+//! Free-surface projection of the granular-only model (the air is not resolved; the
 //! granular phase Φ > 0 is bounded by a free surface at the ambient pressure):
 //!
 //!   a₀ ρ_s (u^{n+1} − ũ^{n+1}) / δt + ∇p^{n+1} = 0,   div u^{n+1} = 0   in Ω_s = {Φ > 0},

@@ -42,6 +42,7 @@ pub(crate) mod stage;
 
 use crate::error::{check_positive, check_range, Error, Result};
 
+pub use crate::plasticity::InterfaceYield;
 pub use plastic::{PicardInfo, PlasticState};
 pub use rest::RestStress;
 
@@ -140,48 +141,6 @@ impl RheologyLaw {
                 check_positive("grain_diameter", grain_diameter)?;
                 check_positive("grain_density", grain_density)
             }
-        }
-    }
-}
-
-/// Where the smoothed jump of the yield stress τ(Φ) and of the wall friction τ_b(Φ) sits across
-/// the interface band |Φ| < ε of the two-phase model.
-///
-/// The density is ρ(Φ) = ρ_f + (ρ_s − ρ_f) H_ε(Φ) (paper §2.4), so the band carries granular
-/// weight from Φ = −ε on. With the paper's τ(Φ) = tan(α) p H_ε(Φ) the band's Coulomb ratio is
-/// τ/p = tan(α) H_ε(Φ) < tan α: a band element whose shear-to-normal stress ratio exceeds
-/// tan(α) H_ε(Φ) yields although the material is below its friction angle. On a slope θ < α
-/// the part of the band where H_ε(Φ) < tan θ / tan α slides (about the upper half of the band
-/// at θ = 20°, α = 27°), and in a tongue decelerated by basal friction (tan α_b / tan α = 0.53
-/// in the paper's column) the upper half of the band cannot be decelerated with the rest.
-/// Measured on the paper's column (docs/validation.md): at ny = 32 / 64 the fluidised run-out
-/// is 2.03 / 2.12 m with `Paper` and 1.66 / 1.98 m with `GranularSide`. The paper's form stays
-/// the default until the column's grid convergence decides between them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum InterfaceYield {
-    /// τ(Φ) = τ(p) H_ε(Φ), τ_b(Φ) = tan(α_b)(−σ_n)⁺ H_ε(Φ): the paper's eq. after (10f).
-    #[default]
-    Paper,
-    /// τ(Φ) = τ(p) H_ε(Φ + ε), τ_b likewise: full strength wherever Φ > 0 (the same smoothed
-    /// function, shifted by ε to the air side, where p ≈ 0 under the top gauge).
-    GranularSide,
-    /// τ(Φ) = τ(p) H_ε(Φ + 2ε), τ_b likewise: full strength on the whole support of the
-    /// smoothed density (Φ > −ε, where the band carries granular weight), so that the Coulomb
-    /// ratio is tan α wherever there is granular weight to hold; H_ε rises to it over the air
-    /// cells −3ε < Φ < −ε, where p ≈ 0 under the top gauge and there is no weight. The only
-    /// form with which an inclined free surface can be at rest (the band's required ratio is
-    /// tan θ at every depth of it: `granrs validate fluidised-layer`, docs/validation.md).
-    DensitySupport,
-}
-
-impl InterfaceYield {
-    /// The argument of H_ε for the level-set value `phi`.
-    #[inline]
-    pub fn shift(self, phi: f64, eps: f64) -> f64 {
-        match self {
-            InterfaceYield::Paper => phi,
-            InterfaceYield::GranularSide => phi + eps,
-            InterfaceYield::DensitySupport => phi + 2.0 * eps,
         }
     }
 }

@@ -33,7 +33,7 @@
 //! this nodal equivalent for the energy budget and the views). Measured: the Bingham Poiseuille
 //! profile has the same l2 errors and the same second order, but the stress settles 6 to more
 //! than 14 times slower (166 steps against 29 at n = 16; the 400-step cap at 32 and 64) (the cell average does not see the zig-zag of D_xy between node rows); the
-//! column runs 6–7 % further at ny = 32 and 2–5 % at ny = 64 (docs/validation.md, session 17).
+//! column runs 6–7 % further at ny = 32 and 2–5 % at ny = 64 (docs/validation.md, Column collapse).
 //!
 //! **Choice of r (contraction).** With the discrete force F(Σ) = −2 Dᵀ τ Σ and the predictor
 //! operator A = c + Dᵀ(2η)D ≥ c + 4η DᵀD (c = a₀ρ/δt), the linearised iteration is
@@ -52,16 +52,16 @@
 //! the local r (docs/validation.md).
 //!
 //! The relaxed fixed point of eq. (12) (θ > 0) *does* depend on r: a rigid zone deforms at
-//! D = θ(Σ − Σⁿ)/r, an elastic body of compliance θδt/(τr). With w = 2 (the default until
-//! session 16) every cell within two cells of the air takes the air face's k, about 1600 times
-//! the bulk value, so a band two cells deep under every surface is 1600 times softer than the
-//! bulk; at the adaptive steps of the column its elastic strains reach O(1) and the late
-//! run-out depends on δt by tens of per cent (docs/validation.md, session 16). With w = 0 (k of
-//! the cell's own four faces) only the surface cells themselves are soft, and the run-out
-//! agrees across δt: w = 0 is the default since session 16. (w = 2 had been chosen because k of
-//! the point alone flip-flopped, increment ≈ 2, at the interface band where k jumps by ~80 over
-//! two cells; no case measured in session 16 does,
-//! and the stall safeguard of the Picard loop, `rheology/stage.rs`, halves r if one does.)
+//! D = θ(Σ − Σⁿ)/r, an elastic body of compliance θδt/(τr). With w = 2 every cell within two
+//! cells of the air takes the air face's k, about 1600 times the bulk value, so a band two cells
+//! deep under every surface is 1600 times softer than the bulk; at the adaptive steps of the
+//! column its elastic strains reach O(1) and the late run-out depends on δt by tens of per cent
+//! (docs/validation.md, Column collapse). With w = 0 (k of the cell's own four faces, the
+//! default) only the surface cells themselves are soft, and the run-out agrees across δt: at
+//! ny = 16 the adaptive run-out is 1.0 % short of the run at δt = 1e-5 s, against 36 % with
+//! w = 2. A larger w guards against k of the point alone flip-flopping (increment ≈ 2) in the
+//! interface band, where k jumps by ~80 over two cells; no measured case does with w = 0, and
+//! the stall safeguard of the Picard loop (`models/rheology_stage.rs`) halves r if one does.
 //! Limits: Stokes (c → 0) r = 2η(1 − θ)/τ ("r ~ η/τ"); inertial (small δt) r = (1 − θ)c/(2Sτ).
 //! A user-given `r` is used as a constant.
 
@@ -70,6 +70,8 @@ use crate::error::Error;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
 use crate::operators::{for_each_interior_row, strain_rate_norm_centre};
+pub(crate) use crate::plasticity::exceeds;
+pub use crate::plasticity::{unit_ball_scale, weighted_max_abs_diff};
 
 /// What the Picard iteration of one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -86,18 +88,6 @@ pub struct PicardInfo {
     pub r_halvings: usize,
     /// Proximal restarts of the anchor in the step (`RheologyConfig::proximal_restarts`).
     pub restarts: usize,
-}
-
-/// P: orthogonal projection on the unit ball of symmetric traceless 2×2 tensors, on the pair
-/// (Λ_xx, Λ_xy) with |Λ|² = Λ_xx² + Λ_xy². Returns the scale factor 1/max(1, |Λ|).
-#[inline]
-pub fn unit_ball_scale(xx: f64, xy: f64) -> f64 {
-    let n2 = xx * xx + xy * xy;
-    if n2 > 1.0 {
-        1.0 / n2.sqrt()
-    } else {
-        1.0
-    }
 }
 
 #[inline]
@@ -488,22 +478,6 @@ pub(crate) fn node_held(z: &[bool; 4], i: usize, j: usize, nxn: usize, nyn: usiz
     (i == 0 && z[0]) || (i + 1 == nxn && z[1]) || (j == 0 && z[2]) || (j + 1 == nyn && z[3])
 }
 
-/// max over the interior of |a − b| w / w_ref (deterministic; NaN propagates).
-pub fn weighted_max_abs_diff(a: &Field, b: &Field, w: &Field, w_ref: f64, exec: Exec) -> f64 {
-    let (sa, sb, sw) = (a.slice(), b.slice(), w.slice());
-    let scale = if w_ref > 0.0 { 1.0 / w_ref } else { 0.0 };
-    let (st, nx) = (a.stride(), a.nx);
-    exec.max_rows(a.ny, a.nx * a.ny, |j| {
-        let bb = (j + HALO) * st + HALO;
-        let mut m = 0.0f64;
-        for i in 0..nx {
-            let d = (sa[bb + i] - sb[bb + i]).abs() * sw[bb + i] * scale;
-            m = if d.is_nan() { f64::NAN } else { m.max(d) };
-        }
-        m
-    })
-}
-
 /// Largest half-width (in cells) of the neighbourhood over which the default r takes the
 /// largest k (`RheologyConfig::r_neighbourhood`).
 pub const MAX_R_NEIGHBOURHOOD: usize = 4;
@@ -617,13 +591,6 @@ impl PlasticState {
             0.0
         }
     }
-}
-
-/// Whether the increment `d` beats the largest so far, `m` (a NaN beats any number: it is
-/// where a blow-up starts).
-#[inline]
-pub(crate) fn exceeds(d: f64, m: f64) -> bool {
-    d > m || (d.is_nan() && !m.is_nan())
 }
 
 /// Where the last Picard iteration changed the stresses most: the plastic tensor at a cell

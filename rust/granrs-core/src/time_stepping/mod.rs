@@ -1,10 +1,10 @@
-//! Time stepping: the clock (δt, BDF2 coefficients), the momentum predictor, and `step.rs`,
-//! the one ordered list of the stages of a time step.
+//! Time stepping: the clock (δt, BDF2 coefficients, the step's floor) and the momentum
+//! predictor's solver. The ordered list of the stages of a step is `models/step.rs`.
 
 pub mod clock;
 pub mod momentum;
-pub mod step;
+mod step_info;
 
-pub use clock::{bdf_coefficients, stable_dt, TimeConfig, DT_CEILING_RECOVERY};
+pub use clock::{bdf_coefficients, stable_dt, TimeConfig, DT_CEILING_RECOVERY, SPEED_BOUND};
 pub use momentum::{MomentumSolver, ViscousScheme};
-pub use step::{StepInfo, SPEED_BOUND};
+pub use step_info::StepInfo;

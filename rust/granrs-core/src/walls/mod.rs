@@ -34,7 +34,7 @@ pub mod side;
 use crate::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use crate::levelset::heaviside;
 use crate::operators::unknown_face_range;
-use crate::rheology::InterfaceYield;
+use crate::plasticity::InterfaceYield;
 use std::ops::Range;
 
 /// The normal stress T_xx = 2η D_xx(u) + τ Σ_xx of the granular phase at a cell centre, for
@@ -214,7 +214,7 @@ impl CoulombWalls {
                 };
                 let new = if w.tau_b[f] > 0.0 { (w.s[f] - r_b * ut + theta * (w.s_n[f] - w.s[f])).clamp(-1.0, 1.0) } else { 0.0 };
                 let d = (new - w.s[f]).abs() * w.tau_b[f] * scale;
-                if largest.is_none_or(|(m, _, _): (f64, Side, usize)| crate::rheology::plastic::exceeds(d, m)) {
+                if largest.is_none_or(|(m, _, _): (f64, Side, usize)| crate::plasticity::exceeds(d, m)) {
                     largest = Some((d, w.side, f));
                 }
                 inc = if d.is_nan() { f64::NAN } else { inc.max(d) };

@@ -17,7 +17,7 @@
 //!
 //!   s^{k+1} = P(s^k + r_w ũ^{k+1} + θ (s^n − s^k)).
 //!
-//! p⁺ and H_ε are those of the yield stress τ(Φ) (`rheology::stage`): the pore pressure
+//! p⁺ and H_ε are those of the yield stress τ(Φ) (`models/rheology_stage.rs`): the pore pressure
 //! relieves the side walls as it relieves the base.
 //!
 //! **Discretisation.** s_x lives on the u-faces, s_y on the v-faces, with τ_w from the two cells
@@ -39,8 +39,8 @@ use crate::levelset::heaviside;
 use crate::operators::for_each_interior_row;
 // the plastic tensor's projection: the pair (Λ_xx, Λ_xy) with |Λ|² = Λ_xx² + Λ_xy² is the same
 // Euclidean unit disc as (s_x, s_y)
-use crate::rheology::plastic::{unit_ball_scale, weighted_max_abs_diff};
-use crate::rheology::InterfaceYield;
+use crate::plasticity::InterfaceYield;
+use crate::plasticity::{unit_ball_scale, weighted_max_abs_diff};
 
 /// The side walls of a channel (`RheologyConfig::side_walls`).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,4 +1,9 @@
-//! One time step t_n → t_{n+1} of the two-phase model. **This is the only place that states the
+//! One time step t_n → t_{n+1} of the two-phase model, Aravena et al. eq. (10a)–(10f):
+//! transport of Φ (10a), momentum (10b) and incompressibility (10c), the plastic projection
+//! Σ = P(Σ + r D(u)) (10d), the walls' friction s = P_b(s − r_b u_t) (10e) and the pore pressure
+//! ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (10f), discretised by the paper's steps 1–5 (§3.1).
+//!
+//! **This is the only place that states the
 //! order of the stages** (Aravena et al. §3.1; step numbers of the paper in brackets):
 //!
 //! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
@@ -11,7 +16,7 @@
 //!    (H_ε(Φ^{n+1} + sε) with the shift s = 0, 1, 2 of `InterfaceYield`),
 //!    τ_b^{n+1} on Coulomb walls, (2/W)τ_w^{n+1} on every face with the channel's side walls
 //!    (`RheologyConfig::side_walls`, `walls/side.rs`), the lagged viscosity of μ(I) and
-//!    regularised laws, r and r_b (`rheology/stage.rs`).
+//!    regularised laws, r and r_b (`models/rheology_stage.rs`).
 //! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection, the body force
 //!    (ρ − ρ_ref) g (ρ_ref = ρ_f with `ModelConfig::ambient_hydrostatic`, else 0) and the viscous term
 //!    (implicit or explicit; on open sides with backflow stabilisation ∇pⁿ takes the boundary
@@ -19,12 +24,13 @@
 //!    yield stress or wall friction, the Picard loop of eq. (12)
 //!    couples it with the plastic projection of Σ and the friction projections of s (the
 //!    Coulomb walls' and, with side walls, the side walls') (`momentum_solve` in
-//!    `rheology/stage.rs`).
+//!    `models/rheology_stage.rs`).
 //!    `check_predictor`: a non-finite ũ (blow-up) stops the step here, naming the cell.
 //! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp (− η div ũ in the rotational form,
 //!    `ModelConfig::rotational_pressure`), then the pressure gauge (p = 0 under the lid when no
 //!    side is open; `ModelConfig::pressure_gauge`).
-//! 7. `checks`: NaN, CFL number, divergence; the BDF2 history moves on.
+//! 7. `checks`: non-finite u, v, p, Φ, p_f; the CFL number; the step collapsing (adaptive δt);
+//!    the divergence; the BDF2 history moves on.
 //!
 //! The granular-only model (`ModelConfig::free_surface`) runs the same stages with these
 //! changes (`projection/free_surface.rs`): the face density is ρ_s on every face beside a
@@ -34,17 +40,21 @@
 //! followed by the extension of the velocity into the air; the divergence of stage 7 is
 //! measured over the granular cells.
 //!
-//! A step whose Picard iteration does not converge is rejected and retaken with δt halved
-//! (`TimeConfig::step_retries`, `time_stepping/clock.rs`): the state before it is restored first.
+//! Before the stages the state is copied; a step that fails is undone from that copy, so after
+//! any error the model is bit for bit at its last accepted state. A step whose Picard iteration
+//! does not converge ([`Error::PicardNotConverged`]) is rejected and retaken with δt halved
+//! (`TimeConfig::step_retries`, `time_stepping/clock.rs`). Stage 7 refuses a step that blew up:
+//! a non-finite u, v, p, Φ or p_f, a CFL number above `cfl_abort`, or (adaptive δt) the next
+//! CFL step below the floor of [`SPEED_BOUND`] (the step collapsing).
 //!
 //! With `ModelConfig::active_region` the step first sizes the window around the dense phase and
 //! runs these same stages on it (`models/active_region.rs`).
 
+use super::{ConvectionScheme, ModelConfig, TwoPhaseModel};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
 use crate::levelset::blend_harmonic;
-use crate::models::{ConvectionScheme, ModelConfig, TwoPhaseModel};
 use crate::operators::{
     cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
     BcMode,
@@ -52,49 +62,21 @@ use crate::operators::{
 use crate::projection::fill_pressure_ghosts;
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
-use crate::time_stepping::clock::{bdf_coefficients, stable_dt};
+use crate::time_stepping::clock::{bdf_coefficients, stable_dt, SPEED_BOUND};
 use crate::time_stepping::momentum::ViscousScheme;
+use crate::time_stepping::StepInfo;
 
 /// Weight of the Dirichlet rows that hold the light phase's faces in the granular-only model's
 /// predictor (c = FROZEN_FACE a₀ρ_s/δt): a node's stress moves such a face by 1e-8 of what it
 /// moves a granular face.
 const FROZEN_FACE: f64 = 1e8;
 
-/// What one step did.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct StepInfo {
-    /// δt of the step.
-    pub dt: f64,
-    /// Time after the step.
-    pub time: f64,
-    /// Pressure solve (iterations, residual).
-    pub pressure: SolveInfo,
-    /// Viscous solve of the predictor (0 iterations when explicit).
-    pub viscous: SolveInfo,
-    /// Pore-pressure solve (0 iterations when not fluidised).
-    pub pore: SolveInfo,
-    /// max |u|, max |v| after the step.
-    pub max_speed: f64,
-    /// Advective CFL number δt (max|u|/dx + max|v|/dy) after the step.
-    pub cfl: f64,
-    /// max |div u| after the projection.
-    pub divergence: f64,
-    /// Picard iterations of the bi-projection (0 without plastic stress or wall friction).
-    pub picard_iterations: usize,
-    /// Final increment max |Σ^{k+1} − Σ^k|, max |s^{k+1} − s^k| of the Picard iteration.
-    pub picard_increment: f64,
-    /// Times the Picard stall safeguard halved r and r_b in the step.
-    pub picard_r_halvings: usize,
-    /// Times the step was rejected (Picard non-convergence) and retaken with δt halved.
-    pub retries: usize,
-}
-
 impl TwoPhaseModel {
     /// Advances the model by one step (stages in the order of this file's header).
     /// With the adaptive rule, a step whose Picard iteration does not converge is rejected and
     /// retaken with δt halved, at most `TimeConfig::step_retries` times (the window of an active
-    /// region does this itself). With retries enabled, a step that fails for good leaves the model
-    /// in its state before the step (the last accepted one).
+    /// region does this itself). A step that fails for good leaves the model bit for bit in its
+    /// state before the step (the last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
         let info = self.step_accepted()?;
         self.account_energy(info.dt);
@@ -671,13 +653,6 @@ impl TwoPhaseModel {
     }
 }
 
-/// A flow faster than this many times its reference speed (the free-fall speed over the domain,
-/// √(2|g|(Lx + Ly)), or the largest prescribed boundary speed) is a blow-up: the adaptive step
-/// collapses below the CFL step at that speed. The default column stays below the reference
-/// speed itself (ny = 32: max|u| = 2.2 m/s dry and 2.4 m/s fluidised, against
-/// √(2g(Lx + Ly)) = 8.9 m/s for its 3.6 m × 0.45 m box), some 400 times below the bound.
-pub const SPEED_BOUND: f64 = 100.0;
-
 /// The floor of the adaptive step ([`SPEED_BOUND`]) and the reference speed; None when the flow
 /// has no forcing that sets a speed (no gravity, no moving boundary).
 fn dt_floor(cfg: &ModelConfig) -> Option<(f64, f64)> {
@@ -710,11 +685,6 @@ fn with_retries(e: Error, attempts: usize) -> Error {
         }
         e => e,
     }
-}
-
-/// Copies the interior of `src` into a row-major buffer.
-pub fn interior_to_vec(src: &Field) -> Vec<f64> {
-    src.interior().iter().copied().collect()
 }
 
 /// ∇(p + p_f) on the faces into `gx`, `gy` (the predictor's pressure force, paper eq. 10b: the
