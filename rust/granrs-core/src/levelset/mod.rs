@@ -11,7 +11,7 @@
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
 //! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
 //! | [`diagnostics`] | dense-phase area, symmetric difference, eikonal error | — |
-//! | [`validation`] | Zalesak disk, Rider–Kothe vortex | validation-data.md §6 |
+//! | [`validation`] | Zalesak disk, Rider–Kothe vortex | docs/reference-data.md, "Level-set transport" |
 //!
 //! Typical use inside a time step (the order lives in `models/step.rs`):
 //!

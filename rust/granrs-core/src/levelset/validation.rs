@@ -1,4 +1,4 @@
-//! Standard level-set transport benchmarks (validation-data.md §6), run end to end with the
+//! Standard level-set transport benchmarks (docs/reference-data.md, "Level-set transport"), run end to end with the
 //! production transport and redistancing.
 //!
 //! - Zalesak (1979, J. Comput. Phys. 31) slotted disk: \[0,100\]², disk centre (50, 75), radius 15,

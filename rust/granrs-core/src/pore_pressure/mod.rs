@@ -1,7 +1,7 @@
 //! Pore gas pressure p_f (Aravena et al. eq. 2 third line and eq. 10f; boundary and initial
 //! conditions §2.3; time discretisation §3.1 step 3):
 //!
-//!   ∂_t p_f + div(u p_f) = div(κ(Φ) ∇p_f)            (10f, with ∇ restored: see validation-data.md §1)
+//!   ∂_t p_f + div(u p_f) = div(κ(Φ) ∇p_f)            (10f, with ∇ restored: docs/reference-data.md, "The paper")
 //!
 //! Two time schemes ([`PoreTimeScheme`]):
 //!

@@ -106,8 +106,9 @@ pub fn check(name: &str, header: &[&str], columns: &[Column], rows: &[Vec<String
                 Tol::Close { rel, abs } => {
                     let (gv, ev): (f64, f64) = (g.parse().unwrap(), e.parse().unwrap_or(f64::NAN));
                     let d = (gv - ev).abs();
-                    // `!(d <= bound)` also catches NaN on either side.
-                    (!(d <= rel * ev.abs() + abs)).then(|| format!("|difference| {d:.3e} > {rel:e} relative + {abs:e}"))
+                    // a NaN on either side makes d NaN, which is not within any bound
+                    let within = d.is_finite() && d <= rel * ev.abs() + abs;
+                    (!within).then(|| format!("|difference| {d:.3e} > {rel:e} relative + {abs:e}"))
                 }
             };
             if let Some(why) = bad {
