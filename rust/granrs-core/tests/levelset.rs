@@ -222,8 +222,8 @@ fn zalesak_table() {
 
 /// The T = 8 Rider–Kothe vortex errors on 64², 128², 256²: Jiang–Shu weights without and with
 /// redistancing every 10 steps, and the mapped weights with redistancing, compared with
-/// `tests/ref/single_vortex_t8.ref`. Nine runs, the 256² ones dominating: RUNTIME in release on
-/// the 2-core VM, hence `#[ignore]` (`make test-slow`). Regenerate the table with
+/// `tests/ref/single_vortex_t8.ref`. Nine runs, the 256² ones dominating: 587 s in release on
+/// the 2-core VM (loaded by other jobs), hence `#[ignore]` (`make test-slow`). Regenerate the table with
 /// `GRANRS_BLESS=1 cargo test --release -p granrs-core --test levelset -- --ignored
 /// single_vortex_t8_table`.
 #[test]
