@@ -300,3 +300,13 @@ impl Field {
         }
     }
 }
+
+/// A room's part of the state a step reads, for checkpoints and the snapshot a failed step
+/// returns to (`models/checkpoint.rs`): the room names its arrays and visits them in a fixed
+/// order, so that the model needs none of its fields.
+pub trait StateArrays {
+    /// Calls `f(name, values)` for each state array of the room, in a fixed order.
+    fn visit_state(&self, f: &mut dyn FnMut(&str, &[f64]));
+    /// The same arrays in the same order, writable (a restore).
+    fn visit_state_mut(&mut self, f: &mut dyn FnMut(&str, &mut [f64]));
+}

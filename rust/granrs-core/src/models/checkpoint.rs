@@ -11,6 +11,7 @@
 
 use super::two_phase::TwoPhaseModel;
 use crate::error::{Error, Result};
+use crate::grid::StateArrays;
 
 /// One named entry of a checkpoint: a flat array of f64 (scalars as one element).
 pub type StateEntry = (String, Vec<f64>);
@@ -44,25 +45,12 @@ impl TwoPhaseModel {
         f("p", self.p.slice());
         f("phi", self.phi.slice());
         f("pressure_increment", self.pressure_increment());
+        // the rooms' own state arrays
         if let Some(pore) = &self.pore {
-            f("pf", pore.pf.slice());
-            f("pf_prev", pore.pf_prev.slice());
-            f("pf_advection_prev", pore.adv_prev.slice());
+            pore.visit_state(&mut f);
         }
         if let Some(rs) = &self.rheology {
-            f("sigma_xx", rs.plastic.sigma_xx.slice());
-            f("sigma_xy", rs.plastic.sigma_xy.slice());
-            if let Some(cs) = &rs.plastic.centred {
-                f("sigma_xy_centre", cs.sigma.slice());
-            }
-            if let Some(sw) = &rs.side_walls {
-                f("side_wall_s_u", sw.s_u.slice());
-                f("side_wall_s_v", sw.s_v.slice());
-            }
-        }
-        let walls: Vec<Vec<f64>> = self.rheology.as_ref().map(|rs| rs.walls.directions()).unwrap_or_default();
-        for (k, s) in walls.iter().enumerate() {
-            f(&format!("wall_direction_{k}"), s);
+            rs.visit_state(&mut f);
         }
         f("time", &[self.time]);
         f("step_count", &[self.step_count as f64]);
@@ -106,24 +94,12 @@ impl TwoPhaseModel {
         self.p.slice_mut().copy_from_slice(get("p"));
         self.phi.slice_mut().copy_from_slice(get("phi"));
         self.pressure_increment_mut().copy_from_slice(get("pressure_increment"));
+        let mut put = |name: &str, data: &mut [f64]| data.copy_from_slice(get(name));
         if let Some(pore) = &mut self.pore {
-            pore.pf.slice_mut().copy_from_slice(get("pf"));
-            pore.pf_prev.slice_mut().copy_from_slice(get("pf_prev"));
-            pore.adv_prev.slice_mut().copy_from_slice(get("pf_advection_prev"));
+            pore.visit_state_mut(&mut put);
         }
         if let Some(rs) = &mut self.rheology {
-            rs.plastic.sigma_xx.slice_mut().copy_from_slice(get("sigma_xx"));
-            rs.plastic.sigma_xy.slice_mut().copy_from_slice(get("sigma_xy"));
-            if let Some(cs) = &mut rs.plastic.centred {
-                cs.sigma.slice_mut().copy_from_slice(get("sigma_xy_centre"));
-            }
-            if let Some(sw) = &mut rs.side_walls {
-                sw.s_u.slice_mut().copy_from_slice(get("side_wall_s_u"));
-                sw.s_v.slice_mut().copy_from_slice(get("side_wall_s_v"));
-            }
-            for (k, s) in rs.walls.directions_mut().into_iter().enumerate() {
-                s.copy_from_slice(get(&format!("wall_direction_{k}")));
-            }
+            rs.visit_state_mut(&mut put);
         }
         self.time = get("time")[0];
         self.step_count = get("step_count")[0] as u64;

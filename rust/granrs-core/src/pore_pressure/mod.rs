@@ -470,3 +470,17 @@ impl PorePressure {
         self.adv_prev.fill(0.0);
     }
 }
+
+impl crate::grid::StateArrays for PorePressure {
+    fn visit_state(&self, f: &mut dyn FnMut(&str, &[f64])) {
+        f("pf", self.pf.slice());
+        f("pf_prev", self.pf_prev.slice());
+        f("pf_advection_prev", self.adv_prev.slice());
+    }
+
+    fn visit_state_mut(&mut self, f: &mut dyn FnMut(&str, &mut [f64])) {
+        f("pf", self.pf.slice_mut());
+        f("pf_prev", self.pf_prev.slice_mut());
+        f("pf_advection_prev", self.adv_prev.slice_mut());
+    }
+}

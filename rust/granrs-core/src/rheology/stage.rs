@@ -139,3 +139,36 @@ pub(crate) fn surface_air_pressure(p: &Field, phi: &Field, eps: f64, h: f64, par
         0.0
     }
 }
+
+impl crate::grid::StateArrays for RheologyState {
+    /// Σ (and Σ_xy at centres), the side walls' directions, the Coulomb walls' directions.
+    fn visit_state(&self, f: &mut dyn FnMut(&str, &[f64])) {
+        f("sigma_xx", self.plastic.sigma_xx.slice());
+        f("sigma_xy", self.plastic.sigma_xy.slice());
+        if let Some(cs) = &self.plastic.centred {
+            f("sigma_xy_centre", cs.sigma.slice());
+        }
+        if let Some(sw) = &self.side_walls {
+            f("side_wall_s_u", sw.s_u.slice());
+            f("side_wall_s_v", sw.s_v.slice());
+        }
+        for (k, s) in self.walls.directions().iter().enumerate() {
+            f(&format!("wall_direction_{k}"), s);
+        }
+    }
+
+    fn visit_state_mut(&mut self, f: &mut dyn FnMut(&str, &mut [f64])) {
+        f("sigma_xx", self.plastic.sigma_xx.slice_mut());
+        f("sigma_xy", self.plastic.sigma_xy.slice_mut());
+        if let Some(cs) = &mut self.plastic.centred {
+            f("sigma_xy_centre", cs.sigma.slice_mut());
+        }
+        if let Some(sw) = &mut self.side_walls {
+            f("side_wall_s_u", sw.s_u.slice_mut());
+            f("side_wall_s_v", sw.s_v.slice_mut());
+        }
+        for (k, s) in self.walls.directions_mut().into_iter().enumerate() {
+            f(&format!("wall_direction_{k}"), s);
+        }
+    }
+}
