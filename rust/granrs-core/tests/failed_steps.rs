@@ -1,35 +1,24 @@
 //! A step that fails leaves the model at its last accepted state, bit for bit, and a blow-up is
 //! reported with its step, time and cell (models/step.rs, stage 7).
 
-use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
+use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, VelocityBc};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
-use granrs_core::rheology::{RheologyConfig, RheologyLaw};
 use granrs_core::time_stepping::SPEED_BOUND;
 use granrs_core::Error;
+
+#[path = "common/channel.rs"]
+mod channel;
+use channel::bingham_channel;
 
 /// The checkpoint entries as bit patterns (NaN marks "no previous step" and compares equal).
 fn bits(m: &TwoPhaseModel) -> Vec<(String, Vec<u64>)> {
     m.checkpoint().into_iter().map(|(n, d)| (n, d.iter().map(|x| x.to_bits()).collect())).collect()
 }
 
-/// Bingham channel flow driven by G = 1 with a Picard cap of 2 iterations that no step meets
-/// (the accelerating channel of tests/step_retries.rs).
+/// The Bingham channel of tests/step_retries.rs (common/channel.rs) with a Picard cap of 60; the
+/// test lowers the cap so that no later step meets it.
 fn channel(fixed_dt: Option<f64>, retries: usize) -> TwoPhaseModel {
-    let n = 16;
-    let dy = 2.0 / n as f64;
-    let grid = Grid::new(4, n, 4.0 * dy, 2.0).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Left, VelocityBc::Outflow).with(Side::Right, VelocityBc::Outflow);
-    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 0.01 });
-    cfg.gravity = [1.0, 0.0];
-    cfg.time.fixed_dt = fixed_dt;
-    cfg.time.cfl_abort = 100.0;
-    cfg.time.step_retries = retries;
-    cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 0.2 });
-    cfg.rheology.theta = 0.5;
-    cfg.rheology.picard_tol = 1e-8;
-    cfg.rheology.picard_max_iterations = 60;
-    cfg.rheology.r = Some(0.5);
-    TwoPhaseModel::new(cfg).unwrap()
+    TwoPhaseModel::new(bingham_channel(60, retries, fixed_dt)).unwrap()
 }
 
 #[test]

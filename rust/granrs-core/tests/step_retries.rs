@@ -1,32 +1,21 @@
 //! Rejected steps (`TimeConfig::step_retries`, time_stepping/clock.rs): a step whose Picard
 //! iteration does not converge is undone and retaken with δt halved.
 
-use granrs_core::grid::{BoundaryConditions, Grid, Side, VelocityBc};
-use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
-use granrs_core::rheology::{RheologyConfig, RheologyLaw};
+use granrs_core::models::TwoPhaseModel;
 use granrs_core::Error;
+
+#[path = "common/channel.rs"]
+mod channel;
+use channel::bingham_channel;
 
 /// Bingham plane Poiseuille flow started from rest by the body force G = 1 (channel 0 < y < 2,
 /// ρ = 1, μ = 0.01, τ_y = 0.2, outflow sides), adaptive δt growing 2× per step, and a constant
 /// r = 0.5 above the contraction bound of the larger steps (rτk ≤ 2(1 − θ) holds for
 /// δt ≲ 0.04 here, k = 2S/(a₀ρ/δt + 4μS)): the Picard iteration slows as δt grows.
 fn accelerating_channel(cap: usize, retries: usize, fixed_dt: Option<f64>) -> TwoPhaseModel {
-    let n = 16;
-    let dy = 2.0 / n as f64;
-    let grid = Grid::new(4, n, 4.0 * dy, 2.0).unwrap();
-    let bc = BoundaryConditions::uniform(VelocityBc::NoSlip).with(Side::Left, VelocityBc::Outflow).with(Side::Right, VelocityBc::Outflow);
-    let mut cfg = ModelConfig::single_phase(grid, bc, Material { density: 1.0, viscosity: 0.01 });
-    cfg.gravity = [1.0, 0.0];
-    cfg.time.fixed_dt = fixed_dt;
+    let mut cfg = bingham_channel(cap, retries, fixed_dt);
     cfg.time.cfl = 1.0;
     cfg.time.max_growth = 2.0;
-    cfg.time.cfl_abort = 100.0;
-    cfg.time.step_retries = retries;
-    cfg.rheology = RheologyConfig::new(RheologyLaw::Bingham { yield_stress: 0.2 });
-    cfg.rheology.theta = 0.5;
-    cfg.rheology.picard_tol = 1e-8;
-    cfg.rheology.picard_max_iterations = cap;
-    cfg.rheology.r = Some(0.5);
     TwoPhaseModel::new(cfg).unwrap()
 }
 
