@@ -20,12 +20,22 @@ steps), ``no-mass-correction``, ``redistance-50`` (redistancing every 50 steps),
 column's ``interface_yield`` choices ``density-support`` and ``granular-side``, and
 ``theta-0.3`` and ``theta-0.1`` (θ in eq. 12 instead of the column's 0.8), and ``proximal-5``,
 ``proximal-20`` (that many proximal restarts of the anchor Σⁿ per step,
-``ColumnCase(proximal_restarts=N)``). The runs do not stop at rest (the records go to t_end).
+``ColumnCase(proximal_restarts=N)``); ``proximal-20-anderson-5`` (the same with Anderson mixing
+of depth 5, ``Numerics(anderson_depth=5)``) and that one combined with no mass correction,
+redistancing every 50 steps or never, and ``density-support``; ``uzawa-anderson-10`` (θ = 0,
+whose fixed point is eq. 11 itself, with Anderson mixing of depth 10) and
+``theta-0.3-anderson-5``. The runs do not stop at rest (the records go to t_end); the column's
+rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
+same, to say when the run would have stopped and what changes after that.
 
-Writes ``OUT/arrest_<variant>.csv`` (the records) and ``OUT/arrest_summary.json`` (per variant:
-largest front and when, the front at t_end, its retreat, the late speeds by group at
-t = 1.5-t_end, the area drift, the give-back of the plastic work after 1.5 s, the deposit
-profile's change from 2.5 s to t_end). docs/validation.md, "Arrest of the deposit", quotes it.
+Writes ``OUT/arrest_<variant>.csv`` (the records, with two fronts of the volume profile beside the
+lowest-row front: where the deposit is half a cell thick, and its 99 % area quantile) and
+``OUT/arrest_summary.json`` (per variant: largest front and when, the front at t_end, its retreat
+in cells for the three fronts, the late speeds by group at t = 1.5-t_end, the area drift, the
+give-back of the plastic work after 1.5 s, the deposit profile's change from 2.5 s to t_end;
+``arrest_time_s`` under the rest criterion and, after it, the largest granular speed, the
+front's retreat and the change of the surface profile and of the volume profile to t_end).
+docs/validation.md, "Arrest of the deposit", quotes it.
 """
 
 from __future__ import annotations
@@ -41,6 +51,7 @@ import numpy as np
 
 from granrs.cases import column as col
 from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
+from granrs.observables import area_quantile, thickness_front, volume_profile
 
 VARIANTS = {
     "default": {},
@@ -53,6 +64,20 @@ VARIANTS = {
     "theta-0.1": {"case": {"theta": 0.1}},
     "proximal-5": {"case": {"proximal_restarts": 5}},
     "proximal-20": {"case": {"proximal_restarts": 20}},
+    # the same, with Anderson mixing of the Picard iterates (granrs.Numerics.anderson_depth)
+    "proximal-20-anderson-5": {"case": {"proximal_restarts": 20}, "anderson_depth": 5},
+    # Uzawa (θ = 0: the fixed point is eq. 11 itself) with Anderson mixing
+    "uzawa-anderson-10": {"case": {"theta": 0.0}, "anderson_depth": 10},
+    "theta-0.3-anderson-5": {"case": {"theta": 0.3}, "anderson_depth": 5},
+    "density-support-proximal-20": {"case": {"interface_yield": "density-support", "proximal_restarts": 20}, "anderson_depth": 5},
+    "no-mass-correction-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "mass_correction": False},
+    "redistance-50-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "redistance_every": 50},
+    "no-mass-correction-redistance-50-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5,
+                                                     "redistance_every": 50, "mass_correction": False},
+    "no-mass-correction-no-redistancing-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5,
+                                                       "redistance_every": 0, "mass_correction": False},
+    "density-support-no-mass-correction-proximal-20": {"case": {"interface_yield": "density-support", "proximal_restarts": 20},
+                                                       "anderson_depth": 5, "mass_correction": False},
 }
 
 
@@ -85,6 +110,10 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     profiles = {}
     t0 = time.perf_counter()
     k = 0
+    # the column's rest criterion (granrs.cases.column), evaluated without stopping: the start of
+    # the first quiet window of rest_duration, and the profile then
+    rest_since = arrest = None
+    arrest_profile = None
     while m.time < t_end - 1e-12:
         k += 1
         m.advance(min(t_end, k * every))
@@ -93,6 +122,11 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         speed = np.hypot(uc, vc)
         groups = {"bulk": phi > 2 * eps, "band": (phi > 0) & (phi <= 2 * eps), "air_band": (phi > -eps) & (phi <= 0)}
         row = {"t": m.time, "front": front_position(phi, g.dx) - lc, "area": m.dense_area()}
+        # fronts of the volume profile, which do not jump when a film thinner than h/2 on the
+        # lowest row changes sign: where it is half a cell thick, and the 99 % area quantile
+        hvol = volume_profile(phi, g.dy)
+        row["front_half_cell"] = thickness_front(hvol, g.dx, 0.5 * g.dy) - lc
+        row["front_q99"] = area_quantile(hvol, g.dx, 0.99) - lc
         for key, mask in groups.items():
             row[f"speed_{key}"] = float(speed[mask].max()) if mask.any() else 0.0
         granular = phi > 0
@@ -105,6 +139,13 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         row["plastic_work"], row["plastic_negative_work"] = b["plastic_work"], b["plastic_negative_work"]
         row["gravity_work"] = b["gravity_work"]
         rows.append(row)
+        if arrest is None:
+            if m.time > 0.1 and row["speed_granular"] < case.rest_speed:
+                rest_since = m.time if rest_since is None else rest_since
+                if m.time - rest_since >= case.rest_duration - 1e-9:
+                    arrest, arrest_profile = rest_since, (surface_profile(phi, g.dy), volume_profile(phi, g.dy))
+            else:
+                rest_since = None
         for tp in (1.5, 2.0, 2.5, t_end):
             if abs(m.time - tp) < 1e-9:
                 profiles[tp] = surface_profile(phi, g.dy)
@@ -132,6 +173,16 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     out["gravity_work_after_1p5_J_m"] = rows[-1]["gravity_work"] - rows[i15]["gravity_work"]
     if 2.5 in profiles and t_end in profiles:
         out["profile_change_2p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[2.5])))
+    for key in ("front_half_cell", "front_q99"):
+        f = np.array([r[key] for r in rows])
+        out[f"retreat_{key}_cells"] = float((f.max() - f[-1]) / g.dx)
+    out["arrest_time_s"] = arrest
+    if arrest is not None:
+        after = t > arrest + case.rest_duration
+        out["profile_change_after_arrest_m"] = float(np.max(np.abs(surface_profile(m.phi, g.dy) - arrest_profile[0])))
+        out["volume_profile_change_after_arrest_m"] = float(np.max(np.abs(volume_profile(m.phi, g.dy) - arrest_profile[1])))
+        out["granular_speed_after_arrest_max"] = float(max((r["speed_granular"] for r, l in zip(rows, after) if l), default=0.0))
+        out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
     if 1.5 in profiles and t_end in profiles:
         out["profile_change_1p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[1.5])))
     return out, rows
