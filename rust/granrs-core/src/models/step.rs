@@ -54,12 +54,11 @@ use super::{ConvectionScheme, ModelConfig, TwoPhaseModel};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
-use crate::levelset::blend_harmonic;
+use crate::levelset::{blend_harmonic, material_properties, MaterialFields, TransportVelocity};
 use crate::operators::{
-    cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
-    BcMode,
+    convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed, BcMode,
 };
-use crate::projection::fill_pressure_ghosts;
+use crate::projection::{fill_pressure_ghosts, ProjectionInputs};
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt, SPEED_BOUND};
@@ -219,18 +218,19 @@ impl TwoPhaseModel {
         }
         fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Homogeneous);
         self.p.fill(0.0);
-        if let Some(fs) = self.free_surface.as_mut() {
+        if cfg.free_surface {
             self.phi.extrapolate_ghosts_linear();
-            let info = fs.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &self.phi, cfg.dense.density, 1.0, &cfg.grid, &cfg.bc, exec);
-            fs.increment_mut().fill(0.0);
-            return info;
         }
-        if self.projection_stale {
-            self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
-            self.projection_stale = false;
-        }
-        let info = self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, None, exec);
-        self.projection.reset_increment();
+        let input = ProjectionInputs {
+            rho_u: &wk.rho_u,
+            rho_v: &wk.rho_v,
+            phi: &self.phi,
+            dense_density: cfg.dense.density,
+            rotational: None,
+            grid: &cfg.grid,
+            bc: &cfg.bc,
+        };
+        let info = self.pressure.balance(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &input, exec);
         self.gauge_pressure();
         info
     }
@@ -318,28 +318,16 @@ impl TwoPhaseModel {
         }
         let cfg = &self.config;
         fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, &cfg.grid, BcMode::Full);
-        // transport with the time-centred velocity u^{n+½} ≈ (1 + ω/2)uⁿ − (ω/2)uⁿ⁻¹: advecting Φ
-        // with uⁿ alone lags the interface behind the flow, which feeds interfacial gravity waves
-        // (a heavy layer at rest then grows round-off exponentially)
         let wk = &mut self.work;
         let half = match self.dt_prev {
             Some(prev) => 0.5 * dt / prev,
             None => 0.0,
         };
-        for (x, xn, xm) in [(&mut wk.rhs_u, &self.u, &self.u_prev), (&mut wk.rhs_v, &self.v, &self.v_prev)] {
-            let (ns, ms) = (xn.slice(), xm.slice());
-            for (k, o) in x.slice_mut().iter_mut().enumerate() {
-                *o = (1.0 + half) * ns[k] - half * ms[k];
-            }
-        }
-        fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Full);
-        let r = self.levelset.transport.advect(&mut self.phi, &wk.rhs_u, &wk.rhs_v, &cfg.grid, dt, exec);
-        r.map_err(|e| self.at_step(e))?;
+        let vel = TransportVelocity { u: &self.u, v: &self.v, u_prev: &self.u_prev, v_prev: &self.v_prev, half, out_u: &mut wk.rhs_u, out_v: &mut wk.rhs_v };
         let n = self.step_count + 1;
-        if cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0 {
-            let r = self.levelset.redistancer.redistance(&mut self.phi, &cfg.grid, exec);
-            r.map_err(|e| self.at_step(e))?;
-        }
+        let redistance = cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0;
+        let r = self.levelset.advance(&mut self.phi, vel, &cfg.grid, &cfg.bc, dt, redistance, exec);
+        r.map_err(|e| self.at_step(e))?;
         if cfg.mass_correction {
             self.correct_mass(exec);
         }
@@ -394,40 +382,10 @@ impl TwoPhaseModel {
         let eta = |phi: f64| blend_harmonic(phi, eps, dense.viscosity, light.viscosity);
         self.phi.extrapolate_ghosts_linear();
         let w = &mut self.work;
-        let ps = self.phi.slice();
-        let st = self.phi.stride();
-        let nxc = self.phi.nx;
-        // density on faces from Φ averaged to the face
-        let nxu = w.rho_u.nx;
-        for_each_interior_row(exec, &mut w.rho_u, |j, row| {
-            let b = (j + HALO) * st + HALO;
-            for i in 0..nxu {
-                row[HALO + i] = rho_face(ps[b + i], ps[b + i - 1]);
-            }
-        });
-        for_each_interior_row(exec, &mut w.rho_v, |j, row| {
-            let (b0, b1) = ((j + HALO - 1) * st + HALO, (j + HALO) * st + HALO);
-            for i in 0..nxc {
-                row[HALO + i] = rho_face(ps[b0 + i], ps[b1 + i]);
-            }
-        });
-        // viscosity at centres (with ghosts) and nodes
-        for_each_interior_row(exec, &mut w.eta_c, |j, row| {
-            let b = (j + HALO) * st + HALO;
-            for i in 0..nxc {
-                row[HALO + i] = eta(ps[b + i]);
-            }
-        });
-        w.eta_c.extrapolate_ghosts_constant();
-        cell_to_node(&self.phi, &mut w.eta_n, exec);
-        let nxn = w.eta_n.nx;
-        for_each_interior_row(exec, &mut w.eta_n, |_, row| {
-            for x in &mut row[HALO..HALO + nxn] {
-                *x = eta(*x);
-            }
-        });
+        let out = MaterialFields { rho_u: &mut w.rho_u, rho_v: &mut w.rho_v, eta_c: &mut w.eta_c, eta_n: &mut w.eta_n };
+        material_properties(&self.phi, rho_face, eta, out, exec);
         self.properties_current = true;
-        self.projection_stale = true;
+        self.pressure.density_changed();
     }
 
     /// Stage 4 (paper step 3): the pore gas pressure p_f^{n+1} (skipped when not fluidised).
@@ -468,7 +426,7 @@ impl TwoPhaseModel {
             wk.conv_u.fill(0.0);
             wk.conv_v.fill(0.0);
         }
-        if self.free_surface.is_some() {
+        if cfg.free_surface {
             // granular-only model: ∇p_f, then ∇pⁿ with pⁿ = 0 on the surface Φ^{n+1} = 0
             // (Φ's ghosts were filled by `properties` this step; Φ has not changed since)
             pressure_gradient(None, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
@@ -504,7 +462,7 @@ impl TwoPhaseModel {
                 }
             });
         }
-        if self.free_surface.is_some() {
+        if cfg.free_surface {
             // granular-only model: the faces with no granular cell beside them are not unknowns;
             // they keep their BDF history value (a₁uⁿ − a₂uⁿ⁻¹)/a₀ of the extended velocity (a
             // Dirichlet row: c ← FROZEN c, rhs ← c u), so that the stresses of the nodes on the
@@ -570,16 +528,16 @@ impl TwoPhaseModel {
     fn projection_stage(&mut self, dt_over_a0: f64, exec: Exec) -> Result<SolveInfo> {
         let cfg = &self.config;
         let wk = &self.work;
-        if let Some(fs) = self.free_surface.as_mut() {
-            let r = fs.project(&mut self.u, &mut self.v, &mut self.p, &self.phi, cfg.dense.density, dt_over_a0, &cfg.grid, &cfg.bc, exec);
-            return r.map_err(|e| self.at_step(e));
-        }
-        if self.projection_stale {
-            self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
-            self.projection_stale = false;
-        }
-        let rotational = cfg.rotational_pressure.then_some(&wk.eta_c);
-        let r = self.projection.project(&mut self.u, &mut self.v, &mut self.p, &wk.rho_u, &wk.rho_v, dt_over_a0, &cfg.grid, &cfg.bc, rotational, exec);
+        let input = ProjectionInputs {
+            rho_u: &wk.rho_u,
+            rho_v: &wk.rho_v,
+            phi: &self.phi,
+            dense_density: cfg.dense.density,
+            rotational: cfg.rotational_pressure.then_some(&wk.eta_c),
+            grid: &cfg.grid,
+            bc: &cfg.bc,
+        };
+        let r = self.pressure.project(&mut self.u, &mut self.v, &mut self.p, &input, dt_over_a0, exec);
         self.gauge_pressure();
         r.map_err(|e| self.at_step(e))
     }
@@ -648,7 +606,7 @@ impl TwoPhaseModel {
                 }
             }
         }
-        let divergence = if self.free_surface.is_some() {
+        let divergence = if cfg.free_surface {
             crate::projection::free_surface::divergence_max_abs_granular(&self.u, &self.v, &self.phi, g)
         } else {
             divergence_max_abs(&self.u, &self.v, g, exec)
