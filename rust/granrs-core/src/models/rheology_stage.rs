@@ -77,7 +77,7 @@ impl TwoPhaseModel {
         let wk = &self.work;
         let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
         let momentum = &mut self.momentum;
-        let solve = |u: &mut Field, v: &mut Field, rhs_u: &Field, rhs_v: &Field| {
+        let mut solve = |u: &mut Field, v: &mut Field, rhs_u: &Field, rhs_v: &Field| {
             let t = Instant::now();
             let info = if explicit {
                 momentum.solve_explicit(&sys, u, v, rhs_u, rhs_v, exec);
@@ -93,10 +93,7 @@ impl TwoPhaseModel {
                 let at = (self.step_count + 1, self.time);
                 rs.bi_projection(&cfg.rheology, solve, explicit, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, grid, bc, at, exec)
             }
-            None => {
-                let mut solve = solve;
-                solve(&mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v).map(|info| (info, PicardInfo::default()))
-            }
+            None => solve(&mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v).map(|info| (info, PicardInfo::default())),
         };
         self.momentum.rtol = rtol_outer;
         self.momentum.max_iterations = cap_outer;

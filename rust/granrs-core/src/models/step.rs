@@ -4,30 +4,39 @@
 //! ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (10f), discretised by the paper's steps 1–5 (§3.1).
 //!
 //! **This is the only place that states the
-//! order of the stages** (Aravena et al. §3.1; step numbers of the paper in brackets):
+//! order of the stages** (Aravena et al. §3.1; step numbers of the paper in brackets). Each
+//! stage is a room's method with explicit inputs and outputs; the functions here hand them the
+//! shared fields (u, v, p, Φ, the BDF2 history) and attach the step and time to their errors.
+//! The wall time of each goes to `StepInfo::stage_seconds`.
 //!
 //! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
-//! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^n; redistancing every N steps.
-//! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1}).
-//! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room, implicit BDF2 or explicit forward
-//!    Euler; an explicit step past h²/(4κ) stops here, naming the cell; skipped when not fluidised).
+//! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^{n+½}, redistancing every N steps
+//!    (`levelset::Interface::advance`), then the optional global mass correction.
+//! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1})
+//!    (`levelset::material_properties`).
+//! 4. `pore_pressure` [step 3]: p_f^{n+1} (`pore_pressure::PorePressure::advance`, implicit
+//!    BDF2 or explicit forward Euler; an explicit step past h²/(4κ) stops here, naming the cell;
+//!    skipped when not fluidised).
 //!
 //! 4b. `rheology_stage` [step 2, continued]: τ^{n+1} = τ(p^n) H_ε(Φ^{n+1}) at centres and nodes
 //!    (H_ε(Φ^{n+1} + sε) with the shift s = 0, 1, 2 of `InterfaceYield`),
 //!    τ_b^{n+1} on Coulomb walls, (2/W)τ_w^{n+1} on every face with the channel's side walls
 //!    (`RheologyConfig::side_walls`, `walls/side.rs`), the lagged viscosity of μ(I) and
-//!    regularised laws, r and r_b (`models/rheology_stage.rs`).
+//!    regularised laws, r and r_b (`rheology::stage::RheologyState::prepare`, its inputs in
+//!    `models/rheology_stage.rs`).
 //! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection, the body force
 //!    (ρ − ρ_ref) g (ρ_ref = ρ_f with `ModelConfig::ambient_hydrostatic`, else 0) and the viscous term
 //!    (implicit or explicit; on open sides with backflow stabilisation ∇pⁿ takes the boundary
 //!    pressure p_b − ½ρ(u·n)² where the flow enters, `projection::add_backflow_pressure`); with a
 //!    yield stress or wall friction, the Picard loop of eq. (12)
 //!    couples it with the plastic projection of Σ and the friction projections of s (the
-//!    Coulomb walls' and, with side walls, the side walls') (`momentum_solve` in
-//!    `models/rheology_stage.rs`).
+//!    Coulomb walls' and, with side walls, the side walls')
+//!    (`rheology::stage::RheologyState::bi_projection` over the predictor solve that
+//!    `momentum_solve` in `models/rheology_stage.rs` gives it).
 //!    `check_predictor`: a non-finite ũ (blow-up) stops the step here, naming the cell.
-//! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp (− η div ũ in the rotational form,
-//!    `ModelConfig::rotational_pressure`), then the pressure gauge (p = 0 under the lid when no
+//! 6. `projection_stage` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp (− η div ũ in the rotational
+//!    form, `ModelConfig::rotational_pressure`; `projection::PressureStage::project`), then the
+//!    pressure gauge (p = 0 under the lid when no
 //!    side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: non-finite u, v, p, Φ, p_f; the CFL number; the step collapsing (adaptive δt);
 //!    the divergence; the BDF2 history moves on.
@@ -48,7 +57,7 @@
 //! CFL step below the floor of [`SPEED_BOUND`] (the step collapsing).
 //!
 //! With `ModelConfig::active_region` the step first sizes the window around the dense phase and
-//! runs these same stages on it (`models/active_region.rs`).
+//! runs these same stages on it (`models/window.rs`).
 
 use super::{ConvectionScheme, ModelConfig, TwoPhaseModel};
 use crate::error::{Error, Result};
