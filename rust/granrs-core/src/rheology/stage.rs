@@ -9,15 +9,14 @@
 //!   properties are, and the projection parameters r, r_b;
 //! - [`RheologyState::bi_projection`] (the end of the predictor, paper step 4): the predictor
 //!   ũ^{n+1} coupled with Σ^{n+1} = P(Σ^{n+1} + r D(ũ^{n+1})) and
-//!   s^{n+1} = P_b(s^{n+1} − r_b ũ_t^{n+1}), solved by the Picard iteration with
-//!   pseudo-relaxation θ (eq. 12):
+//!   s^{n+1} = P_b(s^{n+1} − r_b ũ_t^{n+1}), over a predictor solve it is given (the model's
+//!   momentum solver), with the plastic projection (`rheology/plastic.rs`), the Coulomb walls
+//!   (`walls/mod.rs`) and the side walls (`walls/side.rs`) as its projections.
 //!
-//!     ũ^{k+1} from the predictor with the forces div(τΣ^k) and τ_b s^k,
-//!     Σ^{k+1} = P(Σ^k + r D(ũ^{k+1}) + θ(Σ^n − Σ^k)),   s^{k+1} = P_b(s^k − r_b ũ_t^{k+1} + θ(s^n − s^k)),
+//! The bi-projection is solved by the Picard iteration with pseudo-relaxation θ (eq. 12):
 //!
-//!   over a predictor solve it is given (the model's momentum solver), with the plastic
-//!   projection (`rheology/plastic.rs`), the Coulomb walls (`walls/mod.rs`) and the side walls
-//!   (`walls/side.rs`) as its projections.
+//!   ũ^{k+1} from the predictor with the forces div(τΣ^k) and τ_b s^k,
+//!   Σ^{k+1} = P(Σ^k + r D(ũ^{k+1}) + θ(Σ^n − Σ^k)),   s^{k+1} = P_b(s^k − r_b ũ_t^{k+1} + θ(s^n − s^k)).
 
 use super::anderson::Anderson;
 use super::plastic::{not_converged, IncrementSite, PicardInfo, PlasticState};
