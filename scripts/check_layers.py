@@ -4,8 +4,13 @@
 Every `crate::ROOM` path in the code (comments and doc comments left out, `use crate::{a, b}`
 groups included) is an import of ROOM by the room of the file it is in (the folder under src/, or
 the file for the top-level modules). A room may import a room on a lower floor, or one on its own
-floor as long as the rooms of that floor import each other without a cycle. Exits 1 naming each
-import that runs up a floor or closes a cycle; prints the import graph otherwise.
+floor as long as the rooms of that floor import each other without a cycle. Inside a room, the
+files import each other without a cycle either: a file's `super::NAME` and `crate::ROOM::NAME`
+paths name the room's file NAME.rs, or the file that defines the item NAME the room's mod.rs
+re-exports (`pub use file::NAME`), or mod.rs itself for the items it defines. mod.rs is the room's
+front (its declarations, configuration and re-exports, which name its files' items for the room's
+users): it is a target of its files' imports, never a source, so no cycle passes through it. Exits 1 naming each import that runs up a floor or
+closes a cycle; prints the import graph otherwise.
 
 Usage: python3 scripts/check_layers.py [SRC]   (SRC: another source tree, default the core's)
 """
@@ -61,6 +66,64 @@ def room_of(path: Path) -> str | None:
     return rel.parts[0]
 
 
+def file_edges(room_dir: Path) -> dict[str, set[str]]:
+    """The file-level import graph inside one room's folder: file stem -> stems it imports."""
+    files = {p.stem: p for p in sorted(room_dir.glob("*.rs"))}
+    room = room_dir.name
+    mod_code = strip_comments(files["mod"].read_text(encoding="utf-8")) if "mod" in files else ""
+    # items the room's mod.rs re-exports from its files: `pub use file::{A, B}` / `pub use file::A`
+    item_file: dict[str, str] = {}
+    for name, group in re.findall(r"\bpub(?:\([a-z]+\))?\s+use\s+(?:self::)?([a-z_][a-z0-9_]*)::(\{[^}]*\}|[A-Za-z_][A-Za-z0-9_]*)", mod_code):
+        if name in files:
+            for item in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", group):
+                if item != "self":
+                    item_file[item] = name
+
+    def target(name: str) -> str:
+        if name in files and name != "mod":
+            return name
+        return item_file.get(name, "mod")
+
+    edges: dict[str, set[str]] = {}
+    for stem, path in files.items():
+        code = strip_comments(path.read_text(encoding="utf-8"))
+        found: set[str] = set()
+        if stem != "mod":
+            prefixes = [r"\bsuper::", rf"\bcrate::{room}::"]
+            for pre in prefixes:
+                for name in re.findall(pre + r"([A-Za-z_][A-Za-z0-9_]*)", code):
+                    found.add(target(name))
+                for group in re.findall(pre + r"\{([^}]*)\}", code, flags=re.S):
+                    for name in re.findall(r"(?:^|,)\s*([A-Za-z_][A-Za-z0-9_]*)", group):
+                        found.add(target(name))
+        found.discard(stem)
+        edges[stem] = found
+    return edges
+
+
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """The cycles a depth-first search meets in a graph (one per back edge)."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+    out: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        state[node] = 1
+        stack.append(node)
+        for t in sorted(edges.get(node, ())):
+            if state.get(t) == 1:
+                out.append(stack[stack.index(t):] + [t])
+            elif t not in state:
+                visit(t)
+        stack.pop()
+        state[node] = 2
+
+    for node in sorted(edges):
+        if node not in state:
+            visit(node)
+    return out
+
+
 def main() -> int:
     edges: dict[str, dict[str, list[str]]] = {}
     unknown = []
@@ -102,6 +165,12 @@ def main() -> int:
     for room in sorted(FLOOR):
         if room not in state:
             visit(room)
+    # cycles among the files of each room
+    inner: dict[str, dict[str, set[str]]] = {}
+    for room_dir in sorted(p for p in SRC.iterdir() if p.is_dir() and (p / "mod.rs").exists()):
+        inner[room_dir.name] = file_edges(room_dir)
+        for cycle in cycles(inner[room_dir.name]):
+            problems.append(f"file import cycle in {room_dir.name}/: " + " -> ".join(f"{c}.rs" for c in cycle))
     if problems:
         print("check_layers: the core's floors are broken:", file=sys.stderr)
         for p in problems:
@@ -110,7 +179,11 @@ def main() -> int:
     for k in reversed(range(len(FLOORS))):
         for room in FLOORS[k]:
             print(f"floor {k} {room:14s} -> {', '.join(sorted(edges.get(room, {}))) or '-'}")
-    print("check_layers: no import runs up a floor, no cycle")
+    for room, edges in inner.items():
+        for stem in sorted(edges):
+            if edges[stem]:
+                print(f"  {room}/{stem}.rs -> {', '.join(f'{t}.rs' for t in sorted(edges[stem]))}")
+    print("check_layers: no import runs up a floor, no cycle between rooms or between the files of a room")
     return 0
 
 

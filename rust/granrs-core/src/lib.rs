@@ -12,38 +12,46 @@
 //!
 //! | equation | what | file | function |
 //! |---|---|---|---|
-//! | (10a) | ∂_t Φ + u·∇Φ = 0 (step 1, WENO5 + TVD-RK3) | `levelset/transport.rs` | [`levelset::LevelSetTransport::advect`] |
+//! | (10a) | ∂_t Φ + u·∇Φ = 0 (step 1, WENO5 + TVD-RK3) | `levelset/stage.rs`, `levelset/transport.rs` | [`levelset::Interface::advance`], [`levelset::LevelSetTransport::advect`] |
 //! | (10b) | momentum: ρ(∂_t u + u·∇u) + ∇(p + p_f) = ρg + div(2ηD) + div(τΣ) | `models/step.rs`, `time_stepping/momentum.rs` | `TwoPhaseModel::predictor`, [`time_stepping::MomentumSolver::solve_implicit`] |
-//! | (10c) | div u = 0 | `projection/mod.rs` | [`projection::PressureProjection::project`] |
+//! | (10c) | div u = 0 | `projection/stage.rs`, `projection/mod.rs` | [`projection::PressureStage::project`], [`projection::PressureProjection::project`] |
 //! | (10d) | Σ = P(Σ + r D(u)), the plastic projection | `rheology/plastic.rs` | [`rheology::PlasticState::update`] |
 //! | (10e) | σ_t = τ_b s, s = P_b(s − r_b u_t), the Coulomb walls | `walls/mod.rs` | [`walls::CoulombWalls::update`] |
 //! | (10f) | ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (step 3) | `pore_pressure/mod.rs` | [`pore_pressure::PorePressure::advance`] |
+//! | step 2 | ρ(Φ), η(Φ) from Φ^{n+1}; τ(Φ), τ_b, r, r_b | `levelset/stage.rs`, `rheology/stage.rs` | [`levelset::material_properties`], [`rheology::stage::RheologyState::prepare`] |
 //! | (11) | the predictor ũ^{n+1} with Σ^{n+1}, s^{n+1} (step 4, BDF2) | `models/step.rs`, `models/rheology_stage.rs` | `TwoPhaseModel::predictor`, `TwoPhaseModel::momentum_solve` |
-//! | (12) | the Picard iteration of the bi-projection (pseudo-relaxation θ) | `models/rheology_stage.rs` | `TwoPhaseModel::picard_loop` |
-//! | step 5 | the pressure projection: a₀ρ(u^{n+1} − ũ)/δt + ∇δp = 0, div u^{n+1} = 0 | `projection/mod.rs` (granular-only: `projection/free_surface.rs`) | [`projection::PressureProjection::project`] ([`projection::free_surface::FreeSurfaceProjection::project`]) |
+//! | (12) | the Picard iteration of the bi-projection (pseudo-relaxation θ) | `rheology/stage.rs` | [`rheology::stage::RheologyState::bi_projection`] |
+//! | step 5 | the pressure projection: a₀ρ(u^{n+1} − ũ)/δt + ∇δp = 0, div u^{n+1} = 0 | `projection/stage.rs` (two-phase: `projection/mod.rs`, granular-only: `projection/free_surface.rs`) | [`projection::PressureStage::project`] ([`projection::PressureProjection::project`], [`projection::free_surface::FreeSurfaceProjection::project`]) |
 //!
 //! The order of the stages of a step (steps 1–5 of the paper) is stated once, in `models/step.rs`.
 //!
 //! ## Rooms and floors
 //!
 //! One folder per concept, the paper's names. A room imports only rooms on a lower floor, or
-//! rooms of its own floor without a cycle (checked by `scripts/check_layers.py` in CI):
+//! rooms of its own floor without a cycle, and the files inside a room import each other without
+//! a cycle (mod.rs, the room's front, is only ever imported); `scripts/check_layers.py` checks
+//! both in CI. Each physics room owns its state and its stage of a step (a method with explicit
+//! inputs and outputs); the model holds the rooms and the shared fields, and `models/step.rs`
+//! alone calls the stages. Checkpoints and the active window reach a room's state through
+//! [`grid::StateArrays`] and [`grid::WindowState`], never through its fields:
 //!
-//! 5. [`models`]: the two-phase model (the state, its configuration, `step.rs`: the one ordered
-//!    list of the stages of a step and the rejected-step rule, the rheology's stages on the
-//!    model, checkpoints, the active window, the energy budget, the memory estimate) and the
-//!    depth-averaged model;
+//! 5. [`models`]: the two-phase model (its configuration, the shared fields and the rooms'
+//!    states, `step.rs`: the one ordered list of the stages of a step and the rejected-step
+//!    rule, the inputs of the rheology's stages, checkpoints, the active window, the energy
+//!    budget, the memory estimate) and the depth-averaged model;
 //! 4. [`time_stepping`]: clock (δt, BDF2 coefficients, the step's floor), the momentum
-//!    predictor's viscous solver, what a step did;
-//! 3. physics rooms: [`levelset`] (transport, redistancing, smoothed Heaviside and material
-//!    laws), [`pore_pressure`], [`projection`] (the pressure projections), [`rheology`] (laws,
-//!    the plastic projection and its state), [`walls`] (Coulomb and side-wall friction),
+//!    predictor's viscous solver, what a step did (with the wall time of each stage);
+//! 3. physics rooms: [`levelset`] (the interface stage: transport, redistancing; the
+//!    properties; smoothed Heaviside and material laws), [`pore_pressure`], [`projection`] (the
+//!    pressure projections and their stage), [`rheology`] (laws, the plastic projection, the
+//!    room's state with its preparation and the bi-projection of eq. 12), [`walls`] (Coulomb and side-wall friction),
 //!    [`plasticity`] (what rheology and walls share: the unit-ball projection, the increment of
 //!    a projected field, the interface blending of yield and friction), [`diagnostics`] (the
 //!    energy budget's terms);
 //! 2. [`operators`] (staggered differences, interpolations, WENO5, strain rate, viscous
 //!    operator) and [`solvers`] (multigrid-preconditioned CG, sparse Cholesky);
-//! 1. [`grid`]: the grid, MAC locations, fields with halos, boundary conditions;
+//! 1. [`grid`]: the grid, MAC locations, fields with halos, boundary conditions, the rooms' state
+//!    interfaces (`StateArrays`, `WindowState`);
 //! 0. [`error`] and [`exec`] (the execution policy: serial or the model's rayon pool).
 
 pub mod diagnostics;

@@ -301,6 +301,9 @@ impl Field {
     }
 }
 
+/// One named entry of a checkpoint: a flat array of f64 (scalars as one element).
+pub type StateEntry = (String, Vec<f64>);
+
 /// A room's part of the state a step reads, for checkpoints and the snapshot a failed step
 /// returns to (`models/checkpoint.rs`): the room names its arrays and visits them in a fixed
 /// order, so that the model needs none of its fields.
@@ -309,4 +312,27 @@ pub trait StateArrays {
     fn visit_state(&self, f: &mut dyn FnMut(&str, &[f64]));
     /// The same arrays in the same order, writable (a restore).
     fn visit_state_mut(&mut self, f: &mut dyn FnMut(&str, &mut [f64]));
+}
+
+/// A room's part of the state on the grid, for the active window (`models/window.rs`): the
+/// window copies a room's [`WindowState::state_fields`] from the whole model when it is built
+/// (the block it covers) and back after each step, and its [`WindowState::shown_fields`] (what
+/// a step computes and the model shows) back only; the rest of the room's state, off the grid,
+/// goes by [`WindowState::copy_other_state`].
+pub trait WindowState {
+    /// The state fields, in a fixed order.
+    fn state_fields(&self) -> Vec<&Field>;
+    /// The same fields in the same order, writable.
+    fn state_fields_mut(&mut self) -> Vec<&mut Field>;
+    /// Fields a step computes that the model shows (none by default).
+    fn shown_fields(&self) -> Vec<&Field> {
+        Vec::new()
+    }
+    /// The same fields in the same order, writable.
+    fn shown_fields_mut(&mut self) -> Vec<&mut Field> {
+        Vec::new()
+    }
+    /// Copies the state off the grid from `src` (the whole model's when a window is built, the
+    /// window's after its step: `back`); nothing by default.
+    fn copy_other_state(&mut self, _src: &Self, _back: bool) {}
 }

@@ -11,10 +11,7 @@
 
 use super::two_phase::TwoPhaseModel;
 use crate::error::{Error, Result};
-use crate::grid::StateArrays;
-
-/// One named entry of a checkpoint: a flat array of f64 (scalars as one element).
-pub type StateEntry = (String, Vec<f64>);
+use crate::grid::{StateArrays, StateEntry};
 
 impl TwoPhaseModel {
     /// The model's state as named flat arrays (see the module docs).
@@ -44,8 +41,8 @@ impl TwoPhaseModel {
         f("conv_prev_v", self.conv_prev_v.slice());
         f("p", self.p.slice());
         f("phi", self.phi.slice());
-        f("pressure_increment", self.pressure_increment());
         // the rooms' own state arrays
+        self.pressure.visit_state(&mut f);
         if let Some(pore) = &self.pore {
             pore.visit_state(&mut f);
         }
@@ -93,8 +90,8 @@ impl TwoPhaseModel {
         self.conv_prev_v.slice_mut().copy_from_slice(get("conv_prev_v"));
         self.p.slice_mut().copy_from_slice(get("p"));
         self.phi.slice_mut().copy_from_slice(get("phi"));
-        self.pressure_increment_mut().copy_from_slice(get("pressure_increment"));
         let mut put = |name: &str, data: &mut [f64]| data.copy_from_slice(get(name));
+        self.pressure.visit_state_mut(&mut put);
         if let Some(pore) = &mut self.pore {
             pore.visit_state_mut(&mut put);
         }
@@ -107,7 +104,7 @@ impl TwoPhaseModel {
         self.dt_prev = if dt_prev.is_nan() { None } else { Some(dt_prev) };
         self.reference_area = get("reference_area")[0];
         self.properties_current = false;
-        self.projection_stale = true;
+        self.pressure.density_changed();
         self.time_to_land = None;
         self.window = None;
         Ok(())

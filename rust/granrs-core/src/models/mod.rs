@@ -16,9 +16,10 @@ mod rest;
 mod rheology_stage;
 mod step;
 mod two_phase;
+mod window;
 
+pub use crate::grid::StateEntry;
 pub use active_region::{ActiveRegion, WindowSides};
-pub use checkpoint::StateEntry;
 pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
 pub use memory::available_memory;
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};

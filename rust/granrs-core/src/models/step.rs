@@ -4,30 +4,39 @@
 //! ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (10f), discretised by the paper's steps 1–5 (§3.1).
 //!
 //! **This is the only place that states the
-//! order of the stages** (Aravena et al. §3.1; step numbers of the paper in brackets):
+//! order of the stages** (Aravena et al. §3.1; step numbers of the paper in brackets). Each
+//! stage is a room's method with explicit inputs and outputs; the functions here hand them the
+//! shared fields (u, v, p, Φ, the BDF2 history) and attach the step and time to their errors.
+//! The wall time of each goes to `StepInfo::stage_seconds`.
 //!
 //! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
-//! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^n; redistancing every N steps.
-//! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1}).
-//! 4. `pore_pressure` [step 3]: p_f^{n+1} (pore-pressure room, implicit BDF2 or explicit forward
-//!    Euler; an explicit step past h²/(4κ) stops here, naming the cell; skipped when not fluidised).
+//! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^{n+½}, redistancing every N steps
+//!    (`levelset::Interface::advance`), then the optional global mass correction.
+//! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1})
+//!    (`levelset::material_properties`).
+//! 4. `pore_pressure` [step 3]: p_f^{n+1} (`pore_pressure::PorePressure::advance`, implicit
+//!    BDF2 or explicit forward Euler; an explicit step past h²/(4κ) stops here, naming the cell;
+//!    skipped when not fluidised).
 //!
 //! 4b. `rheology_stage` [step 2, continued]: τ^{n+1} = τ(p^n) H_ε(Φ^{n+1}) at centres and nodes
 //!    (H_ε(Φ^{n+1} + sε) with the shift s = 0, 1, 2 of `InterfaceYield`),
 //!    τ_b^{n+1} on Coulomb walls, (2/W)τ_w^{n+1} on every face with the channel's side walls
 //!    (`RheologyConfig::side_walls`, `walls/side.rs`), the lagged viscosity of μ(I) and
-//!    regularised laws, r and r_b (`models/rheology_stage.rs`).
+//!    regularised laws, r and r_b (`rheology::stage::RheologyState::prepare`, its inputs in
+//!    `models/rheology_stage.rs`).
 //! 5. `predictor` [step 4]: ũ^{n+1} from BDF2 with extrapolated convection, the body force
 //!    (ρ − ρ_ref) g (ρ_ref = ρ_f with `ModelConfig::ambient_hydrostatic`, else 0) and the viscous term
 //!    (implicit or explicit; on open sides with backflow stabilisation ∇pⁿ takes the boundary
 //!    pressure p_b − ½ρ(u·n)² where the flow enters, `projection::add_backflow_pressure`); with a
 //!    yield stress or wall friction, the Picard loop of eq. (12)
 //!    couples it with the plastic projection of Σ and the friction projections of s (the
-//!    Coulomb walls' and, with side walls, the side walls') (`momentum_solve` in
-//!    `models/rheology_stage.rs`).
+//!    Coulomb walls' and, with side walls, the side walls')
+//!    (`rheology::stage::RheologyState::bi_projection` over the predictor solve that
+//!    `momentum_solve` in `models/rheology_stage.rs` gives it).
 //!    `check_predictor`: a non-finite ũ (blow-up) stops the step here, naming the cell.
-//! 6. `projection` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp (− η div ũ in the rotational form,
-//!    `ModelConfig::rotational_pressure`), then the pressure gauge (p = 0 under the lid when no
+//! 6. `projection_stage` [step 5]: δp, u^{n+1}, p^{n+1} = p^n + δp (− η div ũ in the rotational
+//!    form, `ModelConfig::rotational_pressure`; `projection::PressureStage::project`), then the
+//!    pressure gauge (p = 0 under the lid when no
 //!    side is open; `ModelConfig::pressure_gauge`).
 //! 7. `checks`: non-finite u, v, p, Φ, p_f; the CFL number; the step collapsing (adaptive δt);
 //!    the divergence; the BDF2 history moves on.
@@ -48,23 +57,23 @@
 //! CFL step below the floor of [`SPEED_BOUND`] (the step collapsing).
 //!
 //! With `ModelConfig::active_region` the step first sizes the window around the dense phase and
-//! runs these same stages on it (`models/active_region.rs`).
+//! runs these same stages on it (`models/window.rs`).
 
 use super::{ConvectionScheme, ModelConfig, TwoPhaseModel};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
-use crate::levelset::blend_harmonic;
+use crate::levelset::{blend_harmonic, material_properties, MaterialFields, TransportVelocity};
 use crate::operators::{
-    cell_to_node, convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
-    BcMode,
+    convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed, BcMode,
 };
-use crate::projection::fill_pressure_ghosts;
+use crate::projection::{fill_pressure_ghosts, ProjectionInputs};
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt, SPEED_BOUND};
 use crate::time_stepping::momentum::ViscousScheme;
-use crate::time_stepping::StepInfo;
+use crate::time_stepping::{StageSeconds, StepInfo};
+use std::time::Instant;
 
 /// Weight of the Dirichlet rows that hold the light phase's faces in the granular-only model's
 /// predictor (c = FROZEN_FACE a₀ρ_s/δt): a node's stress moves such a face by 1e-8 of what it
@@ -78,8 +87,11 @@ impl TwoPhaseModel {
     /// region does this itself). A step that fails for good leaves the model bit for bit in its
     /// state before the step (the last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
-        let info = self.step_accepted()?;
+        let mut info = self.step_accepted()?;
+        let start = Instant::now();
         self.account_energy(info.dt);
+        info.stage_seconds.diagnostics += start.elapsed().as_secs_f64();
+        self.last.stage_seconds = info.stage_seconds;
         Ok(info)
     }
 
@@ -138,17 +150,39 @@ impl TwoPhaseModel {
     }
 
     fn step_stages(&mut self, exec: Exec) -> Result<StepInfo> {
+        // the wall time of each stage (StepInfo::stage_seconds)
+        let mut secs = StageSeconds::default();
+        let mut clock = Instant::now();
+        let mut lap = |slot: &mut f64| {
+            let now = Instant::now();
+            *slot += (now - clock).as_secs_f64();
+            clock = now;
+        };
         let dt = self.choose_dt(exec)?;
         self.dt_attempt = dt;
-        self.interface(dt, exec)?;
-        self.properties(exec);
         let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
+        lap(&mut secs.choose_dt);
+        self.interface(dt, exec)?;
+        lap(&mut secs.interface);
+        self.properties(exec);
+        lap(&mut secs.properties);
         self.pore_pressure(dt, (a0, a1, a2, w), exec)?;
+        lap(&mut secs.pore_pressure);
         self.rheology_stage(a0 / dt, exec)?;
-        let (viscous, picard) = self.predictor(dt, a0, a1, a2, w, exec)?;
+        lap(&mut secs.rheology);
+        let (viscous, picard) = self.predictor(dt, a0, a1, a2, w, &mut secs, exec)?;
+        // the predictor's time less its solves and projections (measured inside)
+        lap(&mut secs.predictor_setup);
+        secs.predictor_setup -= secs.predictor_solves + secs.projections;
         self.check_predictor(dt, exec)?;
+        lap(&mut secs.diagnostics);
         let pressure = self.projection_stage(dt / a0, exec)?;
-        self.checks(dt, viscous, pressure, picard, exec)
+        lap(&mut secs.pressure_projection);
+        let mut info = self.checks(dt, viscous, pressure, picard, exec)?;
+        lap(&mut secs.diagnostics);
+        info.stage_seconds = secs;
+        self.last.stage_seconds = secs;
+        Ok(info)
     }
 
     /// Balances the body force at rest: sets p so that (1/ρ)∇p = g − P(g), where P is the
@@ -193,18 +227,19 @@ impl TwoPhaseModel {
         }
         fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Homogeneous);
         self.p.fill(0.0);
-        if let Some(fs) = self.free_surface.as_mut() {
+        if cfg.free_surface {
             self.phi.extrapolate_ghosts_linear();
-            let info = fs.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &self.phi, cfg.dense.density, 1.0, &cfg.grid, &cfg.bc, exec);
-            fs.increment_mut().fill(0.0);
-            return info;
         }
-        if self.projection_stale {
-            self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
-            self.projection_stale = false;
-        }
-        let info = self.projection.project(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &wk.rho_u, &wk.rho_v, 1.0, &cfg.grid, &cfg.bc, None, exec);
-        self.projection.reset_increment();
+        let input = ProjectionInputs {
+            rho_u: &wk.rho_u,
+            rho_v: &wk.rho_v,
+            phi: &self.phi,
+            dense_density: cfg.dense.density,
+            rotational: None,
+            grid: &cfg.grid,
+            bc: &cfg.bc,
+        };
+        let info = self.pressure.balance(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &input, exec);
         self.gauge_pressure();
         info
     }
@@ -292,28 +327,16 @@ impl TwoPhaseModel {
         }
         let cfg = &self.config;
         fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, &cfg.grid, BcMode::Full);
-        // transport with the time-centred velocity u^{n+½} ≈ (1 + ω/2)uⁿ − (ω/2)uⁿ⁻¹: advecting Φ
-        // with uⁿ alone lags the interface behind the flow, which feeds interfacial gravity waves
-        // (a heavy layer at rest then grows round-off exponentially)
         let wk = &mut self.work;
         let half = match self.dt_prev {
             Some(prev) => 0.5 * dt / prev,
             None => 0.0,
         };
-        for (x, xn, xm) in [(&mut wk.rhs_u, &self.u, &self.u_prev), (&mut wk.rhs_v, &self.v, &self.v_prev)] {
-            let (ns, ms) = (xn.slice(), xm.slice());
-            for (k, o) in x.slice_mut().iter_mut().enumerate() {
-                *o = (1.0 + half) * ns[k] - half * ms[k];
-            }
-        }
-        fill_velocity_ghosts(&mut wk.rhs_u, &mut wk.rhs_v, &cfg.bc, &cfg.grid, BcMode::Full);
-        let r = self.levelset.transport.advect(&mut self.phi, &wk.rhs_u, &wk.rhs_v, &cfg.grid, dt, exec);
-        r.map_err(|e| self.at_step(e))?;
+        let vel = TransportVelocity { u: &self.u, v: &self.v, u_prev: &self.u_prev, v_prev: &self.v_prev, half, out_u: &mut wk.rhs_u, out_v: &mut wk.rhs_v };
         let n = self.step_count + 1;
-        if cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0 {
-            let r = self.levelset.redistancer.redistance(&mut self.phi, &cfg.grid, exec);
-            r.map_err(|e| self.at_step(e))?;
-        }
+        let redistance = cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0;
+        let r = self.levelset.advance(&mut self.phi, vel, &cfg.grid, &cfg.bc, dt, redistance, exec);
+        r.map_err(|e| self.at_step(e))?;
         if cfg.mass_correction {
             self.correct_mass(exec);
         }
@@ -368,40 +391,10 @@ impl TwoPhaseModel {
         let eta = |phi: f64| blend_harmonic(phi, eps, dense.viscosity, light.viscosity);
         self.phi.extrapolate_ghosts_linear();
         let w = &mut self.work;
-        let ps = self.phi.slice();
-        let st = self.phi.stride();
-        let nxc = self.phi.nx;
-        // density on faces from Φ averaged to the face
-        let nxu = w.rho_u.nx;
-        for_each_interior_row(exec, &mut w.rho_u, |j, row| {
-            let b = (j + HALO) * st + HALO;
-            for i in 0..nxu {
-                row[HALO + i] = rho_face(ps[b + i], ps[b + i - 1]);
-            }
-        });
-        for_each_interior_row(exec, &mut w.rho_v, |j, row| {
-            let (b0, b1) = ((j + HALO - 1) * st + HALO, (j + HALO) * st + HALO);
-            for i in 0..nxc {
-                row[HALO + i] = rho_face(ps[b0 + i], ps[b1 + i]);
-            }
-        });
-        // viscosity at centres (with ghosts) and nodes
-        for_each_interior_row(exec, &mut w.eta_c, |j, row| {
-            let b = (j + HALO) * st + HALO;
-            for i in 0..nxc {
-                row[HALO + i] = eta(ps[b + i]);
-            }
-        });
-        w.eta_c.extrapolate_ghosts_constant();
-        cell_to_node(&self.phi, &mut w.eta_n, exec);
-        let nxn = w.eta_n.nx;
-        for_each_interior_row(exec, &mut w.eta_n, |_, row| {
-            for x in &mut row[HALO..HALO + nxn] {
-                *x = eta(*x);
-            }
-        });
+        let out = MaterialFields { rho_u: &mut w.rho_u, rho_v: &mut w.rho_v, eta_c: &mut w.eta_c, eta_n: &mut w.eta_n };
+        material_properties(&self.phi, rho_face, eta, out, exec);
         self.properties_current = true;
-        self.projection_stale = true;
+        self.pressure.density_changed();
     }
 
     /// Stage 4 (paper step 3): the pore gas pressure p_f^{n+1} (skipped when not fluidised).
@@ -422,7 +415,7 @@ impl TwoPhaseModel {
 
     /// Stage 5 (paper step 4): the momentum predictor ũ^{n+1}.
     #[allow(clippy::too_many_arguments)]
-    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, secs: &mut StageSeconds, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let [gxv, gyv] = cfg.gravity;
@@ -442,7 +435,7 @@ impl TwoPhaseModel {
             wk.conv_u.fill(0.0);
             wk.conv_v.fill(0.0);
         }
-        if self.free_surface.is_some() {
+        if cfg.free_surface {
             // granular-only model: ∇p_f, then ∇pⁿ with pⁿ = 0 on the surface Φ^{n+1} = 0
             // (Φ's ghosts were filled by `properties` this step; Φ has not changed since)
             pressure_gradient(None, self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
@@ -478,7 +471,7 @@ impl TwoPhaseModel {
                 }
             });
         }
-        if self.free_surface.is_some() {
+        if cfg.free_surface {
             // granular-only model: the faces with no granular cell beside them are not unknowns;
             // they keep their BDF history value (a₁uⁿ − a₂uⁿ⁻¹)/a₀ of the extended velocity (a
             // Dirichlet row: c ← FROZEN c, rhs ← c u), so that the stresses of the nodes on the
@@ -520,7 +513,7 @@ impl TwoPhaseModel {
         }
         std::mem::swap(&mut wk.conv_u, &mut self.conv_prev_u);
         std::mem::swap(&mut wk.conv_v, &mut self.conv_prev_v);
-        self.momentum_solve(exec).map_err(|e| self.at_step(e))
+        self.momentum_solve(secs, exec).map_err(|e| self.at_step(e))
     }
 
     /// After stage 5: a predictor that blew up (NaN or inf) is reported as such, with its cell,
@@ -544,16 +537,16 @@ impl TwoPhaseModel {
     fn projection_stage(&mut self, dt_over_a0: f64, exec: Exec) -> Result<SolveInfo> {
         let cfg = &self.config;
         let wk = &self.work;
-        if let Some(fs) = self.free_surface.as_mut() {
-            let r = fs.project(&mut self.u, &mut self.v, &mut self.p, &self.phi, cfg.dense.density, dt_over_a0, &cfg.grid, &cfg.bc, exec);
-            return r.map_err(|e| self.at_step(e));
-        }
-        if self.projection_stale {
-            self.projection.set_density(&wk.rho_u, &wk.rho_v, exec)?;
-            self.projection_stale = false;
-        }
-        let rotational = cfg.rotational_pressure.then_some(&wk.eta_c);
-        let r = self.projection.project(&mut self.u, &mut self.v, &mut self.p, &wk.rho_u, &wk.rho_v, dt_over_a0, &cfg.grid, &cfg.bc, rotational, exec);
+        let input = ProjectionInputs {
+            rho_u: &wk.rho_u,
+            rho_v: &wk.rho_v,
+            phi: &self.phi,
+            dense_density: cfg.dense.density,
+            rotational: cfg.rotational_pressure.then_some(&wk.eta_c),
+            grid: &cfg.grid,
+            bc: &cfg.bc,
+        };
+        let r = self.pressure.project(&mut self.u, &mut self.v, &mut self.p, &input, dt_over_a0, exec);
         self.gauge_pressure();
         r.map_err(|e| self.at_step(e))
     }
@@ -622,7 +615,7 @@ impl TwoPhaseModel {
                 }
             }
         }
-        let divergence = if self.free_surface.is_some() {
+        let divergence = if cfg.free_surface {
             crate::projection::free_surface::divergence_max_abs_granular(&self.u, &self.v, &self.phi, g)
         } else {
             divergence_max_abs(&self.u, &self.v, g, exec)
@@ -643,6 +636,7 @@ impl TwoPhaseModel {
             picard_increment: picard.increment,
             picard_r_halvings: picard.r_halvings,
             retries: 0,
+            stage_seconds: StageSeconds::default(),
         };
         Ok(self.last)
     }

@@ -7,10 +7,9 @@ use crate::diagnostics::EnergyLedger;
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
-use crate::levelset::{blend, dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
+use crate::levelset::{blend, dense_area, init_signed_distance, Interface, RedistanceSettings, Shape};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
-use crate::projection::free_surface::FreeSurfaceProjection;
-use crate::projection::PressureProjection;
+use crate::projection::PressureStage;
 use crate::rheology::stage::RheologyState;
 use crate::rheology::{RheologyConfig, RheologyLaw};
 use crate::solvers::{SolveInfo, SolverSettings};
@@ -276,13 +275,10 @@ pub(crate) struct Work {
     pub ptot: Field,
 }
 
-/// Level-set transport and redistancing (allocated once).
-pub(crate) struct LevelSetWork {
-    pub transport: LevelSetTransport,
-    pub redistancer: Redistancer,
-}
-
-/// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model.
+/// The paper's unified two-phase model (eq. 10), or a single-phase Navier–Stokes model: the
+/// shared fields (u, p, Φ and the BDF2 history), the rooms' states (the interface, the pore
+/// pressure, the rheology, the pressure projection, the momentum solver) and the clock. The
+/// stages are called, in order, by `models/step.rs` alone.
 pub struct TwoPhaseModel {
     pub(crate) config: ModelConfig,
     pub(crate) pool: std::sync::Arc<rayon::ThreadPool>,
@@ -301,13 +297,13 @@ pub struct TwoPhaseModel {
     /// Level set Φ^n (cell centres; > 0 in the dense phase).
     pub phi: Field,
     pub(crate) work: Work,
-    /// Level-set transport and redistancing work arrays.
-    pub(crate) levelset: LevelSetWork,
+    /// The interface room: level-set transport and redistancing.
+    pub(crate) levelset: Interface,
     /// Pore gas pressure (None when not fluidised).
     pub pore: Option<PorePressure>,
-    pub(crate) projection: PressureProjection,
-    /// The free-surface projection of the granular-only model (with `ModelConfig::free_surface`).
-    pub(crate) free_surface: Option<FreeSurfaceProjection>,
+    /// The pressure projection room (the free-surface projection with
+    /// `ModelConfig::free_surface`).
+    pub(crate) pressure: PressureStage,
     pub(crate) momentum: MomentumSolver,
     /// Plastic tensor, wall friction and their work arrays (None: Newtonian without friction).
     pub(crate) rheology: Option<RheologyState>,
@@ -320,8 +316,6 @@ pub struct TwoPhaseModel {
     /// What the last step did.
     pub last: StepInfo,
     pub(crate) properties_current: bool,
-    /// The projection's coefficients 1/ρ must be rebuilt.
-    pub(crate) projection_stale: bool,
     /// Time left to a target time the next step must not overshoot.
     pub(crate) time_to_land: Option<f64>,
     /// Dense-phase area the mass correction restores (set when Φ is set).
@@ -335,7 +329,7 @@ pub struct TwoPhaseModel {
     /// δt of the step in progress (the one a rejection halves).
     pub(crate) dt_attempt: f64,
     /// The state before the step in progress (reused buffers; only with step retries).
-    pub(crate) step_snapshot: Vec<crate::models::checkpoint::StateEntry>,
+    pub(crate) step_snapshot: Vec<crate::grid::StateEntry>,
     /// Time integrals of the mechanical energy budget (`diagnostics/energy.rs`).
     pub(crate) energy: EnergyLedger,
 }
@@ -353,8 +347,7 @@ impl TwoPhaseModel {
         let yf = || Field::zeros(g, Location::YFace);
         let mut phi = c();
         phi.fill(1.0);
-        let projection = PressureProjection::new(g, &config.bc, config.pressure_solver)?;
-        let free_surface = if config.free_surface { Some(FreeSurfaceProjection::new(g, &config.bc, config.pressure_solver)?) } else { None };
+        let pressure = PressureStage::new(g, &config.bc, config.pressure_solver, config.free_surface)?;
         let mut momentum = MomentumSolver::new(g);
         momentum.rtol = config.viscous_rtol;
         momentum.max_iterations = config.viscous_max_iterations;
@@ -378,7 +371,7 @@ impl TwoPhaseModel {
             Some(pc) => Some(PorePressure::new(g, *pc, config.pressure_solver)?),
             None => None,
         };
-        let levelset = LevelSetWork { transport: LevelSetTransport::new(g), redistancer: Redistancer::new(g, config.redistance)? };
+        let levelset = Interface::new(g, config.redistance)?;
         let mut model = TwoPhaseModel {
             levelset,
             u: xf(),
@@ -391,8 +384,7 @@ impl TwoPhaseModel {
             phi,
             work,
             pore,
-            projection,
-            free_surface,
+            pressure,
             momentum,
             rheology,
             time: 0.0,
@@ -400,7 +392,6 @@ impl TwoPhaseModel {
             dt_prev: None,
             last: StepInfo::default(),
             properties_current: false,
-            projection_stale: true,
             time_to_land: None,
             reference_area: 0.0,
             window: None,
@@ -418,17 +409,11 @@ impl TwoPhaseModel {
     /// The last pressure increment δp of whichever projection the model uses (row-major, the
     /// warm start of the next one), for checkpoints and the active window.
     pub(crate) fn pressure_increment(&self) -> &[f64] {
-        match &self.free_surface {
-            Some(fs) => fs.increment(),
-            None => self.projection.increment(),
-        }
+        self.pressure.increment()
     }
 
     pub(crate) fn pressure_increment_mut(&mut self) -> &mut [f64] {
-        match &mut self.free_surface {
-            Some(fs) => fs.increment_mut(),
-            None => self.projection.increment_mut(),
-        }
+        self.pressure.increment_mut()
     }
 
     /// Makes the next steps land exactly on a target time `remaining` ahead: a step longer than

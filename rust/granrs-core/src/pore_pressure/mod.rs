@@ -484,3 +484,21 @@ impl crate::grid::StateArrays for PorePressure {
         f("pf_advection_prev", self.adv_prev.slice_mut());
     }
 }
+
+impl crate::grid::WindowState for PorePressure {
+    /// p_f, p_f^{n−1} and the advection at n − 1.
+    fn state_fields(&self) -> Vec<&Field> {
+        vec![&self.pf, &self.pf_prev, &self.adv_prev]
+    }
+
+    fn state_fields_mut(&mut self) -> Vec<&mut Field> {
+        vec![&mut self.pf, &mut self.pf_prev, &mut self.adv_prev]
+    }
+
+    /// The last solve's info, after the window's step.
+    fn copy_other_state(&mut self, src: &Self, back: bool) {
+        if back {
+            self.last = src.last;
+        }
+    }
+}

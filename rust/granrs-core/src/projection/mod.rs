@@ -21,12 +21,15 @@
 //! prescribed-velocity sides, δp = 0 on outflow sides (p keeps its boundary value p_b there).
 
 pub mod free_surface;
+pub mod stage;
 
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, PressureBc, Side, HALO};
 use crate::operators::{divergence, for_each_interior_row, max_speed, unknown_face_range};
 use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
+
+pub use stage::{PressureStage, ProjectionInputs};
 
 /// Fills the ghost layers of a cell-centred pressure: even reflection on Neumann sides,
 /// odd reflection about the boundary value p_b on Dirichlet sides, ghost = 2 p_b − interior

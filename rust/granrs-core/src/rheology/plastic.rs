@@ -61,7 +61,7 @@
 //! ny = 16 the adaptive run-out is 1.0 % short of the run at δt = 1e-5 s, against 36 % with
 //! w = 2. A larger w guards against k of the point alone flip-flopping (increment ≈ 2) in the
 //! interface band, where k jumps by ~80 over two cells; no measured case does with w = 0, and
-//! the stall safeguard of the Picard loop (`models/rheology_stage.rs`) halves r if one does.
+//! the stall safeguard of the Picard loop (`rheology/stage.rs`) halves r if one does.
 //! Limits: Stokes (c → 0) r = 2η(1 − θ)/τ ("r ~ η/τ"); inertial (small δt) r = (1 − θ)c/(2Sτ).
 //! A user-given `r` is used as a constant.
 

@@ -1,15 +1,35 @@
-//! The state of the rheology room (Σ, the walls' friction, their work arrays), allocated once;
-//! its two pieces of a time step, the rheology stage and the momentum solve with the Picard loop
-//! of eq. (12), run on the model in `models/rheology_stage.rs`.
+//! The rheology room's state (Σ, the walls' friction, their work arrays, allocated once) and
+//! its two stages of a time step (Aravena et al. eq. 10d, 10e, 11–12; the order is
+//! `models/step.rs`'s):
+//!
+//! - [`RheologyState::prepare`] (before the predictor): yield stress τ(Φ) = τ(p^n) H_ε(Φ)
+//!   (shifted by sε to the air side, s of `InterfaceYield`) at centres and nodes, wall friction
+//!   τ_b, the lagged viscosity of variable-viscosity laws (μ(I) eq. 5, Papanastasiou,
+//!   bi-viscous) from D(u^n), blended with the light phase by the harmonic mean as the
+//!   properties are, and the projection parameters r, r_b;
+//! - [`RheologyState::bi_projection`] (the end of the predictor, paper step 4): the predictor
+//!   ũ^{n+1} coupled with Σ^{n+1} = P(Σ^{n+1} + r D(ũ^{n+1})) and
+//!   s^{n+1} = P_b(s^{n+1} − r_b ũ_t^{n+1}), over a predictor solve it is given (the model's
+//!   momentum solver), with the plastic projection (`rheology/plastic.rs`), the Coulomb walls
+//!   (`walls/mod.rs`) and the side walls (`walls/side.rs`) as its projections.
+//!
+//! The bi-projection is solved by the Picard iteration with pseudo-relaxation θ (eq. 12):
+//!
+//!   ũ^{k+1} from the predictor with the forces div(τΣ^k) and τ_b s^k,
+//!   Σ^{k+1} = P(Σ^k + r D(ũ^{k+1}) + θ(Σ^n − Σ^k)),   s^{k+1} = P_b(s^k − r_b ũ_t^{k+1} + θ(s^n − s^k)).
 
 use super::anderson::Anderson;
-use super::plastic::PlasticState;
-use super::{RheologyConfig, YieldTreatment};
+use super::plastic::{not_converged, IncrementSite, PicardInfo, PlasticState};
+use super::{RheologyConfig, WallNormalStress, YieldPressure, YieldTreatment};
+use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
+use crate::levelset::heaviside;
+use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate, strain_rate_norm_centre, BcMode};
 use crate::solvers::par::{n_blocks, sum_rows};
+use crate::solvers::SolveInfo;
 use crate::walls::side::SideWallFriction;
-use crate::walls::CoulombWalls;
+use crate::walls::{default_r_wall, CoulombWalls, NormalStress};
 
 /// Stall safeguard of the Picard loop: every `PICARD_STALL_WINDOW` iterations, if the increment
 /// has not fallen below 95 % of its value at the start of the window (a cycle, not the slow
@@ -106,11 +126,311 @@ impl RheologyState {
     }
 }
 
+/// What the rheology stage reads: the state at t_n (ghosts filled) and the step's properties.
+pub struct RheologyInputs<'a> {
+    /// uⁿ, vⁿ.
+    pub u: &'a Field,
+    pub v: &'a Field,
+    /// pⁿ.
+    pub p: &'a Field,
+    /// Φ^{n+1}.
+    pub phi: &'a Field,
+    /// ρ^{n+1} on x and y faces.
+    pub rho_u: &'a Field,
+    pub rho_v: &'a Field,
+    pub grid: &'a Grid,
+    /// The interface half-width ε [m].
+    pub eps: f64,
+    /// Whether there is a light phase (else H_ε = 1 everywhere).
+    pub two_phase: bool,
+    /// η of the dense and light phases [Pa s].
+    pub dense_viscosity: f64,
+    pub light_viscosity: f64,
+    /// a₀/δt of the BDF step.
+    pub a0_over_dt: f64,
+}
+
 impl RheologyState {
     /// Whether Σ is iterated (a yield stress treated by projection).
     pub fn has_plastic_tensor(&self) -> bool {
         self.projection
     }
+
+    /// Whether the predictor runs the Picard loop of [`RheologyState::bi_projection`] (a yield
+    /// stress treated by projection, or friction walls).
+    pub fn iterates(&self) -> bool {
+        self.picard
+    }
+
+    /// The rheology stage (before the predictor): the yield stress τ(Φ) = τ(p^n − p_s) H_ε(Φ + sε)
+    /// at centres and nodes, the walls' friction τ_b and (2/W)τ_w, the lagged viscosity of
+    /// variable-viscosity laws from D(u^n) into `eta_c`, `eta_n` (blended with the light phase
+    /// by the harmonic mean, as the properties are), and the projections' parameters r, r_b.
+    /// The fields of `input` with their ghosts filled.
+    pub fn prepare(&mut self, rc: &RheologyConfig, input: &RheologyInputs, eta_c: &mut Field, eta_n: &mut Field, exec: Exec) {
+        let rc = *rc;
+        let grid = input.grid;
+        let eps = input.eps;
+        let two_phase = input.two_phase;
+        let (dense_viscosity, light_viscosity) = (input.dense_viscosity, input.light_viscosity);
+        let a0_over_dt = input.a0_over_dt;
+        cell_to_node(input.p, &mut self.p_n, exec);
+        cell_to_node(input.phi, &mut self.phi_n, exec);
+        let law = rc.law;
+        let iy = rc.interface_yield;
+        let hv = |phi: f64| if two_phase { heaviside(iy.shift(phi, eps), eps) } else { 1.0 };
+        // the pressure the yield stress reads: p, or p − p_s (YieldPressure::SurfaceAir)
+        self.p_surface = if two_phase && rc.yield_pressure == YieldPressure::SurfaceAir {
+            surface_air_pressure(input.p, input.phi, eps, grid.h(), &mut self.surface_partials, exec)
+        } else {
+            0.0
+        };
+        let p_s = self.p_surface;
+        // yield stress τ(Φ) = τ(p − p_s) H_ε(Φ + sε) at centres and nodes
+        for (tau, p, phi) in [(&mut self.plastic.tau_c, input.p, input.phi), (&mut self.plastic.tau_n, &self.p_n, &self.phi_n)] {
+            let (ps, fs, st) = (p.slice(), phi.slice(), p.stride());
+            let n = tau.nx;
+            for_each_interior_row(exec, tau, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for i in 0..n {
+                    row[HALO + i] = law.yield_stress(ps[b + i] - p_s) * hv(fs[b + i]);
+                }
+            });
+        }
+        self.plastic.tau_c.extrapolate_ghosts_constant();
+        self.plastic.tau_max = self.plastic.tau_c.max_abs().max(self.plastic.tau_n.max_abs());
+        // lagged viscosity of variable-viscosity laws, from D(u^n)
+        if rc.variable_viscosity() {
+            strain_rate(input.u, input.v, grid, &mut self.dxx, &mut self.dyy, &mut self.dxy, exec);
+            strain_rate_norm_centre(&self.dxx, &self.dyy, &self.dxy, &mut self.dnorm_c, exec);
+            self.dxx.extrapolate_ghosts_constant();
+            self.dyy.extrapolate_ghosts_constant();
+            {
+                let (a, b, c) = (self.dxx.slice(), self.dyy.slice(), self.dxy.slice());
+                let (dxx, dxy) = (&self.dxx, &self.dxy);
+                let n = self.dnorm_n.nx;
+                for_each_interior_row(exec, &mut self.dnorm_n, |j, row| {
+                    let j = j as isize;
+                    let (b0, b1, bn) = (base(dxx, j - 1), base(dxx, j), base(dxy, j));
+                    for i in 0..n {
+                        let avg = |s: &[f64]| 0.25 * (s[b0 + i] + s[b0 + i - 1] + s[b1 + i] + s[b1 + i - 1]);
+                        let (xx, yy, xy) = (avg(a), avg(b), c[bn + i]);
+                        row[HALO + i] = (0.5 * (xx * xx + yy * yy) + xy * xy).sqrt();
+                    }
+                });
+            }
+            let treatment = rc.treatment;
+            let eta = |d: f64, p: f64, phi: f64| {
+                let p = p - p_s;
+                let tau = law.yield_stress(p);
+                let ed = dense_viscosity + law.extra_viscosity(d, p) + treatment.regularised_viscosity(tau, d, dense_viscosity);
+                if two_phase {
+                    let h = heaviside(phi, eps);
+                    1.0 / (h / ed + (1.0 - h) / light_viscosity)
+                } else {
+                    ed
+                }
+            };
+            for (out, d, p, phi) in [(&mut *eta_c, &self.dnorm_c, input.p, input.phi), (&mut *eta_n, &self.dnorm_n, &self.p_n, &self.phi_n)] {
+                let (ds, ps, fs, st) = (d.slice(), p.slice(), phi.slice(), d.stride());
+                let n = out.nx;
+                for_each_interior_row(exec, out, |j, row| {
+                    let b = (j + HALO) * st + HALO;
+                    for i in 0..n {
+                        row[HALO + i] = eta(ds[b + i], ps[b + i], fs[b + i]);
+                    }
+                });
+            }
+            eta_c.extrapolate_ghosts_constant();
+        }
+        // parameters of the projections
+        if self.projection {
+            self.r = self.plastic.set_r(rc.r, rc.theta, rc.r_neighbourhood, eta_c, input.rho_u, input.rho_v, a0_over_dt, grid, exec);
+        }
+        if self.walls.is_active() {
+            let tan_b = rc.wall_friction_angle.unwrap_or(0.0).to_radians().tan();
+            let tnn = (rc.wall_normal_stress == WallNormalStress::Total).then(|| NormalStress {
+                u: input.u,
+                eta_c: &*eta_c,
+                plastic: self.projection.then_some((&self.plastic.tau_c, &self.plastic.sigma_xx)),
+                dx: grid.dx,
+            });
+            self.walls.set_friction(input.p, p_s, tnn, input.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
+            self.r_wall = rc.r_wall.unwrap_or_else(|| default_r_wall(rc.theta, self.walls.max_response(input.rho_u, input.rho_v, a0_over_dt, grid)));
+        }
+        if let (Some(sw), Some(walls)) = (self.side_walls.as_mut(), rc.side_walls) {
+            sw.set_friction(walls, input.p, p_s, input.phi, two_phase.then_some(eps), rc.interface_yield, input.rho_u, input.rho_v, a0_over_dt, rc.theta, exec);
+        }
+    }
+
+    /// The bi-projection of eq. (11)–(12): the Picard iteration of the predictor `solve`, with
+    /// the forces div(τΣ^k), τ_b s^k and the side walls' added to its right-hand side
+    /// `rhs_u`, `rhs_v`, and the projections of Σ, s and the side walls' directions from each
+    /// ũ^{k+1}. `u`, `v` hold the initial guess and receive ũ^{n+1}; `explicit`: `solve` is the
+    /// explicit viscous step (restarted from the initial guess each iteration). `step` and
+    /// `time` name the step in a non-convergence error. Returns the viscous solves (iterations
+    /// summed) and the loop's info.
+    #[allow(clippy::too_many_arguments)]
+    pub fn bi_projection(
+        &mut self,
+        rc: &RheologyConfig,
+        mut solve: impl FnMut(&mut Field, &mut Field, &Field, &Field) -> Result<SolveInfo>,
+        explicit: bool,
+        u: &mut Field,
+        v: &mut Field,
+        rhs_u: &Field,
+        rhs_v: &Field,
+        grid: &Grid,
+        bc: &BoundaryConditions,
+        (step, time): (u64, f64),
+        exec: Exec,
+    ) -> Result<(SolveInfo, PicardInfo)> {
+        let rc = *rc;
+        self.plastic.begin_step();
+        self.walls.begin_step();
+        if let Some(sw) = self.side_walls.as_mut() {
+            sw.begin_step();
+        }
+        if explicit {
+            self.ustar_u.assign(u);
+            self.ustar_v.assign(v);
+        }
+        let mut total = SolveInfo::default();
+        let mut inc = f64::INFINITY;
+        self.history.clear();
+        let mut window_start = f64::INFINITY;
+        let mut halvings = 0usize;
+        let mut restarts = 0usize;
+        if let Some(a) = self.anderson.as_mut() {
+            a.begin_step(&self.plastic);
+        }
+        for k in 1..=rc.picard_max_iterations {
+            // rhs + div(τΣ^k) + wall friction τ_b s^k / h
+            self.rhs_u.assign(rhs_u);
+            self.rhs_v.assign(rhs_v);
+            if self.projection {
+                self.plastic.add_force(grid, &mut self.rhs_u, &mut self.rhs_v, exec);
+            }
+            self.walls.add_force(&mut self.rhs_u, &mut self.rhs_v, grid);
+            if let Some(sw) = self.side_walls.as_ref() {
+                sw.add_force(&mut self.rhs_u, &mut self.rhs_v, exec);
+            }
+            if explicit {
+                u.assign(&self.ustar_u);
+                v.assign(&self.ustar_v);
+                solve(u, v, &self.rhs_u, &self.rhs_v)?;
+            } else {
+                // A solve that stalls within 1000× of the tightened tolerance (or below 1e-7) is
+                // accepted: the Picard test below judges the result. CG stalls near 1e-9 and then
+                // drifts when round-off variations along an open side meet the asymmetry of the
+                // viscous operator there (see `MomentumSolver::diagonal`).
+                let info = match solve(u, v, &self.rhs_u, &self.rhs_v) {
+                    Ok(info) => info,
+                    Err(crate::Error::NotConverged { iterations, residual, tolerance, .. }) if residual <= (1e3 * tolerance).max(1e-7) => {
+                        fill_velocity_ghosts(u, v, bc, grid, BcMode::Full);
+                        SolveInfo { iterations, residual, initial_residual: 0.0, rhs_mean_removed: 0.0 }
+                    }
+                    Err(e) => return Err(e),
+                };
+                total.iterations += info.iterations;
+                total.residual = info.residual;
+                if k == 1 {
+                    total.initial_residual = info.initial_residual;
+                }
+            }
+            // Σ^{k+1}, s^{k+1} from ũ^{k+1} (ghosts filled by the solve)
+            inc = 0.0;
+            // where Σ moves most, recorded only when this iteration may be the last
+            self.plastic.locate = k == rc.picard_max_iterations || (halvings == PICARD_MAX_HALVINGS && k % PICARD_STALL_WINDOW == 0);
+            if self.projection {
+                strain_rate(u, v, grid, &mut self.dxx, &mut self.dyy, &mut self.dxy, exec);
+                if let Some(a) = self.anderson.as_mut() {
+                    a.save_iterate(&self.plastic);
+                }
+                inc = self.plastic.update(&self.dxx, &self.dyy, &self.dxy, rc.theta, exec);
+            }
+            if self.walls.is_active() {
+                let d = self.walls.update(u, v, self.r_wall, rc.theta, grid);
+                inc = if d.is_nan() { d } else { inc.max(d) };
+            }
+            if let Some(sw) = self.side_walls.as_mut() {
+                let d = sw.update(u, v, rc.theta, exec);
+                inc = if d.is_nan() || inc.is_nan() { f64::NAN } else { inc.max(d) };
+            }
+            if self.history.len() < self.history.capacity() {
+                self.history.push(inc);
+            }
+            if inc.is_nan() {
+                break;
+            }
+            if inc <= rc.picard_tol && restarts < rc.proximal_restarts {
+                // proximal restart: the relaxed fixed point becomes the anchor (see
+                // `RheologyConfig::proximal_restarts`)
+                let moved = if self.projection { self.plastic.anchor_distance(exec) } else { 0.0 }
+                    .max(self.walls.anchor_distance())
+                    .max(self.side_walls.as_ref().map_or(0.0, |sw| sw.anchor_distance(exec)));
+                if moved > rc.picard_tol {
+                    self.plastic.begin_step();
+                    self.walls.begin_step();
+                    if let Some(sw) = self.side_walls.as_mut() {
+                        sw.begin_step();
+                    }
+                    if let Some(a) = self.anderson.as_mut() {
+                        a.reset();
+                    }
+                    restarts += 1;
+                    window_start = f64::INFINITY;
+                    continue;
+                }
+            }
+            if inc <= rc.picard_tol {
+                self.plastic.end_step(exec);
+                self.plastic.trial_norm_centre(&mut self.trial_norm, exec);
+                return Ok((total, PicardInfo { iterations: k, increment: inc, r: self.r, r_wall: self.r_wall, r_halvings: halvings, restarts }));
+            }
+            if let Some(a) = self.anderson.as_mut() {
+                a.mix(&mut self.plastic);
+            }
+            if k % PICARD_STALL_WINDOW == 0 {
+                // only the default (contraction-bound) parameters adapt; a user's r is kept
+                let stalled = rc.theta > 0.0 && inc > 0.95 * window_start && (rc.r.is_none() || rc.r_wall.is_none());
+                if stalled && halvings == PICARD_MAX_HALVINGS {
+                    // a cycle that r/64 did not break: give up now rather than at the cap
+                    return Err(self.picard_failure(&rc, inc, k, step, time));
+                }
+                if stalled {
+                    if rc.r.is_none() {
+                        self.plastic.scale_r(0.5);
+                        self.r *= 0.5;
+                        if let Some(a) = self.anderson.as_mut() {
+                            a.reset();
+                        }
+                    }
+                    if rc.r_wall.is_none() {
+                        self.r_wall *= 0.5;
+                    }
+                    halvings += 1;
+                }
+                window_start = inc;
+            }
+        }
+        Err(self.picard_failure(&rc, inc, rc.picard_max_iterations, step, time))
+    }
+
+    /// The non-convergence error after `iterations`, naming where the stresses moved most.
+    fn picard_failure(&mut self, rc: &RheologyConfig, inc: f64, iterations: usize, step: u64, time: f64) -> crate::Error {
+        self.plastic.locate = false;
+        let plastic =
+            self.plastic.last_largest.filter(|_| self.projection).map(|(increment, location, i, j)| IncrementSite::Plastic { location, i, j, increment });
+        let wall = self.walls.last_largest.filter(|_| self.walls.is_active()).map(|(increment, side, face)| IncrementSite::Wall { side, face, increment });
+        let site = plastic.into_iter().chain(wall).reduce(|a, b| if b.increment() > a.increment() { b } else { a });
+        not_converged(inc, iterations, rc.picard_tol, self.r, rc.theta, step, time, site)
+    }
+}
+
+#[inline]
+fn base(f: &Field, j: isize) -> usize {
+    ((j + HALO as isize) as usize) * f.stride() + HALO
 }
 
 /// Mean pressure of the air on the granular surface (`YieldPressure::SurfaceAir`): the average of
@@ -169,6 +489,50 @@ impl crate::grid::StateArrays for RheologyState {
         }
         for (k, s) in self.walls.directions_mut().into_iter().enumerate() {
             f(&format!("wall_direction_{k}"), s);
+        }
+    }
+}
+
+impl crate::grid::WindowState for RheologyState {
+    /// Σ (and Σ_xy at centres) and the side walls' directions.
+    fn state_fields(&self) -> Vec<&Field> {
+        let mut out = vec![&self.plastic.sigma_xx, &self.plastic.sigma_xy];
+        if let Some(cs) = &self.plastic.centred {
+            out.push(&cs.sigma);
+        }
+        if let Some(sw) = &self.side_walls {
+            out.extend([&sw.s_u, &sw.s_v]);
+        }
+        out
+    }
+
+    fn state_fields_mut(&mut self) -> Vec<&mut Field> {
+        let mut out = vec![&mut self.plastic.sigma_xx, &mut self.plastic.sigma_xy];
+        if let Some(cs) = &mut self.plastic.centred {
+            out.push(&mut cs.sigma);
+        }
+        if let Some(sw) = &mut self.side_walls {
+            out.extend([&mut sw.s_u, &mut sw.s_v]);
+        }
+        out
+    }
+
+    /// The yield stress at centres and the plastic trial norm.
+    fn shown_fields(&self) -> Vec<&Field> {
+        vec![&self.plastic.tau_c, &self.trial_norm]
+    }
+
+    fn shown_fields_mut(&mut self) -> Vec<&mut Field> {
+        vec![&mut self.plastic.tau_c, &mut self.trial_norm]
+    }
+
+    /// The Coulomb walls' s, s^n and τ_b over the faces both grids have; after the window's
+    /// step, the Picard increments too.
+    fn copy_other_state(&mut self, src: &Self, back: bool) {
+        self.walls.copy_prefix_from(&src.walls);
+        if back {
+            self.history.clear();
+            self.history.extend_from_slice(&src.history);
         }
     }
 }

@@ -17,7 +17,7 @@
 //!
 //!   s^{k+1} = P(s^k + r_w ũ^{k+1} + θ (s^n − s^k)).
 //!
-//! p⁺ and H_ε are those of the yield stress τ(Φ) (`models/rheology_stage.rs`): the pore pressure
+//! p⁺ and H_ε are those of the yield stress τ(Φ) (`rheology/stage.rs`, `RheologyState::prepare`): the pore pressure
 //! relieves the side walls as it relieves the base.
 //!
 //! **Discretisation.** s_x lives on the u-faces, s_y on the v-faces, with τ_w from the two cells
