@@ -129,6 +129,23 @@ fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>>
     pic.set_item("r_halvings", s.picard_r_halvings)?;
     d.set_item("picard", pic)?;
     d.set_item("retries", s.retries)?;
+    let t = &s.stage_seconds;
+    let secs = PyDict::new(py);
+    for (name, x) in [
+        ("choose_dt", t.choose_dt),
+        ("interface", t.interface),
+        ("properties", t.properties),
+        ("pore_pressure", t.pore_pressure),
+        ("rheology", t.rheology),
+        ("predictor_setup", t.predictor_setup),
+        ("predictor_solves", t.predictor_solves),
+        ("projections", t.projections),
+        ("pressure_projection", t.pressure_projection),
+        ("diagnostics", t.diagnostics),
+    ] {
+        secs.set_item(name, x)?;
+    }
+    d.set_item("stage_seconds", secs)?;
     Ok(d)
 }
 

@@ -29,7 +29,9 @@ use crate::rheology::stage::{surface_air_pressure, PICARD_MAX_HALVINGS, PICARD_S
 use crate::rheology::{WallNormalStress, YieldPressure};
 use crate::solvers::SolveInfo;
 use crate::time_stepping::momentum::{ViscousScheme, ViscousSystem};
+use crate::time_stepping::StageSeconds;
 use crate::walls::{default_r_wall, NormalStress};
+use std::time::Instant;
 
 impl TwoPhaseModel {
     /// Rheology stage (before the predictor): τ, τ_b, lagged variable viscosity, r and r_b.
@@ -153,19 +155,33 @@ impl TwoPhaseModel {
     /// The end of the predictor: solves for ũ^{n+1} (rhs and c in the work arrays, the initial
     /// guess in u, v), with the Picard loop of eq. (12) when there is a plastic stress or wall
     /// friction. Returns the viscous solves (iterations summed over the loop) and the loop's info.
-    pub(crate) fn momentum_solve(&mut self, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+    /// Adds the time of the viscous solves to `secs.predictor_solves` and the rest of the loop
+    /// (the projections, their forces and the strain rate) to `secs.projections`.
+    pub(crate) fn momentum_solve(&mut self, secs: &mut StageSeconds, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+        let start = Instant::now();
+        let mut solves = 0.0;
+        let out = self.momentum_solve_timed(&mut solves, exec);
+        secs.predictor_solves += solves;
+        secs.projections += start.elapsed().as_secs_f64() - solves;
+        out
+    }
+
+    /// [`TwoPhaseModel::momentum_solve`], adding the time of its viscous solves to `solves`.
+    fn momentum_solve_timed(&mut self, solves: &mut f64, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let wk = &self.work;
         let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
         let explicit = cfg.viscous == ViscousScheme::Explicit;
         let Some(rs) = self.rheology.as_mut().filter(|r| r.picard) else {
+            let start = Instant::now();
             let info = if explicit {
                 self.momentum.solve_explicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec);
                 SolveInfo::default()
             } else {
                 self.momentum.solve_implicit(&sys, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, exec)?
             };
+            *solves += start.elapsed().as_secs_f64();
             return Ok((info, PicardInfo::default()));
         };
         rs.plastic.begin_step();
@@ -187,13 +203,13 @@ impl TwoPhaseModel {
         let (rtol_outer, cap_outer) = (self.momentum.rtol, self.momentum.max_iterations);
         self.momentum.rtol = rtol_outer.min(1e-2 * cfg.rheology.picard_tol).max(1e-12);
         self.momentum.max_iterations = cap_outer.min(cfg.rheology.picard_solve_max_iterations);
-        let result = self.picard_loop(exec);
+        let result = self.picard_loop(solves, exec);
         self.momentum.rtol = rtol_outer;
         self.momentum.max_iterations = cap_outer;
         result
     }
 
-    fn picard_loop(&mut self, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+    fn picard_loop(&mut self, solves: &mut f64, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let wk = &self.work;
@@ -221,6 +237,7 @@ impl TwoPhaseModel {
             if let Some(sw) = rs.side_walls.as_ref() {
                 sw.add_force(&mut rs.rhs_u, &mut rs.rhs_v, exec);
             }
+            let solve_start = Instant::now();
             if explicit {
                 self.u.assign(&rs.ustar_u);
                 self.v.assign(&rs.ustar_v);
@@ -244,6 +261,7 @@ impl TwoPhaseModel {
                     total.initial_residual = info.initial_residual;
                 }
             }
+            *solves += solve_start.elapsed().as_secs_f64();
             // Σ^{k+1}, s^{k+1} from ũ^{k+1} (ghosts filled by the solve)
             inc = 0.0;
             // where Σ moves most, recorded only when this iteration may be the last

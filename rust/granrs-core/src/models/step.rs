@@ -64,7 +64,8 @@ use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
 use crate::time_stepping::clock::{bdf_coefficients, stable_dt, SPEED_BOUND};
 use crate::time_stepping::momentum::ViscousScheme;
-use crate::time_stepping::StepInfo;
+use crate::time_stepping::{StageSeconds, StepInfo};
+use std::time::Instant;
 
 /// Weight of the Dirichlet rows that hold the light phase's faces in the granular-only model's
 /// predictor (c = FROZEN_FACE a₀ρ_s/δt): a node's stress moves such a face by 1e-8 of what it
@@ -78,8 +79,11 @@ impl TwoPhaseModel {
     /// region does this itself). A step that fails for good leaves the model bit for bit in its
     /// state before the step (the last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
-        let info = self.step_accepted()?;
+        let mut info = self.step_accepted()?;
+        let start = Instant::now();
         self.account_energy(info.dt);
+        info.stage_seconds.diagnostics += start.elapsed().as_secs_f64();
+        self.last.stage_seconds = info.stage_seconds;
         Ok(info)
     }
 
@@ -138,17 +142,39 @@ impl TwoPhaseModel {
     }
 
     fn step_stages(&mut self, exec: Exec) -> Result<StepInfo> {
+        // the wall time of each stage (StepInfo::stage_seconds)
+        let mut secs = StageSeconds::default();
+        let mut clock = Instant::now();
+        let mut lap = |slot: &mut f64| {
+            let now = Instant::now();
+            *slot += (now - clock).as_secs_f64();
+            clock = now;
+        };
         let dt = self.choose_dt(exec)?;
         self.dt_attempt = dt;
-        self.interface(dt, exec)?;
-        self.properties(exec);
         let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
+        lap(&mut secs.choose_dt);
+        self.interface(dt, exec)?;
+        lap(&mut secs.interface);
+        self.properties(exec);
+        lap(&mut secs.properties);
         self.pore_pressure(dt, (a0, a1, a2, w), exec)?;
+        lap(&mut secs.pore_pressure);
         self.rheology_stage(a0 / dt, exec)?;
-        let (viscous, picard) = self.predictor(dt, a0, a1, a2, w, exec)?;
+        lap(&mut secs.rheology);
+        let (viscous, picard) = self.predictor(dt, a0, a1, a2, w, &mut secs, exec)?;
+        // the predictor's time less its solves and projections (measured inside)
+        lap(&mut secs.predictor_setup);
+        secs.predictor_setup -= secs.predictor_solves + secs.projections;
         self.check_predictor(dt, exec)?;
+        lap(&mut secs.diagnostics);
         let pressure = self.projection_stage(dt / a0, exec)?;
-        self.checks(dt, viscous, pressure, picard, exec)
+        lap(&mut secs.pressure_projection);
+        let mut info = self.checks(dt, viscous, pressure, picard, exec)?;
+        lap(&mut secs.diagnostics);
+        info.stage_seconds = secs;
+        self.last.stage_seconds = secs;
+        Ok(info)
     }
 
     /// Balances the body force at rest: sets p so that (1/ρ)∇p = g − P(g), where P is the
@@ -422,7 +448,7 @@ impl TwoPhaseModel {
 
     /// Stage 5 (paper step 4): the momentum predictor ũ^{n+1}.
     #[allow(clippy::too_many_arguments)]
-    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
+    fn predictor(&mut self, dt: f64, a0: f64, a1: f64, a2: f64, w: f64, secs: &mut StageSeconds, exec: Exec) -> Result<(SolveInfo, PicardInfo)> {
         let cfg = &self.config;
         let (grid, bc) = (&cfg.grid, &cfg.bc);
         let [gxv, gyv] = cfg.gravity;
@@ -520,7 +546,7 @@ impl TwoPhaseModel {
         }
         std::mem::swap(&mut wk.conv_u, &mut self.conv_prev_u);
         std::mem::swap(&mut wk.conv_v, &mut self.conv_prev_v);
-        self.momentum_solve(exec).map_err(|e| self.at_step(e))
+        self.momentum_solve(secs, exec).map_err(|e| self.at_step(e))
     }
 
     /// After stage 5: a predictor that blew up (NaN or inf) is reported as such, with its cell,
@@ -643,6 +669,7 @@ impl TwoPhaseModel {
             picard_increment: picard.increment,
             picard_r_halvings: picard.r_halvings,
             retries: 0,
+            stage_seconds: StageSeconds::default(),
         };
         Ok(self.last)
     }

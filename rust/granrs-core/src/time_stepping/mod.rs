@@ -7,4 +7,4 @@ mod step_info;
 
 pub use clock::{bdf_coefficients, stable_dt, TimeConfig, DT_CEILING_RECOVERY, SPEED_BOUND};
 pub use momentum::{MomentumSolver, ViscousScheme};
-pub use step_info::StepInfo;
+pub use step_info::{StageSeconds, StepInfo};

@@ -29,4 +29,49 @@ pub struct StepInfo {
     pub picard_r_halvings: usize,
     /// Times the step was rejected (Picard non-convergence) and retaken with δt halved.
     pub retries: usize,
+    /// Wall time of each stage of the accepted attempt (`std::time::Instant`; a measurement of
+    /// this machine, never part of the results).
+    pub stage_seconds: StageSeconds,
+}
+
+/// Wall time [s] of each stage of one step (`models/step.rs` lists them in order).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageSeconds {
+    /// δt from the CFL rule and the BDF2 coefficients.
+    pub choose_dt: f64,
+    /// Level-set transport, redistancing and mass correction (paper step 1).
+    pub interface: f64,
+    /// ρ on faces and η at centres and nodes from Φ (paper step 2).
+    pub properties: f64,
+    /// The pore-pressure step (paper step 3).
+    pub pore_pressure: f64,
+    /// Yield stress, wall friction, lagged viscosity and the projections' parameters r, r_b.
+    pub rheology: f64,
+    /// The predictor's right-hand side (convection, pressure force, BDF2 history).
+    pub predictor_setup: f64,
+    /// The viscous solves of the predictor (every Picard iteration's).
+    pub predictor_solves: f64,
+    /// The plastic, Coulomb-wall and side-wall projections of the Picard loop (their forces,
+    /// the strain rate they read and their updates).
+    pub projections: f64,
+    /// The pressure projection and the gauge (paper step 5).
+    pub pressure_projection: f64,
+    /// The checks after the predictor and the step, and the energy budget's accounting.
+    pub diagnostics: f64,
+}
+
+impl StageSeconds {
+    /// The sum of the stages.
+    pub fn total(&self) -> f64 {
+        self.choose_dt
+            + self.interface
+            + self.properties
+            + self.pore_pressure
+            + self.rheology
+            + self.predictor_setup
+            + self.predictor_solves
+            + self.projections
+            + self.pressure_projection
+            + self.diagnostics
+    }
 }
