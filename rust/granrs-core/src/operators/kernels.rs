@@ -114,7 +114,18 @@ pub fn viscous(u: &Field, v: &Field, eta_c: &Field, eta_n: &Field, grid: &Grid, 
 /// c_u u − [`viscous`]_u and out_v = c_v v − [`viscous`]_v, bit for bit (the same operations in
 /// the same order as the two sweeps). `c_u`, `c_v` have the shapes of u and v.
 #[allow(clippy::too_many_arguments)]
-pub fn viscous_helmholtz(u: &Field, v: &Field, eta_c: &Field, eta_n: &Field, c_u: &Field, c_v: &Field, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
+pub fn viscous_helmholtz(
+    u: &Field,
+    v: &Field,
+    eta_c: &Field,
+    eta_n: &Field,
+    c_u: &Field,
+    c_v: &Field,
+    grid: &Grid,
+    out_u: &mut Field,
+    out_v: &mut Field,
+    exec: Exec,
+) {
     viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, Some((c_u, c_v)), exec);
 }
 
@@ -123,7 +134,17 @@ pub fn viscous_helmholtz(u: &Field, v: &Field, eta_c: &Field, eta_n: &Field, c_u
 /// and vectorise; on x86-64 with AVX2 the same code is compiled for 256-bit vectors and chosen at
 /// run time (no FMA: the results do not depend on the path).
 #[allow(clippy::too_many_arguments)]
-fn viscous_rows(u: &Field, v: &Field, eta_c: &Field, eta_n: &Field, grid: &Grid, out_u: &mut Field, out_v: &mut Field, shift: Option<(&Field, &Field)>, exec: Exec) {
+fn viscous_rows(
+    u: &Field,
+    v: &Field,
+    eta_c: &Field,
+    eta_n: &Field,
+    grid: &Grid,
+    out_u: &mut Field,
+    out_v: &mut Field,
+    shift: Option<(&Field, &Field)>,
+    exec: Exec,
+) {
     let (us, vs, ec, en) = (u.slice(), v.slice(), eta_c.slice(), eta_n.slice());
     let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
     let cu = shift.map(|(c, _)| (c.slice(), c.stride()));
@@ -467,7 +488,8 @@ mod tests {
         let (us, vs, ecs, ens) = (u.slice(), v.slice(), ec.slice(), en.slice());
         let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
         for j in 0..out_u.ny as isize {
-            let (bu, bum, bup, bv0, bv1, bc, bn0, bn1) = (base(u, j), base(u, j - 1), base(u, j + 1), base(v, j), base(v, j + 1), base(ec, j), base(en, j), base(en, j + 1));
+            let (bu, bum, bup, bv0, bv1, bc, bn0, bn1) =
+                (base(u, j), base(u, j - 1), base(u, j + 1), base(v, j), base(v, j + 1), base(ec, j), base(en, j), base(en, j + 1));
             for i in 0..=nx {
                 let txx_r = 2.0 * ecs[bc + i] * (us[bu + i + 1] - us[bu + i]) * idx;
                 let txx_l = 2.0 * ecs[bc + i - 1] * (us[bu + i] - us[bu + i - 1]) * idx;
@@ -478,7 +500,8 @@ mod tests {
             }
         }
         for j in 0..out_v.ny as isize {
-            let (bv, bvm, bvp, bu0, bum, bc0, bcm, bn) = (base(v, j), base(v, j - 1), base(v, j + 1), base(u, j), base(u, j - 1), base(ec, j), base(ec, j - 1), base(en, j));
+            let (bv, bvm, bvp, bu0, bum, bc0, bcm, bn) =
+                (base(v, j), base(v, j - 1), base(v, j + 1), base(u, j), base(u, j - 1), base(ec, j), base(ec, j - 1), base(en, j));
             for i in 0..nx {
                 let tyy_t = 2.0 * ecs[bc0 + i] * (vs[bvp + i] - vs[bv + i]) * idy;
                 let tyy_b = 2.0 * ecs[bcm + i] * (vs[bv + i] - vs[bvm + i]) * idy;
