@@ -16,7 +16,7 @@
 use crate::error::{Error, Result};
 use crate::exec::{Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
-use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, BcMode};
+use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, viscous_helmholtz, BcMode};
 use crate::solvers::SolveInfo;
 use std::ops::Range;
 
@@ -108,20 +108,10 @@ impl MomentumSolver {
         }
     }
 
-    /// out = A(u) = c ⊙ u − div(2η D(u)) on every face (ghosts of u, v filled by the caller).
+    /// out = A(u) = c ⊙ u − div(2η D(u)) on every face (ghosts of u, v filled by the caller), in
+    /// one sweep ([`viscous_helmholtz`]).
     fn apply(sys: &ViscousSystem, u: &Field, v: &Field, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
-        viscous(u, v, sys.eta_c, sys.eta_n, sys.grid, out_u, out_v, exec);
-        for (out, c, w) in [(out_u, sys.c_u, u), (out_v, sys.c_v, v)] {
-            let (cs, ws) = (c.slice(), w.slice());
-            let st = c.stride();
-            let n = out.nx;
-            for_each_interior_row(exec, out, |j, row| {
-                let b = (j + HALO) * st + HALO;
-                for i in 0..n {
-                    row[HALO + i] = cs[b + i] * ws[b + i] - row[HALO + i];
-                }
-            });
-        }
+        viscous_helmholtz(u, v, sys.eta_c, sys.eta_n, sys.c_u, sys.c_v, sys.grid, out_u, out_v, exec);
     }
 
     /// Diagonal of A on the unknown faces, used as the Jacobi preconditioner: exact, including
