@@ -44,7 +44,8 @@
 //! 2. [`operators`] (staggered differences, interpolations, WENO5, strain rate, viscous
 //!    operator) and [`solvers`] (multigrid-preconditioned CG, sparse Cholesky);
 //! 1. [`grid`]: the grid, MAC locations, fields with halos, boundary conditions;
-//! 0. [`error`] and [`exec`] (the execution policy: serial or the model's rayon pool).
+//! 0. [`error`], [`exec`] (the execution policy: serial or the model's rayon pool) and
+//!    [`options`] (the options schema: each option's spec, its validation, key → value maps).
 
 pub mod diagnostics;
 pub mod error;
@@ -53,6 +54,7 @@ pub mod grid;
 pub mod levelset;
 pub mod models;
 pub mod operators;
+pub mod options;
 pub mod plasticity;
 pub mod pore_pressure;
 pub mod projection;
