@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs.cases import column as col
+from granrs.cases.column import build as col
 from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
 
 VARIANTS = {
