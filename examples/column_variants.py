@@ -40,7 +40,7 @@ def main() -> None:
         def numerics(**kw):
             if args.dt > 0:
                 kw["dt"] = args.dt
-            kw.update(numerics_changes)
+            kw.update(numerics_changes)  # noqa: B023 (called within this iteration)
             return original(**kw)
 
         build.Numerics = numerics  # build_model reads the name from its module
