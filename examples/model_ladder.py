@@ -18,7 +18,7 @@ relative difference (depth-averaged − two-phase)/two-phase. Both fronts are re
 thickness, half a two-phase cell (the level-set front cannot see thinner layers; see
 ``granrs.cases.column.depth_averaged_front_depth``). Outputs: ``docs/img/model_ladder.csv``,
 ``docs/img/model_ladder.png``, run folders in ``out/ladder/``; the criteria of ``--model auto``
-(``DEPTH_AVERAGED_MAX_ASPECT`` in granrs/cases/column.py) are read off this table, and the
+(``DEPTH_AVERAGED_MAX_ASPECT`` in granrs/cases/column/choice.py) are read off this table, and the
 script prints the ones the table implies.
 
 A two-phase run that reaches the far end of its default channel (L_c + 8.25 H_c) is rerun on a

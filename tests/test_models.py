@@ -71,9 +71,9 @@ def test_auto_keeps_the_two_phase_model_where_no_agreement_was_measured():
 def test_auto_takes_the_depth_averaged_model_within_a_measured_interval(tmp_path, monkeypatch):
     # the rule itself, with an interval of agreement (non-fluidised a <= 0.5, where the
     # depth-averaged run-out is +0.1 % off the two-phase one with the option r_neighbourhood = 2)
-    import granrs.cases.column as column
+    import granrs.cases.column.choice as choice
 
-    monkeypatch.setattr(column, "DEPTH_AVERAGED_MAX_ASPECT", {True: None, False: 0.5})
+    monkeypatch.setattr(choice, "DEPTH_AVERAGED_MAX_ASPECT", {True: None, False: 0.5})
     low, reason_low = choose_model(ColumnCase(aspect_ratio=0.5, fluidised=False, model="auto"))
     tall, reason_tall = choose_model(ColumnCase(aspect_ratio=2.0, fluidised=False, model="auto"))
     assert (low, tall) == ("depth-averaged", "two-phase")
