@@ -26,9 +26,9 @@ with the largest front, when it was reached and how far the front then moved bac
 Models (``ColumnCase.model``, ``granrs run column --model``): ``two-phase`` (the paper's model,
 the default), ``granular`` (the same 2D model with the air not resolved: the granular phase has a
 free surface at p = 0, ``Model(air='free-surface')``), ``depth-averaged`` (Savage–Hutter shallow
-layer with a depth-averaged pore pressure, ``granrs.depth_averaged``; seconds instead of minutes)
-and ``auto``, which takes the depth-averaged model only where its measured run-out is within 5 %
-of the two-phase one (docs/models.md, :func:`choose_model`). All models write the same outputs.
+layer with a depth-averaged pore pressure, ``granrs.depth_averaged``; seconds instead of
+minutes). All models write the same outputs. There is no automatic choice: the depth-averaged
+run-out was measured within 5 % of the two-phase one at no aspect ratio (docs/models.md).
 
 Observables (granrs.observables; docs/validation.md, "Observables"): every record (0.01 s) adds to
 front.csv the fronts of the volume profile h = Σ_j f Δy at 1, 2, 5, 10 and 20 mm and at ½, 1 and
@@ -40,13 +40,12 @@ The package, one file a task: ``case`` (:class:`ColumnCase`, its validation, dom
 ``build`` (the 2D model from a case), ``run`` (:func:`run_column`: records, rest criterion,
 outputs), ``measures`` (front, deposit quantile, surface profile, basal pore-pressure ratio),
 ``summaries`` (summary.json's derived entries), ``outputs`` (the output files), ``plots``,
-``depth_averaged`` (the depth-averaged variant) and ``choice`` (model choice for ``auto``).
+and ``depth_averaged`` (the depth-averaged variant).
 """
 
 from .build import _rheology_kwargs as _rheology_kwargs
 from .build import build_model, side_walls
 from .case import G, MODELS, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
-from .choice import DEPTH_AVERAGED_MAX_ASPECT, RUNOUT_TOLERANCE, choose_model
 from .depth_averaged import build_depth_averaged, depth_averaged_front_depth, run_column_depth_averaged
 from .measures import (DEPOSIT_QUANTILE, basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position,
                        surface_profile)
@@ -64,9 +63,9 @@ from .summaries import _record_observables as _record_observables
 from .summaries import ENERGY_COLUMNS, arrest_summary, energy_summary, fluidisation_summary
 
 __all__ = [
-    "DEPOSIT_QUANTILE", "DEPTH_AVERAGED_MAX_ASPECT", "ENERGY_COLUMNS", "FLUSH_RECORDS", "FRONT_NAMES", "G", "MODELS",
+    "DEPOSIT_QUANTILE", "ENERGY_COLUMNS", "FLUSH_RECORDS", "FRONT_NAMES", "G", "MODELS",
     "PAPER_RUNOUT_EXP", "PAPER_RUNOUT_SIM", "RUNOUT_TOLERANCE", "ColumnCase", "arrest_summary",
-    "basal_pore_pressure_ratio", "build_depth_averaged", "build_model", "choose_model", "deposit_quantile",
+    "basal_pore_pressure_ratio", "build_depth_averaged", "build_model", "deposit_quantile",
     "depth_averaged_front_depth", "energy_summary", "farthest_material", "fluidisation_summary", "front_columns",
     "front_position", "plot_energy", "plot_fluidisation", "plot_front", "plot_profiles", "run_column",
     "run_column_depth_averaged", "side_walls", "surface_profile", "write_energy", "write_outputs",

@@ -9,14 +9,34 @@ from typing import Optional
 
 from ..._granrs import ParameterError
 from ...grid import Grid
-from ...model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, check_side_walls, estimate_memory, memory_check
-from ...rheology import check_friction_angle
+from ... import options
+from ...model import check_side_walls, estimate_memory, memory_check
 
 
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
 PAPER_RUNOUT_EXP = 1.8443
-MODELS = ("auto", "two-phase", "granular", "depth-averaged")
+MODELS = ("two-phase", "granular", "depth-averaged")
+
+#: The ranges of the scene's numbers (the run-file keys and ``granrs keys`` read them here).
+SCENE_RANGES = {"aspect_ratio": (0.1, 20.0), "width": (1e-3, 10.0), "pore_pressure_ratio": (0.0, 1.0),
+                "t_end": (1e-6, 1e4), "granular_viscosity": (1e-8, 1e6), "solid_fraction": (0.01, 0.74),
+                "ny": (8, 4096)}
+#: The scene's choices: the air supply through the reservoir's base and the back wall.
+SCENE_CHOICES = {"air_supply": ("injection", "literal"), "back_wall": ("coulomb", "free-slip")}
+#: The case's fields that are options of the Rust schema, as (key, room): their ranges, units and
+#: choices are the schema's (checked in Rust); their defaults are the column's own (below).
+OPTION_FIELDS = {
+    "friction_angle": ("friction_angle", "drucker-prager"), "wall_friction_angle": ("friction_angle", "coulomb"),
+    "diffusivity": ("diffusivity", "pore_pressure"), "pore_formulation": ("formulation", "pore_pressure"),
+    "kappa_air": ("kappa_air", "pore_pressure"), "cfl": ("cfl", None), "threads": ("threads", None),
+    "picard_tol": ("picard_tol", None), "theta": ("theta", None), "r_neighbourhood": ("r_neighbourhood", None),
+    "sigma_location": ("sigma_location", None), "interface_yield": ("interface_yield", None),
+    "wall_normal_stress": ("wall_normal_stress", None), "yield_pressure": ("yield_pressure", None),
+    "proximal_restarts": ("proximal_restarts", None), "active_region": ("active_region", None),
+    "active_region_sides": ("active_region_sides", None), "step_retries": ("step_retries", None),
+    "mass_correction": ("mass_correction", None),
+}
 
 
 @dataclass
@@ -35,7 +55,7 @@ class ColumnCase:
     solid_fraction: float = 0.58
     grain_density: float = 2500.0
     grain_diameter: float = 75e-6
-    friction_angle: float = 27.0
+    friction_angle: float = options.spec("friction_angle", "drucker-prager").default
     wall_friction_angle: float = 15.0
     granular_viscosity: float = 0.1
     diffusivity: float = 0.035
@@ -110,7 +130,7 @@ class ColumnCase:
     rest_duration: float = 0.05
     profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
     # which model: "two-phase" (default), "granular" (the air not resolved: a free surface at p = 0),
-    # "depth-averaged", "auto" (see choose_model)
+    # "depth-averaged" (docs/howto/choosing-a-model.md)
     model: str = "two-phase"
     # depth-averaged model only: earth-pressure coefficient k ("savage-hutter": the active
     # coefficient from friction_angle and wall_friction_angle, reduced by the pore pressure; or a
@@ -119,71 +139,41 @@ class ColumnCase:
     da_resolution: int = 64
 
     def validate(self) -> None:
-        checks = [("aspect_ratio", self.aspect_ratio, 0.1, 20.0), ("width", self.width, 1e-3, 10.0),
-                  ("pore_pressure_ratio", self.pore_pressure_ratio, 0.0, 1.0), ("t_end", self.t_end, 1e-6, 1e4),
-                  ("cfl", self.cfl, 1e-3, 1.0), ("wall_friction_angle", self.wall_friction_angle, 0.0, 89.0),
-                  ("granular_viscosity", self.granular_viscosity, 1e-8, 1e6), ("diffusivity", self.diffusivity, 1e-12, 1e6),
-                  ("solid_fraction", self.solid_fraction, 0.01, 0.74), ("kappa_air", self.kappa_air, 1.0, 1e16)]
-        for name, v, lo, hi in checks:
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not lo <= v <= hi:
+        for name, (lo, hi) in SCENE_RANGES.items():
+            v = getattr(self, name)
+            if name == "ny":
+                if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                    raise ParameterError(f"invalid parameter `ny` = {v!r}: allowed an integer in [{lo}, {hi}]")
+            elif not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not lo <= v <= hi:
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo}, {hi}]")
-        check_friction_angle(self.friction_angle)
-        if isinstance(self.ny, bool) or not isinstance(self.ny, int) or not 8 <= self.ny <= 4096:
-            raise ParameterError(f"invalid parameter `ny` = {self.ny!r}: allowed an integer in [8, 4096]")
+        for name, (key, room) in OPTION_FIELDS.items():
+            v = getattr(self, name)
+            if not (name == "active_region" and v is None):
+                options.spec(key, room).check(v, name)
         for name, v, lo, what in (("length", self.length, self.width, "the gate at x = width"),
                                   ("height", self.height, self.column_height, "the column height aspect_ratio × width")):
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
                                   or not lo < v <= 1000.0):
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed None (the default) or a number of metres "
                                      f"in ({lo:g}, 1000] (beyond {what} = {lo:g} m)")
-        for name, v, lo, hi in (("threads", self.threads, 1, 1024), ("step_retries", self.step_retries, 0, 20),
-                                ("r_neighbourhood", self.r_neighbourhood, 0, 4)):
-            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed an integer in [{lo}, {hi}]")
-        if self.active_region is not None and (isinstance(self.active_region, bool)
-                                               or not isinstance(self.active_region, int)
-                                               or not 2 <= self.active_region <= 100000):
-            raise ParameterError(f"invalid parameter `active_region` = {self.active_region!r}: allowed None or an integer "
-                                 "in [2, 100000] (cells of air)")
-        if self.pore_formulation not in ("granular-only", "kappa-infinity", "kappa-infinity-smoothed"):
-            raise ParameterError(f"invalid parameter `pore_formulation` = {self.pore_formulation!r}: allowed "
-                                 "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")
-        if self.interface_yield not in ("granular-side", "paper", "density-support"):
-            raise ParameterError(f"invalid parameter `interface_yield` = {self.interface_yield!r}: allowed "
-                                 "'granular-side', 'paper' or 'density-support'")
-        if self.wall_normal_stress not in ("pressure", "total"):
-            raise ParameterError(f"invalid parameter `wall_normal_stress` = {self.wall_normal_stress!r}: allowed "
-                                 "'pressure' or 'total'")
         if self.channel_width is not None:
             angle = self.wall_friction_angle if self.side_wall_friction_angle is None else self.side_wall_friction_angle
             check_side_walls(self.channel_width, angle, "channel_width", "side_wall_friction_angle")
         elif self.side_wall_friction_angle is not None:
             raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
                                  "allowed only with a channel_width")
-        if self.air_supply not in ("injection", "literal"):
-            raise ParameterError(f"invalid parameter `air_supply` = {self.air_supply!r}: allowed 'injection' or 'literal'")
-        if self.back_wall not in ("coulomb", "free-slip"):
-            raise ParameterError(f"invalid parameter `back_wall` = {self.back_wall!r}: allowed 'coulomb' or 'free-slip'")
-        if self.sigma_location not in SIGMA_LOCATIONS:
-            raise ParameterError(f"invalid parameter `sigma_location` = {self.sigma_location!r}: allowed "
-                                 + " or ".join(repr(n) for n in SIGMA_LOCATIONS))
-        if self.yield_pressure not in ("absolute", "surface-air"):
-            raise ParameterError(f"invalid parameter `yield_pressure` = {self.yield_pressure!r}: allowed "
-                                 "'absolute' or 'surface-air'")
-        if self.active_region_sides not in ACTIVE_REGION_SIDES:
-            names = [repr(n) for n in ACTIVE_REGION_SIDES]
-            raise ParameterError(f"invalid parameter `active_region_sides` = {self.active_region_sides!r}: allowed "
-                                 f"{', '.join(names[:-1])} or {names[-1]}")
+        for name, choices in SCENE_CHOICES.items():
+            if getattr(self, name) not in choices:
+                raise ParameterError(f"invalid parameter `{name}` = {getattr(self, name)!r}: allowed "
+                                     + ", ".join(repr(c) for c in choices))
         if self.model not in MODELS:
-            raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'auto', 'two-phase', 'granular' or "
-                                 "'depth-averaged'")
+            raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'two-phase', 'granular' or "
+                                 "'depth-averaged' (no automatic choice: docs/howto/choosing-a-model.md)")
         if self.earth_pressure != "savage-hutter" and (not isinstance(self.earth_pressure, (int, float))
                                                         or isinstance(self.earth_pressure, bool)
                                                         or not 0.01 <= self.earth_pressure <= 100.0):
             raise ParameterError(f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
                                  "or a number in [0.01, 100]")
-        if not isinstance(self.proximal_restarts, int) or isinstance(self.proximal_restarts, bool) or not 0 <= self.proximal_restarts <= 1000:
-            raise ParameterError(f"invalid parameter `proximal_restarts` = {self.proximal_restarts!r}: allowed an integer in [0, 1000]")
         if not isinstance(self.da_resolution, int) or not 4 <= self.da_resolution <= 4096:
             raise ParameterError(f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]")
         if self.rheology not in ("drucker-prager", "mu-i"):

@@ -18,7 +18,6 @@ from ...io.outputs import OutputError, RunOutputs
 from ...simulation import Callback, Simulation
 from .build import build_model, side_walls
 from .case import G, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
-from .choice import choose_model
 from .depth_averaged import run_column_depth_averaged
 from .measures import basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position, surface_profile
 from .outputs import _progress, write_energy, write_outputs
@@ -43,7 +42,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     'incomplete: ...'). A SimulationError, SolverError or KeyboardInterrupt still writes every
     output from the steps done, with the ``stop_reason``, then is raised again."""
     case.validate()
-    model_name, model_reason = choose_model(case)
+    model_name, model_reason = case.model, "requested"
     if model_name == "depth-averaged":
         if callbacks or prepare is not None:
             raise ParameterError("invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
