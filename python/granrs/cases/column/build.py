@@ -13,7 +13,7 @@ from ...boundary import BoundaryConditions, Coulomb, FreeSlip
 from ...materials import AIR, Material
 from ...model import Model, Numerics, PorePressure, SideWalls
 from ...shapes import Rectangle
-from .case import G, ColumnCase
+from .case import COLUMN_NUMERICS, OPTION_FIELD_KEYS, G, ColumnCase
 
 
 def side_walls(case: ColumnCase) -> Optional[SideWalls]:
@@ -41,14 +41,7 @@ def build_model(case: ColumnCase) -> Model:
                   bc=BoundaryConditions(left=FreeSlip() if case.back_wall == "free-slip" else Coulomb(case.wall_friction_angle),
                                         right=FreeSlip(),
                                         bottom=Coulomb(case.wall_friction_angle), top=FreeSlip()),
-                  numerics=Numerics(cfl=case.cfl, picard_tol=case.picard_tol, theta=case.theta, r_neighbourhood=case.r_neighbourhood,
-                                    sigma_location=case.sigma_location,
-                                    picard_max_iterations=1000, convection_scheme="weno5", step_retries=case.step_retries,
-                                    mass_correction=case.mass_correction, interface_yield=case.interface_yield,
-                                    proximal_restarts=case.proximal_restarts,
-                                    wall_normal_stress=case.wall_normal_stress, yield_pressure=case.yield_pressure,
-                                    active_region=case.active_region, active_region_sides=case.active_region_sides),
-                  threads=case.threads, pore_pressure=pore,
+                  numerics=column_numerics(case), threads=case.threads, pore_pressure=pore,
                   air="free-surface" if case.model == "granular" else "resolved",
                   side_walls=side_walls(case),
                   **_rheology_kwargs(case))
@@ -59,6 +52,13 @@ def build_model(case: ColumnCase) -> Model:
                           balance_pressure=False)
     model.set_initial(balance_pressure=True)
     return model
+
+
+def column_numerics(case: ColumnCase) -> Numerics:
+    """The model's numerics of ``case``: the column's (COLUMN_NUMERICS), its option fields
+    (OPTION_FIELDS) and its ``numerics`` dict, in that order of precedence (last wins)."""
+    fields = {key: getattr(case, name) for key, name in OPTION_FIELD_KEYS.items() if key != "threads"}
+    return Numerics(**{**COLUMN_NUMERICS, **fields, **case.numerics})
 
 
 def _rheology_kwargs(case: ColumnCase) -> dict:

@@ -37,6 +37,11 @@ OPTION_FIELDS = {
     "active_region_sides": ("active_region_sides", None), "step_retries": ("step_retries", None),
     "mass_correction": ("mass_correction", None),
 }
+#: The schema keys of the flat options among OPTION_FIELDS, with their field names.
+OPTION_FIELD_KEYS = {key: name for name, (key, room) in OPTION_FIELDS.items() if room is None}
+#: The column's numerics where they differ from the schema's defaults (the measured reasons are
+#: in the package's docstring): convection by upwind WENO5.
+COLUMN_NUMERICS = {"convection_scheme": "weno5"}
 
 
 @dataclass
@@ -126,6 +131,9 @@ class ColumnCase:
     # found by the secant method; see docs/validation.md, dam break): without it the dense area
     # grows by 6 % at ny = 32 by t = 3 s (thin films); switchable for comparison
     mass_correction: bool = True
+    # any other option of the Rust schema by its key (granrs.Numerics, granrs.options), over the
+    # column's numerics (COLUMN_NUMERICS and the fields above): e.g. {"pressure_rtol": 1e-10}
+    numerics: dict = field(default_factory=dict)
     rest_speed: float = 5e-3
     rest_duration: float = 0.05
     profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
@@ -162,6 +170,14 @@ class ColumnCase:
         elif self.side_wall_friction_angle is not None:
             raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
                                  "allowed only with a channel_width")
+        if not isinstance(self.numerics, dict):
+            raise ParameterError(f"invalid parameter `numerics` = {self.numerics!r}: allowed a dict of option keys "
+                                 "(granrs.options.FLAT) to values")
+        for key, v in self.numerics.items():
+            if key in OPTION_FIELD_KEYS:
+                raise ParameterError(f"invalid parameter `numerics.{key}`: allowed as the case's field "
+                                     f"`{OPTION_FIELD_KEYS[key]}`, not in numerics")
+            options.spec(key).check(v, f"numerics.{key}")
         for name, choices in SCENE_CHOICES.items():
             if getattr(self, name) not in choices:
                 raise ParameterError(f"invalid parameter `{name}` = {getattr(self, name)!r}: allowed "
