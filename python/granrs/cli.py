@@ -260,7 +260,7 @@ def main(argv=None) -> int:
     fl.add_argument("--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)")
     fl.add_argument("--no-fluidised", dest="fluidised", action="store_false", help="no pore pressure")
     r.add_argument("--pore-pressure-ratio", dest="pore_pressure_ratio",
-                   type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"), help="β (0.9 in the paper)")
+                   type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"), help="β, pore pressure over the lithostatic one (case.pore_pressure_ratio: `granrs keys`)")
     r.add_argument("--ny", type=_key_type("--ny", "grid.ny"),
                    help="cells over the domain height (column; 32; 256 is the paper's grid)")
     r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "numerics.t_end"), help="end time in s (column; 3)")

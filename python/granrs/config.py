@@ -54,7 +54,10 @@ class Key:
         return f"{self.section}.{self.name}"
 
     def allowed(self) -> str:
-        """The allowed values, in words (used in error messages and in ``granrs keys``)."""
+        """The allowed values, in words (used in error messages and in ``granrs keys``); for a key
+        of a schema option, the schema's own words."""
+        if self.option is not None and not self.option.optional:
+            return self.option.allowed
         if self.kind in ("float", "int"):
             what = "a number" if self.kind == "float" else "an integer"
             rng = f"{'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
@@ -101,11 +104,12 @@ def _column_option(section: str, name: str, doc: Optional[str] = None) -> Key:
 
 _AR = options.spec("active_region")
 #: The schema's flat options that are run-file keys without a ColumnCase field of their own:
-#: [numerics] (group common) and [variants] (group variant), at the column's values.
+#: [numerics] (group common) and [variants] (group variant), at the column's values. An option
+#: that is off by default (None: TOML has no null) is set from Python, ``ColumnCase(numerics=)``.
 _GENERIC = tuple(
     _from_schema(_SECTION_OF_GROUP[s.group], s.key, s, COLUMN_NUMERICS.get(s.key, s.default))
     for s in options.SCHEMA
-    if not s.object and s.key not in OPTION_FIELD_KEYS and s.key not in options.MODEL_ARGUMENTS
+    if not s.object and s.key not in OPTION_FIELD_KEYS and s.key not in options.MODEL_ARGUMENTS and not s.optional
 )
 
 KEYS: tuple[Key, ...] = (

@@ -73,8 +73,8 @@ class SideWalls:
     s = u/|u| where the granular phase slides, |s| ≤ 1 where it sticks (a projection solved in
     the Picard loop with Σ; Rust walls/side.rs).
 
-    width: the channel width W [m] (the paper's experiment: 0.10), in (0, 1000];
-    friction_angle: α_w [degrees], in [0, 90).
+    width: the channel width W [m] (the paper's experiment: 0.10); friction_angle: α_w [degrees].
+    Their ranges are the Rust schema's (``granrs.options.room("side_walls")``).
     """
 
     width: float

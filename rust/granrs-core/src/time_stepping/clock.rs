@@ -42,7 +42,7 @@ pub struct TimeConfig {
 
 /// The options of [`TimeConfig`] (the simulation's clock).
 pub const TIME_OPTIONS: &[OptionSpec] = &[
-    options::float("time", "cfl", 0.5, 1e-6, 2.0, "1", "CFL number C_cfl of the adaptive step"),
+    options::float("time", "cfl", 0.5, 1e-3, 1.0, "1", "CFL number C_cfl of the adaptive step"),
     options::float("time", "dt", 1.0, 0.0, f64::INFINITY, "s", "a fixed time step instead of the adaptive one (None: adaptive)").open(true, true).off_by_default(),
     options::float("time", "max_dt", f64::INFINITY, 0.0, f64::INFINITY, "s", "largest step of the adaptive rule").open(true, false),
     options::float("time", "max_growth", 1.2, 1.0, 2.4, "1", "largest ratio δt_n/δt_{n−1} (variable-step BDF2 is zero-stable below 1 + √2)"),
