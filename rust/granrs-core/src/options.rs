@@ -124,7 +124,16 @@ pub struct OptionSpec {
 
 /// A float option in [lo, hi].
 pub const fn float(room: &'static str, key: &'static str, default: f64, lo: f64, hi: f64, unit: &'static str, doc: &'static str) -> OptionSpec {
-    OptionSpec { key, room, kind: Kind::Float { lo, hi, lo_open: false, hi_open: false }, default: Value::Float(default), optional: false, unit, doc, group: Group::Common }
+    OptionSpec {
+        key,
+        room,
+        kind: Kind::Float { lo, hi, lo_open: false, hi_open: false },
+        default: Value::Float(default),
+        optional: false,
+        unit,
+        doc,
+        group: Group::Common,
+    }
 }
 
 /// An integer option in [lo, hi].

@@ -408,10 +408,8 @@ fn schema<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
 #[pyo3(signature = (key, value, room=None, name=None))]
 fn check_option<'py>(py: Python<'py>, key: &str, value: &Bound<'py, PyAny>, room: Option<&str>, name: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
     let all: Vec<&OptionSpec> = ModelConfig::schema().into_iter().chain(ModelConfig::object_schema()).collect();
-    let spec = all
-        .iter()
-        .find(|s| s.key == key && room.is_none_or(|r| r == s.room))
-        .ok_or_else(|| param_err("key", key, "a key of granrs._granrs.schema()"))?;
+    let spec =
+        all.iter().find(|s| s.key == key && room.is_none_or(|r| r == s.room)).ok_or_else(|| param_err("key", key, "a key of granrs._granrs.schema()"))?;
     let name = name.unwrap_or(key);
     let v = spec.check_named(name, &to_value(value, name)?).map_err(to_py)?;
     from_value(py, &v)

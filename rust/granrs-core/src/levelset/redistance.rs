@@ -99,10 +99,35 @@ pub struct RedistanceSettings {
 
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
 pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
-    options::int("redistance", "redistance_iterations", 20, 1, 100_000, "1", "pseudo-time iterations of a redistancing (TVD-RK3 steps; the band redistanced is about iterations × cfl cells wide)"),
+    options::int(
+        "redistance",
+        "redistance_iterations",
+        20,
+        1,
+        100_000,
+        "1",
+        "pseudo-time iterations of a redistancing (TVD-RK3 steps; the band redistanced is about iterations × cfl cells wide)",
+    ),
     options::float("redistance", "redistance_cfl", 0.5, 0.0, 0.5, "1", "pseudo-time step Δτ/h of the redistancing").open(true, false),
-    options::float("redistance", "redistance_band", 10.0, 1.0, f64::INFINITY, "cells", "narrow band: cells with |Φ⁰| > band h are left unchanged (None: the whole domain)").open(false, true).off_by_default(),
-    options::choice("redistance", "redistance_interface", "closest-point", &["closest-point", "subcell-pde"], "treatment of the cells next to the interface: frozen band at the bicubic zero set (Chopp 2001) or the subcell PDE (Min 2010)").variant(),
+    options::float(
+        "redistance",
+        "redistance_band",
+        10.0,
+        1.0,
+        f64::INFINITY,
+        "cells",
+        "narrow band: cells with |Φ⁰| > band h are left unchanged (None: the whole domain)",
+    )
+    .open(false, true)
+    .off_by_default(),
+    options::choice(
+        "redistance",
+        "redistance_interface",
+        "closest-point",
+        &["closest-point", "subcell-pde"],
+        "treatment of the cells next to the interface: frozen band at the bicubic zero set (Chopp 2001) or the subcell PDE (Min 2010)",
+    )
+    .variant(),
 ];
 
 impl InterfaceTreatment {
@@ -119,7 +144,12 @@ impl Default for RedistanceSettings {
     /// 20 iterations at Δτ = h/2: a band of about 10 cells.
     fn default() -> Self {
         let o = |k| options::spec(REDISTANCE_OPTIONS, k);
-        RedistanceSettings { iterations: o("redistance_iterations").usize(), cfl: o("redistance_cfl").float(), band: None, interface: InterfaceTreatment::ClosestPoint }
+        RedistanceSettings {
+            iterations: o("redistance_iterations").usize(),
+            cfl: o("redistance_cfl").float(),
+            band: None,
+            interface: InterfaceTreatment::ClosestPoint,
+        }
     }
 }
 

@@ -5,10 +5,10 @@
 
 use crate::diagnostics::EnergyLedger;
 use crate::error::{check_finite, check_positive, Error, Result};
-use crate::options::{self, Configurable, OptionMap, OptionSpec, Value};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
 use crate::levelset::{blend, dense_area, init_signed_distance, LevelSetTransport, RedistanceSettings, Redistancer, Shape};
+use crate::options::{self, Configurable, OptionMap, OptionSpec, Value};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::free_surface::FreeSurfaceProjection;
 use crate::projection::PressureProjection;
@@ -136,17 +136,53 @@ pub const MODEL_OPTIONS: &[OptionSpec] = &[
     options::float("model", "interface_width", 1.5, 0.0, 10.0, "cells", "half-width ε/h of the smoothed interface (h = min(dx, dy))"),
     options::boolean("model", "transport_interface", true, "whether the level set is transported (false: a frozen interface)"),
     options::int("model", "redistance_every", 10, 0, 1_000_000, "steps", "redistance the level set every this many steps (0: never)"),
-    options::boolean("model", "mass_correction", false, "shift Φ by a constant after each interface update so that the dense-phase area keeps its initial value"),
-    options::choice("model", "viscous", "implicit", &["implicit", "explicit"], "the viscous term: implicit (CG solve) or explicit (stable for δt below the viscous limit)"),
+    options::boolean(
+        "model",
+        "mass_correction",
+        false,
+        "shift Φ by a constant after each interface update so that the dense-phase area keeps its initial value",
+    ),
+    options::choice(
+        "model",
+        "viscous",
+        "implicit",
+        &["implicit", "explicit"],
+        "the viscous term: implicit (CG solve) or explicit (stable for δt below the viscous limit)",
+    ),
     options::int("model", "threads", 1, 1, 1024, "threads", "size of the Rust thread pool (results are identical for any value)"),
     options::boolean("model", "convection", true, "whether ρ(u·∇)u is included (false: unsteady Stokes equations)"),
-    options::choice("model", "convection_scheme", "centred", &["centred", "weno5"], "convective term: centred second order, or upwind WENO5 per derivative (damps an under-resolved shear layer)"),
+    options::choice(
+        "model",
+        "convection_scheme",
+        "centred",
+        &["centred", "weno5"],
+        "convective term: centred second order, or upwind WENO5 per derivative (damps an under-resolved shear layer)",
+    ),
     options::float("model", "viscous_rtol", 1e-10, 1e-14, 1e-2, "1", "relative residual of the implicit viscous solve"),
     options::int("model", "viscous_max_iterations", 2000, 1, 100_000_000, "1", "iteration cap of the implicit viscous CG (reaching it is an error)"),
-    options::choice("model", "pressure_update", "standard", &["standard", "rotational"], "the projection's pressure update: p + δp, or the rotational p + δp − η div ũ (two-phase only)"),
+    options::choice(
+        "model",
+        "pressure_update",
+        "standard",
+        &["standard", "rotational"],
+        "the projection's pressure update: p + δp, or the rotational p + δp − η div ũ (two-phase only)",
+    ),
     options::boolean("model", "ambient_hydrostatic", false, "p is the pressure in excess of the light phase's hydrostatic one; body force (ρ − ρ_f) g"),
-    options::choice("model", "air", "resolved", &["resolved", "free-surface"], "the light phase: resolved (the two-phase model) or a free surface at p = 0 (the granular-only model)"),
-    options::choice("model", "pressure_gauge", "auto", &["auto", "mean", "top"], "the pressure's constant without an outflow side: top when τ or the walls depend on p, else mean").variant(),
+    options::choice(
+        "model",
+        "air",
+        "resolved",
+        &["resolved", "free-surface"],
+        "the light phase: resolved (the two-phase model) or a free surface at p = 0 (the granular-only model)",
+    ),
+    options::choice(
+        "model",
+        "pressure_gauge",
+        "auto",
+        &["auto", "mean", "top"],
+        "the pressure's constant without an outflow side: top when τ or the walls depend on p, else mean",
+    )
+    .variant(),
 ];
 
 impl ConvectionScheme {

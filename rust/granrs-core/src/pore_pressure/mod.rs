@@ -51,11 +51,11 @@
 //! profile β φ ρ_s g (H_c − y) stationary at rest); homogeneous Neumann elsewhere.
 
 use crate::error::{Error, Result};
-use crate::options::{self, OptionSpec, Value};
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, PressureBc, HALO};
 use crate::levelset::{heaviside, interface_diagonal};
 use crate::operators::for_each_interior_row;
+use crate::options::{self, OptionSpec, Value};
 use crate::solvers::{ShiftedSystem, SolveInfo, SolverSettings};
 
 /// What p_f does outside the granular phase.
@@ -139,7 +139,11 @@ impl PorePressureConfig {
     pub fn from_options(map: &options::OptionMap) -> Result<Self> {
         for k in map.keys() {
             if !PORE_PRESSURE_OPTIONS.iter().any(|s| s.key == k) {
-                return Err(Error::param("pore_pressure", k, &format!("a key of the pore pressure, one of {}", PORE_PRESSURE_OPTIONS.iter().map(|s| s.key).collect::<Vec<_>>().join(", "))));
+                return Err(Error::param(
+                    "pore_pressure",
+                    k,
+                    &format!("a key of the pore pressure, one of {}", PORE_PRESSURE_OPTIONS.iter().map(|s| s.key).collect::<Vec<_>>().join(", ")),
+                ));
             }
         }
         let get = |k: &str| -> Result<Value> {
@@ -153,10 +157,15 @@ impl PorePressureConfig {
             _ => PoreFormulation::GranularOnly,
         };
         let basal_flux = get("basal_gradient")?.as_f64().map(|g| -> Result<BasalFlux> {
-            Ok(BasalFlux { gradient: g, x_min: get("basal_x_min")?.as_f64().unwrap_or(f64::NEG_INFINITY), x_max: get("basal_x_max")?.as_f64().unwrap_or(f64::INFINITY) })
+            Ok(BasalFlux {
+                gradient: g,
+                x_min: get("basal_x_min")?.as_f64().unwrap_or(f64::NEG_INFINITY),
+                x_max: get("basal_x_max")?.as_f64().unwrap_or(f64::INFINITY),
+            })
         });
         let time_scheme = if options::as_name(&get("time_scheme")?) == "explicit" { PoreTimeScheme::Explicit } else { PoreTimeScheme::Implicit };
-        let cfg = PorePressureConfig { diffusivity: get("diffusivity")?.as_f64().unwrap_or(0.0), formulation, basal_flux: basal_flux.transpose()?, time_scheme };
+        let cfg =
+            PorePressureConfig { diffusivity: get("diffusivity")?.as_f64().unwrap_or(0.0), formulation, basal_flux: basal_flux.transpose()?, time_scheme };
         cfg.validate()?;
         Ok(cfg)
     }

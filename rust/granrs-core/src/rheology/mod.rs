@@ -144,7 +144,11 @@ impl RheologyLaw {
         for k in map.keys() {
             if !table.iter().any(|s| s.key == k) {
                 let names: Vec<&str> = table.iter().map(|s| s.key).collect();
-                return Err(Error::param(k, "given", &format!("a parameter of the '{kind}' rheology ({})", if names.is_empty() { "none".to_string() } else { names.join(", ") })));
+                return Err(Error::param(
+                    k,
+                    "given",
+                    &format!("a parameter of the '{kind}' rheology ({})", if names.is_empty() { "none".to_string() } else { names.join(", ") }),
+                ));
             }
         }
         let get = |k: &str| -> Result<f64> {
@@ -157,7 +161,13 @@ impl RheologyLaw {
         let law = match kind {
             "bingham" => RheologyLaw::Bingham { yield_stress: get("yield_stress")? },
             "drucker-prager" => RheologyLaw::DruckerPrager { friction_angle: get("friction_angle")? },
-            "mu-i" => RheologyLaw::MuI { mu_s: get("mu_s")?, mu_2: get("mu_2")?, i0: get("i0")?, grain_diameter: get("grain_diameter")?, grain_density: get("grain_density")? },
+            "mu-i" => RheologyLaw::MuI {
+                mu_s: get("mu_s")?,
+                mu_2: get("mu_2")?,
+                i0: get("i0")?,
+                grain_diameter: get("grain_diameter")?,
+                grain_density: get("grain_density")?,
+            },
             _ => RheologyLaw::Newtonian,
         };
         law.validate()?;
@@ -193,11 +203,20 @@ impl RheologyLaw {
 }
 
 /// The parameter of the Bingham law.
-pub const BINGHAM_OPTIONS: &[OptionSpec] = &[options::float("bingham", "yield_stress", 0.0, 0.0, f64::INFINITY, "Pa", "τ_y, the constant yield stress").open(false, true).required()];
+pub const BINGHAM_OPTIONS: &[OptionSpec] =
+    &[options::float("bingham", "yield_stress", 0.0, 0.0, f64::INFINITY, "Pa", "τ_y, the constant yield stress").open(false, true).required()];
 
 /// The parameter of the Drucker–Prager law (the paper's D-P model).
-pub const DRUCKER_PRAGER_OPTIONS: &[OptionSpec] =
-    &[options::float("drucker-prager", "friction_angle", 27.0, 0.0, 90.0, "degree", "α, internal friction angle: yield stress tan(α) p⁺ (the paper's glass beads: 27)").open(true, true)];
+pub const DRUCKER_PRAGER_OPTIONS: &[OptionSpec] = &[options::float(
+    "drucker-prager",
+    "friction_angle",
+    27.0,
+    0.0,
+    90.0,
+    "degree",
+    "α, internal friction angle: yield stress tan(α) p⁺ (the paper's glass beads: 27)",
+)
+.open(true, true)];
 
 /// The parameters of the μ(I) law (paper eq. 3–5).
 pub const MU_I_OPTIONS: &[OptionSpec] = &[
@@ -393,36 +412,140 @@ pub struct RheologyConfig {
 /// The options of the bi-projection (the Picard iteration of eq. 12) and of how the yield
 /// stress is imposed: `RheologyConfig`'s numerics of the common case.
 pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
-    options::choice("bi_projection", "plastic", "projection", &["projection", "papanastasiou", "bi-viscous"], "how the yield stress is imposed: the bi-projection, or a regularised viscosity (with regularisation)"),
-    options::float("bi_projection", "regularisation", 1.0, 0.0, f64::INFINITY, "", "the Papanastasiou exponent m [s] or the bi-viscous viscosity below yield [Pa s] (required by those treatments)").open(true, true).off_by_default(),
-    options::float("bi_projection", "r", 1.0, 0.0, f64::INFINITY, "s", "r of Σ = P(Σ + r D(u)) (None: the local contraction bound of rheology/plastic.rs)").open(true, true).off_by_default(),
-    options::float("bi_projection", "r_wall", 1.0, 0.0, f64::INFINITY, "s m-1", "r_b of s = P_b(s − r_b u_t) (None: the bound of walls/mod.rs)").open(true, true).off_by_default(),
-    options::float("bi_projection", "theta", 0.5, 0.0, 1.0, "1", "θ, pseudo-relaxation of the Picard iteration (geometric ratio about 1 − θ; 0: plain Uzawa)").open(false, true),
-    options::float("bi_projection", "picard_tol", 1e-9, 1e-15, 0.5, "1", "the Picard iteration stops when max |τ ΔΣ|/τ_max and max |τ_b Δs|/max τ_b are below this"),
-    options::int("bi_projection", "picard_max_iterations", 1000, 1, 1_000_000, "1", "iteration cap of the Picard loop (reaching it rejects the step, or stops the run)"),
-    options::int("bi_projection", "picard_solve_max_iterations", stage::PICARD_SOLVE_MAX_ITERATIONS as i64, 1, 100_000_000, "1", "iteration cap of each viscous solve inside the Picard loop"),
-    options::int("bi_projection", "anderson_depth", 0, 0, anderson::MAX_ANDERSON_DEPTH as i64, "1", "depth of the Anderson acceleration of the Picard iteration (0: the plain iteration; same fixed point)"),
+    options::choice(
+        "bi_projection",
+        "plastic",
+        "projection",
+        &["projection", "papanastasiou", "bi-viscous"],
+        "how the yield stress is imposed: the bi-projection, or a regularised viscosity (with regularisation)",
+    ),
+    options::float(
+        "bi_projection",
+        "regularisation",
+        1.0,
+        0.0,
+        f64::INFINITY,
+        "",
+        "the Papanastasiou exponent m [s] or the bi-viscous viscosity below yield [Pa s] (required by those treatments)",
+    )
+    .open(true, true)
+    .off_by_default(),
+    options::float("bi_projection", "r", 1.0, 0.0, f64::INFINITY, "s", "r of Σ = P(Σ + r D(u)) (None: the local contraction bound of rheology/plastic.rs)")
+        .open(true, true)
+        .off_by_default(),
+    options::float("bi_projection", "r_wall", 1.0, 0.0, f64::INFINITY, "s m-1", "r_b of s = P_b(s − r_b u_t) (None: the bound of walls/mod.rs)")
+        .open(true, true)
+        .off_by_default(),
+    options::float("bi_projection", "theta", 0.5, 0.0, 1.0, "1", "θ, pseudo-relaxation of the Picard iteration (geometric ratio about 1 − θ; 0: plain Uzawa)")
+        .open(false, true),
+    options::float(
+        "bi_projection",
+        "picard_tol",
+        1e-9,
+        1e-15,
+        0.5,
+        "1",
+        "the Picard iteration stops when max |τ ΔΣ|/τ_max and max |τ_b Δs|/max τ_b are below this",
+    ),
+    options::int(
+        "bi_projection",
+        "picard_max_iterations",
+        1000,
+        1,
+        1_000_000,
+        "1",
+        "iteration cap of the Picard loop (reaching it rejects the step, or stops the run)",
+    ),
+    options::int(
+        "bi_projection",
+        "picard_solve_max_iterations",
+        stage::PICARD_SOLVE_MAX_ITERATIONS as i64,
+        1,
+        100_000_000,
+        "1",
+        "iteration cap of each viscous solve inside the Picard loop",
+    ),
+    options::int(
+        "bi_projection",
+        "anderson_depth",
+        0,
+        0,
+        anderson::MAX_ANDERSON_DEPTH as i64,
+        "1",
+        "depth of the Anderson acceleration of the Picard iteration (0: the plain iteration; same fixed point)",
+    ),
 ];
 
 /// The numerical variants of the rheology and the walls: readings of the paper kept for study.
 /// Each default is the measured choice (docs/models.md, "Variants").
 pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
-    options::choice("variants", "interface_yield", "paper", &["paper", "granular-side", "density-support"], "where the smoothed jump of τ(Φ) and τ_b(Φ) sits: the paper's H_ε(Φ), H_ε(Φ + ε) or H_ε(Φ + 2ε)").variant(),
-    options::choice("variants", "wall_normal_stress", "pressure", &["pressure", "total"], "normal stress of the Coulomb walls: the pressure p, or the total stress p − T_nn").variant(),
-    options::choice("variants", "yield_pressure", "absolute", &["absolute", "surface-air"], "pressure of the yield stress and the walls: p, or p minus the mean air pressure on the surface").variant(),
-    options::choice("variants", "sigma_location", "staggered", &["staggered", "centres"], "where Σ lives: Σ_xx at centres and Σ_xy at nodes, or both at centres (the paper's Figure 3)").variant(),
-    options::int("variants", "r_neighbourhood", crate::rheology::DEFAULT_R_NEIGHBOURHOOD as i64, 0, plastic::MAX_R_NEIGHBOURHOOD as i64, "cells", "half-width of the neighbourhood over which the local r takes the largest velocity response").variant(),
-    options::int("variants", "proximal_restarts", 0, 0, 1_000_000, "1", "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)").variant(),
+    options::choice(
+        "variants",
+        "interface_yield",
+        "paper",
+        &["paper", "granular-side", "density-support"],
+        "where the smoothed jump of τ(Φ) and τ_b(Φ) sits: the paper's H_ε(Φ), H_ε(Φ + ε) or H_ε(Φ + 2ε)",
+    )
+    .variant(),
+    options::choice(
+        "variants",
+        "wall_normal_stress",
+        "pressure",
+        &["pressure", "total"],
+        "normal stress of the Coulomb walls: the pressure p, or the total stress p − T_nn",
+    )
+    .variant(),
+    options::choice(
+        "variants",
+        "yield_pressure",
+        "absolute",
+        &["absolute", "surface-air"],
+        "pressure of the yield stress and the walls: p, or p minus the mean air pressure on the surface",
+    )
+    .variant(),
+    options::choice(
+        "variants",
+        "sigma_location",
+        "staggered",
+        &["staggered", "centres"],
+        "where Σ lives: Σ_xx at centres and Σ_xy at nodes, or both at centres (the paper's Figure 3)",
+    )
+    .variant(),
+    options::int(
+        "variants",
+        "r_neighbourhood",
+        crate::rheology::DEFAULT_R_NEIGHBOURHOOD as i64,
+        0,
+        plastic::MAX_R_NEIGHBOURHOOD as i64,
+        "cells",
+        "half-width of the neighbourhood over which the local r takes the largest velocity response",
+    )
+    .variant(),
+    options::int("variants", "proximal_restarts", 0, 0, 1_000_000, "1", "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)")
+        .variant(),
 ];
 
 /// The friction angle of the Coulomb walls (paper eq. 8–9; `RheologyConfig::wall_friction_angle`).
-pub const COULOMB_OPTIONS: &[OptionSpec] =
-    &[options::float("coulomb", "friction_angle", 15.0, 0.0, 90.0, "degree", "α_b, friction angle of the granular phase on the wall (the paper: 15; None: frictionless)").open(false, true).off_by_default()];
+pub const COULOMB_OPTIONS: &[OptionSpec] = &[options::float(
+    "coulomb",
+    "friction_angle",
+    15.0,
+    0.0,
+    90.0,
+    "degree",
+    "α_b, friction angle of the granular phase on the wall (the paper: 15; None: frictionless)",
+)
+.open(false, true)
+.off_by_default()];
 
 /// The channel's side walls (`RheologyConfig::side_walls`, `walls/side.rs`).
 pub const SIDE_WALL_OPTIONS: &[OptionSpec] = &[
-    options::float("side_walls", "width", 0.1, 0.0, crate::walls::side::MAX_CHANNEL_WIDTH, "m", "W, width of the channel (the paper's experiment: 0.10)").open(true, false).required(),
-    options::float("side_walls", "friction_angle", 15.0, 0.0, 90.0, "degree", "α_w, friction angle of the granular phase on the side walls").open(false, true).required(),
+    options::float("side_walls", "width", 0.1, 0.0, crate::walls::side::MAX_CHANNEL_WIDTH, "m", "W, width of the channel (the paper's experiment: 0.10)")
+        .open(true, false)
+        .required(),
+    options::float("side_walls", "friction_angle", 15.0, 0.0, 90.0, "degree", "α_w, friction angle of the granular phase on the side walls")
+        .open(false, true)
+        .required(),
 ];
 
 impl Default for RheologyConfig {

@@ -135,9 +135,24 @@ pub struct SolverSettings {
 /// The options of the pressure solve's [`SolverSettings`] (`ModelConfig::pressure_solver`; the
 /// pore pressure's solve uses the same settings).
 pub const PRESSURE_SOLVER_OPTIONS: &[OptionSpec] = &[
-    options::choice("pressure_solver", "pressure_solver", "multigrid-cg", &["multigrid-cg", "direct"], "method of the pressure solve: multigrid-preconditioned CG, or the sparse Cholesky reference"),
-    options::float("pressure_solver", "pressure_rtol", 1e-8, 1e-15, 1.0, "1", "relative residual ‖f − L p‖₂/‖f‖₂ at which the pressure solve stops").open(false, true),
-    options::int("pressure_solver", "pressure_max_iterations", 200, 1, 100_000_000, "1", "iteration cap of the pressure CG (reaching it stops the run with a SolverError)"),
+    options::choice(
+        "pressure_solver",
+        "pressure_solver",
+        "multigrid-cg",
+        &["multigrid-cg", "direct"],
+        "method of the pressure solve: multigrid-preconditioned CG, or the sparse Cholesky reference",
+    ),
+    options::float("pressure_solver", "pressure_rtol", 1e-8, 1e-15, 1.0, "1", "relative residual ‖f − L p‖₂/‖f‖₂ at which the pressure solve stops")
+        .open(false, true),
+    options::int(
+        "pressure_solver",
+        "pressure_max_iterations",
+        200,
+        1,
+        100_000_000,
+        "1",
+        "iteration cap of the pressure CG (reaching it stops the run with a SolverError)",
+    ),
 ];
 
 impl Default for SolverSettings {

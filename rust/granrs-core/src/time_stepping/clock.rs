@@ -43,11 +43,21 @@ pub struct TimeConfig {
 /// The options of [`TimeConfig`] (the simulation's clock).
 pub const TIME_OPTIONS: &[OptionSpec] = &[
     options::float("time", "cfl", 0.5, 1e-3, 1.0, "1", "CFL number C_cfl of the adaptive step"),
-    options::float("time", "dt", 1.0, 0.0, f64::INFINITY, "s", "a fixed time step instead of the adaptive one (None: adaptive)").open(true, true).off_by_default(),
+    options::float("time", "dt", 1.0, 0.0, f64::INFINITY, "s", "a fixed time step instead of the adaptive one (None: adaptive)")
+        .open(true, true)
+        .off_by_default(),
     options::float("time", "max_dt", f64::INFINITY, 0.0, f64::INFINITY, "s", "largest step of the adaptive rule").open(true, false),
     options::float("time", "max_growth", 1.2, 1.0, 2.4, "1", "largest ratio δt_n/δt_{n−1} (variable-step BDF2 is zero-stable below 1 + √2)"),
     options::float("time", "cfl_abort", 1.0, 1e-6, 100.0, "1", "the run stops with an error when the advective CFL number exceeds this"),
-    options::int("time", "step_retries", 3, 0, 20, "1", "rejections of a step whose Picard iteration does not converge (retaken with δt halved); 0: stop at once"),
+    options::int(
+        "time",
+        "step_retries",
+        3,
+        0,
+        20,
+        "1",
+        "rejections of a step whose Picard iteration does not converge (retaken with δt halved); 0: stop at once",
+    ),
 ];
 
 /// Growth per accepted step of the δt ceiling a rejected step leaves (see the module docs): the
