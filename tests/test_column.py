@@ -423,7 +423,7 @@ def test_open_window_sides_are_refused_for_the_granular_only_model(tmp_path, sid
 
 
 def test_active_region_sides_bad_value_names_itself(tmp_path):
-    with pytest.raises(ParameterError, match="`active_region_sides`.*'walls', 'open-right' or 'open-right-top'"):
+    with pytest.raises(ParameterError, match="`active_region_sides`.*'walls', 'open-right', 'open-right-top'"):
         run_column(ColumnCase(ny=16, active_region=8, active_region_sides="outflow"), tmp_path, progress=False)
 
 
