@@ -172,7 +172,8 @@ def test_the_friction_angle_is_declared_once():
     spec = options.spec("friction_angle", "drucker-prager")
     assert (key.default, key.lo, key.hi, key.lo_open, key.hi_open) == (spec.default, 0.0, 90.0, True, True)
     assert ColumnCase().friction_angle == spec.default == granrs.DruckerPrager().friction_angle
-    rust = _count(_rust_sources(), r'"friction_angle", 27\.0')
+    rust = [(p, m.group(0)) for p in _rust_sources()
+            for m in re.finditer(r'"friction_angle",\s*27(\.0)?\s*,', p.read_text())]
     assert len(rust) == 1 and "rheology" in str(rust[0][0]), rust
     py = _count(_python_sources(), r"friction_angle.*\b27(\.0)?\b|friction.*\b(89|90)(\.0)?\b|FRICTION_ANGLE_RANGE\s*=\s*\(\s*0")
     assert py == [], py

@@ -42,7 +42,7 @@ pub struct TimeConfig {
 
 /// The options of [`TimeConfig`] (the simulation's clock).
 pub const TIME_OPTIONS: &[OptionSpec] = &[
-    options::float("time", "cfl", 0.5, 1e-3, 1.0, "1", "CFL number C_cfl of the adaptive step"),
+    options::float("time", "cfl", 0.5, 1e-6, 2.0, "1", "CFL number C_cfl of the adaptive step"),
     options::float("time", "dt", 1.0, 0.0, f64::INFINITY, "s", "a fixed time step instead of the adaptive one (None: adaptive)")
         .open(true, true)
         .off_by_default(),
