@@ -11,7 +11,7 @@ $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q "maturin>=1.5,<2" "numpy>=1.23" "matplotlib>=3.6" "pytest>=7" "hypothesis>=6" \
-		"netCDF4>=1.6" "xarray>=2023.1" "dask[distributed]>=2023.1" "vtk>=9.2"
+		"netCDF4>=1.6" "xarray>=2023.1" "dask[distributed]>=2023.1" "vtk>=9.2" "ruff>=0.6" "mypy>=1.10"
 	touch $@
 
 # Builds the Rust extension in release mode into .venv (re-run after changing Rust code).
@@ -37,11 +37,19 @@ test-slow: install
 bench: install
 	cargo bench -p granrs-core
 
-# The Rust tree's layout, clippy's lints as errors, and the core's floors (rust/granrs-core/src/lib.rs).
-lint:
+# The Rust tree's layout, clippy's lints as errors, and the core's floors (rust/granrs-core/src/lib.rs);
+# the Python code's lints and layout (ruff), the package's types (mypy) and the extension's stubs
+# against the compiled module (mypy.stubtest; settings in pyproject.toml).
+PY_SOURCES := python tests examples scripts
+
+lint: install
 	cargo fmt --all -- --check
 	cargo clippy --workspace --release --all-targets -- -D warnings
 	python3 scripts/check_layers.py
+	$(VENV)/bin/ruff check $(PY_SOURCES)
+	$(VENV)/bin/ruff format --check $(PY_SOURCES)
+	$(VENV)/bin/mypy
+	$(PY) -m mypy.stubtest granrs._granrs
 
 clean:
 	rm -rf $(VENV) target $(OUT) docs/_build docs/auto_examples docs/reference/generated

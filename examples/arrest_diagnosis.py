@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs.cases import column as col
+from granrs.cases.column import build as col
 from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, thickness_front, volume_profile
 
@@ -160,10 +160,10 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         "max_front_m": float(front[imax]), "max_front_time_s": float(t[imax]), "front_end_m": float(front[-1]),
         "retreat_m": float(front[imax] - front[-1]), "retreat_cells": float((front[imax] - front[-1]) / g.dx),
         "area_rel_drift": float(np.max(np.abs(area / area[0] - 1.0))),
-        "late_speed_max": {key: float(max(r[f"speed_{key}"] for r, l in zip(rows, late) if l))
+        "late_speed_max": {key: float(max(r[f"speed_{key}"] for r, is_late in zip(rows, late) if is_late))
                            for key in ("bulk", "band", "air_band", "granular")},
         "speed_at_end": {key: rows[-1][f"speed_{key}"] for key in ("bulk", "band", "air_band", "granular")},
-        "trial_norm_bulk_max_late": float(max(r["trial_norm_bulk_max"] for r, l in zip(rows, late) if l)),
+        "trial_norm_bulk_max_late": float(max(r["trial_norm_bulk_max"] for r, is_late in zip(rows, late) if is_late)),
         "where_at_end": {"x_from_gate_m": rows[-1]["where_x"], "y_m": rows[-1]["where_y"],
                          "phi_over_h": rows[-1]["where_phi_over_h"]},
     }

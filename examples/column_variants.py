@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 import granrs.cases.column as column
+import granrs.cases.column.build as build
 
 VARIANTS = {
     "baseline": ({}, {}),
@@ -31,7 +32,7 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", help="variant names (default: all)")
     ap.add_argument("--out", default="out/variants")
     args = ap.parse_args()
-    original = column.Numerics
+    original = build.Numerics
     for name, (case_changes, numerics_changes) in VARIANTS.items():
         if args.only and name not in args.only:
             continue
@@ -39,15 +40,15 @@ def main() -> None:
         def numerics(**kw):
             if args.dt > 0:
                 kw["dt"] = args.dt
-            kw.update(numerics_changes)
+            kw.update(numerics_changes)  # noqa: B023 (called within this iteration)
             return original(**kw)
 
-        column.Numerics = numerics  # build_model reads the name from the module
+        build.Numerics = numerics  # build_model reads the name from its module
         try:
             case = column.ColumnCase(ny=32, fluidised=False, **case_changes)
             s = column.run_column(case, Path(args.out) / name, progress=False)
         finally:
-            column.Numerics = original
+            build.Numerics = original
         print(json.dumps({"variant": name, **{k: s[k] for k in ("runout_m", "max_front_m", "wall_s", "steps")}}), flush=True)
 
 

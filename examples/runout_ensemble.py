@@ -136,7 +136,7 @@ def main() -> None:
                     help="another ensemble's output folder: writes comparison.json (differences of the means, ± standard error)")
     args = ap.parse_args()
     if args.members < 2:
-        raise SystemExit("invalid parameter `--members` = %d: allowed an integer >= 2" % args.members)
+        raise SystemExit(f"invalid parameter `--members` = {args.members}: allowed an integer >= 2")
     tag = (f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
            + (f"-{args.active_region_sides}" if args.active_region and args.active_region_sides != "walls" else "")
            + (f"-theta{args.theta:g}" if args.theta is not None else "")

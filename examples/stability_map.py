@@ -16,7 +16,7 @@ Families (short simulated times; every run is a fixed δt or a fixed CFL number)
     series, κ t/H² = 0.1) with the implicit (BDF2) and explicit (forward Euler) time schemes; a
     round-off-sized checkerboard (1e-9) in the initial p_f excites the x-modes of this x-invariant
     layer; stable = no error and a relative L2 error < 1 (bounded);
-(c) the fluidised column (``cases/column.py``, paper's values) at ny = 16, 32 over 0.6 s with the
+(c) the fluidised column (``granrs.cases.column``, paper's values) at ny = 16, 32 over 0.6 s with the
     adaptive step at CFL numbers 0.25 … 2: with the default guard cfl_abort = 1, and with the guard
     lifted (cfl_abort = 100) to see what it prevents; the δt plotted is the median step of the
     run at the largest stable CFL number.

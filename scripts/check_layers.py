@@ -21,7 +21,7 @@ from pathlib import Path
 
 # Bottom to top; lib.rs states the same list.
 FLOORS = [
-    ["error", "exec"],
+    ["error", "exec", "options"],
     ["grid"],
     ["operators", "solvers"],
     ["levelset", "plasticity", "pore_pressure", "projection", "walls", "rheology", "diagnostics"],

@@ -38,16 +38,16 @@ def test_material_and_numerics_errors_name_the_parameter():
     with pytest.raises(ParameterError, match="`slip_length`"):
         granrs.NavierSlip(slip_length=0.0)
     # raised by the Rust binding, with the allowed values
-    with pytest.raises(ParameterError, match="`interface_yield`.*'paper', 'granular-side' or 'density-support'"):
+    with pytest.raises(ParameterError, match="`interface_yield`.*'paper', 'granular-side', 'density-support'"):
         cavity(numerics=Numerics(interface_yield="sharp"))
-    with pytest.raises(ParameterError, match="`yield_pressure`.*'absolute' or 'surface-air'"):
+    with pytest.raises(ParameterError, match="`yield_pressure`.*'absolute', 'surface-air'"):
         cavity(numerics=Numerics(yield_pressure="gauge"))
     with pytest.raises(ParameterError, match=r"`proximal_restarts` = -1: allowed an integer in \[0, 1000000\]"):
         cavity(numerics=Numerics(proximal_restarts=-1))
     from granrs.cases.column import ColumnCase
     with pytest.raises(ParameterError, match="`interface_yield`"):
         ColumnCase(interface_yield="sharp").validate()
-    with pytest.raises(ParameterError, match=r"`kappa_air` = 0.5: allowed a number in \[1.0, 1e\+?16"):
+    with pytest.raises(ParameterError, match=r"`kappa_air` = 0.5: allowed a number in \[1, 1e16\]"):
         ColumnCase(kappa_air=0.5).validate()
     with pytest.raises(ParameterError, match="`yield_pressure`"):
         ColumnCase(yield_pressure="gauge").validate()

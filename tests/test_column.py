@@ -373,11 +373,11 @@ def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path,
     with the option r_neighbourhood = 2 the adaptive run-out is 26 % short of
     its own δt = 1e-4 s run (1.52 against 2.05 m). About 2 min on one core."""
     import functools
-    import granrs.cases.column as column
+    import granrs.cases.column.build as build
 
     adaptive = {w: run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"a{w}", progress=False) for w in (0, 2)}
-    # a fixed step: build_model reads Numerics from the module
-    monkeypatch.setattr(column, "Numerics", functools.partial(column.Numerics, dt=1e-4))
+    # a fixed step: build_model reads Numerics from its module
+    monkeypatch.setattr(build, "Numerics", functools.partial(build.Numerics, dt=1e-4))
     out = {w: adaptive[w]["runout_m"] / run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"f{w}",
                                                    progress=False)["runout_m"] - 1.0 for w in (0, 2)}
     # w = 0: −2.0 % measured (8-member adaptive mean −2.0 ± 1.0 %); 4 % leaves room for its
@@ -423,7 +423,7 @@ def test_open_window_sides_are_refused_for_the_granular_only_model(tmp_path, sid
 
 
 def test_active_region_sides_bad_value_names_itself(tmp_path):
-    with pytest.raises(ParameterError, match="`active_region_sides`.*'walls', 'open-right' or 'open-right-top'"):
+    with pytest.raises(ParameterError, match="`active_region_sides`.*'walls', 'open-right', 'open-right-top'"):
         run_column(ColumnCase(ny=16, active_region=8, active_region_sides="outflow"), tmp_path, progress=False)
 
 

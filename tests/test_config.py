@@ -62,8 +62,8 @@ def test_bad_sets_are_rejected(bad):
 MALFORMED = [
     ("[numerix]\ncfl = 0.5", "`numerix`", "unknown section"),
     ("[numerics]\ncfll = 0.5", "`numerics.cfll`", "unknown key"),
-    ("[numerics]\ncfl = 0", "`numerics.cfl`", "[0.001, 1]"),
-    ("[numerics]\ncfl = 1.5", "`numerics.cfl`", "a number in"),
+    ("[numerics]\ncfl = 0", "`numerics.cfl`", "[1e-6, 2]"),
+    ("[numerics]\ncfl = 2.5", "`numerics.cfl`", "a number in"),
     ('[numerics]\ncfl = "0.5"', "`numerics.cfl`", "a number in"),
     ("[numerics]\ncfl = true", "`numerics.cfl`", "a number in"),
     ("[numerics]\ncfl = nan", "`numerics.cfl`", "a number in"),
@@ -138,9 +138,9 @@ def test_cli_runs_a_file_with_sets_and_writes_the_resolved_configuration(tmp_pat
 def test_cli_rejects_a_bad_file_before_any_work(tmp_path):
     out = tmp_path / "never"
     path = tmp_path / "bad.toml"
-    path.write_text(f'[numerics]\ncfl = 2.0\n[output]\ndir = "{out}"\n')
+    path.write_text(f'[numerics]\ncfl = 2.5\n[output]\ndir = "{out}"\n')
     r = cli("run", str(path))
-    assert r.returncode == 2 and "`numerics.cfl`" in r.stderr and "[0.001, 1]" in r.stderr
+    assert r.returncode == 2 and "`numerics.cfl`" in r.stderr and "[1e-6, 2]" in r.stderr
     assert not out.exists()
     r = cli("run", str(EXAMPLES / "paper_dry.toml"), "--ny", "16")
     assert r.returncode == 2 and "--set" in r.stderr

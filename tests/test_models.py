@@ -1,5 +1,5 @@
 """The model ladder: the granular-only 2D model and the depth-averaged model through the Python
-API and the column case, the choice of ``--model auto`` (criteria measured in docs/models.md),
+API and the column case,
 bad model names."""
 
 import csv
@@ -10,7 +10,7 @@ import pytest
 
 import granrs
 from granrs import DepthAveragedModel, DepthAveragedPore, ParameterError
-from granrs.cases.column import ColumnCase, build_model, choose_model, front_position, run_column
+from granrs.cases.column import ColumnCase, build_model, front_position, run_column
 from granrs.cli import main
 
 
@@ -57,34 +57,8 @@ def test_depth_averaged_column_through_the_case_api(tmp_path):
     assert np.sum(prof["h_final"]) * dx == pytest.approx(0.02, rel=1e-5)
 
 
-def test_auto_keeps_the_two_phase_model_where_no_agreement_was_measured():
-    # measured (docs/models.md): against the two-phase model with r_neighbourhood = 0
-    # the depth-averaged run-out is −11.3 % (dry) and −9.0 % (fluidised) at a = 0.5, the smallest
-    # aspect ratio measured: no interval of agreement within 5 %, so auto keeps the two-phase model
-    for a, fluidised in ((0.5, False), (2.0, False), (0.5, True)):
-        model, reason = choose_model(ColumnCase(aspect_ratio=a, fluidised=fluidised, model="auto"))
-        assert model == "two-phase" and "at no measured aspect ratio" in reason and "docs/models.md" in reason
-    assert choose_model(ColumnCase(aspect_ratio=2.0, model="depth-averaged"))[0] == "depth-averaged"
-    assert choose_model(ColumnCase())[0] == "two-phase"  # the default is unchanged
-
-
-def test_auto_takes_the_depth_averaged_model_within_a_measured_interval(tmp_path, monkeypatch):
-    # the rule itself, with an interval of agreement (non-fluidised a <= 0.5, where the
-    # depth-averaged run-out is +0.1 % off the two-phase one with the option r_neighbourhood = 2)
-    import granrs.cases.column as column
-
-    monkeypatch.setattr(column, "DEPTH_AVERAGED_MAX_ASPECT", {True: None, False: 0.5})
-    low, reason_low = choose_model(ColumnCase(aspect_ratio=0.5, fluidised=False, model="auto"))
-    tall, reason_tall = choose_model(ColumnCase(aspect_ratio=2.0, fluidised=False, model="auto"))
-    assert (low, tall) == ("depth-averaged", "two-phase")
-    assert "<= 0.5" in reason_low and "only up to aspect ratio 0.5" in reason_tall
-    assert choose_model(ColumnCase(aspect_ratio=0.5, fluidised=True, model="auto"))[0] == "two-phase"
-    assert choose_model(ColumnCase(aspect_ratio=0.5, fluidised=True, pore_pressure_ratio=0.0, model="auto"))[0] == "depth-averaged"
-    s = run_column(ColumnCase(aspect_ratio=0.5, fluidised=False, model="auto", da_resolution=16), tmp_path, progress=False)
-    assert s["model"] == "depth-averaged" and s["model_reason"].startswith("auto:")
-
-
-@pytest.mark.parametrize("name,needle", [("banana", "allowed 'auto', 'two-phase', 'granular' or"),
+@pytest.mark.parametrize("name,needle", [("banana", "allowed 'two-phase', 'granular' or"),
+                                         ("auto", "no automatic choice"),
                                          ("two_phase", "'depth-averaged'")])
 def test_bad_model_is_rejected_with_the_parameter_named(tmp_path, capsys, name, needle):
     with pytest.raises(ParameterError, match="`model`"):

@@ -43,7 +43,9 @@ def test_a_bulk_off_by_more_than_the_tolerance_fails_at_the_finer_resolution_onl
     ref = peer.load_reference(64)
     # 12 % more near the back wall (x < −0.1 m), the rest untouched: the centre of mass moves by
     # less than its 10 %, the pointwise bulk check fails
-    bump = lambda x: np.where(x < -0.1, 1.12, 1.0)
+    def bump(x):
+        return np.where(x < -0.1, 1.12, 1.0)
+
     m = peer.compare(_as_run(ref, bump), ref, finer=True)
     assert not m["passed"] and m["failures"][0].startswith("bulk")
     assert m["bulk_max_rel_diff"] == pytest.approx(0.12, abs=1e-9)

@@ -34,7 +34,7 @@ def test_static_layer_with_pore_pressure_stays_at_rest():
 def test_pf_is_only_a_field_of_fluidised_models():
     m = granrs.Model(granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0))
     with pytest.raises(granrs.ParameterError, match="`pf`"):
-        m.pf
+        _ = m.pf
     with pytest.raises(granrs.ParameterError, match="`diffusivity`"):
         granrs.PorePressure(diffusivity=-1.0)
     with pytest.raises(granrs.ParameterError, match="`formulation`"):

@@ -73,8 +73,8 @@ CLI_BAD = [
     (["run", "column", "--ny", "4097"], "`--ny` = '4097': allowed an integer in [8, 4096]"),
     (["run", "column", "--ny", "2.5"], "`--ny` = '2.5': allowed an integer in [8, 4096]"),
     (["run", "column", "--threads", "0"], "`--threads` = '0': allowed an integer in [1, 1024]"),
-    (["run", "column", "--cfl", "0"], "`--cfl` = '0': allowed a number in [0.001, 1]"),
-    (["run", "column", "--cfl", "1.5"], "`--cfl` = '1.5': allowed a number in [0.001, 1]"),
+    (["run", "column", "--cfl", "0"], "`--cfl` = '0': allowed a number in [1e-06, 2]"),
+    (["run", "column", "--cfl", "2.5"], "`--cfl` = '2.5': allowed a number in [1e-06, 2]"),
     (["run", "column", "--t-end", "-1"], "`--t-end` = '-1': allowed a number in [1e-06, 10000]"),
     (["run", "column", "--aspect-ratio", "50"], "`--aspect-ratio` = '50': allowed a number in [0.1, 20]"),
     (["run", "column", "--width", "0"], "`--width` = '0': allowed a number in [0.001, 10]"),
@@ -84,7 +84,7 @@ CLI_BAD = [
     (["run", "column", "--active-region-sides", "open-right"], "`--active-region-sides` = 'open-right': allowed only with --active-region"),
     (["run", "column", "--model", "depth-averaged", "--active-region", "8"], "`--active-region` = 8 with --model depth-averaged"),
     (["run", "column", "--model", "depth-averaged", "--channel-width", "0.1"], "`--channel-width` = 0.1 with --model depth-averaged"),
-    (["run", "column", "--model", "shallow"], "`model` = 'shallow': allowed 'auto', 'two-phase', 'granular' or 'depth-averaged'"),
+    (["run", "column", "--model", "shallow"], "`model` = 'shallow': allowed 'two-phase', 'granular' or 'depth-averaged'"),
     (["run", "column", "--re", "10"], "`--re` with `granrs run column`: not used by this case"),
     (["run", "cavity", "--ny", "16"], "`--ny` with `granrs run cavity`: not used by this case"),
     (["run", "cavity", "--n", "4"], "`--n` = '4': allowed an integer in [8, 1024]"),
@@ -136,12 +136,12 @@ def test_cli_flags_are_refused_with_a_run_file(tmp_path, capsys):
 
 # ---- bad run files ---------------------------------------------------------------------------------
 RUN_FILE_BAD = [
-    ("[materials]\nfriction_angle = 0\n", "`materials.friction_angle` = 0: allowed a number in (0, 89] (degree)"),
-    ("[materials]\nfriction_angle = 90\n", "`materials.friction_angle` = 90: allowed a number in (0, 89]"),
+    ("[materials]\nfriction_angle = 0\n", "`materials.friction_angle` = 0: allowed a number in (0, 90) (degree)"),
+    ("[materials]\nfriction_angle = 90\n", "`materials.friction_angle` = 90: allowed a number in (0, 90)"),
     ("[grid]\nny = 4097\n", "`grid.ny` = 4097: allowed an integer in [8, 4096] (cells)"),
     ("[grid]\nny = \"16\"\n", "`grid.ny` = '16': allowed an integer in [8, 4096]"),
     ("[grid]\nny = 16.0\n", "`grid.ny` = 16.0: allowed an integer in [8, 4096]"),
-    ("[numerics]\ncfl = nan\n", "`numerics.cfl` = nan: allowed a number in [0.001, 1]"),
+    ("[numerics]\ncfl = nan\n", "`numerics.cfl` = nan: allowed a number in [1e-6, 2]"),
     ("[numerics]\nt_end = inf\n", "`numerics.t_end` = inf: allowed a number in [1e-06, 10000] (s)"),
     ("[numerics]\ntheta = 1.0\n", "`numerics.theta` = 1.0: allowed a number in [0, 1)"),
     ("[numerics]\nthreads = 0\n", "`numerics.threads` = 0: allowed an integer in [1, 1024]"),
@@ -184,15 +184,15 @@ def test_one_friction_angle_range_everywhere(capsys):
     lo, hi = FRICTION_ANGLE_RANGE
     assert main(["keys"]) == 0
     row = next(line for line in capsys.readouterr().out.splitlines() if "`materials.friction_angle`" in line)
-    assert f"({lo:g}, {hi:g}]" in row, row
-    for bad in (lo, hi + 0.5):
-        with pytest.raises(ParameterError, match=rf"`friction_angle` = {bad!r}: allowed an angle in degrees in \(0, 89\]"):
+    assert f"({lo:g}, {hi:g})" in row, row
+    for bad in (lo, hi):
+        with pytest.raises(ParameterError, match=rf"`friction_angle` = {bad:g}: allowed a number in \(0, 90\) \(degree\)"):
             granrs.DruckerPrager(bad)
-        with pytest.raises(ParameterError, match=r"`friction_angle`.*\(0, 89\]"):
+        with pytest.raises(ParameterError, match=r"`friction_angle`.*\(0, 90\)"):
             ColumnCase(friction_angle=bad).validate()
-        with pytest.raises(ParameterError, match=r"`materials.friction_angle`.*\(0, 89\]"):
+        with pytest.raises(ParameterError, match=r"`materials.friction_angle`.*\(0, 90\)"):
             resolve({"materials": {"friction_angle": bad}})
-    for good in (1e-3, hi):
+    for good in (1e-3, hi - 1e-9):
         granrs.DruckerPrager(good)
         ColumnCase(friction_angle=good, ny=8).validate()
         resolve({"materials": {"friction_angle": good}})
@@ -280,7 +280,7 @@ PYTHON_BAD = [
     (lambda: Simulation(_model(), stop_time=1.0, callbacks=[print]), "`callbacks`"),
     (lambda: Simulation(_model(), stop_time=1.0, speed_limit=-1.0), "`speed_limit` = -1.0: allowed None or a finite speed > 0"),
     (lambda: Callback(print, every_time=0.0), "`every_time` = 0.0: allowed a finite number > 0"),
-    (lambda: granrs.DruckerPrager(0.0), "`friction_angle` = 0.0: allowed an angle in degrees in (0, 89]"),
+    (lambda: granrs.DruckerPrager(0.0), "`friction_angle` = 0: allowed a number in (0, 90) (degree)"),
     (lambda: ColumnCase(length=float("nan")).validate(), "`length` = nan: allowed None (the default) or a number of metres"),
     (lambda: ColumnCase(length=0.1).validate(), "`length` = 0.1: allowed None (the default) or a number of metres in (0.2, 1000]"),
     (lambda: ColumnCase(ny=True).validate(), "`ny` = True: allowed an integer in [8, 4096]"),
@@ -397,9 +397,9 @@ def test_refused_runs_into_an_existing_run_leave_it_byte_identical(tmp_path, cap
     assert "fields.pvd" in before and "summary.json" in before
     for argv, message in (
             ([], "the folder is not empty"),
-            (["--set", "materials.friction_angle=0"], "`materials.friction_angle` = 0: allowed a number in (0, 89]"),
+            (["--set", "materials.friction_angle=0"], "`materials.friction_angle` = 0: allowed a number in (0, 90)"),
             (["--set", "grid.ny=4097"], "`grid.ny` = 4097"),
-            (["--overwrite", "--set", "numerics.cfl=2"], "`numerics.cfl` = 2: allowed a number in [0.001, 1]"),
+            (["--overwrite", "--set", "numerics.cfl=2.5"], "`numerics.cfl` = 2.5: allowed a number in [1e-6, 2]"),
             (["--restart", str(tmp_path / "missing.npz")], "cannot be read")):
         rc, err = cli(capsys, "run", str(path), "--quiet", *argv)
         assert rc == 2 and message in err, (argv, err)

@@ -243,7 +243,7 @@ def test_fully_developed_sides_come_in_pairs():
 def test_newtonian_model_has_no_plastic_tensor():
     m = Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 1.0))
     with pytest.raises(ParameterError, match="sigma_xx"):
-        m.sigma_xx
+        _ = m.sigma_xx
     assert m.picard_history().size == 0
 
 

@@ -68,6 +68,28 @@ def keys_markdown() -> str:
     return "\n".join(out)
 
 
+def options_markdown() -> str:
+    """The reference of every option of the Rust schema, room by room, the variants apart."""
+    from granrs import options
+
+    out = ["# Options", "",
+           "Generated from the Rust schema (`granrs._granrs.schema()`, the `OPTIONS` tables beside the",
+           "configuration structs of `rust/granrs-core`) when the documentation is built. Each option is",
+           "declared once there, with its default, range, unit and doc; `granrs.Numerics`, the room objects",
+           "(`TimeStepping`, `BiProjection`, `ActiveRegion`, `Variants`, `PorePressure`, the rheologies,",
+           "`CoulombWall`, `SideWalls`), the run-file keys and `granrs keys` are made from it.",
+           "The group `variant` holds the numerical variants kept for study ([Variants](../models.md#variants)).", ""]
+    rooms = list(dict.fromkeys(s.room for s in options.SCHEMA))
+    for room in rooms:
+        out += [f"## `{room}`", "", "| key | allowed | default | group | meaning |", "|---|---|---|---|---|"]
+        for s in options.room(room):
+            default = "required" if s.required else repr(s.default)
+            out.append(f"| `{s.key}` | {s.allowed.replace('|', chr(92) + '|')} | `{default}` | {s.group} | "
+                       f"{s.doc.replace('|', chr(92) + '|')} |")
+        out.append("")
+    return "\n".join(out)
+
+
 def _write_if_changed(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if not path.exists() or path.read_text() != text:
@@ -78,6 +100,7 @@ def generate(app) -> None:
     ref = Path(app.srcdir) / "reference"
     _write_if_changed(ref / "cli.md", cli_markdown())
     _write_if_changed(ref / "keys.md", keys_markdown())
+    _write_if_changed(ref / "options.md", options_markdown())
 
 
 _SECTION = re.compile(r"^(Parameters|Returns|Raises|Examples|Notes|Attributes|Yields|See Also)\s*$")

@@ -41,7 +41,7 @@ def run(fluidised):
 
 
 runs = {name: run(name == "fluidised") for name in ("dry", "fluidised")}
-for name, (case, model, rec) in runs.items():
+for name, (_case, model, rec) in runs.items():
     print(f"{name:9s}: front {rec['front'][-1]:.3f} m from the gate at t = {model.time:.2f} s, "
           f"{model.step_count} steps")
 

@@ -18,20 +18,24 @@ The pipeline is grid → model → simulation → run::
 from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
 from . import shapes
 from .depth_averaged import DepthAveragedModel, DepthAveragedPore
-from .boundary import BoundaryConditions, Coulomb, FreeSlip, FullyDeveloped, NavierSlip, NoSlip, Outflow, Velocity
+from .boundary import BoundaryConditions, Coulomb, CoulombWall, FreeSlip, FullyDeveloped, NavierSlip, NoSlip, Outflow, Velocity
 from .grid import Grid
 from .materials import AIR, WATER, Material
-from .model import Model, Numerics, PorePressure, SideWalls
+from .model import Model, PorePressure, SideWalls
+from .options import ActiveRegion, BiProjection, Numerics, TimeStepping, Variants
 from .rheology import Bingham, DruckerPrager, MuI, Newtonian
 from .simulation import Callback, Simulation
 
 __all__ = [
     "AIR",
+    "ActiveRegion",
+    "BiProjection",
     "WATER",
     "Bingham",
     "BoundaryConditions",
     "Callback",
     "Coulomb",
+    "CoulombWall",
     "DepthAveragedModel",
     "DepthAveragedPore",
     "DruckerPrager",
@@ -51,6 +55,8 @@ __all__ = [
     "ParameterError",
     "Simulation",
     "SimulationError",
+    "TimeStepping",
+    "Variants",
     "SolverError",
     "Velocity",
     "__version__",

@@ -1,9 +1,13 @@
 """Type stubs of the Rust extension module granrs._granrs (hand-written; see rust/granrs-py)."""
 
-from typing import Any, Optional
+from typing import Any, Optional, final
 
 import numpy as np
 import numpy.typing as npt
+from typing_extensions import Self
+
+__all__ = ["RustModel", "RustDepthAveraged", "build_info", "levelset_validation", "schema", "check_option", "__version__", "ParameterError",
+           "SolverError", "SimulationError"]
 
 __version__: str
 
@@ -17,36 +21,19 @@ class SimulationError(RuntimeError):
 class SolverError(SimulationError): ...
 
 def build_info() -> dict[str, Any]: ...
+def schema() -> list[dict[str, Any]]: ...
+def check_option(key: str, value: Any, room: Optional[str] = None, name: Optional[str] = None) -> Any: ...
 def levelset_validation(case: str, n: int, period: float, redistance_every: int, cfl: float,
                         threads: int = 1) -> dict[str, Any]: ...
 
+@final
 class RustModel:
-    def __init__(self, nx: int, ny: int, lx: float, ly: float, bc: dict[str, tuple[str, dict[str, float]]],
-                 dense: tuple[float, float], light: Optional[tuple[float, float]] = None,
-                 gravity: tuple[float, float] = (0.0, 0.0), interface_width: float = 1.5,
-                 transport_interface: bool = True, redistance_every: int = 10, viscous: str = "implicit",
-                 cfl: float = 0.5, dt: Optional[float] = None, max_dt: float = ..., max_growth: float = 1.2,
-                 cfl_abort: float = 1.0, pressure_solver: str = "multigrid-cg", pressure_rtol: float = 1e-8,
-                 pressure_max_iterations: int = 200, threads: int = 1,
-                 rheology: Optional[tuple[str, Optional[dict[str, float]]]] = None, plastic: str = "projection",
-                 regularisation: Optional[float] = None, r: Optional[float] = None, r_wall: Optional[float] = None,
-                 theta: float = 0.5, picard_tol: float = 1e-9, picard_max_iterations: int = 1000,
-                 convection: bool = True, viscous_rtol: float = 1e-10,
-                 pore_pressure: Optional[dict[str, Any]] = None, mass_correction: bool = False,
-                 convection_scheme: str = "centred", pressure_gauge: str = "auto",
-                 viscous_max_iterations: int = 2000, interface_yield: str = "paper",
-                 ambient_hydrostatic: bool = False, proximal_restarts: int = 0,
-                 wall_normal_stress: str = "pressure",
-                 active_region: Optional[tuple[int, int, str]] = None, step_retries: int = 3,
-                 air: str = "resolved", anderson_depth: int = 0,
-                 pressure_update: str = "standard", picard_solve_max_iterations: int = 500,
-                 yield_pressure: str = "absolute", r_neighbourhood: int = 0,
-                 sigma_location: str = "staggered", side_walls: Optional[tuple[float, float]] = None) -> None: ...
+    def __new__(cls, config: dict[str, Any]) -> Self: ...
     @staticmethod
-    def estimate_memory(nx: int, ny: int, lx: float, ly: float, bc: dict[str, tuple[str, dict[str, float]]],
-                        dense: tuple[float, float], *args: Any, **kwargs: Any) -> tuple[int, Optional[int]]:
-        """(estimated bytes, bytes available or None) of the model __init__ builds with the same arguments."""
+    def estimate_memory(config: dict[str, Any]) -> tuple[int, Optional[int]]:
+        """(estimated bytes, bytes available or None) of the model __new__ builds from `config`."""
         ...
+    def options(self) -> dict[str, Any]: ...
     def active_window(self) -> Optional[tuple[int, int]]: ...
     def field_storage(self, name: str) -> npt.NDArray[np.float64]: ...
     def checkpoint_state(self) -> dict[str, npt.NDArray[np.float64]]: ...
@@ -71,10 +58,11 @@ class RustModel:
     @property
     def threads(self) -> int: ...
 
+@final
 class RustDepthAveraged:
-    def __init__(self, cells: int, length: float, gravity: float = 9.81, earth_pressure: float = 1.0,
-                 basal_friction_angle: float = 0.0, cfl: float = 0.4, dry_depth: float = 1e-6, max_dt: float = 1e-2,
-                 pore: Optional[dict[str, float]] = None, internal_friction_angle: Optional[float] = None) -> None: ...
+    def __new__(cls, cells: int, length: float, gravity: float = 9.81, earth_pressure: float = 1.0,
+                basal_friction_angle: float = 0.0, cfl: float = 0.4, dry_depth: float = 1e-6, max_dt: float = 1e-2,
+                pore: Optional[dict[str, float]] = None, internal_friction_angle: Optional[float] = None) -> Self: ...
     def field_storage(self, name: str) -> npt.NDArray[np.float64]: ...
     def set_state(self, h: npt.NDArray[np.float64], u: npt.NDArray[np.float64], beta: npt.NDArray[np.float64]) -> None: ...
     def set_bed(self, bed: npt.NDArray[np.float64]) -> None: ...

@@ -78,10 +78,9 @@ class Coulomb:
     friction_angle: Optional[float] = None
 
     def __post_init__(self):
-        if self.friction_angle is not None:
-            v = _finite("friction_angle", self.friction_angle)
-            if not 0 <= v < 90:
-                raise ParameterError(f"invalid parameter `friction_angle` = {v!r}: allowed an angle in degrees in [0, 90)")
+        from . import options
+
+        object.__setattr__(self, "friction_angle", options.spec("friction_angle", "coulomb").check(self.friction_angle))
 
     def spec(self):
         return ("coulomb", {} if self.friction_angle is None else {"friction_angle": float(self.friction_angle)})
@@ -96,6 +95,9 @@ class FullyDeveloped:
     def spec(self):
         return ("fully-developed", {})
 
+
+#: A Coulomb friction wall with its angle α_b (the paper's name for ``Coulomb``).
+CoulombWall = Coulomb
 
 _KINDS = (NoSlip, FreeSlip, Velocity, NavierSlip, Outflow, Coulomb, FullyDeveloped)
 

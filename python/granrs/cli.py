@@ -160,7 +160,7 @@ def _run(args, parser) -> int:
                             ("--rheology", args.rheology), ("--cfl", args.cfl), ("--threads", args.threads)):
                 if v is not None and v != parser.get_default(flag[2:].replace("-", "_")):
                     raise ParameterError(f"invalid parameter `{flag}` = {v!r} with --model depth-averaged: not used by "
-                                         "the depth-averaged model; allowed only with --model two-phase, granular or auto")
+                                         "the depth-averaged model; allowed only with --model two-phase or granular")
         compare = None
         if args.compare_with is not None:
             compare = Path(args.compare_with)
@@ -260,15 +260,14 @@ def main(argv=None) -> int:
     fl.add_argument("--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)")
     fl.add_argument("--no-fluidised", dest="fluidised", action="store_false", help="no pore pressure")
     r.add_argument("--pore-pressure-ratio", dest="pore_pressure_ratio",
-                   type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"), help="β (0.9 in the paper)")
+                   type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"), help="β, pore pressure over the lithostatic one (case.pore_pressure_ratio: `granrs keys`)")
     r.add_argument("--ny", type=_key_type("--ny", "grid.ny"),
                    help="cells over the domain height (column; 32; 256 is the paper's grid)")
     r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "numerics.t_end"), help="end time in s (column; 3)")
     r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], help="column: drucker-prager (default) or mu-i")
-    r.add_argument("--model", default="two-phase", metavar="auto|two-phase|granular|depth-averaged",
+    r.add_argument("--model", default="two-phase", metavar="two-phase|granular|depth-averaged",
                    help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
-                        "surface at p = 0), the depth-averaged one, or auto: the depth-averaged model only where it was "
-                        "measured within 5%% of the two-phase run-out (docs/models.md)")
+                        "surface at p = 0) or the depth-averaged one (docs/howto/choosing-a-model.md)")
     r.add_argument("--cfl", type=_key_type("--cfl", "numerics.cfl"), help="CFL number (column; 0.5)")
     r.add_argument("--active-region", dest="active_region", type=_number("--active-region", "int", 2, 100000),
                    metavar="BAND",

@@ -22,10 +22,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Optional, Union
 
+from . import options
 from ._granrs import ParameterError
 from .cases.column import ColumnCase
-from .model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS
-from .rheology import FRICTION_ANGLE_RANGE
+from .cases.column.case import COLUMN_NUMERICS, OPTION_FIELD_KEYS, OPTION_FIELDS, SCENE_CHOICES, SCENE_RANGES
+from .options import OptionInfo
 
 
 @dataclass(frozen=True)
@@ -45,13 +46,18 @@ class Key:
     hi_open: bool = False
     choices: tuple = ()
     lo_open: bool = False
+    #: the schema option this key sets (None: a key of the scene or the run)
+    option: Optional[OptionInfo] = None
 
     @property
     def full(self) -> str:
         return f"{self.section}.{self.name}"
 
     def allowed(self) -> str:
-        """The allowed values, in words (used in error messages and in ``granrs keys``)."""
+        """The allowed values, in words (used in error messages and in ``granrs keys``); for a key
+        of a schema option, the schema's own words."""
+        if self.option is not None and not self.option.optional:
+            return self.option.allowed
         if self.kind in ("float", "int"):
             what = "a number" if self.kind == "float" else "an integer"
             rng = f"{'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
@@ -76,68 +82,90 @@ def _fmt(x) -> str:
 # defaults come from the column case itself, so a run file and `granrs run column` agree
 _D = {f.name: f.default for f in dataclasses.fields(ColumnCase) if f.default is not dataclasses.MISSING}
 _PAPER_LENGTH = ColumnCase().domain()[0]
+_R = SCENE_RANGES
+#: the unit words of the schema's SI symbols where a run file's comment differs
+_SECTION_OF_GROUP = {"common": "numerics", "variant": "variants"}
+
+
+def _from_schema(section: str, name: str, spec: OptionInfo, default, doc: Optional[str] = None) -> Key:
+    """The run-file key ``section.name`` of a schema option: its kind, range, choices, unit and
+    doc are the schema's; ``default`` is the column's value."""
+    kind = "choice" if spec.kind == "choice" else spec.kind
+    lo = spec.lo if spec.kind != "int" or spec.lo is None else int(spec.lo)
+    hi = spec.hi if spec.kind != "int" or spec.hi is None else int(spec.hi)
+    return Key(section, name, kind, default, spec.unit, doc or spec.doc, lo, hi, hi_open=spec.hi_open,
+               choices=tuple(spec.choices), lo_open=spec.lo_open, option=spec)
+
+
+def _column_option(section: str, name: str, doc: Optional[str] = None) -> Key:
+    key, room = OPTION_FIELDS[name]
+    return _from_schema(section, name, options.spec(key, room), _D[name], doc)
+
+
+_AR = options.spec("active_region")
+#: The schema's flat options that are run-file keys without a ColumnCase field of their own:
+#: [numerics] (group common) and [variants] (group variant), at the column's values. An option
+#: that is off by default (None: TOML has no null) is set from Python, ``ColumnCase(numerics=)``.
+_GENERIC = tuple(
+    _from_schema(_SECTION_OF_GROUP[s.group], s.key, s, COLUMN_NUMERICS.get(s.key, s.default))
+    for s in options.SCHEMA
+    if not s.object and s.key not in OPTION_FIELD_KEYS and s.key not in options.MODEL_ARGUMENTS and not s.optional
+)
 
 KEYS: tuple[Key, ...] = (
     Key("case", "name", "choice", "column", "", "the case to run", choices=("column",)),
-    Key("case", "aspect_ratio", "float", _D["aspect_ratio"], "1", "a = H_c / L_c, column height over width", 0.1, 20.0),
-    Key("case", "width", "float", _D["width"], "m", "L_c, width of the reservoir (gate at x = L_c)", 1e-3, 10.0),
+    Key("case", "aspect_ratio", "float", _D["aspect_ratio"], "1", "a = H_c / L_c, column height over width", *_R["aspect_ratio"]),
+    Key("case", "width", "float", _D["width"], "m", "L_c, width of the reservoir (gate at x = L_c)", *_R["width"]),
     Key("case", "fluidised", "bool", _D["fluidised"], "", "pore gas pressure on (initial p_f and basal air supply)"),
-    Key("case", "pore_pressure_ratio", "float", _D["pore_pressure_ratio"], "1", "β: initial and supplied pore pressure over the lithostatic one", 0.0, 1.0),
+    Key("case", "pore_pressure_ratio", "float", _D["pore_pressure_ratio"], "1", "β: initial and supplied pore pressure over the lithostatic one", *_R["pore_pressure_ratio"]),
+    Key("case", "air_supply", "choice", _D["air_supply"], "",
+        "sign of the basal air supply: injection (∂p_f/∂y = −β φρ_s g, gas flows up into the column) or the printed literal "
+        "∂p_f/∂n = −β φρ_s g with n the outward normal (an outflow)", choices=SCENE_CHOICES["air_supply"]),
+    Key("case", "back_wall", "choice", _D["back_wall"], "",
+        "the wall at x = 0: Coulomb friction at wall_friction_angle (the paper's), or free-slip (the cross-code check)",
+        choices=SCENE_CHOICES["back_wall"]),
     Key("case", "rheology", "choice", _D["rheology"], "", "granular rheology", choices=("drucker-prager", "mu-i")),
     Key("case", "channel_width", "float", 0.0, "m",
         "friction of a channel's side walls this far apart (not in the paper's 2D model; the experiment's: 0.1), at the "
-        "base's friction angle; 0: none", 0.0, 1000.0),
-    Key("grid", "ny", "int", _D["ny"], "cells", "cells over the domain height (256 is the paper's grid)", 8, 4096),
+        "base's friction angle; 0: none", 0.0, options.spec("width", "side_walls").hi),
+    Key("grid", "ny", "int", _D["ny"], "cells", "cells over the domain height (256 is the paper's grid)", *_R["ny"]),
     Key("grid", "length", "float", None, "m", f"channel length; default from the column case ({_PAPER_LENGTH:g} m for the paper's column)", 0.01, 1000.0),
-    Key("materials", "solid_fraction", "float", _D["solid_fraction"], "1", "φ, solid volume fraction of the column", 0.01, 0.74),
+    Key("materials", "solid_fraction", "float", _D["solid_fraction"], "1", "φ, solid volume fraction of the column", *_R["solid_fraction"]),
     Key("materials", "grain_density", "float", _D["grain_density"], "kg m-3", "ρ_s, density of the grains", 1.0, 25000.0),
     Key("materials", "grain_diameter", "float", _D["grain_diameter"], "m", "d_s, grain diameter (used by mu-i)", 1e-7, 0.1),
-    Key("materials", "friction_angle", "float", _D["friction_angle"], "degree", "α, internal friction angle",
-        *FRICTION_ANGLE_RANGE, lo_open=True),
-    Key("materials", "wall_friction_angle", "float", _D["wall_friction_angle"], "degree", "α_b, friction angle of the base and back wall", 0.0, 89.0),
-    Key("materials", "granular_viscosity", "float", _D["granular_viscosity"], "Pa s", "η_s, viscosity of the granular phase", 1e-8, 1e6),
-    Key("materials", "diffusivity", "float", _D["diffusivity"], "m2 s-1", "κ_f, pore pressure diffusivity", 1e-12, 1e6),
-    Key("numerics", "pore_formulation", "choice", _D["pore_formulation"], "",
-        "pore pressure outside the grains: p_f = 0 on the surface (granular-only), κ_∞ in the air with a sharp "
-        "interface, or the paper's smoothed κ(Φ) = κ_f H_ε + κ_∞(1 − H_ε)",
-        choices=("granular-only", "kappa-infinity", "kappa-infinity-smoothed")),
-    Key("numerics", "kappa_air", "float", _D["kappa_air"], "m2 s-1", "κ_∞ of the kappa-infinity formulations", 1.0, 1e16),
-    Key("numerics", "cfl", "float", _D["cfl"], "1", "CFL number of the adaptive time step", 1e-3, 1.0),
-    Key("numerics", "t_end", "float", _D["t_end"], "s", "end of the simulated time (the run stops earlier at rest)", 1e-6, 1e4),
-    Key("numerics", "threads", "int", _D["threads"], "threads", "size of the Rust thread pool (results are identical for any value)", 1, 1024),
-    Key("numerics", "picard_tol", "float", _D["picard_tol"], "1", "tolerance of the Picard iteration of the plastic projection", 1e-14, 1.0),
-    Key("numerics", "theta", "float", _D["theta"], "1", "θ, pseudo-relaxation of the Picard iteration", 0.0, 1.0, hi_open=True),
-    Key("numerics", "r_neighbourhood", "int", _D["r_neighbourhood"], "cells",
-        "half-width of the neighbourhood of the plastic projection's local r: within it the relaxed fixed point of "
-        "eq. (12) is as soft as the air's faces make it (0: the cell's own faces, δt-independent run-out)", 0, 4),
-    Key("numerics", "sigma_location", "choice", _D["sigma_location"], "",
-        "where the plastic tensor lives: staggered (Σ_xx at centres, Σ_xy at nodes) or the paper's Figure 3, both at centres",
-        choices=SIGMA_LOCATIONS),
-    Key("numerics", "interface_yield", "choice", _D["interface_yield"], "",
-        "where the smoothed jump of the yield stress and basal friction sits: the paper's H_ε(Φ), H_ε(Φ + ε) or H_ε(Φ + 2ε)",
-        choices=("paper", "granular-side", "density-support")),
-    Key("numerics", "active_region", "int", 0, "cells",
-        "run each step on a window around the granular phase with this many (≥ 2) cells of air; 0: the whole domain", 0, 100000),
-    Key("numerics", "active_region_sides", "choice", _D["active_region_sides"], "",
-        "the active window's sides: walls; its right side open (outflow at the air's hydrostatic pressure); or "
-        "its right and top sides open with backflow stabilisation",
-        choices=ACTIVE_REGION_SIDES),
-    Key("numerics", "wall_normal_stress", "choice", _D["wall_normal_stress"], "",
-        "normal stress of the Coulomb base and back wall: the pressure p, or the paper's total stress p − T_nn",
-        choices=("pressure", "total")),
-    Key("numerics", "yield_pressure", "choice", _D["yield_pressure"], "",
-        "pressure of the yield stress and the walls' normal stress: the paper's p, or p minus the mean air pressure on the surface",
-        choices=("absolute", "surface-air")),
-    Key("numerics", "step_retries", "int", _D["step_retries"], "1",
-        "rejections of a step whose Picard iteration does not converge (retaken with δt halved); 0: stop at once", 0, 20),
-    Key("numerics", "mass_correction", "bool", _D["mass_correction"], "",
-        "global mass correction of the level set (dense area kept at its initial value)"),
+    _column_option("materials", "friction_angle"),
+    _column_option("materials", "wall_friction_angle", "α_b, friction angle of the base and back wall"),
+    Key("materials", "granular_viscosity", "float", _D["granular_viscosity"], "Pa s", "η_s, viscosity of the granular phase", *_R["granular_viscosity"]),
+    _column_option("materials", "diffusivity"),
+    Key("numerics", "t_end", "float", _D["t_end"], "s", "end of the simulated time (the run stops earlier at rest)", *_R["t_end"]),
+    _column_option("numerics", "cfl"),
+    _column_option("numerics", "threads"),
+    _column_option("numerics", "picard_tol"),
+    _column_option("numerics", "theta"),
+    _column_option("numerics", "step_retries"),
+    _column_option("numerics", "mass_correction"),
+    Key("numerics", "active_region", "int", 0, "cells", _AR.doc.replace("(None: the whole domain)", "(0: the whole domain)"),
+        0, int(_AR.hi), option=_AR),
+    _column_option("numerics", "active_region_sides"),
+    *(k for k in _GENERIC if k.section == "numerics"),
+    _column_option("variants", "pore_formulation"),
+    _column_option("variants", "kappa_air"),
+    _column_option("variants", "r_neighbourhood"),
+    _column_option("variants", "sigma_location"),
+    _column_option("variants", "interface_yield"),
+    _column_option("variants", "wall_normal_stress"),
+    _column_option("variants", "yield_pressure"),
+    _column_option("variants", "proximal_restarts"),
+    *(k for k in _GENERIC if k.section == "variants"),
     Key("output", "dir", "str", "out/run", "path", "output folder, relative to the current directory"),
     Key("output", "fields_every_s", "float", 0.05, "s", "simulated time between field snapshots; 0: none", 0.0, 1e4),
     Key("output", "formats", "list", ["vtk"], "", "field formats: 'vtk' (.vti + .pvd), 'netcdf' (fields.nc)", choices=("vtk", "netcdf")),
     Key("output", "animation", "bool", True, "", "write animation.gif from the saved fields at the end"),
     Key("output", "checkpoint_every_s", "float", 0.0, "s", "simulated time between checkpoints; 0: none", 0.0, 1e4),
 )
+#: Keys of [numerics] that are keys of [variants] (a run file that puts them in [numerics] is
+#: told where they belong).
+_VARIANT_NAMES = {k.name for k in KEYS if k.section == "variants"}
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(k.section for k in KEYS))
 _BY_NAME = {k.full: k for k in KEYS}
 
@@ -158,7 +186,8 @@ def _check_value(key: Key, value):
         number = float(value) if key.kind == "float" else value
         too_high = number >= key.hi if key.hi_open else number > key.hi
         too_low = number <= key.lo if key.lo_open else number < key.lo
-        if not math.isfinite(number) or too_low or too_high:
+        infinite_ok = math.isinf(number) and (number > 0 and key.hi == math.inf or number < 0 and key.lo == -math.inf)
+        if math.isnan(number) or (not math.isfinite(number) and not infinite_ok) or too_low or too_high:
             raise _bad(key, value)
         return number
     if key.kind == "bool":
@@ -191,6 +220,9 @@ def resolve(raw: dict) -> Config:
         if not isinstance(table, dict):
             raise ParameterError(f"invalid parameter `{section}` = {table!r}: allowed a table [{section}]")
         for name in table:
+            if section == "numerics" and name in _VARIANT_NAMES:
+                raise ParameterError(f"invalid parameter `numerics.{name}`: a numerical variant; allowed as "
+                                     f"`variants.{name}` in the section [variants] (docs/models.md, \"Variants\")")
             if f"{section}.{name}" not in _BY_NAME:
                 names = ", ".join(k.name for k in KEYS if k.section == section)
                 raise ParameterError(f"invalid parameter `{section}.{name}`: unknown key in [{section}]; allowed keys {names}")
@@ -339,16 +371,15 @@ def describe() -> str:
 
 def column_case(cfg: Config) -> ColumnCase:
     """The ``ColumnCase`` of a resolved configuration."""
-    c, g, m, n = cfg["case"], cfg["grid"], cfg["materials"], cfg["numerics"]
+    c, g, m, n, v = cfg["case"], cfg["grid"], cfg["materials"], cfg["numerics"], cfg["variants"]
+    fields = {name: section[name] for section in (m, n, v) for name in section if name in OPTION_FIELDS}
+    fields["active_region"] = n["active_region"] or None
+    # the schema's other options: passed on where they differ from the column's values
+    extra = {k.name: cfg[k.section][k.name] for k in _GENERIC
+             if cfg[k.section][k.name] != COLUMN_NUMERICS.get(k.name, k.option.default if k.option else None)}
     return ColumnCase(aspect_ratio=c["aspect_ratio"], width=c["width"], fluidised=c["fluidised"],
-                      channel_width=c["channel_width"] or None,
+                      channel_width=c["channel_width"] or None, air_supply=c["air_supply"], back_wall=c["back_wall"],
                       pore_pressure_ratio=c["pore_pressure_ratio"], rheology=c["rheology"], ny=g["ny"],
-                      length=g["length"], t_end=n["t_end"], cfl=n["cfl"], threads=n["threads"],
-                      picard_tol=n["picard_tol"], theta=n["theta"], r_neighbourhood=n["r_neighbourhood"],
-                      sigma_location=n["sigma_location"],
-                      mass_correction=n["mass_correction"],
-                      interface_yield=n["interface_yield"], wall_normal_stress=n["wall_normal_stress"],
-                      yield_pressure=n["yield_pressure"], pore_formulation=n["pore_formulation"],
-                      kappa_air=n["kappa_air"], active_region=n["active_region"] or None,
-                      active_region_sides=n["active_region_sides"],
-                      step_retries=n["step_retries"], **m)
+                      length=g["length"], t_end=n["t_end"], solid_fraction=m["solid_fraction"],
+                      grain_density=m["grain_density"], grain_diameter=m["grain_diameter"],
+                      granular_viscosity=m["granular_viscosity"], numerics=extra, **fields)

@@ -13,44 +13,51 @@ law                 yield stress τ              viscosity of the dense phase
 
 |D| = √(½ Σ D_ij²), so a simple shear u(y) has the shear stress η u' + τ sign(u'). p is the model
 pressure (fix its gauge with an ``Outflow`` side, as the paper's open top). Angles are in degrees.
-How the yield stress is imposed is a numerical choice: ``Numerics(plastic="projection")`` (the
-bi-projection, default) or a regularisation (``"papanastasiou"``, ``"bi-viscous"``, with
-``Numerics(regularisation=...)``).
+How the yield stress is imposed is a numerical choice of the law's ``projection``, a
+``granrs.BiProjection``: ``plastic="projection"`` (the bi-projection, default; ``theta``,
+``tolerance``, ``max_iterations``, ...) or a regularisation (``"papanastasiou"``,
+``"bi-viscous"``, with ``regularisation=...``). Parameter ranges and defaults are the Rust
+schema's (``granrs.options``).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from typing import Optional
 
+from . import options
 from ._granrs import ParameterError
+from .options import BiProjection
 
 
-def _number(name: str, v, lo: float = 0.0, strict: bool = False, hi: float = math.inf) -> float:
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-    ok = ok and (v > lo if strict else v >= lo) and v < hi
-    if not ok:
-        rng = f"{'>' if strict else '>='} {lo}" + ("" if math.isinf(hi) else f" and < {hi}")
-        raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a finite number {rng}")
-    return float(v)
+def _law_param(law: str, name: str, value) -> float:
+    """``value`` as a float, checked in Rust against the law's option ``name`` (its room in the
+    schema is the law's name); ParameterError naming ``name`` and its range otherwise."""
+    return options.spec(name, law).check(value, name)
 
 
-#: The internal friction angle α of the granular phase, in degrees: (lo, hi], lo excluded (α = 0
-#: has no yield stress). DruckerPrager, the column case, run files and ``granrs keys`` use it.
-FRICTION_ANGLE_RANGE = (0.0, 89.0)
+def _projection(rheology) -> None:
+    p = rheology.projection
+    if p is not None and not isinstance(p, BiProjection):
+        raise ParameterError(f"invalid parameter `projection` = {p!r}: allowed a granrs.BiProjection or None")
+
+
+_DP = options.spec("friction_angle", "drucker-prager")
+#: The internal friction angle α of the granular phase, in degrees, as (lo, hi), both ends
+#: excluded (α = 0 has no yield stress): the Rust schema's range of DruckerPrager.friction_angle.
+FRICTION_ANGLE_RANGE = (_DP.lo, _DP.hi)
 
 
 def check_friction_angle(v, name: str = "friction_angle") -> float:
     """``v`` as a float if it is an angle in FRICTION_ANGLE_RANGE; else ParameterError naming ``name``."""
-    lo, hi = FRICTION_ANGLE_RANGE
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo < v <= hi:
-        raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed an angle in degrees in ({lo:g}, {hi:g}]")
-    return float(v)
+    return _DP.check(v, name)
 
 
 @dataclass(frozen=True)
 class Newtonian:
     """No yield stress: T = 2η D(u)."""
+
+    projection = None
 
     def spec(self):
         return ("newtonian", {})
@@ -58,12 +65,15 @@ class Newtonian:
 
 @dataclass(frozen=True)
 class Bingham:
-    """Bingham plastic: T = 2η D(u) + τ_y Σ with a constant ``yield_stress`` τ_y [Pa]."""
+    """Bingham plastic: T = 2η D(u) + τ_y Σ with a constant ``yield_stress`` τ_y [Pa];
+    ``projection``: the numerics of its bi-projection (None: the model's numerics)."""
 
     yield_stress: float
+    projection: Optional[BiProjection] = None
 
     def __post_init__(self):
-        _number("yield_stress", self.yield_stress)
+        object.__setattr__(self, "yield_stress", _law_param("bingham", "yield_stress", self.yield_stress))
+        _projection(self)
 
     def spec(self):
         return ("bingham", {"yield_stress": float(self.yield_stress)})
@@ -71,12 +81,16 @@ class Bingham:
 
 @dataclass(frozen=True)
 class DruckerPrager:
-    """The paper's D-P model: T = 2η_s D(u) + tan(α) p⁺ Σ, ``friction_angle`` α in degrees (27°)."""
+    """The paper's D-P model: T = 2η_s D(u) + tan(α) p⁺ Σ, ``friction_angle`` α in degrees (the
+    schema's default: the paper's 27°); ``projection``: the numerics of its bi-projection
+    (``granrs.BiProjection(theta, tolerance, ...)``; None: the model's numerics)."""
 
-    friction_angle: float
+    friction_angle: float = _DP.default
+    projection: Optional[BiProjection] = None
 
     def __post_init__(self):
-        check_friction_angle(self.friction_angle)
+        object.__setattr__(self, "friction_angle", check_friction_angle(self.friction_angle))
+        _projection(self)
 
     def spec(self):
         return ("drucker-prager", {"friction_angle": float(self.friction_angle)})
@@ -84,20 +98,22 @@ class DruckerPrager:
 
 @dataclass(frozen=True)
 class MuI:
-    """μ(I) rheology (paper eq. 3–5): μ(I) = μ_s + (μ₂ − μ_s)/(I₀/I + 1), I = 2|D| d √(ρ_s/p)."""
+    """μ(I) rheology (paper eq. 3–5): μ(I) = μ_s + (μ₂ − μ_s)/(I₀/I + 1), I = 2|D| d √(ρ_s/p);
+    ``projection``: the numerics of its bi-projection (None: the model's numerics)."""
 
     mu_s: float
     mu_2: float
     i0: float
     grain_diameter: float
     grain_density: float
+    projection: Optional[BiProjection] = None
 
     def __post_init__(self):
-        _number("mu_s", self.mu_s)
-        _number("mu_2", self.mu_2, self.mu_s, strict=True)
-        _number("i0", self.i0, strict=True)
-        _number("grain_diameter", self.grain_diameter, strict=True)
-        _number("grain_density", self.grain_density, strict=True)
+        for k in ("mu_s", "mu_2", "i0", "grain_diameter", "grain_density"):
+            object.__setattr__(self, k, _law_param("mu-i", k, getattr(self, k)))
+        if not self.mu_2 > self.mu_s:
+            raise ParameterError(f"invalid parameter `mu_2` = {self.mu_2!r}: allowed a finite number > mu_s = {self.mu_s}")
+        _projection(self)
 
     def spec(self):
         return ("mu-i", {k: float(getattr(self, k)) for k in ("mu_s", "mu_2", "i0", "grain_diameter", "grain_density")})

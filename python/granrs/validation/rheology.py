@@ -477,7 +477,10 @@ def block_acceleration(slope: float, wall_friction_angle: float = 15.0, g: float
 
 def sliding_block(slope, stop_slope, n, threads: int = 1, wall_friction_angle: float = 15.0):
     slope, stop_slope, n = float(slope), float(stop_slope), int(n)
-    accel = lambda sl: block_acceleration(sl, wall_friction_angle)
+
+    def accel(sl):
+        return block_acceleration(sl, wall_friction_angle)
+
     t, U, _ = run_block(slope, n, threads=threads)
     sel = t >= 0.05
     a = float(np.polyfit(t[sel], U[sel], 1)[0])

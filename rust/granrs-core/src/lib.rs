@@ -52,7 +52,8 @@
 //!    operator) and [`solvers`] (multigrid-preconditioned CG, sparse Cholesky);
 //! 1. [`grid`]: the grid, MAC locations, fields with halos, boundary conditions, the rooms' state
 //!    interfaces (`StateArrays`, `WindowState`);
-//! 0. [`error`] and [`exec`] (the execution policy: serial or the model's rayon pool).
+//! 0. [`error`], [`exec`] (the execution policy: serial or the model's rayon pool) and
+//!    [`options`] (the options schema: each option's spec, its validation, key → value maps).
 
 pub mod diagnostics;
 pub mod error;
@@ -61,6 +62,7 @@ pub mod grid;
 pub mod levelset;
 pub mod models;
 pub mod operators;
+pub mod options;
 pub mod plasticity;
 pub mod pore_pressure;
 pub mod projection;

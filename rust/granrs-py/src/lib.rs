@@ -5,18 +5,19 @@
 use granrs_core::exec::Exec;
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Side, VelocityBc};
 use granrs_core::levelset::{self, Shape};
-use granrs_core::models::{ActiveRegion, ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel, WindowSides};
-use granrs_core::pore_pressure::{BasalFlux, PoreFormulation, PorePressureConfig, PoreTimeScheme};
-use granrs_core::rheology::{InterfaceYield, RheologyConfig, RheologyLaw, SigmaLocation, WallNormalStress, YieldPressure, YieldTreatment};
-use granrs_core::solvers::{PressureSolverKind, SolveInfo};
-use granrs_core::time_stepping::{StepInfo, ViscousScheme};
+use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
+use granrs_core::options::{self, Kind, OptionMap, OptionSpec, Value};
+use granrs_core::pore_pressure::PorePressureConfig;
+use granrs_core::rheology::{RheologyLaw, COULOMB_OPTIONS, SIDE_WALL_OPTIONS};
+use granrs_core::solvers::SolveInfo;
+use granrs_core::time_stepping::StepInfo;
 use granrs_core::walls::side::SideWalls;
 use granrs_core::Error;
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyBool, PyDict, PyInt, PyTuple};
 
 mod depth_averaged;
 
@@ -79,29 +80,6 @@ fn parse_bc(side: &str, kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyRes
         other => {
             return Err(param_err(&format!("bc.{side}"), other, "one of 'no-slip', 'free-slip', 'velocity', 'navier', 'outflow', 'coulomb', 'fully-developed'"))
         }
-    })
-}
-
-/// Parses the rheology ("kind", {params}) of the dense phase.
-fn parse_rheology(kind: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<RheologyLaw> {
-    let get = |key: &str| -> PyResult<f64> {
-        match params.and_then(|p| p.get_item(key).ok().flatten()) {
-            Some(v) => v.extract::<f64>().map_err(|_| param_err(key, v, "a number")),
-            None => Err(param_err(key, "missing", &format!("a number (required by the '{kind}' rheology)"))),
-        }
-    };
-    Ok(match kind {
-        "newtonian" => RheologyLaw::Newtonian,
-        "bingham" => RheologyLaw::Bingham { yield_stress: get("yield_stress")? },
-        "drucker-prager" => RheologyLaw::DruckerPrager { friction_angle: get("friction_angle")? },
-        "mu-i" => RheologyLaw::MuI {
-            mu_s: get("mu_s")?,
-            mu_2: get("mu_2")?,
-            i0: get("i0")?,
-            grain_diameter: get("grain_diameter")?,
-            grain_density: get("grain_density")?,
-        },
-        other => return Err(param_err("rheology", other, "one of 'newtonian', 'bingham', 'drucker-prager', 'mu-i'")),
     })
 }
 
@@ -267,99 +245,67 @@ fn levelset_validation<'py>(
     Ok(d)
 }
 
-/// Parses the pore-pressure settings dict.
-fn parse_pore(d: &Bound<'_, PyDict>) -> PyResult<PorePressureConfig> {
-    let f = |key: &str| -> PyResult<Option<f64>> {
-        match d.get_item(key)? {
-            Some(v) if !v.is_none() => Ok(Some(v.extract::<f64>().map_err(|_| param_err(&format!("pore_pressure.{key}"), &v, "a number"))?)),
-            _ => Ok(None),
-        }
-    };
-    let diffusivity = f("diffusivity")?.ok_or_else(|| param_err("pore_pressure.diffusivity", "missing", "a number > 0 (m²/s)"))?;
-    let formulation: String = d.get_item("formulation")?.map(|v| v.extract()).transpose()?.unwrap_or_else(|| "granular-only".into());
-    let formulation = match formulation.as_str() {
-        "granular-only" => PoreFormulation::GranularOnly,
-        "kappa-infinity" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16), smoothed: false },
-        "kappa-infinity-smoothed" => PoreFormulation::KappaInfinity { kappa_air: f("kappa_air")?.unwrap_or(1e16), smoothed: true },
-        other => return Err(param_err("pore_pressure.formulation", other, "'granular-only', 'kappa-infinity' or 'kappa-infinity-smoothed'")),
-    };
-    let basal_flux = match f("basal_gradient")? {
-        Some(g) => Some(BasalFlux { gradient: g, x_min: f("basal_x_min")?.unwrap_or(f64::NEG_INFINITY), x_max: f("basal_x_max")?.unwrap_or(f64::INFINITY) }),
-        None => None,
-    };
-    let time_scheme: String = d.get_item("time_scheme")?.filter(|v| !v.is_none()).map(|v| v.extract()).transpose()?.unwrap_or_else(|| "implicit".into());
-    let time_scheme = match time_scheme.as_str() {
-        "implicit" => PoreTimeScheme::Implicit,
-        "explicit" => PoreTimeScheme::Explicit,
-        other => return Err(param_err("pore_pressure.time_scheme", other, "'implicit' or 'explicit'")),
-    };
-    let cfg = PorePressureConfig { diffusivity, formulation, basal_flux, time_scheme };
-    cfg.validate().map_err(to_py)?;
-    Ok(cfg)
+/// A Python value as an option value (bool before int: a Python bool is an int).
+fn to_value(v: &Bound<'_, PyAny>, name: &str) -> PyResult<Value> {
+    if v.is_none() {
+        Ok(Value::None)
+    } else if let Ok(b) = v.cast::<PyBool>() {
+        Ok(Value::Bool(b.is_true()))
+    } else if v.cast::<PyInt>().is_ok() {
+        v.extract::<i64>().map(Value::Int).map_err(|_| param_err(name, v, "an integer in the range of i64"))
+    } else if let Ok(x) = v.extract::<f64>() {
+        Ok(Value::Float(x))
+    } else if let Ok(s) = v.extract::<String>() {
+        Ok(Value::str(&s))
+    } else {
+        Err(param_err(name, v, "a number, a bool, a string or None"))
+    }
 }
 
-/// The core's configuration from the arguments of `Model(...)` (see its signature).
-#[allow(clippy::too_many_arguments)]
-fn build_config(
-    nx: i64,
-    ny: i64,
-    lx: f64,
-    ly: f64,
-    bc: &Bound<'_, PyDict>,
-    dense: (f64, f64),
-    light: Option<(f64, f64)>,
-    gravity: (f64, f64),
-    interface_width: f64,
-    transport_interface: bool,
-    redistance_every: i64,
-    viscous: &str,
-    cfl: f64,
-    dt: Option<f64>,
-    max_dt: f64,
-    max_growth: f64,
-    cfl_abort: f64,
-    pressure_solver: &str,
-    pressure_rtol: f64,
-    pressure_max_iterations: i64,
-    threads: i64,
-    rheology: Option<(String, Option<Bound<'_, PyDict>>)>,
-    plastic: &str,
-    regularisation: Option<f64>,
-    r: Option<f64>,
-    r_wall: Option<f64>,
-    theta: f64,
-    picard_tol: f64,
-    picard_max_iterations: i64,
-    convection: bool,
-    viscous_rtol: f64,
-    pore_pressure: Option<&Bound<'_, PyDict>>,
-    mass_correction: bool,
-    convection_scheme: &str,
-    pressure_gauge: &str,
-    viscous_max_iterations: i64,
-    interface_yield: &str,
-    ambient_hydrostatic: bool,
-    proximal_restarts: i64,
-    wall_normal_stress: &str,
-    active_region: Option<(i64, i64, String)>,
-    step_retries: i64,
-    air: &str,
-    anderson_depth: i64,
-    pressure_update: &str,
-    picard_solve_max_iterations: i64,
-    yield_pressure: &str,
-    r_neighbourhood: i64,
-    sigma_location: &str,
-    side_walls: Option<(f64, f64)>,
-) -> PyResult<ModelConfig> {
-    let pos = |name: &str, v: i64| -> PyResult<usize> {
-        if v < 0 {
-            Err(param_err(name, v, "a non-negative integer"))
-        } else {
-            Ok(v as usize)
+/// An option value as a Python object.
+fn from_value<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match v {
+        Value::None => py.None().into_bound(py),
+        Value::Bool(b) => PyBool::new(py, *b).to_owned().into_any(),
+        Value::Int(i) => i.into_pyobject(py)?.into_any(),
+        Value::Float(x) => x.into_pyobject(py)?.into_any(),
+        Value::Str(s) => s.as_ref().into_pyobject(py)?.into_any(),
+    })
+}
+
+/// A dict of option values (None: an empty map).
+fn option_map(d: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<OptionMap> {
+    let mut map = OptionMap::new();
+    let Some(d) = d.filter(|d| !d.is_none()) else { return Ok(map) };
+    let d = d.cast::<PyDict>().map_err(|_| param_err(what, d, "a dict of options"))?;
+    for (k, v) in d.iter() {
+        let key: String = k.extract().map_err(|_| param_err(what, &k, "string keys"))?;
+        let value = to_value(&v, &key)?;
+        map.insert(key, value);
+    }
+    Ok(map)
+}
+
+/// The core's configuration from the one configuration object of `RustModel(config)`: a dict
+/// with `grid` (nx, ny, lx, ly), `bc` (side → (kind, params)), `dense` and `light` ((density,
+/// viscosity) or None), `gravity` (g_x, g_y), `rheology` ((law, params) or None), `pore_pressure`
+/// (a dict of the pore pressure's options, or None), `side_walls` ({width, friction_angle} or
+/// None) and `options` (the model's flat options, `schema()`); every value is checked in Rust.
+fn build_config(config: &Bound<'_, PyDict>) -> PyResult<ModelConfig> {
+    const KEYS: [&str; 8] = ["grid", "bc", "dense", "light", "gravity", "rheology", "pore_pressure", "options"];
+    for k in config.keys() {
+        let k: String = k.extract()?;
+        if !KEYS.contains(&k.as_str()) && k != "side_walls" {
+            return Err(param_err("config", &k, &format!("a key of the model's configuration, one of {}, side_walls", KEYS.join(", "))));
         }
-    };
+    }
+    let item = |k: &str| -> PyResult<Option<Bound<'_, PyAny>>> { Ok(config.get_item(k)?.filter(|v| !v.is_none())) };
+    let required = |k: &str| -> PyResult<Bound<'_, PyAny>> { item(k)?.ok_or_else(|| param_err(&format!("config.{k}"), "missing", "a value")) };
+    let (nx, ny, lx, ly): (i64, i64, f64, f64) = required("grid")?.extract().map_err(|_| param_err("grid", "?", "(nx, ny, lx, ly)"))?;
+    let pos = |name: &str, v: i64| -> PyResult<usize> { usize::try_from(v).map_err(|_| param_err(name, v, "a non-negative integer")) };
     let grid = Grid::new(pos("nx", nx)?, pos("ny", ny)?, lx, ly).map_err(to_py)?;
+    let bc_item = required("bc")?;
+    let bc = bc_item.cast::<PyDict>().map_err(|_| param_err("bc", &bc_item, "a dict of side → (kind, params)"))?;
     let mut conds = BoundaryConditions::uniform(VelocityBc::NoSlip);
     let mut wall_friction_angle: Option<f64> = None;
     for key in bc.keys() {
@@ -378,371 +324,143 @@ fn build_config(
             if kind == "coulomb" {
                 if let Some(a) = params.as_ref().and_then(|p| p.get_item("friction_angle").ok().flatten()) {
                     let name = format!("bc.{}.friction_angle", side.name());
-                    let a: f64 = a.extract().map_err(|_| param_err(&name, &a, "an angle in degrees"))?;
-                    match wall_friction_angle {
-                        Some(b) if b != a => return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)"))),
-                        _ => wall_friction_angle = Some(a),
+                    let a = options::spec(COULOMB_OPTIONS, "friction_angle").check_named(&name, &to_value(&a, &name)?).map_err(to_py)?;
+                    if let Some(a) = a.as_f64() {
+                        match wall_friction_angle {
+                            Some(b) if b != a => return Err(param_err(&name, a, &format!("the same angle on every Coulomb side ({b} elsewhere)"))),
+                            _ => wall_friction_angle = Some(a),
+                        }
                     }
                 }
             }
         }
     }
-    let viscous = match viscous {
-        "implicit" => ViscousScheme::Implicit,
-        "explicit" => ViscousScheme::Explicit,
-        other => return Err(param_err("viscous", other, "'implicit' or 'explicit'")),
-    };
-    let mut cfg = ModelConfig::single_phase(grid, conds, Material { density: dense.0, viscosity: dense.1 });
-    cfg.light = light.map(|(r, e)| Material { density: r, viscosity: e });
-    cfg.gravity = [gravity.0, gravity.1];
-    cfg.interface_width = interface_width;
-    cfg.transport_interface = transport_interface;
-    cfg.redistance_every = pos("redistance_every", redistance_every)?;
-    cfg.viscous = viscous;
-    cfg.time.cfl = cfl;
-    cfg.time.fixed_dt = dt;
-    cfg.time.max_dt = max_dt;
-    cfg.time.max_growth = max_growth;
-    cfg.time.cfl_abort = cfl_abort;
-    cfg.time.step_retries = pos("step_retries", step_retries)?;
-    cfg.pressure_solver.kind = match pressure_solver {
-        "multigrid-cg" => PressureSolverKind::MultigridCg,
-        "direct" => PressureSolverKind::Direct,
-        other => return Err(param_err("pressure_solver", other, "'multigrid-cg' or 'direct'")),
-    };
-    cfg.pressure_solver.rtol = pressure_rtol;
-    cfg.pressure_solver.max_iterations = pos("pressure_max_iterations", pressure_max_iterations)?;
-    cfg.threads = pos("threads", threads)?;
-    cfg.pore = pore_pressure.map(parse_pore).transpose()?;
-    cfg.mass_correction = mass_correction;
-    cfg.convection = convection;
-    cfg.convection_scheme = match convection_scheme {
-        "centred" => ConvectionScheme::Centred,
-        "weno5" => ConvectionScheme::Weno5,
-        other => return Err(param_err("convection_scheme", other, "'centred' or 'weno5'")),
-    };
-    cfg.rotational_pressure = match pressure_update {
-        "standard" => false,
-        "rotational" => true,
-        other => return Err(param_err("pressure_update", other, "'standard' or 'rotational'")),
-    };
-    cfg.pressure_gauge = match pressure_gauge {
-        "auto" => PressureGauge::Auto,
-        "mean" => PressureGauge::Mean,
-        "top" => PressureGauge::Top,
-        other => return Err(param_err("pressure_gauge", other, "'auto', 'mean' or 'top'")),
-    };
-    cfg.viscous_rtol = viscous_rtol;
-    cfg.ambient_hydrostatic = ambient_hydrostatic;
-    cfg.viscous_max_iterations = pos("viscous_max_iterations", viscous_max_iterations)?;
-    let law = match &rheology {
-        Some((kind, params)) => parse_rheology(kind, params.as_ref())?,
-        None => RheologyLaw::Newtonian,
-    };
-    let need_reg = |what: &str| -> PyResult<f64> {
-        regularisation.ok_or_else(|| param_err("regularisation", "None", &format!("a number ({what}) for plastic = '{plastic}'")))
-    };
-    let treatment = match plastic {
-        "projection" => YieldTreatment::Projection,
-        "papanastasiou" => YieldTreatment::Papanastasiou { m: need_reg("the exponent m in s")? },
-        "bi-viscous" => YieldTreatment::BiViscous { yield_viscosity: need_reg("the viscosity below yield in Pa s")? },
-        other => return Err(param_err("plastic", other, "'projection', 'papanastasiou' or 'bi-viscous'")),
-    };
-    cfg.rheology = RheologyConfig {
-        law,
-        treatment,
-        wall_friction_angle,
-        r,
-        r_wall,
-        theta,
-        picard_tol,
-        picard_max_iterations: pos("picard_max_iterations", picard_max_iterations)?,
-        picard_solve_max_iterations: pos("picard_solve_max_iterations", picard_solve_max_iterations)?,
-        interface_yield: match interface_yield {
-            "paper" => InterfaceYield::Paper,
-            "granular-side" => InterfaceYield::GranularSide,
-            "density-support" => InterfaceYield::DensitySupport,
-            other => return Err(param_err("interface_yield", other, "'paper', 'granular-side' or 'density-support'")),
-        },
-        proximal_restarts: match proximal_restarts {
-            0..=1_000_000 => proximal_restarts as usize,
-            other => return Err(param_err("proximal_restarts", other, "an integer in [0, 1000000]")),
-        },
-        anderson_depth: pos("anderson_depth", anderson_depth)?,
-        r_neighbourhood: pos("r_neighbourhood", r_neighbourhood)?,
-        wall_normal_stress: match wall_normal_stress {
-            "pressure" => WallNormalStress::Pressure,
-            "total" => WallNormalStress::Total,
-            other => return Err(param_err("wall_normal_stress", other, "'pressure' or 'total'")),
-        },
-        yield_pressure: match yield_pressure {
-            "absolute" => YieldPressure::Absolute,
-            "surface-air" => YieldPressure::SurfaceAir,
-            other => return Err(param_err("yield_pressure", other, "'absolute' or 'surface-air'")),
-        },
-        sigma_location: SigmaLocation::from_name(sigma_location).ok_or_else(|| {
-            let names: Vec<String> = SigmaLocation::ALL.iter().map(|l| format!("'{}'", l.name())).collect();
-            param_err("sigma_location", sigma_location, &names.join(" or "))
-        })?,
-        side_walls: side_walls.map(|(width, friction_angle)| SideWalls { width, friction_angle }),
-    };
-    cfg.active_region = match active_region {
-        None => None,
-        Some((band, align, sides)) => {
-            let sides = WindowSides::from_name(&sides).ok_or_else(|| {
-                let names: Vec<String> = WindowSides::ALL.iter().map(|s| format!("'{}'", s.name())).collect();
-                let (last, rest) = names.split_last().expect("WindowSides has values");
-                param_err("active_region_sides", &sides, &format!("{} or {last}", rest.join(", ")))
-            })?;
-            Some(ActiveRegion { band: pos("active_region.band", band)?, align: pos("active_region.align", align)?, sides })
+    let material = |k: &str| -> PyResult<Option<Material>> {
+        match item(k)? {
+            None => Ok(None),
+            Some(v) => {
+                let (density, viscosity): (f64, f64) = v.extract().map_err(|_| param_err(k, &v, "(density, viscosity)"))?;
+                Ok(Some(Material { density, viscosity }))
+            }
         }
     };
-    cfg.free_surface = match air {
-        "resolved" => false,
-        "free-surface" => true,
-        other => return Err(param_err("air", other, "'resolved' (the two-phase model) or 'free-surface' (the granular-only model)")),
+    let dense = material("dense")?.ok_or_else(|| param_err("config.dense", "missing", "(density, viscosity)"))?;
+    let mut cfg = ModelConfig::single_phase(grid, conds, dense);
+    cfg.light = material("light")?;
+    if let Some(g) = item("gravity")? {
+        let (gx, gy): (f64, f64) = g.extract().map_err(|_| param_err("gravity", &g, "(g_x, g_y)"))?;
+        cfg.gravity = [gx, gy];
+    }
+    cfg.apply_options(&option_map(config.get_item("options")?.as_ref(), "options")?).map_err(to_py)?;
+    cfg.rheology.law = match item("rheology")? {
+        None => RheologyLaw::Newtonian,
+        Some(r) => {
+            let (kind, params): (String, Option<Bound<'_, PyAny>>) = r.extract().map_err(|_| param_err("rheology", &r, "a (law, params) tuple"))?;
+            RheologyLaw::from_options(&kind, &option_map(params.as_ref(), "rheology")?).map_err(to_py)?
+        }
+    };
+    cfg.rheology.wall_friction_angle = wall_friction_angle;
+    cfg.rheology.side_walls = match item("side_walls")? {
+        None => None,
+        Some(w) => {
+            let m = option_map(Some(&w), "side_walls")?;
+            let get = |k: &str| -> PyResult<f64> {
+                let s = options::spec(SIDE_WALL_OPTIONS, k);
+                let v = s.check_named(&format!("side_walls.{k}"), m.get(k).unwrap_or(&Value::None)).map_err(to_py)?;
+                Ok(v.as_f64().unwrap_or(f64::NAN))
+            };
+            Some(SideWalls { width: get("width")?, friction_angle: get("friction_angle")? })
+        }
+    };
+    cfg.pore = match item("pore_pressure")? {
+        None => None,
+        Some(p) => Some(PorePressureConfig::from_options(&option_map(Some(&p), "pore_pressure")?).map_err(to_py)?),
     };
     Ok(cfg)
 }
 
+/// The options schema (`granrs_core::options`): one dict per option.
+#[pyfunction]
+fn schema<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let flat = ModelConfig::schema();
+    let mut out = Vec::new();
+    for (s, object) in flat.iter().map(|s| (*s, false)).chain(ModelConfig::object_schema().into_iter().map(|s| (s, true))) {
+        let d = PyDict::new(py);
+        d.set_item("key", s.key)?;
+        d.set_item("room", s.room)?;
+        d.set_item("object", object)?;
+        d.set_item("group", s.group.name())?;
+        d.set_item("default", from_value(py, &s.default)?)?;
+        d.set_item("optional", s.optional)?;
+        d.set_item("required", s.default == Value::None && !s.optional)?;
+        d.set_item("unit", s.unit)?;
+        d.set_item("doc", s.doc)?;
+        d.set_item("allowed", s.allowed())?;
+        let (kind, lo, hi, lo_open, hi_open, choices): (&str, Option<f64>, Option<f64>, bool, bool, Vec<&str>) = match s.kind {
+            Kind::Float { lo, hi, lo_open, hi_open } => ("float", Some(lo), Some(hi), lo_open, hi_open, vec![]),
+            Kind::Int { lo, hi } => ("int", Some(lo as f64), Some(hi as f64), false, false, vec![]),
+            Kind::Bool => ("bool", None, None, false, false, vec![]),
+            Kind::Choice(names) => ("choice", None, None, false, false, names.to_vec()),
+        };
+        d.set_item("kind", kind)?;
+        if let Kind::Int { lo, hi } = s.kind {
+            d.set_item("lo", lo)?;
+            d.set_item("hi", hi)?;
+        } else {
+            d.set_item("lo", lo)?;
+            d.set_item("hi", hi)?;
+        }
+        d.set_item("lo_open", lo_open)?;
+        d.set_item("hi_open", hi_open)?;
+        d.set_item("choices", PyTuple::new(py, choices)?)?;
+        out.push(d);
+    }
+    Ok(out)
+}
+
+/// Checks one option value against its spec in Rust: returns the value converted to its kind
+/// (an int for a float option becomes a float) or raises ParameterError naming `name` (default:
+/// the key) and its allowed values. `room` picks an object's option (e.g. 'pore_pressure').
+#[pyfunction]
+#[pyo3(signature = (key, value, room=None, name=None))]
+fn check_option<'py>(py: Python<'py>, key: &str, value: &Bound<'py, PyAny>, room: Option<&str>, name: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
+    let all: Vec<&OptionSpec> = ModelConfig::schema().into_iter().chain(ModelConfig::object_schema()).collect();
+    let spec =
+        all.iter().find(|s| s.key == key && room.is_none_or(|r| r == s.room)).ok_or_else(|| param_err("key", key, "a key of granrs._granrs.schema()"))?;
+    let name = name.unwrap_or(key);
+    let v = spec.check_named(name, &to_value(value, name)?).map_err(to_py)?;
+    from_value(py, &v)
+}
+
 #[pymethods]
 impl PyModel {
-    /// Builds a model. `bc` maps 'left', 'right', 'bottom', 'top' to (kind, params) tuples.
+    /// Builds a model from its configuration object (see `build_config`).
     #[new]
-    #[pyo3(signature = (nx, ny, lx, ly, bc, dense, light=None, gravity=(0.0, 0.0), interface_width=1.5,
-        transport_interface=true, redistance_every=10, viscous="implicit", cfl=0.5, dt=None,
-        max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
-        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
-        regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute", r_neighbourhood=0, sigma_location="staggered", side_walls=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        nx: i64,
-        ny: i64,
-        lx: f64,
-        ly: f64,
-        bc: &Bound<'_, PyDict>,
-        dense: (f64, f64),
-        light: Option<(f64, f64)>,
-        gravity: (f64, f64),
-        interface_width: f64,
-        transport_interface: bool,
-        redistance_every: i64,
-        viscous: &str,
-        cfl: f64,
-        dt: Option<f64>,
-        max_dt: f64,
-        max_growth: f64,
-        cfl_abort: f64,
-        pressure_solver: &str,
-        pressure_rtol: f64,
-        pressure_max_iterations: i64,
-        threads: i64,
-        rheology: Option<(String, Option<Bound<'_, PyDict>>)>,
-        plastic: &str,
-        regularisation: Option<f64>,
-        r: Option<f64>,
-        r_wall: Option<f64>,
-        theta: f64,
-        picard_tol: f64,
-        picard_max_iterations: i64,
-        convection: bool,
-        viscous_rtol: f64,
-        pore_pressure: Option<&Bound<'_, PyDict>>,
-        mass_correction: bool,
-        convection_scheme: &str,
-        pressure_gauge: &str,
-        viscous_max_iterations: i64,
-        interface_yield: &str,
-        ambient_hydrostatic: bool,
-        proximal_restarts: i64,
-        wall_normal_stress: &str,
-        active_region: Option<(i64, i64, String)>,
-        step_retries: i64,
-        air: &str,
-        anderson_depth: i64,
-        pressure_update: &str,
-        picard_solve_max_iterations: i64,
-        yield_pressure: &str,
-        r_neighbourhood: i64,
-        sigma_location: &str,
-        side_walls: Option<(f64, f64)>,
-    ) -> PyResult<Self> {
-        let cfg = build_config(
-            nx,
-            ny,
-            lx,
-            ly,
-            bc,
-            dense,
-            light,
-            gravity,
-            interface_width,
-            transport_interface,
-            redistance_every,
-            viscous,
-            cfl,
-            dt,
-            max_dt,
-            max_growth,
-            cfl_abort,
-            pressure_solver,
-            pressure_rtol,
-            pressure_max_iterations,
-            threads,
-            rheology,
-            plastic,
-            regularisation,
-            r,
-            r_wall,
-            theta,
-            picard_tol,
-            picard_max_iterations,
-            convection,
-            viscous_rtol,
-            pore_pressure,
-            mass_correction,
-            convection_scheme,
-            pressure_gauge,
-            viscous_max_iterations,
-            interface_yield,
-            ambient_hydrostatic,
-            proximal_restarts,
-            wall_normal_stress,
-            active_region,
-            step_retries,
-            air,
-            anderson_depth,
-            pressure_update,
-            picard_solve_max_iterations,
-            yield_pressure,
-            r_neighbourhood,
-            sigma_location,
-            side_walls,
-        )?;
+    fn new(config: &Bound<'_, PyDict>) -> PyResult<Self> {
+        let cfg = build_config(config)?;
         let inner = TwoPhaseModel::new(cfg).map_err(to_py)?;
         Ok(PyModel { inner })
     }
 
-    /// The bytes a model built with these arguments would hold (models/memory.rs: its arrays,
-    /// as counted from the grid and the options) and the memory available (MemAvailable of
+    /// The bytes a model built from `config` would hold (models/memory.rs: its arrays, as
+    /// counted from the grid and the options) and the memory available (MemAvailable of
     /// /proc/meminfo; None where it cannot be read), as (estimate, available). Nothing is
-    /// allocated; invalid arguments raise ParameterError as the constructor does. The
+    /// allocated; an invalid configuration raises ParameterError as the constructor does. The
     /// constructor refuses a model whose estimate exceeds the memory available.
     #[staticmethod]
-    #[pyo3(signature = (nx, ny, lx, ly, bc, dense, light=None, gravity=(0.0, 0.0), interface_width=1.5,
-        transport_interface=true, redistance_every=10, viscous="implicit", cfl=0.5, dt=None,
-        max_dt=f64::INFINITY, max_growth=1.2, cfl_abort=1.0, pressure_solver="multigrid-cg",
-        pressure_rtol=1e-8, pressure_max_iterations=200, threads=1, rheology=None, plastic="projection",
-        regularisation=None, r=None, r_wall=None, theta=0.5, picard_tol=1e-9, picard_max_iterations=1000,
-        convection=true, viscous_rtol=1e-10, pore_pressure=None, mass_correction=false, convection_scheme="centred", pressure_gauge="auto", viscous_max_iterations=2000, interface_yield="paper", ambient_hydrostatic=false, proximal_restarts=0, wall_normal_stress="pressure", active_region=None, step_retries=3, air="resolved", anderson_depth=0, pressure_update="standard", picard_solve_max_iterations=500, yield_pressure="absolute", r_neighbourhood=0, sigma_location="staggered", side_walls=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn estimate_memory(
-        nx: i64,
-        ny: i64,
-        lx: f64,
-        ly: f64,
-        bc: &Bound<'_, PyDict>,
-        dense: (f64, f64),
-        light: Option<(f64, f64)>,
-        gravity: (f64, f64),
-        interface_width: f64,
-        transport_interface: bool,
-        redistance_every: i64,
-        viscous: &str,
-        cfl: f64,
-        dt: Option<f64>,
-        max_dt: f64,
-        max_growth: f64,
-        cfl_abort: f64,
-        pressure_solver: &str,
-        pressure_rtol: f64,
-        pressure_max_iterations: i64,
-        threads: i64,
-        rheology: Option<(String, Option<Bound<'_, PyDict>>)>,
-        plastic: &str,
-        regularisation: Option<f64>,
-        r: Option<f64>,
-        r_wall: Option<f64>,
-        theta: f64,
-        picard_tol: f64,
-        picard_max_iterations: i64,
-        convection: bool,
-        viscous_rtol: f64,
-        pore_pressure: Option<&Bound<'_, PyDict>>,
-        mass_correction: bool,
-        convection_scheme: &str,
-        pressure_gauge: &str,
-        viscous_max_iterations: i64,
-        interface_yield: &str,
-        ambient_hydrostatic: bool,
-        proximal_restarts: i64,
-        wall_normal_stress: &str,
-        active_region: Option<(i64, i64, String)>,
-        step_retries: i64,
-        air: &str,
-        anderson_depth: i64,
-        pressure_update: &str,
-        picard_solve_max_iterations: i64,
-        yield_pressure: &str,
-        r_neighbourhood: i64,
-        sigma_location: &str,
-        side_walls: Option<(f64, f64)>,
-    ) -> PyResult<(u64, Option<u64>)> {
-        let cfg = build_config(
-            nx,
-            ny,
-            lx,
-            ly,
-            bc,
-            dense,
-            light,
-            gravity,
-            interface_width,
-            transport_interface,
-            redistance_every,
-            viscous,
-            cfl,
-            dt,
-            max_dt,
-            max_growth,
-            cfl_abort,
-            pressure_solver,
-            pressure_rtol,
-            pressure_max_iterations,
-            threads,
-            rheology,
-            plastic,
-            regularisation,
-            r,
-            r_wall,
-            theta,
-            picard_tol,
-            picard_max_iterations,
-            convection,
-            viscous_rtol,
-            pore_pressure,
-            mass_correction,
-            convection_scheme,
-            pressure_gauge,
-            viscous_max_iterations,
-            interface_yield,
-            ambient_hydrostatic,
-            proximal_restarts,
-            wall_normal_stress,
-            active_region,
-            step_retries,
-            air,
-            anderson_depth,
-            pressure_update,
-            picard_solve_max_iterations,
-            yield_pressure,
-            r_neighbourhood,
-            sigma_location,
-            side_walls,
-        )?;
+    fn estimate_memory(config: &Bound<'_, PyDict>) -> PyResult<(u64, Option<u64>)> {
+        let cfg = build_config(config)?;
         cfg.validate().map_err(to_py)?;
         Ok((cfg.memory_estimate(), granrs_core::models::available_memory()))
+    }
+
+    /// Every option of the model with its value (keys of `schema()` that are not objects).
+    fn options<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (k, v) in self.inner.config().to_options() {
+            d.set_item(k, from_value(py, &v)?)?;
+        }
+        Ok(d)
     }
 
     /// Full storage (halos included) of a field as a zero-copy, read-only NumPy array; the array
@@ -1022,6 +740,8 @@ fn _granrs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<depth_averaged::PyDepthAveraged>()?;
     m.add_function(wrap_pyfunction!(build_info, m)?)?;
     m.add_function(wrap_pyfunction!(levelset_validation, m)?)?;
+    m.add_function(wrap_pyfunction!(schema, m)?)?;
+    m.add_function(wrap_pyfunction!(check_option, m)?)?;
     m.add("__version__", granrs_core::VERSION)?;
     m.add("ParameterError", m.py().get_type::<ParameterError>())?;
     m.add("SolverError", m.py().get_type::<SolverError>())?;

@@ -67,6 +67,7 @@ use super::weno5::{weno5_minus, weno5_plus, window};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, HALO};
+use crate::options::{self, Configurable, OptionSpec, Value};
 
 /// Kink detector of [`InterfaceTreatment::ClosestPoint`]: max |undivided second difference| of
 /// Φ⁰ over 5 × 5 cells above `KINK_RATIO` × |undivided gradient| marks a kink.
@@ -96,26 +97,97 @@ pub struct RedistanceSettings {
     pub interface: InterfaceTreatment,
 }
 
+/// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
+pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
+    options::int(
+        "redistance",
+        "redistance_iterations",
+        20,
+        1,
+        100_000,
+        "1",
+        "pseudo-time iterations of a redistancing (TVD-RK3 steps; the band redistanced is about iterations × cfl cells wide)",
+    ),
+    options::float("redistance", "redistance_cfl", 0.5, 0.0, 0.5, "1", "pseudo-time step Δτ/h of the redistancing").open(true, false),
+    options::float(
+        "redistance",
+        "redistance_band",
+        10.0,
+        1.0,
+        f64::INFINITY,
+        "cells",
+        "narrow band: cells with |Φ⁰| > band h are left unchanged (None: the whole domain)",
+    )
+    .open(false, true)
+    .off_by_default(),
+    options::choice(
+        "redistance",
+        "redistance_interface",
+        "closest-point",
+        &["closest-point", "subcell-pde"],
+        "treatment of the cells next to the interface: frozen band at the bicubic zero set (Chopp 2001) or the subcell PDE (Min 2010)",
+    )
+    .variant(),
+];
+
+impl InterfaceTreatment {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            InterfaceTreatment::ClosestPoint => "closest-point",
+            InterfaceTreatment::SubcellPde => "subcell-pde",
+        }
+    }
+}
+
 impl Default for RedistanceSettings {
     /// 20 iterations at Δτ = h/2: a band of about 10 cells.
     fn default() -> Self {
-        RedistanceSettings { iterations: 20, cfl: 0.5, band: None, interface: InterfaceTreatment::ClosestPoint }
+        let o = |k| options::spec(REDISTANCE_OPTIONS, k);
+        RedistanceSettings {
+            iterations: o("redistance_iterations").usize(),
+            cfl: o("redistance_cfl").float(),
+            band: None,
+            interface: InterfaceTreatment::ClosestPoint,
+        }
+    }
+}
+
+impl Configurable for RedistanceSettings {
+    fn options() -> &'static [OptionSpec] {
+        REDISTANCE_OPTIONS
+    }
+
+    fn get(&self, key: &str) -> Value {
+        match key {
+            "redistance_iterations" => Value::Int(self.iterations.min(i64::MAX as usize) as i64),
+            "redistance_cfl" => Value::Float(self.cfl),
+            "redistance_band" => Value::opt_f64(self.band),
+            "redistance_interface" => Value::str(self.interface.name()),
+            _ => Value::None,
+        }
+    }
+
+    fn set(&mut self, key: &str, v: &Value) -> Result<()> {
+        match key {
+            "redistance_iterations" => self.iterations = options::as_usize(v),
+            "redistance_cfl" => self.cfl = v.as_f64().unwrap_or(self.cfl),
+            "redistance_band" => self.band = v.as_f64(),
+            "redistance_interface" => {
+                self.interface = if options::as_name(v) == "subcell-pde" { InterfaceTreatment::SubcellPde } else { InterfaceTreatment::ClosestPoint }
+            }
+            _ => {}
+        }
+        Ok(())
     }
 }
 
 impl RedistanceSettings {
-    /// Checks the parameters.
+    /// Checks the parameters against [`REDISTANCE_OPTIONS`]; an error names the field
+    /// (`iterations`, `cfl`, `band`: the settings are used on their own by the level-set tests).
     pub fn validate(&self) -> Result<()> {
-        if !(1..=100_000).contains(&self.iterations) {
-            return Err(Error::param("iterations", self.iterations, "an integer in [1, 100000]"));
-        }
-        if !(self.cfl.is_finite() && self.cfl > 0.0 && self.cfl <= 0.5) {
-            return Err(Error::param("cfl", self.cfl, "a number in (0, 0.5]"));
-        }
-        if let Some(b) = self.band {
-            if !(b.is_finite() && b >= 1.0) {
-                return Err(Error::param("band", b, "a number of cells >= 1"));
-            }
+        for s in REDISTANCE_OPTIONS {
+            s.check_named(s.key.trim_start_matches("redistance_"), &self.get(s.key))?;
         }
         Ok(())
     }

@@ -2,7 +2,8 @@
 //! phase instead of on the whole domain. The window itself (its equations, its sizing and the
 //! transfer of the state) is `models/window.rs`.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::options::{self, OptionSpec, Value};
 
 /// Settings of the active window.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,15 +61,48 @@ impl WindowSides {
     }
 }
 
+/// The options of the active region (`ModelConfig::active_region`; `active_region` None: every
+/// step on the whole domain).
+pub const ACTIVE_REGION_OPTIONS: &[OptionSpec] = &[
+    options::int("active_region", "active_region", 16, 2, 100_000, "cells", "run each step on a window around the dense phase with at least this many cells of light phase to its right and above (None: the whole domain)").off_by_default(),
+    options::int("active_region", "active_region_align", 8, 1, 4096, "cells", "the window's sizes are multiples of this many cells (for the multigrid)"),
+    options::choice("active_region", "active_region_sides", "walls", &["walls", "open-right", "open-right-top"], "the window's right and top sides inside the domain: walls; its right side open (outflow at the air's hydrostatic pressure); or both open with backflow stabilisation"),
+];
+
 impl ActiveRegion {
-    /// Checks the settings, naming the offending one.
+    /// Checks the settings against [`ACTIVE_REGION_OPTIONS`], naming the offending one.
     pub fn validate(&self) -> Result<()> {
-        if !(2..=100_000).contains(&self.band) {
-            return Err(Error::param("active_region.band", self.band, "an integer in [2, 100000] cells"));
-        }
-        if !(1..=4096).contains(&self.align) {
-            return Err(Error::param("active_region.align", self.align, "an integer in [1, 4096] cells"));
-        }
+        let o = |k| options::spec(ACTIVE_REGION_OPTIONS, k);
+        o("active_region").check_named("active_region.band", &Value::Int(self.band.min(i64::MAX as usize) as i64))?;
+        o("active_region_align").check_named("active_region.align", &Value::Int(self.align.min(i64::MAX as usize) as i64))?;
         Ok(())
+    }
+
+    /// The options of an optional active region.
+    pub fn get_option(region: &Option<ActiveRegion>, key: &str) -> Value {
+        let o = |k| options::spec(ACTIVE_REGION_OPTIONS, k);
+        match (key, region) {
+            ("active_region", None) => Value::None,
+            ("active_region", Some(r)) => Value::Int(r.band.min(i64::MAX as usize) as i64),
+            ("active_region_align", r) => Value::Int(r.map_or(o("active_region_align").usize(), |r| r.align) as i64),
+            ("active_region_sides", r) => Value::str(r.map_or(o("active_region_sides").name(), |r| r.sides.name())),
+            _ => Value::None,
+        }
+    }
+
+    /// The optional active region of checked option values (`active_region` None: none).
+    pub fn from_options(map: &options::OptionMap) -> Result<Option<ActiveRegion>> {
+        let mut vals = Vec::new();
+        for s in ACTIVE_REGION_OPTIONS {
+            vals.push(s.check(map.get(s.key).unwrap_or(&s.default))?);
+        }
+        Ok(match &vals[0] {
+            Value::None => None,
+            band => Some(ActiveRegion {
+                band: options::as_usize(band),
+                align: options::as_usize(&vals[1]),
+                sides: WindowSides::from_name(options::as_name(&vals[2])).unwrap_or_default(),
+            }),
+        })
     }
 }

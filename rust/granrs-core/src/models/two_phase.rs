@@ -8,6 +8,7 @@ use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
 use crate::levelset::{blend, dense_area, init_signed_distance, Interface, RedistanceSettings, Shape};
+use crate::options::{self, Configurable, OptionMap, OptionSpec, Value};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureStage;
 use crate::rheology::stage::RheologyState;
@@ -128,38 +129,247 @@ pub struct ModelConfig {
     pub free_surface: bool,
 }
 
+/// The options of [`ModelConfig`]'s own fields (the interface, the viscous and convective
+/// terms, the pressure's gauge, the threads, the model of the air).
+pub const MODEL_OPTIONS: &[OptionSpec] = &[
+    options::float("model", "interface_width", 1.5, 0.0, 10.0, "cells", "half-width ε/h of the smoothed interface (h = min(dx, dy))"),
+    options::boolean("model", "transport_interface", true, "whether the level set is transported (false: a frozen interface)"),
+    options::int("model", "redistance_every", 10, 0, 1_000_000, "steps", "redistance the level set every this many steps (0: never)"),
+    options::boolean(
+        "model",
+        "mass_correction",
+        false,
+        "shift Φ by a constant after each interface update so that the dense-phase area keeps its initial value",
+    ),
+    options::choice(
+        "model",
+        "viscous",
+        "implicit",
+        &["implicit", "explicit"],
+        "the viscous term: implicit (CG solve) or explicit (stable for δt below the viscous limit)",
+    ),
+    options::int("model", "threads", 1, 1, 1024, "threads", "size of the Rust thread pool (results are identical for any value)"),
+    options::boolean("model", "convection", true, "whether ρ(u·∇)u is included (false: unsteady Stokes equations)"),
+    options::choice(
+        "model",
+        "convection_scheme",
+        "centred",
+        &["centred", "weno5"],
+        "convective term: centred second order, or upwind WENO5 per derivative (damps an under-resolved shear layer)",
+    ),
+    options::float("model", "viscous_rtol", 1e-10, 1e-14, 1e-2, "1", "relative residual of the implicit viscous solve"),
+    options::int("model", "viscous_max_iterations", 2000, 1, 100_000_000, "1", "iteration cap of the implicit viscous CG (reaching it is an error)"),
+    options::choice(
+        "model",
+        "pressure_update",
+        "standard",
+        &["standard", "rotational"],
+        "the projection's pressure update: p + δp, or the rotational p + δp − η div ũ (two-phase only)",
+    ),
+    options::boolean("model", "ambient_hydrostatic", false, "p is the pressure in excess of the light phase's hydrostatic one; body force (ρ − ρ_f) g"),
+    options::choice(
+        "model",
+        "air",
+        "resolved",
+        &["resolved", "free-surface"],
+        "the light phase: resolved (the two-phase model) or a free surface at p = 0 (the granular-only model)",
+    ),
+    options::choice(
+        "model",
+        "pressure_gauge",
+        "auto",
+        &["auto", "mean", "top"],
+        "the pressure's constant without an outflow side: top when τ or the walls depend on p, else mean",
+    )
+    .variant(),
+];
+
+impl ConvectionScheme {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ConvectionScheme::Centred => "centred",
+            ConvectionScheme::Weno5 => "weno5",
+        }
+    }
+}
+
+impl PressureGauge {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            PressureGauge::Auto => "auto",
+            PressureGauge::Mean => "mean",
+            PressureGauge::Top => "top",
+        }
+    }
+}
+
+impl Configurable for ModelConfig {
+    fn options() -> &'static [OptionSpec] {
+        MODEL_OPTIONS
+    }
+
+    fn get(&self, key: &str) -> Value {
+        let int = |n: usize| Value::Int(n.min(i64::MAX as usize) as i64);
+        match key {
+            "interface_width" => Value::Float(self.interface_width),
+            "transport_interface" => Value::Bool(self.transport_interface),
+            "redistance_every" => int(self.redistance_every),
+            "mass_correction" => Value::Bool(self.mass_correction),
+            "viscous" => Value::str(if self.viscous == ViscousScheme::Explicit { "explicit" } else { "implicit" }),
+            "threads" => int(self.threads),
+            "convection" => Value::Bool(self.convection),
+            "convection_scheme" => Value::str(self.convection_scheme.name()),
+            "viscous_rtol" => Value::Float(self.viscous_rtol),
+            "viscous_max_iterations" => int(self.viscous_max_iterations),
+            "pressure_update" => Value::str(if self.rotational_pressure { "rotational" } else { "standard" }),
+            "ambient_hydrostatic" => Value::Bool(self.ambient_hydrostatic),
+            "air" => Value::str(if self.free_surface { "free-surface" } else { "resolved" }),
+            "pressure_gauge" => Value::str(self.pressure_gauge.name()),
+            _ => Value::None,
+        }
+    }
+
+    fn set(&mut self, key: &str, v: &Value) -> Result<()> {
+        let name = options::as_name(v);
+        match key {
+            "interface_width" => self.interface_width = v.as_f64().unwrap_or(self.interface_width),
+            "transport_interface" => self.transport_interface = options::as_bool(v),
+            "redistance_every" => self.redistance_every = options::as_usize(v),
+            "mass_correction" => self.mass_correction = options::as_bool(v),
+            "viscous" => self.viscous = if name == "explicit" { ViscousScheme::Explicit } else { ViscousScheme::Implicit },
+            "threads" => self.threads = options::as_usize(v),
+            "convection" => self.convection = options::as_bool(v),
+            "convection_scheme" => self.convection_scheme = if name == "weno5" { ConvectionScheme::Weno5 } else { ConvectionScheme::Centred },
+            "viscous_rtol" => self.viscous_rtol = v.as_f64().unwrap_or(self.viscous_rtol),
+            "viscous_max_iterations" => self.viscous_max_iterations = options::as_usize(v),
+            "pressure_update" => self.rotational_pressure = name == "rotational",
+            "ambient_hydrostatic" => self.ambient_hydrostatic = options::as_bool(v),
+            "air" => self.free_surface = name == "free-surface",
+            "pressure_gauge" => {
+                self.pressure_gauge = match name {
+                    "mean" => PressureGauge::Mean,
+                    "top" => PressureGauge::Top,
+                    _ => PressureGauge::Auto,
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
 impl ModelConfig {
-    /// A single-phase configuration with the paper's defaults for the numerics.
+    /// Every option of the model's flat map, room by room: the model's own, the clock's, the
+    /// pressure solve's, the redistancing's, the bi-projection's, the active region's and the
+    /// variants. Their keys are unique. (The rheology law's parameters, the pore pressure, the
+    /// Coulomb walls' angle and the side walls are objects of their own: see
+    /// [`ModelConfig::object_schema`].)
+    pub fn schema() -> Vec<&'static OptionSpec> {
+        use crate::levelset::redistance::REDISTANCE_OPTIONS;
+        use crate::models::active_region::ACTIVE_REGION_OPTIONS;
+        use crate::rheology::{BI_PROJECTION_OPTIONS, RHEOLOGY_VARIANT_OPTIONS};
+        use crate::solvers::PRESSURE_SOLVER_OPTIONS;
+        use crate::time_stepping::clock::TIME_OPTIONS;
+        [MODEL_OPTIONS, TIME_OPTIONS, PRESSURE_SOLVER_OPTIONS, REDISTANCE_OPTIONS, BI_PROJECTION_OPTIONS, ACTIVE_REGION_OPTIONS, RHEOLOGY_VARIANT_OPTIONS]
+            .into_iter()
+            .flatten()
+            .collect()
+    }
+
+    /// The options of the objects a model is built from besides its flat options: the rheology
+    /// laws' parameters, the pore pressure, the Coulomb walls and the side walls.
+    pub fn object_schema() -> Vec<&'static OptionSpec> {
+        use crate::pore_pressure::PORE_PRESSURE_OPTIONS;
+        use crate::rheology::{BINGHAM_OPTIONS, COULOMB_OPTIONS, DRUCKER_PRAGER_OPTIONS, MU_I_OPTIONS, SIDE_WALL_OPTIONS};
+        [BINGHAM_OPTIONS, DRUCKER_PRAGER_OPTIONS, MU_I_OPTIONS, PORE_PRESSURE_OPTIONS, COULOMB_OPTIONS, SIDE_WALL_OPTIONS].into_iter().flatten().collect()
+    }
+
+    /// Sets the options of `map` (keys of [`ModelConfig::schema`], each checked against its
+    /// spec: the error names the key and its allowed values); an unknown key is refused.
+    pub fn apply_options(&mut self, map: &OptionMap) -> Result<()> {
+        let schema = Self::schema();
+        if let Some(k) = map.keys().find(|k| !schema.iter().any(|s| s.key == k.as_str())) {
+            return Err(options::unknown_key(k, &schema));
+        }
+        options::apply(self, map)?;
+        options::apply(&mut self.time, map)?;
+        options::apply(&mut self.pressure_solver, map)?;
+        options::apply(&mut self.redistance, map)?;
+        self.rheology.apply_options(map)?;
+        if crate::models::active_region::ACTIVE_REGION_OPTIONS.iter().any(|s| map.contains_key(s.key)) {
+            let mut full = self.active_region_options();
+            full.extend(map.iter().filter(|(k, _)| k.starts_with("active_region")).map(|(k, v)| (k.clone(), v.clone())));
+            self.active_region = super::active_region::ActiveRegion::from_options(&full)?;
+        }
+        Ok(())
+    }
+
+    fn active_region_options(&self) -> OptionMap {
+        super::active_region::ACTIVE_REGION_OPTIONS
+            .iter()
+            .map(|s| (s.key.to_string(), super::active_region::ActiveRegion::get_option(&self.active_region, s.key)))
+            .collect()
+    }
+
+    /// Every option of [`ModelConfig::schema`] with its value in this configuration.
+    pub fn to_options(&self) -> OptionMap {
+        let mut m = options::to_map(self);
+        m.extend(options::to_map(&self.time));
+        m.extend(options::to_map(&self.pressure_solver));
+        m.extend(options::to_map(&self.redistance));
+        for s in crate::rheology::BI_PROJECTION_OPTIONS.iter().chain(crate::rheology::RHEOLOGY_VARIANT_OPTIONS) {
+            m.insert(s.key.to_string(), self.rheology.get_option(s.key));
+        }
+        m.extend(self.active_region_options());
+        m
+    }
+
+    /// A single-phase configuration with the options of `map` (the others at their defaults).
+    pub fn from_options(grid: Grid, bc: BoundaryConditions, fluid: Material, map: &OptionMap) -> Result<Self> {
+        let mut cfg = Self::single_phase(grid, bc, fluid);
+        cfg.apply_options(map)?;
+        Ok(cfg)
+    }
+
+    /// A single-phase configuration with the default options.
     pub fn single_phase(grid: Grid, bc: BoundaryConditions, fluid: Material) -> Self {
-        ModelConfig {
+        let o = |k| options::spec(MODEL_OPTIONS, k);
+        let mut cfg = ModelConfig {
             grid,
             bc,
             gravity: [0.0, 0.0],
             dense: fluid,
             light: None,
-            interface_width: 1.5,
-            transport_interface: true,
-            redistance_every: 10,
+            interface_width: o("interface_width").float(),
+            transport_interface: o("transport_interface").bool(),
+            redistance_every: o("redistance_every").usize(),
             redistance: RedistanceSettings::default(),
-            mass_correction: false,
+            mass_correction: o("mass_correction").bool(),
             viscous: ViscousScheme::Implicit,
             pressure_solver: SolverSettings::default(),
             time: TimeConfig::default(),
-            threads: 1,
+            threads: o("threads").usize(),
             pore: None,
             rheology: RheologyConfig::default(),
-            convection: true,
+            convection: o("convection").bool(),
             convection_scheme: ConvectionScheme::Centred,
-            viscous_rtol: 1e-10,
-            viscous_max_iterations: 2000,
+            viscous_rtol: o("viscous_rtol").float(),
+            viscous_max_iterations: o("viscous_max_iterations").usize(),
             pressure_gauge: PressureGauge::Auto,
             rotational_pressure: false,
-            ambient_hydrostatic: false,
+            ambient_hydrostatic: o("ambient_hydrostatic").bool(),
             active_region: None,
             pressure_top_value: 0.0,
             pressure_top_from: 0,
             free_surface: false,
+        };
+        for key in ["viscous", "convection_scheme", "pressure_gauge", "pressure_update", "air"] {
+            let d = o(key).default.clone();
+            cfg.set(key, &d).expect("a default choice");
         }
+        cfg
     }
 
     /// Density of a face between cells whose level set is `a` and `b` (step 2 of the paper):
@@ -223,10 +433,7 @@ impl ModelConfig {
         if let Some(l) = &self.light {
             l.validate("light")?;
         }
-        crate::error::check_range("interface_width", self.interface_width, 0.0, 10.0)?;
-        if self.redistance_every > 1_000_000 {
-            return Err(Error::param("redistance_every", self.redistance_every, "an integer in [0, 1e6]"));
-        }
+        options::validate_all(self)?;
         self.redistance.validate()?;
         self.pressure_solver.validate()?;
         self.time.validate()?;
@@ -234,10 +441,6 @@ impl ModelConfig {
             pc.validate()?;
         }
         self.rheology.validate()?;
-        crate::error::check_range("viscous_rtol", self.viscous_rtol, 1e-14, 1e-2)?;
-        if self.viscous_max_iterations == 0 || self.viscous_max_iterations > 100_000_000 {
-            return Err(Error::param("viscous_max_iterations", self.viscous_max_iterations, "an integer in [1, 1e8]"));
-        }
         if self.free_surface && self.light.is_none() {
             return Err(Error::param("free_surface", "true", "false for a single-phase model (the free surface is the interface Φ = 0 with a light phase)"));
         }
@@ -250,9 +453,6 @@ impl ModelConfig {
         }
         TwoPhaseModel::validate_active_region(self)?;
         check_finite("pressure_top_value", self.pressure_top_value)?;
-        if self.threads == 0 || self.threads > 1024 {
-            return Err(Error::param("threads", self.threads, "an integer in [1, 1024]"));
-        }
         Ok(())
     }
 }

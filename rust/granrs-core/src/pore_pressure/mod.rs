@@ -50,11 +50,12 @@
 //! (the paper's air supply under the reservoir, gradient −β φ ρ_s g, which keeps the initial
 //! profile β φ ρ_s g (H_c − y) stationary at rest); homogeneous Neumann elsewhere.
 
-use crate::error::{check_positive, Error, Result};
+use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, PressureBc, HALO};
 use crate::levelset::{heaviside, interface_diagonal};
 use crate::operators::for_each_interior_row;
+use crate::options::{self, OptionSpec, Value};
 use crate::solvers::{ShiftedSystem, SolveInfo, SolverSettings};
 
 /// What p_f does outside the granular phase.
@@ -121,12 +122,82 @@ pub struct PorePressureConfig {
     pub time_scheme: PoreTimeScheme,
 }
 
+/// The options of [`PorePressureConfig`] (the pore-pressure equation, eq. 10f).
+pub const PORE_PRESSURE_OPTIONS: &[OptionSpec] = &[
+    options::float("pore_pressure", "diffusivity", 0.035, 1e-12, 1e6, "m2 s-1", "κ_f, diffusion coefficient of the pore pressure in the granular phase (the paper: 0.035)").required(),
+    options::float("pore_pressure", "basal_gradient", 0.0, -1e12, 1e12, "Pa m-1", "∂p_f/∂y on the base between basal_x_min and basal_x_max (negative: air injected upwards; None: no supply)").off_by_default(),
+    options::float("pore_pressure", "basal_x_min", 0.0, f64::NEG_INFINITY, f64::INFINITY, "m", "start of the basal supply along the base (None: the left end)").off_by_default(),
+    options::float("pore_pressure", "basal_x_max", 0.0, f64::NEG_INFINITY, f64::INFINITY, "m", "end of the basal supply along the base (None: the right end)").off_by_default(),
+    options::choice("pore_pressure", "time_scheme", "implicit", &["implicit", "explicit"], "BDF2 with implicit diffusion, or forward Euler (stable for δt ≤ h²/(4κ); granular-only only)"),
+    options::choice("pore_pressure", "formulation", "granular-only", &["granular-only", "kappa-infinity", "kappa-infinity-smoothed"], "p_f outside the grains: p_f = 0 on the interface (granular-only), κ_∞ in the air with a sharp interface, or the paper's smoothed κ(Φ) = κ_f H_ε + κ_∞(1 − H_ε)").variant(),
+    options::float("pore_pressure", "kappa_air", 1e16, 1.0, 1e16, "m2 s-1", "κ_∞, diffusivity in the air of the kappa-infinity formulations (the paper: 1e16)").variant(),
+];
+
 impl PorePressureConfig {
-    /// Checks the parameters, naming the offending one.
+    /// The configuration of the options in `map` (checked against [`PORE_PRESSURE_OPTIONS`];
+    /// `diffusivity` is required, the others take their defaults). Unknown keys are refused.
+    pub fn from_options(map: &options::OptionMap) -> Result<Self> {
+        for k in map.keys() {
+            if !PORE_PRESSURE_OPTIONS.iter().any(|s| s.key == k) {
+                return Err(Error::param(
+                    "pore_pressure",
+                    k,
+                    &format!("a key of the pore pressure, one of {}", PORE_PRESSURE_OPTIONS.iter().map(|s| s.key).collect::<Vec<_>>().join(", ")),
+                ));
+            }
+        }
+        let get = |k: &str| -> Result<Value> {
+            let s = options::spec(PORE_PRESSURE_OPTIONS, k);
+            s.check_named(&format!("pore_pressure.{k}"), map.get(k).unwrap_or(&s.default))
+        };
+        let kappa_air = get("kappa_air")?.as_f64().unwrap_or(f64::INFINITY);
+        let formulation = match options::as_name(&get("formulation")?) {
+            "kappa-infinity" => PoreFormulation::KappaInfinity { kappa_air, smoothed: false },
+            "kappa-infinity-smoothed" => PoreFormulation::KappaInfinity { kappa_air, smoothed: true },
+            _ => PoreFormulation::GranularOnly,
+        };
+        let basal_flux = get("basal_gradient")?.as_f64().map(|g| -> Result<BasalFlux> {
+            Ok(BasalFlux {
+                gradient: g,
+                x_min: get("basal_x_min")?.as_f64().unwrap_or(f64::NEG_INFINITY),
+                x_max: get("basal_x_max")?.as_f64().unwrap_or(f64::INFINITY),
+            })
+        });
+        let time_scheme = if options::as_name(&get("time_scheme")?) == "explicit" { PoreTimeScheme::Explicit } else { PoreTimeScheme::Implicit };
+        let cfg =
+            PorePressureConfig { diffusivity: get("diffusivity")?.as_f64().unwrap_or(0.0), formulation, basal_flux: basal_flux.transpose()?, time_scheme };
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Every option with its value (the inverse of [`PorePressureConfig::from_options`]).
+    pub fn to_options(&self) -> options::OptionMap {
+        let kappa = match self.formulation {
+            PoreFormulation::KappaInfinity { kappa_air, .. } => kappa_air,
+            PoreFormulation::GranularOnly => options::spec(PORE_PRESSURE_OPTIONS, "kappa_air").float(),
+        };
+        let b = self.basal_flux;
+        let finite = |x: f64| if x.is_finite() { Value::Float(x) } else { Value::None };
+        [
+            ("diffusivity", Value::Float(self.diffusivity)),
+            ("basal_gradient", Value::opt_f64(b.map(|b| b.gradient))),
+            ("basal_x_min", b.map_or(Value::None, |b| finite(b.x_min))),
+            ("basal_x_max", b.map_or(Value::None, |b| finite(b.x_max))),
+            ("time_scheme", Value::str(self.time_scheme.name())),
+            ("formulation", Value::str(self.formulation.name())),
+            ("kappa_air", Value::Float(kappa)),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+    }
+
+    /// Checks the parameters against [`PORE_PRESSURE_OPTIONS`], naming the offending one.
     pub fn validate(&self) -> Result<()> {
-        check_positive("diffusivity", self.diffusivity)?;
+        let o = |k| options::spec(PORE_PRESSURE_OPTIONS, k);
+        o("diffusivity").check_f64(self.diffusivity)?;
         if let PoreFormulation::KappaInfinity { kappa_air, .. } = self.formulation {
-            check_positive("kappa_air", kappa_air)?;
+            o("kappa_air").check_f64(kappa_air)?;
             if self.time_scheme == PoreTimeScheme::Explicit {
                 return Err(Error::param(
                     "time_scheme",
@@ -136,9 +207,7 @@ impl PorePressureConfig {
             }
         }
         if let Some(b) = self.basal_flux {
-            if !b.gradient.is_finite() {
-                return Err(Error::param("basal_flux.gradient", b.gradient, "a finite pressure gradient (Pa/m)"));
-            }
+            o("basal_gradient").check_named("basal_flux.gradient", &Value::Float(b.gradient))?;
             if b.x_min.is_nan() || b.x_max.is_nan() || b.x_max < b.x_min {
                 return Err(Error::param("basal_flux.x_max", b.x_max, &format!("a position >= basal_flux.x_min = {}", b.x_min)));
             }

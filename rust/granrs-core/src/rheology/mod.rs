@@ -40,7 +40,8 @@ pub mod plastic;
 pub mod rest;
 pub(crate) mod stage;
 
-use crate::error::{check_positive, check_range, Error, Result};
+use crate::error::{Error, Result};
+use crate::options::{self, OptionMap, OptionSpec, Value};
 
 pub use crate::plasticity::InterfaceYield;
 pub use plastic::{PicardInfo, PlasticState};
@@ -120,30 +121,111 @@ impl RheologyLaw {
         }
     }
 
-    /// Checks the parameters, naming the offending one.
-    pub fn validate(&self) -> Result<()> {
-        match *self {
-            RheologyLaw::Newtonian => Ok(()),
-            RheologyLaw::Bingham { yield_stress } => crate::error::check_non_negative("yield_stress", yield_stress),
-            RheologyLaw::DruckerPrager { friction_angle } => {
-                if friction_angle.is_finite() && friction_angle > 0.0 && friction_angle < 90.0 {
-                    Ok(())
-                } else {
-                    Err(Error::param("friction_angle", friction_angle, "an angle in degrees in (0, 90)"))
-                }
-            }
-            RheologyLaw::MuI { mu_s, mu_2, i0, grain_diameter, grain_density } => {
-                crate::error::check_non_negative("mu_s", mu_s)?;
-                if !(mu_2.is_finite() && mu_2 > mu_s) {
-                    return Err(Error::param("mu_2", mu_2, &format!("a finite number > mu_s = {mu_s}")));
-                }
-                check_positive("i0", i0)?;
-                check_positive("grain_diameter", grain_diameter)?;
-                check_positive("grain_density", grain_density)
-            }
+    /// The options of the law's parameters (its room is the law's name).
+    pub fn options(&self) -> &'static [OptionSpec] {
+        match self {
+            RheologyLaw::Newtonian => &[],
+            RheologyLaw::Bingham { .. } => BINGHAM_OPTIONS,
+            RheologyLaw::DruckerPrager { .. } => DRUCKER_PRAGER_OPTIONS,
+            RheologyLaw::MuI { .. } => MU_I_OPTIONS,
         }
     }
+
+    /// The law called `kind` with the parameters of `map` (checked against the law's options;
+    /// a parameter with a default may be left out, a required one may not).
+    pub fn from_options(kind: &str, map: &OptionMap) -> Result<Self> {
+        let table: &[OptionSpec] = match kind {
+            "newtonian" => &[],
+            "bingham" => BINGHAM_OPTIONS,
+            "drucker-prager" => DRUCKER_PRAGER_OPTIONS,
+            "mu-i" => MU_I_OPTIONS,
+            other => return Err(Error::param("rheology", other, "one of 'newtonian', 'bingham', 'drucker-prager', 'mu-i'")),
+        };
+        for k in map.keys() {
+            if !table.iter().any(|s| s.key == k) {
+                let names: Vec<&str> = table.iter().map(|s| s.key).collect();
+                return Err(Error::param(
+                    k,
+                    "given",
+                    &format!("a parameter of the '{kind}' rheology ({})", if names.is_empty() { "none".to_string() } else { names.join(", ") }),
+                ));
+            }
+        }
+        let get = |k: &str| -> Result<f64> {
+            let s = options::spec(table, k);
+            match map.get(k).unwrap_or(&s.default) {
+                Value::None => Err(Error::param(k, "missing", &format!("{} (required by the '{kind}' rheology)", s.allowed()))),
+                v => Ok(s.check(v)?.as_f64().unwrap_or(f64::NAN)),
+            }
+        };
+        let law = match kind {
+            "bingham" => RheologyLaw::Bingham { yield_stress: get("yield_stress")? },
+            "drucker-prager" => RheologyLaw::DruckerPrager { friction_angle: get("friction_angle")? },
+            "mu-i" => RheologyLaw::MuI {
+                mu_s: get("mu_s")?,
+                mu_2: get("mu_2")?,
+                i0: get("i0")?,
+                grain_diameter: get("grain_diameter")?,
+                grain_density: get("grain_density")?,
+            },
+            _ => RheologyLaw::Newtonian,
+        };
+        law.validate()?;
+        Ok(law)
+    }
+
+    /// The law's parameters by key (the inverse of [`RheologyLaw::from_options`]).
+    pub fn to_options(&self) -> OptionMap {
+        let pairs: Vec<(&str, f64)> = match *self {
+            RheologyLaw::Newtonian => vec![],
+            RheologyLaw::Bingham { yield_stress } => vec![("yield_stress", yield_stress)],
+            RheologyLaw::DruckerPrager { friction_angle } => vec![("friction_angle", friction_angle)],
+            RheologyLaw::MuI { mu_s, mu_2, i0, grain_diameter, grain_density } => {
+                vec![("mu_s", mu_s), ("mu_2", mu_2), ("i0", i0), ("grain_diameter", grain_diameter), ("grain_density", grain_density)]
+            }
+        };
+        pairs.into_iter().map(|(k, v)| (k.to_string(), Value::Float(v))).collect()
+    }
+
+    /// Checks the parameters against the law's options, naming the offending one.
+    pub fn validate(&self) -> Result<()> {
+        let table = self.options();
+        for (k, v) in self.to_options() {
+            options::spec(table, &k).check(&v)?;
+        }
+        if let RheologyLaw::MuI { mu_s, mu_2, .. } = *self {
+            if !(mu_2.is_finite() && mu_2 > mu_s) {
+                return Err(Error::param("mu_2", mu_2, &format!("a finite number > mu_s = {mu_s}")));
+            }
+        }
+        Ok(())
+    }
 }
+
+/// The parameter of the Bingham law.
+pub const BINGHAM_OPTIONS: &[OptionSpec] =
+    &[options::float("bingham", "yield_stress", 0.0, 0.0, f64::INFINITY, "Pa", "τ_y, the constant yield stress").open(false, true).required()];
+
+/// The parameter of the Drucker–Prager law (the paper's D-P model).
+pub const DRUCKER_PRAGER_OPTIONS: &[OptionSpec] = &[options::float(
+    "drucker-prager",
+    "friction_angle",
+    27.0,
+    0.0,
+    90.0,
+    "degree",
+    "α, internal friction angle: yield stress tan(α) p⁺ (the paper's glass beads: 27)",
+)
+.open(true, true)];
+
+/// The parameters of the μ(I) law (paper eq. 3–5).
+pub const MU_I_OPTIONS: &[OptionSpec] = &[
+    options::float("mu-i", "mu_s", 0.0, 0.0, f64::INFINITY, "1", "μ_s = tan(α), static friction coefficient").open(false, true).required(),
+    options::float("mu-i", "mu_2", 0.0, 0.0, f64::INFINITY, "1", "μ₂ (the paper's μ_∞), limiting friction coefficient, > μ_s").open(false, true).required(),
+    options::float("mu-i", "i0", 0.0, 0.0, f64::INFINITY, "1", "I₀ of μ(I) = μ_s + (μ₂ − μ_s)/(I₀/I + 1)").open(true, true).required(),
+    options::float("mu-i", "grain_diameter", 0.0, 0.0, f64::INFINITY, "m", "d, grain diameter in I = 2|D| d √(ρ_s/p)").open(true, true).required(),
+    options::float("mu-i", "grain_density", 0.0, 0.0, f64::INFINITY, "kg m-3", "ρ_s, grain density in I").open(true, true).required(),
+];
 
 /// The normal stress −σ_n that the Coulomb walls' τ_b = tan(α_b)(−σ_n)⁺ H_ε(Φ) uses (eq. 8).
 ///
@@ -327,26 +409,191 @@ pub struct RheologyConfig {
     pub side_walls: Option<crate::walls::side::SideWalls>,
 }
 
+/// The options of the bi-projection (the Picard iteration of eq. 12) and of how the yield
+/// stress is imposed: `RheologyConfig`'s numerics of the common case.
+pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
+    options::choice(
+        "bi_projection",
+        "plastic",
+        "projection",
+        &["projection", "papanastasiou", "bi-viscous"],
+        "how the yield stress is imposed: the bi-projection, or a regularised viscosity (with regularisation)",
+    ),
+    options::float(
+        "bi_projection",
+        "regularisation",
+        1.0,
+        0.0,
+        f64::INFINITY,
+        "",
+        "the Papanastasiou exponent m [s] or the bi-viscous viscosity below yield [Pa s] (required by those treatments)",
+    )
+    .open(true, true)
+    .off_by_default(),
+    options::float("bi_projection", "r", 1.0, 0.0, f64::INFINITY, "s", "r of Σ = P(Σ + r D(u)) (None: the local contraction bound of rheology/plastic.rs)")
+        .open(true, true)
+        .off_by_default(),
+    options::float("bi_projection", "r_wall", 1.0, 0.0, f64::INFINITY, "s m-1", "r_b of s = P_b(s − r_b u_t) (None: the bound of walls/mod.rs)")
+        .open(true, true)
+        .off_by_default(),
+    options::float("bi_projection", "theta", 0.5, 0.0, 1.0, "1", "θ, pseudo-relaxation of the Picard iteration (geometric ratio about 1 − θ; 0: plain Uzawa)")
+        .open(false, true),
+    options::float(
+        "bi_projection",
+        "picard_tol",
+        1e-9,
+        1e-15,
+        0.5,
+        "1",
+        "the Picard iteration stops when max |τ ΔΣ|/τ_max and max |τ_b Δs|/max τ_b are below this",
+    ),
+    options::int(
+        "bi_projection",
+        "picard_max_iterations",
+        1000,
+        1,
+        1_000_000,
+        "1",
+        "iteration cap of the Picard loop (reaching it rejects the step, or stops the run)",
+    ),
+    options::int(
+        "bi_projection",
+        "picard_solve_max_iterations",
+        stage::PICARD_SOLVE_MAX_ITERATIONS as i64,
+        1,
+        100_000_000,
+        "1",
+        "iteration cap of each viscous solve inside the Picard loop",
+    ),
+    options::int(
+        "bi_projection",
+        "anderson_depth",
+        0,
+        0,
+        anderson::MAX_ANDERSON_DEPTH as i64,
+        "1",
+        "depth of the Anderson acceleration of the Picard iteration (0: the plain iteration; same fixed point)",
+    ),
+];
+
+/// The numerical variants of the rheology and the walls: readings of the paper kept for study.
+/// Each default is the measured choice (docs/models.md, "Variants").
+pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
+    options::choice(
+        "variants",
+        "interface_yield",
+        "paper",
+        &["paper", "granular-side", "density-support"],
+        "where the smoothed jump of τ(Φ) and τ_b(Φ) sits: the paper's H_ε(Φ), H_ε(Φ + ε) or H_ε(Φ + 2ε)",
+    )
+    .variant(),
+    options::choice(
+        "variants",
+        "wall_normal_stress",
+        "pressure",
+        &["pressure", "total"],
+        "normal stress of the Coulomb walls: the pressure p, or the total stress p − T_nn",
+    )
+    .variant(),
+    options::choice(
+        "variants",
+        "yield_pressure",
+        "absolute",
+        &["absolute", "surface-air"],
+        "pressure of the yield stress and the walls: p, or p minus the mean air pressure on the surface",
+    )
+    .variant(),
+    options::choice(
+        "variants",
+        "sigma_location",
+        "staggered",
+        &["staggered", "centres"],
+        "where Σ lives: Σ_xx at centres and Σ_xy at nodes, or both at centres (the paper's Figure 3)",
+    )
+    .variant(),
+    options::int(
+        "variants",
+        "r_neighbourhood",
+        crate::rheology::DEFAULT_R_NEIGHBOURHOOD as i64,
+        0,
+        plastic::MAX_R_NEIGHBOURHOOD as i64,
+        "cells",
+        "half-width of the neighbourhood over which the local r takes the largest velocity response",
+    )
+    .variant(),
+    options::int("variants", "proximal_restarts", 0, 0, 1_000_000, "1", "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)")
+        .variant(),
+];
+
+/// The friction angle of the Coulomb walls (paper eq. 8–9; `RheologyConfig::wall_friction_angle`).
+pub const COULOMB_OPTIONS: &[OptionSpec] = &[options::float(
+    "coulomb",
+    "friction_angle",
+    15.0,
+    0.0,
+    90.0,
+    "degree",
+    "α_b, friction angle of the granular phase on the wall (the paper: 15; None: frictionless)",
+)
+.open(false, true)
+.off_by_default()];
+
+/// The channel's side walls (`RheologyConfig::side_walls`, `walls/side.rs`).
+pub const SIDE_WALL_OPTIONS: &[OptionSpec] = &[
+    options::float("side_walls", "width", 0.1, 0.0, crate::walls::side::MAX_CHANNEL_WIDTH, "m", "W, width of the channel (the paper's experiment: 0.10)")
+        .open(true, false)
+        .required(),
+    options::float("side_walls", "friction_angle", 15.0, 0.0, 90.0, "degree", "α_w, friction angle of the granular phase on the side walls")
+        .open(false, true)
+        .required(),
+];
+
 impl Default for RheologyConfig {
     fn default() -> Self {
+        let b = |k| options::spec(BI_PROJECTION_OPTIONS, k);
+        let v = |k| options::spec(RHEOLOGY_VARIANT_OPTIONS, k);
         RheologyConfig {
             law: RheologyLaw::Newtonian,
             treatment: YieldTreatment::Projection,
             wall_friction_angle: None,
             r: None,
             r_wall: None,
-            theta: 0.5,
-            picard_tol: 1e-9,
-            picard_max_iterations: 1000,
-            picard_solve_max_iterations: stage::PICARD_SOLVE_MAX_ITERATIONS,
+            theta: b("theta").float(),
+            picard_tol: b("picard_tol").float(),
+            picard_max_iterations: b("picard_max_iterations").usize(),
+            picard_solve_max_iterations: b("picard_solve_max_iterations").usize(),
             interface_yield: InterfaceYield::default(),
-            proximal_restarts: 0,
-            anderson_depth: 0,
+            proximal_restarts: v("proximal_restarts").usize(),
+            anderson_depth: b("anderson_depth").usize(),
             wall_normal_stress: WallNormalStress::default(),
-            r_neighbourhood: DEFAULT_R_NEIGHBOURHOOD,
+            r_neighbourhood: v("r_neighbourhood").usize(),
             yield_pressure: YieldPressure::default(),
             sigma_location: SigmaLocation::default(),
             side_walls: None,
+        }
+    }
+}
+
+impl InterfaceYield {
+    /// Every value, in the order of the names.
+    pub const ALL: [InterfaceYield; 3] = [InterfaceYield::Paper, InterfaceYield::GranularSide, InterfaceYield::DensitySupport];
+
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            InterfaceYield::Paper => "paper",
+            InterfaceYield::GranularSide => "granular-side",
+            InterfaceYield::DensitySupport => "density-support",
+        }
+    }
+}
+
+impl WallNormalStress {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            WallNormalStress::Pressure => "pressure",
+            WallNormalStress::Total => "total",
         }
     }
 }
@@ -355,6 +602,103 @@ impl RheologyConfig {
     /// A configuration with `law` and the default numerics.
     pub fn new(law: RheologyLaw) -> Self {
         RheologyConfig { law, ..Default::default() }
+    }
+
+    /// The value of option `key` of [`BI_PROJECTION_OPTIONS`] or [`RHEOLOGY_VARIANT_OPTIONS`].
+    pub fn get_option(&self, key: &str) -> Value {
+        match key {
+            "plastic" => Value::str(self.treatment.name()),
+            "regularisation" => match self.treatment {
+                YieldTreatment::Projection => Value::None,
+                YieldTreatment::Papanastasiou { m } => Value::Float(m),
+                YieldTreatment::BiViscous { yield_viscosity } => Value::Float(yield_viscosity),
+            },
+            "r" => Value::opt_f64(self.r),
+            "r_wall" => Value::opt_f64(self.r_wall),
+            "theta" => Value::Float(self.theta),
+            "picard_tol" => Value::Float(self.picard_tol),
+            "picard_max_iterations" => Value::Int(self.picard_max_iterations.min(i64::MAX as usize) as i64),
+            "picard_solve_max_iterations" => Value::Int(self.picard_solve_max_iterations.min(i64::MAX as usize) as i64),
+            "anderson_depth" => Value::Int(self.anderson_depth.min(i64::MAX as usize) as i64),
+            "interface_yield" => Value::str(self.interface_yield.name()),
+            "wall_normal_stress" => Value::str(self.wall_normal_stress.name()),
+            "yield_pressure" => Value::str(self.yield_pressure.name()),
+            "sigma_location" => Value::str(self.sigma_location.name()),
+            "r_neighbourhood" => Value::Int(self.r_neighbourhood.min(i64::MAX as usize) as i64),
+            "proximal_restarts" => Value::Int(self.proximal_restarts.min(i64::MAX as usize) as i64),
+            _ => Value::None,
+        }
+    }
+
+    /// Sets the options of `map` that are the bi-projection's or the variants' (checked
+    /// against their specs); returns how many keys it used.
+    pub fn apply_options(&mut self, map: &OptionMap) -> Result<usize> {
+        let mut used = 0;
+        let mut checked = |k: &str| -> Result<Option<Value>> {
+            let s = BI_PROJECTION_OPTIONS.iter().chain(RHEOLOGY_VARIANT_OPTIONS).find(|s| s.key == k).expect("a rheology option");
+            match map.get(k) {
+                Some(v) => {
+                    used += 1;
+                    Ok(Some(s.check(v)?))
+                }
+                None => Ok(None),
+            }
+        };
+        let plastic = checked("plastic")?;
+        let reg = checked("regularisation")?;
+        if plastic.is_some() || reg.is_some() {
+            let name = plastic.as_ref().map_or(self.treatment.name().to_string(), |v| options::as_name(v).to_string());
+            let reg = match reg {
+                Some(v) => v.as_f64(),
+                None => self.get_option("regularisation").as_f64(),
+            };
+            let need = |what: &str| reg.ok_or_else(|| Error::param("regularisation", "None", &format!("a number ({what}) for plastic = '{name}'")));
+            self.treatment = match name.as_str() {
+                "papanastasiou" => YieldTreatment::Papanastasiou { m: need("the exponent m in s")? },
+                "bi-viscous" => YieldTreatment::BiViscous { yield_viscosity: need("the viscosity below yield in Pa s")? },
+                _ => YieldTreatment::Projection,
+            };
+        }
+        if let Some(v) = checked("r")? {
+            self.r = v.as_f64();
+        }
+        if let Some(v) = checked("r_wall")? {
+            self.r_wall = v.as_f64();
+        }
+        if let Some(v) = checked("theta")? {
+            self.theta = v.as_f64().unwrap_or(self.theta);
+        }
+        if let Some(v) = checked("picard_tol")? {
+            self.picard_tol = v.as_f64().unwrap_or(self.picard_tol);
+        }
+        if let Some(v) = checked("picard_max_iterations")? {
+            self.picard_max_iterations = options::as_usize(&v);
+        }
+        if let Some(v) = checked("picard_solve_max_iterations")? {
+            self.picard_solve_max_iterations = options::as_usize(&v);
+        }
+        if let Some(v) = checked("anderson_depth")? {
+            self.anderson_depth = options::as_usize(&v);
+        }
+        if let Some(v) = checked("interface_yield")? {
+            self.interface_yield = InterfaceYield::ALL.into_iter().find(|x| x.name() == options::as_name(&v)).unwrap_or_default();
+        }
+        if let Some(v) = checked("wall_normal_stress")? {
+            self.wall_normal_stress = if options::as_name(&v) == "total" { WallNormalStress::Total } else { WallNormalStress::Pressure };
+        }
+        if let Some(v) = checked("yield_pressure")? {
+            self.yield_pressure = if options::as_name(&v) == "surface-air" { YieldPressure::SurfaceAir } else { YieldPressure::Absolute };
+        }
+        if let Some(v) = checked("sigma_location")? {
+            self.sigma_location = SigmaLocation::from_name(options::as_name(&v)).unwrap_or_default();
+        }
+        if let Some(v) = checked("r_neighbourhood")? {
+            self.r_neighbourhood = options::as_usize(&v);
+        }
+        if let Some(v) = checked("proximal_restarts")? {
+            self.proximal_restarts = options::as_usize(&v);
+        }
+        Ok(used)
     }
 
     /// Whether the bi-projection (Picard loop) runs: a yield stress with the projection
@@ -370,48 +714,23 @@ impl RheologyConfig {
         matches!(self.law, RheologyLaw::MuI { .. }) || (self.law.has_yield_stress() && self.treatment != YieldTreatment::Projection)
     }
 
-    /// Checks every parameter, naming the first offending one.
+    /// Checks every parameter against its spec, naming the first offending one.
     pub fn validate(&self) -> Result<()> {
         self.law.validate()?;
+        for s in BI_PROJECTION_OPTIONS.iter().chain(RHEOLOGY_VARIANT_OPTIONS) {
+            if s.key != "regularisation" {
+                s.check(&self.get_option(s.key))?;
+            }
+        }
         match self.treatment {
             YieldTreatment::Projection => {}
-            YieldTreatment::Papanastasiou { m } => check_positive("regularisation", m)?,
-            YieldTreatment::BiViscous { yield_viscosity } => check_positive("regularisation", yield_viscosity)?,
+            YieldTreatment::Papanastasiou { m } => options::spec(BI_PROJECTION_OPTIONS, "regularisation").check_f64(m)?,
+            YieldTreatment::BiViscous { yield_viscosity } => options::spec(BI_PROJECTION_OPTIONS, "regularisation").check_f64(yield_viscosity)?,
         }
-        if let Some(a) = self.wall_friction_angle {
-            if !(a.is_finite() && (0.0..90.0).contains(&a)) {
-                return Err(Error::param("wall_friction_angle", a, "an angle in degrees in [0, 90)"));
-            }
-        }
-        if let Some(r) = self.r {
-            check_positive("r", r)?;
-        }
-        if let Some(r) = self.r_wall {
-            check_positive("r_wall", r)?;
-        }
-        if !(self.theta.is_finite() && (0.0..1.0).contains(&self.theta)) {
-            return Err(Error::param("theta", self.theta, "a number in [0, 1)"));
-        }
-        check_range("picard_tol", self.picard_tol, 1e-15, 0.5)?;
-        if self.picard_max_iterations == 0 || self.picard_max_iterations > 1_000_000 {
-            return Err(Error::param("picard_max_iterations", self.picard_max_iterations, "an integer in [1, 1e6]"));
-        }
-        if self.picard_solve_max_iterations == 0 || self.picard_solve_max_iterations > 100_000_000 {
-            return Err(Error::param("picard_solve_max_iterations", self.picard_solve_max_iterations, "an integer in [1, 1e8]"));
-        }
-        if self.r_neighbourhood > plastic::MAX_R_NEIGHBOURHOOD {
-            return Err(Error::param("r_neighbourhood", self.r_neighbourhood, &format!("an integer in [0, {}]", plastic::MAX_R_NEIGHBOURHOOD)));
-        }
-        if self.anderson_depth > anderson::MAX_ANDERSON_DEPTH {
-            return Err(Error::param("anderson_depth", self.anderson_depth, &format!("an integer in [0, {}]", anderson::MAX_ANDERSON_DEPTH)));
-        }
+        options::spec(COULOMB_OPTIONS, "friction_angle").check_named("wall_friction_angle", &Value::opt_f64(self.wall_friction_angle))?;
         if let Some(w) = self.side_walls {
-            if !(w.width.is_finite() && w.width > 0.0 && w.width <= crate::walls::side::MAX_CHANNEL_WIDTH) {
-                return Err(Error::param("side_walls.width", w.width, &format!("a channel width in (0, {}] (m)", crate::walls::side::MAX_CHANNEL_WIDTH)));
-            }
-            if !(w.friction_angle.is_finite() && (0.0..90.0).contains(&w.friction_angle)) {
-                return Err(Error::param("side_walls.friction_angle", w.friction_angle, "an angle in degrees in [0, 90)"));
-            }
+            options::spec(SIDE_WALL_OPTIONS, "width").check_named("side_walls.width", &Value::Float(w.width))?;
+            options::spec(SIDE_WALL_OPTIONS, "friction_angle").check_named("side_walls.friction_angle", &Value::Float(w.friction_angle))?;
         }
         if self.anderson_depth > 0 && self.sigma_location == SigmaLocation::Centres {
             return Err(Error::param("anderson_depth", self.anderson_depth, "0 with sigma_location = 'centres' (Anderson mixing acts on the staggered Σ)"));

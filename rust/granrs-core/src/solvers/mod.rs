@@ -73,6 +73,7 @@ use std::fmt;
 use crate::error::{check_positive, Error, Result};
 use crate::exec::Exec;
 use crate::grid::PressureBc;
+use crate::options::{self, Configurable, OptionSpec, Value};
 
 use cg::CgWork;
 use multigrid::Multigrid;
@@ -131,12 +132,36 @@ pub struct SolverSettings {
     pub min_coarse_size: usize,
 }
 
+/// The options of the pressure solve's [`SolverSettings`] (`ModelConfig::pressure_solver`; the
+/// pore pressure's solve uses the same settings).
+pub const PRESSURE_SOLVER_OPTIONS: &[OptionSpec] = &[
+    options::choice(
+        "pressure_solver",
+        "pressure_solver",
+        "multigrid-cg",
+        &["multigrid-cg", "direct"],
+        "method of the pressure solve: multigrid-preconditioned CG, or the sparse Cholesky reference",
+    ),
+    options::float("pressure_solver", "pressure_rtol", 1e-8, 1e-15, 1.0, "1", "relative residual ‖f − L p‖₂/‖f‖₂ at which the pressure solve stops")
+        .open(false, true),
+    options::int(
+        "pressure_solver",
+        "pressure_max_iterations",
+        200,
+        1,
+        100_000_000,
+        "1",
+        "iteration cap of the pressure CG (reaching it stops the run with a SolverError)",
+    ),
+];
+
 impl Default for SolverSettings {
     fn default() -> Self {
+        let o = |k| options::spec(PRESSURE_SOLVER_OPTIONS, k);
         SolverSettings {
-            kind: PressureSolverKind::MultigridCg,
-            rtol: 1e-8,
-            max_iterations: 200,
+            kind: PressureSolverKind::from_name(o("pressure_solver").name()).expect("a solver name"),
+            rtol: o("pressure_rtol").float(),
+            max_iterations: o("pressure_max_iterations").usize(),
             pre_smooth: 2,
             post_smooth: 2,
             cycle: Cycle::W,
@@ -145,15 +170,53 @@ impl Default for SolverSettings {
     }
 }
 
+impl PressureSolverKind {
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            PressureSolverKind::MultigridCg => "multigrid-cg",
+            PressureSolverKind::Direct => "direct",
+        }
+    }
+
+    /// The kind called `name`, if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        [PressureSolverKind::MultigridCg, PressureSolverKind::Direct].into_iter().find(|k| k.name() == name)
+    }
+}
+
+impl Configurable for SolverSettings {
+    fn options() -> &'static [OptionSpec] {
+        PRESSURE_SOLVER_OPTIONS
+    }
+
+    fn get(&self, key: &str) -> Value {
+        match key {
+            "pressure_solver" => Value::str(self.kind.name()),
+            "pressure_rtol" => Value::Float(self.rtol),
+            "pressure_max_iterations" => Value::Int(self.max_iterations as i64),
+            _ => Value::None,
+        }
+    }
+
+    fn set(&mut self, key: &str, v: &Value) -> Result<()> {
+        match key {
+            "pressure_solver" => self.kind = PressureSolverKind::from_name(options::as_name(v)).unwrap_or(self.kind),
+            "pressure_rtol" => self.rtol = v.as_f64().unwrap_or(self.rtol),
+            "pressure_max_iterations" => self.max_iterations = options::as_usize(v),
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
 impl SolverSettings {
-    /// Checks every parameter; errors name the offending field.
+    /// Checks every parameter; errors name the offending field (`rtol`, `max_iterations`: the
+    /// ranges of [`PRESSURE_SOLVER_OPTIONS`]).
     pub fn validate(&self) -> Result<()> {
-        if !(self.rtol.is_finite() && self.rtol >= 1e-15 && self.rtol < 1.0) {
-            return Err(Error::param("rtol", self.rtol, "a finite number in [1e-15, 1)"));
-        }
-        if self.max_iterations == 0 {
-            return Err(Error::param("max_iterations", self.max_iterations, "an integer >= 1"));
-        }
+        let o = |k| options::spec(PRESSURE_SOLVER_OPTIONS, k);
+        o("pressure_rtol").check_named("rtol", &Value::Float(self.rtol))?;
+        o("pressure_max_iterations").check_named("max_iterations", &Value::Int(self.max_iterations.min(i64::MAX as usize) as i64))?;
         if !(1..=10).contains(&self.pre_smooth) {
             return Err(Error::param("pre_smooth", self.pre_smooth, "an integer in [1, 10]"));
         }

@@ -19,7 +19,8 @@
 //! bi-projection handles instead of failing there (the column at ny = 256 failed at step 7 with
 //! δt = 1.19 ms and ran with δt ≤ 0.5 ms).
 
-use crate::error::{check_positive, check_range, Error, Result};
+use crate::error::Result;
+use crate::options::{self, Configurable, OptionSpec, Value};
 
 /// How the time step is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -39,33 +40,79 @@ pub struct TimeConfig {
     pub step_retries: usize,
 }
 
+/// The options of [`TimeConfig`] (the simulation's clock).
+pub const TIME_OPTIONS: &[OptionSpec] = &[
+    options::float("time", "cfl", 0.5, 1e-6, 2.0, "1", "CFL number C_cfl of the adaptive step"),
+    options::float("time", "dt", 1.0, 0.0, f64::INFINITY, "s", "a fixed time step instead of the adaptive one (None: adaptive)")
+        .open(true, true)
+        .off_by_default(),
+    options::float("time", "max_dt", f64::INFINITY, 0.0, f64::INFINITY, "s", "largest step of the adaptive rule").open(true, false),
+    options::float("time", "max_growth", 1.2, 1.0, 2.4, "1", "largest ratio δt_n/δt_{n−1} (variable-step BDF2 is zero-stable below 1 + √2)"),
+    options::float("time", "cfl_abort", 1.0, 1e-6, 100.0, "1", "the run stops with an error when the advective CFL number exceeds this"),
+    options::int(
+        "time",
+        "step_retries",
+        3,
+        0,
+        20,
+        "1",
+        "rejections of a step whose Picard iteration does not converge (retaken with δt halved); 0: stop at once",
+    ),
+];
+
 /// Growth per accepted step of the δt ceiling a rejected step leaves (see the module docs): the
 /// ceiling is back at the rejected δt after ln 2 / ln 1.01 ≈ 70 steps.
 pub const DT_CEILING_RECOVERY: f64 = 1.01;
 
 impl Default for TimeConfig {
     fn default() -> Self {
-        TimeConfig { cfl: 0.5, fixed_dt: None, max_dt: f64::INFINITY, max_growth: 1.2, cfl_abort: 1.0, step_retries: 3 }
+        let o = |k| options::spec(TIME_OPTIONS, k);
+        TimeConfig {
+            cfl: o("cfl").float(),
+            fixed_dt: None,
+            max_dt: o("max_dt").float(),
+            max_growth: o("max_growth").float(),
+            cfl_abort: o("cfl_abort").float(),
+            step_retries: o("step_retries").usize(),
+        }
+    }
+}
+
+impl Configurable for TimeConfig {
+    fn options() -> &'static [OptionSpec] {
+        TIME_OPTIONS
+    }
+
+    fn get(&self, key: &str) -> Value {
+        match key {
+            "cfl" => Value::Float(self.cfl),
+            "dt" => Value::opt_f64(self.fixed_dt),
+            "max_dt" => Value::Float(self.max_dt),
+            "max_growth" => Value::Float(self.max_growth),
+            "cfl_abort" => Value::Float(self.cfl_abort),
+            "step_retries" => Value::Int(self.step_retries as i64),
+            _ => Value::None,
+        }
+    }
+
+    fn set(&mut self, key: &str, v: &Value) -> Result<()> {
+        match key {
+            "cfl" => self.cfl = v.as_f64().unwrap_or(self.cfl),
+            "dt" => self.fixed_dt = v.as_f64(),
+            "max_dt" => self.max_dt = v.as_f64().unwrap_or(self.max_dt),
+            "max_growth" => self.max_growth = v.as_f64().unwrap_or(self.max_growth),
+            "cfl_abort" => self.cfl_abort = v.as_f64().unwrap_or(self.cfl_abort),
+            "step_retries" => self.step_retries = options::as_usize(v),
+            _ => {}
+        }
+        Ok(())
     }
 }
 
 impl TimeConfig {
-    /// Checks the parameters, naming the offending one.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)] // !(x > 0) also refuses NaN
+    /// Checks the parameters against [`TIME_OPTIONS`], naming the offending one.
     pub fn validate(&self) -> Result<()> {
-        check_range("cfl", self.cfl, 1e-6, 2.0)?;
-        if let Some(dt) = self.fixed_dt {
-            check_positive("dt", dt)?;
-        }
-        if !(self.max_dt > 0.0) {
-            return Err(Error::param("max_dt", self.max_dt, "a number > 0 (inf allowed)"));
-        }
-        check_range("max_growth", self.max_growth, 1.0, 2.4)?;
-        check_range("cfl_abort", self.cfl_abort, 1e-6, 100.0)?;
-        if self.step_retries > 20 {
-            return Err(Error::param("step_retries", self.step_retries, "an integer in [0, 20]"));
-        }
-        Ok(())
+        options::validate_all(self)
     }
 }
 

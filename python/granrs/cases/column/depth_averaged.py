@@ -1,0 +1,133 @@
+"""The column with the depth-averaged model (``granrs.depth_averaged``): the model built from a
+:class:`ColumnCase` and its run, with the same records, rest criterion, outputs and plots as the
+2D models."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ... import __version__
+from ..._granrs import SimulationError
+from .case import G, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
+from .measures import deposit_quantile
+from .outputs import write_outputs
+from .plots import plot_front, plot_profiles
+from .summaries import _observables_summary, _record_observables, arrest_summary
+
+
+def depth_averaged_front_depth(case: ColumnCase) -> float:
+    """Depth at which the depth-averaged front is read: half a cell of the two-phase grid of the
+    same case (ny). The two-phase front is the zero of Φ on the lowest row of cells, which sees a
+    layer only once it is thicker than dy/2; reading the depth-averaged front at the same depth
+    compares like with like (the front at a vanishing depth is reported as runout_thin_m)."""
+    return 0.5 * case.domain()[1] / case.ny
+
+
+def build_depth_averaged(case: ColumnCase):
+    """The depth-averaged model of the column (same channel length as the two-phase domain,
+    Δx = min(L_c, H_c)/da_resolution, basal friction α_b, supply β_s under the reservoir when
+    fluidised; k: Savage & Hutter's active coefficient from α and α_b reduced by the pore
+    pressure, or the constant ``earth_pressure``) with its initial condition: h = H_c, β = β_s for
+    x < L_c."""
+    from ...depth_averaged import DepthAveragedModel, DepthAveragedPore
+
+    case.validate()
+    hc, lc = case.column_height, case.width
+    length = case.domain()[0]
+    cells = int(math.ceil(length / (min(lc, hc) / case.da_resolution)))
+    fluidised = bool(case.fluidised and case.pore_pressure_ratio > 0)
+    pore = DepthAveragedPore(case.diffusivity, case.pore_pressure_ratio, lc) if fluidised else None
+    sh = case.earth_pressure == "savage-hutter"
+    m = DepthAveragedModel(cells, length, gravity=G, earth_pressure=1.0 if sh else float(case.earth_pressure),
+                           basal_friction_angle=case.wall_friction_angle, cfl=0.4, dry_depth=1e-6 * hc, pore=pore,
+                           internal_friction_angle=case.friction_angle if sh else None)
+    inside = m.x < lc
+    m.set_state(h=np.where(inside, hc, 0.0), beta=np.where(inside, case.pore_pressure_ratio if fluidised else 0.0, 0.0))
+    return m
+
+
+def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
+                              extra_summary: Optional[dict] = None, reason: str = "requested") -> dict:
+    """The column with the depth-averaged model: same records, rest criterion, outputs and plots
+    as :func:`run_column` (front read at :func:`depth_averaged_front_depth`)."""
+    out.mkdir(parents=True, exist_ok=True)
+    m = build_depth_averaged(case)
+    lc, hc = case.width, case.column_height
+    threshold = depth_averaged_front_depth(case)
+    mass0 = m.mass()
+    rec = {"t": [], "front": [], "area": [], "max_granular_speed": []}
+    profiles = {}
+    pending = sorted(case.profile_times)
+    rest_since = None
+    stop_reason = "t_end"
+    error = None
+    t0 = time.perf_counter()
+    try:
+        k = 0
+        while True:
+            t = m.time
+            xf = m.front(threshold)
+            if xf > m.length - 3 * m.dx or float(np.sum(m.h[-3:])) * m.dx > 0.01 * mass0:
+                raise SimulationError(f"the granular material reached the far end of the domain (x = {xf:.3f} m of "
+                                      f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)")
+            speed = m.max_speed()
+            rec["t"].append(t)
+            rec["front"].append(xf - lc)
+            rec["area"].append(m.mass())
+            rec["max_granular_speed"].append(speed)
+            _record_observables(rec, m.h, m.dx, 2 * threshold, lc)
+            while pending and t >= pending[0] - 1e-9:
+                profiles[round(pending.pop(0), 6)] = m.h.copy()
+            if t > 0.1 and speed < case.rest_speed:
+                rest_since = rest_since if rest_since is not None else t
+                if t - rest_since >= case.rest_duration:
+                    stop_reason = "rest"
+                    break
+            else:
+                rest_since = None
+            if t >= case.t_end - 1e-12:
+                break
+            k += 1
+            m.advance(min(case.t_end, 0.01 * k))
+            if progress:
+                print(f"\rdepth-averaged: t = {m.time:.2f} s, front {xf - lc:.3f} m", end="", flush=True)
+    except (SimulationError, KeyboardInterrupt) as err:
+        error = err
+        stop_reason = "interrupted: KeyboardInterrupt" if isinstance(err, KeyboardInterrupt) else f"error: {err}"
+    if progress:
+        print()
+    wall = time.perf_counter() - t0
+    profiles["final"] = m.h.copy()
+    front = np.array(rec["front"])
+    area = np.array(rec["area"])
+    summary = {
+        "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
+        "runout_thin_m": m.front(1e-3 * hc) - lc, "farthest_material_m": m.front(1e-6 * hc) - lc,
+        "runout_q99_m": deposit_quantile(profiles["final"], m.dx, lc),
+        "front_depth_m": threshold, "t_end_s": m.time, "steps": m.step_count,
+        "nx": m.cells, "ny": case.ny, "cells": m.cells, "h_m": m.dx, "wall_s": wall,
+        "mass_rel_error": float(np.max(np.abs(area - mass0)) / mass0) if area.size else 0.0,
+        "fluidised": m.pore is not None, "rheology": "Coulomb basal friction (depth-averaged)",
+        "threads": 1, "version": __version__, "stop_reason": stop_reason,
+        "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
+        "model": "depth-averaged", "model_reason": reason, "case": asdict(case),
+    }
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest_since))
+    summary["observables"] = _observables_summary(rec, profiles["final"], m.dx, threshold * 2, lc)
+    summary["observables"]["profile_definition"] = "h(x), the depth-averaged layer's thickness"
+    profiles["hvol_final"] = profiles["final"]
+    summary.update(extra_summary or {})
+    write_outputs(out, summary, rec, profiles, m.x - lc)
+    plot_front(out, compare_with)
+    plot_profiles(out)
+    if isinstance(error, KeyboardInterrupt):
+        raise error
+    if error is not None:
+        raise SimulationError(f"{error} (outputs written to {out})") from error
+    return summary

@@ -1,0 +1,185 @@
+"""The run of the column (:func:`run_column`): the model built, the records taken every 0.01 s
+with the rest criterion, the outputs flushed during the run and written at its end (the
+package's docstring describes the criterion and the records)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ... import __version__
+from ... import observables as obs
+from ..._granrs import ParameterError, SimulationError, SolverError
+from ...io.outputs import OutputError, RunOutputs
+from ...simulation import Callback, Simulation
+from .build import build_model, side_walls
+from .case import G, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
+from .depth_averaged import run_column_depth_averaged
+from .measures import basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position, surface_profile
+from .outputs import _progress, write_energy, write_outputs
+from .plots import plot_energy, plot_fluidisation, plot_front, plot_profiles
+from .summaries import _observables_summary, _record_observables, arrest_summary, energy_summary, fluidisation_summary
+
+
+#: run_column rewrites summary.json, front.csv and history.npz every this many records (0.1 s)
+FLUSH_RECORDS = 10
+
+
+def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
+               callbacks: Optional[list] = None, extra_summary: Optional[dict] = None, prepare=None,
+               outputs: Optional[RunOutputs] = None) -> dict:
+    """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``.
+
+    ``callbacks``: more ``Callback``s for the Simulation (field output, checkpoints);
+    ``extra_summary``: entries added to summary.json; ``prepare(model)``: called once the model
+    is built (a restart restores its state there); ``outputs``: the folder's ``RunOutputs`` (a
+    restart's earlier rows and original dense area). summary.json, front.csv and history.npz are
+    rewritten atomically every ``FLUSH_RECORDS`` records during the run (``stop_reason``
+    'incomplete: ...'). A SimulationError, SolverError or KeyboardInterrupt still writes every
+    output from the steps done, with the ``stop_reason``, then is raised again."""
+    case.validate()
+    model_name, model_reason = case.model, "requested"
+    if model_name == "depth-averaged":
+        if callbacks or prepare is not None:
+            raise ParameterError("invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
+                                 "restart: allowed only with the 2D models ('two-phase', 'granular')")
+        if case.channel_width is not None:
+            raise ParameterError("invalid parameter `channel_width` with the depth-averaged model: allowed only with the "
+                                 "2D models ('two-phase', 'granular')")
+        return run_column_depth_averaged(case, out, progress=progress, compare_with=compare_with,
+                                         extra_summary=extra_summary, reason=model_reason)
+    out.mkdir(parents=True, exist_ok=True)
+    model = build_model(case)
+    if prepare is not None:
+        prepare(model)
+    grid = model.grid
+    lc = case.width
+    outputs = outputs if outputs is not None else RunOutputs(out)
+    area0 = outputs.start_area or model.dense_area()
+    rec = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
+    # fluidisation: the basal pore pressure over the weight, under the reservoir and in the channel
+    fluid = model.pore_pressure is not None
+    xs_c = (np.arange(grid.nx) + 0.5) * grid.dx
+    under_reservoir = xs_c < lc
+    if fluid:
+        rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
+    profiles = {}
+    state = {"rest_since": None}
+    pending_profiles = sorted(case.profile_times)
+
+    def granular_speed() -> float:
+        uc, vc = model.centre_velocity()
+        inside = model.phi > 0
+        return float(np.max(np.hypot(uc, vc)[inside])) if inside.any() else 0.0
+
+    def observe(sim: Simulation) -> None:
+        t = model.time
+        xf = front_position(model.phi, grid.dx)
+        xfar = farthest_material(model.phi, grid.dx)
+        # "reached the far end": the front, or more than 1 % of the column's area within the last
+        # three columns of cells (single-cell specks of thin films sliding ahead do not count)
+        far_area = float(np.count_nonzero(model.phi[:, -3:] > 0)) * grid.dx * grid.dy
+        if xf > grid.lx - 3 * grid.dx or far_area > 0.01 * area0:
+            raise SimulationError(f"the granular material reached the far end of the domain (x = {xfar:.3f} m of "
+                                  f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)")
+        speed = granular_speed()
+        rec["t"].append(t)
+        rec["front"].append(xf - lc)
+        rec["area"].append(model.dense_area())
+        rec["max_granular_speed"].append(speed)
+        rec["energy"].append(model.energy_budget())
+        _record_observables(rec, obs.volume_profile(model.phi, grid.dy), grid.dx, grid.dy, lc)
+        if fluid:
+            h, pf0, weight = surface_profile(model.phi, grid.dy), model.pf[0], case.mixture_density * G
+            rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pf0, h, weight, under_reservoir))
+            rec["pf_ratio_channel"].append(basal_pore_pressure_ratio(pf0, h, weight, ~under_reservoir))
+        while pending_profiles and t >= pending_profiles[0] - 1e-9:
+            profiles[round(pending_profiles.pop(0), 6)] = surface_profile(model.phi, grid.dy)
+        if t > 0.1 and speed < case.rest_speed:
+            state["rest_since"] = state["rest_since"] if state["rest_since"] is not None else t
+            if t - state["rest_since"] >= case.rest_duration:
+                sim.stop, sim.stop_reason = True, "rest"
+        else:
+            state["rest_since"] = None
+        if len(rec["t"]) % FLUSH_RECORDS == 0:
+            front = rec["front"]
+            _progress(outputs, {"runout_m": front[-1], "max_front_m": max(front), "t_end_s": t, "steps": model.step_count,
+                                "nx": grid.nx, "ny": grid.ny, "model": model_name, "case": asdict(case)}
+                      | (extra_summary or {}), rec, sim.history_arrays(), t, model.step_count)
+
+    sim = Simulation(model, stop_time=case.t_end, callbacks=[Callback(observe, every_time=0.01)] + list(callbacks or []),
+                     progress=progress)
+    t0 = time.perf_counter()
+    error = failure = None
+    try:
+        sim.run()
+    except (SimulationError, SolverError, KeyboardInterrupt) as err:  # keep what was computed, then report
+        failure = err
+        error = str(err) if not isinstance(err, KeyboardInterrupt) else "KeyboardInterrupt"
+    wall = time.perf_counter() - t0
+    profiles["final"] = surface_profile(model.phi, grid.dy)
+    profiles["hvol_final"] = obs.volume_profile(model.phi, grid.dy)
+    hist = sim.history_arrays()
+    front = np.array(rec["front"])
+    area = np.array(rec["area"])
+    summary = {
+        "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
+        "runout_q99_m": deposit_quantile(profiles["final"], grid.dx, lc),
+        "farthest_material_m": farthest_material(model.phi, grid.dx) - lc, "t_end_s": model.time, "steps": model.step_count,
+        "nx": grid.nx, "ny": grid.ny, "cells": grid.cells, "h_m": grid.dy, "wall_s": wall,
+        "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
+        "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
+        "interface_yield": case.interface_yield, "wall_normal_stress": case.wall_normal_stress,
+        "yield_pressure": case.yield_pressure, "sigma_location": case.sigma_location,
+        "channel_width_m": case.channel_width, "side_wall_friction_angle": (None if case.channel_width is None else
+                                                                             side_walls(case).friction_angle),
+        "r_neighbourhood": case.r_neighbourhood,
+        "active_region": case.active_region,
+        "active_region_sides": case.active_region_sides, "threads": case.threads, "version": __version__,
+        "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
+                                                              if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
+        "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,
+        "pressure_iterations_max": int(np.max(hist["pressure_iterations"])) if "time" in hist else 0,
+        "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
+        "dt_median_s": float(np.median(hist["dt"])) if "time" in hist else 0.0,
+        "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
+        "model": model_name, "model_reason": model_reason,
+        "case": asdict(case),
+    }
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], state["rest_since"]))
+    for key in ("picard_iterations",):
+        if key in hist:
+            summary[key + "_median"] = float(np.median(hist[key]))
+    if "picard_r_halvings" in hist:
+        summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
+    if "step_retries" in hist:
+        summary["step_retries_total"] = int(np.sum(hist["step_retries"]))
+    if rec["energy"]:
+        summary["energy"] = energy_summary(rec["energy"][-1])
+    summary["observables"] = _observables_summary(rec, profiles["hvol_final"], grid.dx, grid.dy, lc)
+    if fluid and rec["t"]:
+        summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
+    summary.update(extra_summary or {})
+    try:
+        write_outputs(out, summary, rec, profiles, xs_c - lc, outputs)
+        outputs.write_history(hist)
+        if rec["energy"]:
+            write_energy(out, rec["t"], rec["energy"])
+            plot_energy(out)
+        if fluid and rec["t"]:
+            plot_fluidisation(out)
+        plot_front(out, compare_with)
+        plot_profiles(out)
+    except OSError as err:  # a full disk: the files written before stay complete
+        raise OutputError(f"cannot write the outputs in {out} ({err.strerror or err}); the files written before are kept"
+                          + (f"; the run had stopped with: {error}" if error else "")) from None
+    if isinstance(failure, KeyboardInterrupt):
+        raise failure
+    if error is not None:
+        kind = SolverError if isinstance(failure, SolverError) else SimulationError
+        raise kind(error + f" (outputs written to {out})") from failure
+    return summary

@@ -1,0 +1,145 @@
+"""The options of a model, read from the schema the Rust core declares (``granrs._granrs.schema()``).
+
+Each option is declared once, in Rust, beside the field of the configuration struct of the room
+that uses it, with its default, range, unit, one line of doc and its group (``common`` or
+``variant``; docs/models.md, "Variants"). This module turns that schema into the Python objects
+of the options: each room is a frozen dataclass whose fields, defaults and docs are the schema's,
+and whose values are checked in Rust (``granrs._granrs.check_option``) when it is made.
+
+=================  ============================================================================
+object             the options it holds (its room in the schema)
+=================  ============================================================================
+``TimeStepping``   the simulation's clock: ``cfl``, ``dt``, ``max_dt``, ``max_growth``, ... ("time")
+``BiProjection``   the yield stress's numerics: ``theta``, ``tolerance``, ``max_iterations``, ...
+``ActiveRegion``   a window around the granular phase: ``band``, ``align``, ``sides``
+``Variants``       every option of the group ``variant`` (readings of the paper kept for study)
+``Numerics``       the flat form: every option of the model by its key (a model's ``options``)
+=================  ============================================================================
+
+A new option declared in Rust appears in ``Numerics``, in its room's object, in the run files'
+[numerics] or [variants] section, in ``granrs keys`` and in the docs' key reference, with
+nothing written for it here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Optional
+
+from . import _granrs
+from ._granrs import ParameterError
+
+
+@dataclass(frozen=True)
+class OptionInfo:
+    """One option of the schema (see ``granrs._granrs.schema``)."""
+
+    key: str
+    room: str
+    kind: str
+    default: Any
+    optional: bool
+    required: bool
+    unit: str
+    doc: str
+    group: str
+    allowed: str
+    lo: Optional[float]
+    hi: Optional[float]
+    lo_open: bool
+    hi_open: bool
+    choices: tuple
+    object: bool
+
+    def check(self, value, name: Optional[str] = None):
+        """``value`` converted to the option's kind, checked in Rust; ParameterError naming
+        ``name`` (default: the key) and the allowed values otherwise."""
+        return _granrs.check_option(self.key, value, room=self.room, name=name or self.key)
+
+
+#: Every option, in the order of the Rust tables (the model's flat options, then the objects').
+SCHEMA: tuple[OptionInfo, ...] = tuple(OptionInfo(**d) for d in _granrs.schema())
+#: The model's flat options by key.
+FLAT: dict[str, OptionInfo] = {s.key: s for s in SCHEMA if not s.object}
+
+
+def spec(key: str, room: Optional[str] = None) -> OptionInfo:
+    """The option ``key`` (of ``room``, for an object's option); ParameterError if unknown."""
+    for s in SCHEMA:
+        if s.key == key and (room is None and not s.object or s.room == room):
+            return s
+    raise ParameterError(f"invalid parameter `{key}`: not an option; allowed one of " + ", ".join(FLAT))
+
+
+def room(name: str) -> tuple[OptionInfo, ...]:
+    """The options of a room, in the order of its Rust table."""
+    return tuple(s for s in SCHEMA if s.room == name)
+
+
+def _doc(title: str, fields: list[tuple[str, OptionInfo]]) -> str:
+    lines = [title, ""]
+    for name, s in fields:
+        default = "required" if s.required else repr(s.default)
+        lines.append(f"{name}: {s.doc}; {s.allowed}; default {default}.")
+    return "\n".join(lines)
+
+
+def _options_class(cls_name: str, title: str, fields: list[tuple[str, OptionInfo]], module: str = __name__):
+    """A frozen dataclass whose fields are ``fields`` (name, option), with the schema's defaults,
+    each value checked in Rust on construction (ParameterError names the field)."""
+    specs = dict(fields)
+    ordered = sorted(fields, key=lambda f: f[1].required, reverse=True)  # required ones first
+
+    def __post_init__(self):
+        for name, s in specs.items():
+            value = getattr(self, name)
+            object.__setattr__(self, name, s.check(value, name))
+
+    def options(self) -> dict:
+        """The values by their schema keys."""
+        return {specs[n].key: getattr(self, n) for n in specs}
+
+    ns = {"__post_init__": __post_init__, "options": options, "__doc__": _doc(title, fields), "__module__": module,
+          "FIELDS": specs}
+    cls = dataclasses.make_dataclass(
+        cls_name,
+        [(n, Any) if s.required else (n, Any, dataclasses.field(default=s.default)) for n, s in ordered],
+        namespace=ns, frozen=True)
+    return cls
+
+
+def _strip(prefix: str, key: str) -> str:
+    return key[len(prefix):] if key.startswith(prefix) and key != prefix.rstrip("_") else key
+
+
+#: The simulation's clock (room "time"): CFL number, a fixed δt, caps and step retries.
+TimeStepping: Any = _options_class("TimeStepping", "The simulation's clock: how δt is chosen (Rust TimeConfig).",
+                                   [(s.key, s) for s in room("time")], "granrs")
+
+#: The numerics of the bi-projection (paper eq. 12) and of how the yield stress is imposed.
+_BP_NAMES = {"picard_tol": "tolerance", "picard_max_iterations": "max_iterations",
+             "picard_solve_max_iterations": "solve_max_iterations"}
+BiProjection: Any = _options_class(
+    "BiProjection", "The bi-projection Σ = P(Σ + r D(u)) and its Picard iteration (paper eq. 11–12; Rust RheologyConfig).",
+    [(_BP_NAMES.get(s.key, s.key), s) for s in room("bi_projection")], "granrs")
+
+#: The active window around the granular phase (docs/models.md, "Active region").
+ActiveRegion: Any = _options_class(
+    "ActiveRegion", "Each step on a window around the granular phase (Rust ActiveRegion; docs/models.md).",
+    [("band" if s.key == "active_region" else _strip("active_region_", s.key), s) for s in room("active_region")],
+    "granrs")
+
+#: Every option of the group of variants: readings of the paper and numerical variants kept for
+#: study, each at its measured default (docs/models.md, "Variants").
+Variants: Any = _options_class(
+    "Variants", "Numerical variants kept for study; the common case needs none (docs/models.md, \"Variants\").",
+    [(s.key, s) for s in SCHEMA if not s.object and s.group == "variant"], "granrs")
+
+#: Keys of the flat options that are arguments of ``Model`` itself rather than numerics.
+MODEL_ARGUMENTS = ("threads", "air")
+
+#: The flat form of every option of a model by its key (``Model(numerics=...)``).
+Numerics: Any = _options_class(
+    "Numerics", "Every numerical option of a model by its schema key (the rooms' objects hold the same options).",
+    [(s.key, s) for s in SCHEMA if not s.object and s.key not in MODEL_ARGUMENTS], "granrs")
