@@ -40,10 +40,10 @@ def test_bad_parameters_are_rejected(bad, match):
 
 
 def test_every_member_is_validated_before_any_run(tmp_path):
-    with pytest.raises(ParameterError, match=r"sweep member 1 .*`numerics.cfl` = 1.5"):
-        members(base(tmp_path), ["numerics.cfl=0.5,1.5"])
+    with pytest.raises(ParameterError, match=r"sweep member 1 .*`numerics.cfl` = 2.5"):
+        members(base(tmp_path), ["numerics.cfl=0.5,2.5"])
     with pytest.raises(ParameterError, match="`numerics.cfl`"):
-        run_sweep(base(tmp_path / "s"), ["numerics.cfl=0.5:1.5:2"])
+        run_sweep(base(tmp_path / "s"), ["numerics.cfl=0.5:2.5:2"])
     assert not (tmp_path / "s").exists()
 
 
