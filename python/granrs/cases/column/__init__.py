@@ -43,25 +43,39 @@ outputs), ``measures`` (front, deposit quantile, surface profile, basal pore-pre
 ``depth_averaged`` (the depth-averaged variant) and ``choice`` (model choice for ``auto``).
 """
 
-from .build import _rheology_kwargs as _rheology_kwargs
-from .build import build_model, side_walls
-from .case import G, MODELS, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
+from .build import _rheology_kwargs as _rheology_kwargs, build_model, side_walls
+from .case import MODELS, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .choice import DEPTH_AVERAGED_MAX_ASPECT, RUNOUT_TOLERANCE, choose_model
 from .depth_averaged import build_depth_averaged, depth_averaged_front_depth, run_column_depth_averaged
-from .measures import (DEPOSIT_QUANTILE, basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position,
-                       surface_profile)
-from .outputs import _progress as _progress
-from .outputs import FRONT_NAMES, front_columns, write_energy, write_outputs
-from .plots import _front_band as _front_band
-from .plots import _front_label as _front_label
-from .plots import _label as _label
-from .plots import _read_front as _read_front
-from .plots import plot_energy, plot_fluidisation, plot_front, plot_profiles
+from .measures import (
+    DEPOSIT_QUANTILE,
+    basal_pore_pressure_ratio,
+    deposit_quantile,
+    farthest_material,
+    front_position,
+    surface_profile,
+)
+from .outputs import FRONT_NAMES, _progress as _progress, front_columns, write_energy, write_outputs
+from .plots import (
+    _front_band as _front_band,
+    _front_label as _front_label,
+    _label as _label,
+    _read_front as _read_front,
+    plot_energy,
+    plot_fluidisation,
+    plot_front,
+    plot_profiles,
+)
 from .run import FLUSH_RECORDS, run_column
-from .summaries import _energy_row as _energy_row
-from .summaries import _observables_summary as _observables_summary
-from .summaries import _record_observables as _record_observables
-from .summaries import ENERGY_COLUMNS, arrest_summary, energy_summary, fluidisation_summary
+from .summaries import (
+    ENERGY_COLUMNS,
+    _energy_row as _energy_row,
+    _observables_summary as _observables_summary,
+    _record_observables as _record_observables,
+    arrest_summary,
+    energy_summary,
+    fluidisation_summary,
+)
 
 __all__ = [
     "DEPOSIT_QUANTILE", "DEPTH_AVERAGED_MAX_ASPECT", "ENERGY_COLUMNS", "FLUSH_RECORDS", "FRONT_NAMES", "G", "MODELS",

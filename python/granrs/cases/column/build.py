@@ -13,7 +13,7 @@ from ...boundary import BoundaryConditions, Coulomb, FreeSlip
 from ...materials import AIR, Material
 from ...model import Model, Numerics, PorePressure, SideWalls
 from ...shapes import Rectangle
-from .case import G, ColumnCase
+from .case import ColumnCase, G
 
 
 def side_walls(case: ColumnCase) -> Optional[SideWalls]:

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, Union
 
 from ..._granrs import ParameterError
 from ...grid import Grid
 from ...model import ACTIVE_REGION_SIDES, SIGMA_LOCATIONS, check_side_walls, estimate_memory, memory_check
 from ...rheology import check_friction_angle
-
 
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
@@ -115,7 +114,7 @@ class ColumnCase:
     # depth-averaged model only: earth-pressure coefficient k ("savage-hutter": the active
     # coefficient from friction_angle and wall_friction_angle, reduced by the pore pressure; or a
     # number; docs/models.md) and cells across min(L_c, H_c)
-    earth_pressure: object = "savage-hutter"
+    earth_pressure: Union[str, float] = "savage-hutter"
     da_resolution: int = 64
 
     def validate(self) -> None:
@@ -130,11 +129,11 @@ class ColumnCase:
         check_friction_angle(self.friction_angle)
         if isinstance(self.ny, bool) or not isinstance(self.ny, int) or not 8 <= self.ny <= 4096:
             raise ParameterError(f"invalid parameter `ny` = {self.ny!r}: allowed an integer in [8, 4096]")
-        for name, v, lo, what in (("length", self.length, self.width, "the gate at x = width"),
-                                  ("height", self.height, self.column_height, "the column height aspect_ratio × width")):
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-                                  or not lo < v <= 1000.0):
-                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed None (the default) or a number of metres "
+        for name, size, lo, what in (("length", self.length, self.width, "the gate at x = width"),
+                                     ("height", self.height, self.column_height, "the column height aspect_ratio × width")):
+            if size is not None and (isinstance(size, bool) or not isinstance(size, (int, float))
+                                     or not math.isfinite(size) or not lo < size <= 1000.0):
+                raise ParameterError(f"invalid parameter `{name}` = {size!r}: allowed None (the default) or a number of metres "
                                      f"in ({lo:g}, 1000] (beyond {what} = {lo:g} m)")
         for name, v, lo, hi in (("threads", self.threads, 1, 1024), ("step_retries", self.step_retries, 0, 20),
                                 ("r_neighbourhood", self.r_neighbourhood, 0, 4)):

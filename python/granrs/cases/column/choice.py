@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from .case import ColumnCase
 
-
 # Largest aspect ratio a = H_c/L_c at which the depth-averaged run-out was measured within 5 % of
 # the two-phase one at ny = 32 (examples/model_ladder.py → docs/img/model_ladder.csv,
 # docs/models.md), per fluidisation state; None: at no measured aspect ratio. Measured points:
