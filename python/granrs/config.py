@@ -17,10 +17,15 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import tomllib
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Optional, Union
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # the same parser, before it joined the standard library
+    import tomli as tomllib
 
 from ._granrs import ParameterError
 from .cases.column import ColumnCase
@@ -156,8 +161,10 @@ def _check_value(key: Key, value):
         if isinstance(value, bool) or not ok_type:
             raise _bad(key, value)
         number = float(value) if key.kind == "float" else value
-        too_high = number >= key.hi if key.hi_open else number > key.hi
-        too_low = number <= key.lo if key.lo_open else number < key.lo
+        lo = -math.inf if key.lo is None else key.lo
+        hi = math.inf if key.hi is None else key.hi
+        too_high = number >= hi if key.hi_open else number > hi
+        too_low = number <= lo if key.lo_open else number < lo
         if not math.isfinite(number) or too_low or too_high:
             raise _bad(key, value)
         return number
