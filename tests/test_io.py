@@ -4,7 +4,6 @@ checkpoint file format, and what an interrupted or failed run leaves behind."""
 import json
 import os
 import signal
-import tomllib
 import xml.etree.ElementTree as ET
 from types import SimpleNamespace
 
@@ -13,7 +12,7 @@ import pytest
 
 from granrs import Callback, ParameterError, Simulation, SimulationError
 from granrs.cases.column import build_model
-from granrs.config import column_case, load_config, resolve
+from granrs.config import column_case, load_config, resolve, tomllib
 from granrs.io import (deferred_interrupt, load_checkpoint, read_pvd, read_vti, restore_checkpoint, save_checkpoint,
                        write_vti)
 from granrs.runner import run_config
@@ -135,6 +134,24 @@ def test_vti_round_trip_of_arbitrary_fields(tmp_path):
     np.testing.assert_array_equal(back["fields"]["yielded"], fields["yielded"])
     np.testing.assert_array_equal(back["fields"]["velocity"][..., 1], fields["v"])
     assert back["provenance"]["command_line"] == "a -- b --- c"  # '--' survives the XML comment
+
+
+def test_a_vti_without_its_image_data_is_refused_naming_the_element(tmp_path):
+    write_vti(tmp_path / "a.vti", {"phi": np.zeros((2, 3))}, (1.0, 1.0), 0.0, {})
+    (tmp_path / "b.vti").write_text((tmp_path / "a.vti").read_text().replace("ImageData", "PolyData"))
+    with pytest.raises(ValueError, match="no <ImageData>"):
+        read_vti(tmp_path / "b.vti")
+
+
+def test_netcdf_fields_without_a_given_provenance_carry_this_process_provenance(tmp_path):
+    import granrs
+    import netCDF4
+    from granrs.io import FieldWriter
+
+    model = granrs.Model(granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0))
+    FieldWriter(tmp_path, model.grid, formats=["netcdf"]).write(model)
+    with netCDF4.Dataset(tmp_path / "fields.nc") as ds:
+        assert ds.granrs_version == granrs.__version__ and ds["time"].size == 1
 
 
 def _stop_at(t_stop, exc):

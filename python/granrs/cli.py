@@ -36,7 +36,7 @@ def _key_type(flag: str, dotted: str):
     from .config import key
 
     k = key(dotted)
-    return _number(flag, k.kind, k.lo, k.hi, k.lo_open)
+    return _number(flag, k.kind, -math.inf if k.lo is None else k.lo, math.inf if k.hi is None else k.hi, k.lo_open)
 
 
 def _out_plan(out, overwrite: bool, append: bool = False):

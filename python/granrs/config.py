@@ -17,12 +17,17 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import tomllib
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Optional, Union
 
 from . import options
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # the same parser, before it joined the standard library
+    import tomli as tomllib
+
 from ._granrs import ParameterError
 from .cases.column import ColumnCase
 from .cases.column.case import COLUMN_NUMERICS, OPTION_FIELD_KEYS, OPTION_FIELDS, SCENE_CHOICES, SCENE_RANGES

@@ -194,7 +194,7 @@ class Model:
                            and math.isfinite(g) for g in gravity)):
             raise ParameterError(f"invalid parameter `gravity` = {gravity!r}: allowed a pair of finite numbers (g_x, g_y) "
                                  "in m/s², e.g. (0.0, -9.81)")
-        self.gravity = tuple(float(g) for g in gravity)
+        self.gravity = (float(gravity[0]), float(gravity[1]))
         if numerics is not None and not isinstance(numerics, Numerics):
             raise ParameterError(f"invalid parameter `numerics` = {numerics!r}: allowed a granrs.Numerics or None")
         if pore_pressure is not None and not isinstance(pore_pressure, PorePressure):
@@ -322,8 +322,9 @@ class Model:
         out = self._rust.wall_friction(side)
         return None if out is None else (np.asarray(out[0]), np.asarray(out[1]))
 
-    def set_initial(self, u: ArrayOrFn = None, v: ArrayOrFn = None, p: ArrayOrFn = None,
-                    phi: ArrayOrFn = None, pf: ArrayOrFn = None, balance_pressure: bool = True) -> None:
+    def set_initial(self, u: Optional[ArrayOrFn] = None, v: Optional[ArrayOrFn] = None, p: Optional[ArrayOrFn] = None,
+                    phi: Optional[ArrayOrFn] = None, pf: Optional[ArrayOrFn] = None,
+                    balance_pressure: bool = True) -> None:
         """Sets initial fields from arrays, constants or functions f(x, y) evaluated at the
         field's points. With ``balance_pressure`` (and no explicit ``p``), p is set so that the
         body force is balanced (one pressure solve)."""

@@ -30,7 +30,7 @@ column case):
 from __future__ import annotations
 
 import math
-from typing import Iterable, Optional
+from typing import Any, Iterable, Optional
 
 import numpy as np
 
@@ -274,7 +274,7 @@ def summarise(final: dict, initial: dict, records: Optional[dict] = None) -> dic
         x_c(end) − x_c(0), ``max_front_h…`` (the largest value of each front over the records)
         and ``profile_definition``.
     """
-    out = {k: _json_float(v) for k, v in final.items()}
+    out: dict[str, Any] = {k: _json_float(v) for k, v in final.items()}
     out["centre_of_mass_travel_m"] = _json_float(final["centre_of_mass_m"] - initial["centre_of_mass_m"])
     for k, v in (records or {}).items():
         if k.startswith("front_h") and len(v):

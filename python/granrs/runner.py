@@ -99,6 +99,7 @@ def run_config(cfg: Config, *, command: Optional[str] = None, progress: bool = T
     write_config(cfg, out / name, header_lines(prov))
     front_prefix = history_prefix = None
     if plan.mode == "append":
+        assert t_start is not None  # an append continues the run of a checkpoint
         front_prefix, history_prefix = resume_outputs(out, t_start)
     outputs = RunOutputs(out, front_prefix, history_prefix,
                          start_area=float(np.ravel(ck.state["reference_area"])[0]) if ck is not None and "reference_area" in ck.state

@@ -37,7 +37,7 @@ class Callback:
     """Calls ``func(simulation)`` every ``every_time`` seconds of simulated time (landing on those
     times exactly) or every ``every_steps`` steps."""
 
-    func: Callable[["Simulation"], None]
+    func: Callable[["Simulation"], object]  # what it returns is not used
     every_time: Optional[float] = None
     every_steps: Optional[int] = None
 
@@ -114,7 +114,9 @@ class Simulation:
         m = self.model
         if cb.every_time is not None:
             return math.floor(m.time / cb.every_time * (1 + 1e-12)) > math.floor(t_before / cb.every_time * (1 + 1e-12))
-        return m.step_count // cb.every_steps > n_before // cb.every_steps
+        every = cb.every_steps
+        assert every is not None  # Callback holds exactly one of every_time, every_steps
+        return m.step_count // every > n_before // every
 
     def run(self) -> "Simulation":
         """Runs to the stop condition. A failure (SimulationError, SolverError) propagates after

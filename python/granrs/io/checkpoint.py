@@ -55,7 +55,9 @@ def save_checkpoint(model, path, provenance: Optional[dict] = None) -> Path:
             "scalar_types": {k: type(v).__name__ for k, v in scalars.items()}, "provenance": provenance or {}}
     from .outputs import atomic_write
 
-    return atomic_write(path, lambda f: np.savez(f, meta=np.array(json.dumps(meta)), **arrays), binary=True)
+    # numpy's stub lets **kwargs reach savez's allow_pickle flag: the keys here are field names
+    return atomic_write(path, lambda f: np.savez(f, meta=np.array(json.dumps(meta)), **arrays),  # type: ignore[arg-type]
+                        binary=True)
 
 
 def load_checkpoint(path) -> Checkpoint:
@@ -105,7 +107,7 @@ def configuration_changes(ck: Checkpoint, cfg: dict) -> list[str]:
     """The keys (``section.key: old -> new``) whose value in ``cfg`` differs from the configuration
     the checkpoint was written with (its provenance); output.* and RESTART_FREE_KEYS are not
     compared. Empty when the checkpoint holds no configuration."""
-    import tomllib
+    from ..config import tomllib
 
     text = (ck.meta.get("provenance") or {}).get("configuration") or ""
     if not text:

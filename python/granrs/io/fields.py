@@ -8,10 +8,12 @@ plastic tensor only).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 # CF-style attributes (UDUNITS units) of each field; the order is the order in the files.
-FIELDS = {
+FIELDS: dict[str, dict[str, Any]] = {
     "phi": {"long_name": "level set: signed distance to the interface, positive in the granular phase", "units": "m"},
     "u": {"long_name": "x-velocity at cell centres (along the channel)", "units": "m s-1"},
     "v": {"long_name": "y-velocity at cell centres (upwards)", "units": "m s-1"},

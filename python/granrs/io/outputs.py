@@ -26,7 +26,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 
@@ -134,7 +134,8 @@ def atomic_write(path, write: Callable, binary: bool = False) -> Path:
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     try:
-        with open(tmp, "wb" if binary else "w", **({} if binary else {"newline": "", "encoding": "utf-8"})) as f:
+        text: dict[str, Any] = {} if binary else {"newline": "", "encoding": "utf-8"}
+        with open(tmp, "wb" if binary else "w", **text) as f:
             write(f)
         os.replace(tmp, path)
     except OSError as err:

@@ -20,9 +20,9 @@ import numpy as np
 
 from .provenance import from_xml, xml_comment
 
-_VTK_TYPES = {np.dtype("<f8"): "Float64", np.dtype("<f4"): "Float32", np.dtype("uint8"): "UInt8",
+_VTK_TYPES: dict[np.dtype, str] = {np.dtype("<f8"): "Float64", np.dtype("<f4"): "Float32", np.dtype("uint8"): "UInt8",
               np.dtype("<i4"): "Int32", np.dtype("<i8"): "Int64"}
-_NP_TYPES = {v: k for k, v in _VTK_TYPES.items()}
+_NP_TYPES: dict[str, np.dtype] = {v: k for k, v in _VTK_TYPES.items()}
 
 
 def _data_array(name: str, data: np.ndarray, components: int = 1) -> str:
@@ -84,12 +84,29 @@ def write_pvd(path, entries: list[tuple[float, str]], provenance: Optional[dict]
     return path
 
 
+def _find(parent: ET.Element, path: str) -> ET.Element:
+    """The element at ``path`` under ``parent``; a file without it is not one ``write_vti`` or
+    ``write_pvd`` wrote."""
+    found = parent.find(path)
+    if found is None:
+        raise ValueError(f"not a VTK file written by granrs: no <{path}> in <{parent.tag}>")
+    return found
+
+
+def _attr(elem: ET.Element, name: str) -> str:
+    """The attribute ``name`` of ``elem`` (an error naming it when missing)."""
+    value = elem.get(name)
+    if value is None:
+        raise ValueError(f"not a VTK file written by granrs: <{elem.tag}> has no attribute {name!r}")
+    return value
+
+
 def _decode(elem: ET.Element, count: int) -> np.ndarray:
-    dtype = _NP_TYPES[elem.get("type")]
+    dtype = _NP_TYPES[_attr(elem, "type")]
     comps = int(elem.get("NumberOfComponents", "1"))
     if elem.get("format") == "ascii":
-        return np.array(elem.text.split(), dtype=dtype).reshape(count, comps)
-    raw = base64.b64decode("".join(elem.text.split()))
+        return np.array((elem.text or "").split(), dtype=dtype).reshape(count, comps)
+    raw = base64.b64decode("".join((elem.text or "").split()))
     nbytes = int(np.frombuffer(raw[:8], dtype="<u8")[0])
     return np.frombuffer(raw[8:8 + nbytes], dtype=dtype).reshape(count, comps)
 
@@ -99,17 +116,17 @@ def read_vti(path) -> dict:
     "fields": {name: (ny, nx) or (ny, nx, 3) array}, "provenance"}."""
     text = Path(path).read_text(encoding="utf-8")
     root = ET.fromstring(text)
-    image = root.find("ImageData")
-    ext = [int(e) for e in image.get("WholeExtent").split()]
+    image = _find(root, "ImageData")
+    ext = [int(e) for e in _attr(image, "WholeExtent").split()]
     nx, ny = ext[1] - ext[0], ext[3] - ext[2]
     fields = {}
-    for arr in image.find("Piece").find("CellData"):
+    for arr in _find(_find(image, "Piece"), "CellData"):
         data = _decode(arr, nx * ny)
-        fields[arr.get("Name")] = data.reshape(ny, nx) if data.shape[1] == 1 else data.reshape(ny, nx, data.shape[1])
+        fields[_attr(arr, "Name")] = data.reshape(ny, nx) if data.shape[1] == 1 else data.reshape(ny, nx, data.shape[1])
     time_elem = image.find("FieldData/DataArray[@Name='TimeValue']")
     return {"time": float(_decode(time_elem, 1)[0, 0]) if time_elem is not None else None,
-            "spacing": tuple(float(s) for s in image.get("Spacing").split()),
-            "origin": tuple(float(s) for s in image.get("Origin").split()), "shape": (ny, nx),
+            "spacing": tuple(float(s) for s in _attr(image, "Spacing").split()),
+            "origin": tuple(float(s) for s in _attr(image, "Origin").split()), "shape": (ny, nx),
             "fields": fields, "provenance": from_xml(text)}
 
 
@@ -117,4 +134,4 @@ def read_pvd(path) -> list[tuple[float, Path]]:
     """(time, absolute path) of each dataset of a .pvd file."""
     path = Path(path)
     root = ET.parse(path).getroot()
-    return [(float(d.get("timestep")), path.parent / d.get("file")) for d in root.find("Collection")]
+    return [(float(_attr(d, "timestep")), path.parent / _attr(d, "file")) for d in _find(root, "Collection")]

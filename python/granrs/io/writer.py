@@ -19,6 +19,7 @@ from typing import Iterable
 from .._granrs import ParameterError
 from .fields import coordinates, snapshot
 from .netcdf import NetCDFWriter, available
+from .provenance import provenance as make_provenance
 from .vtk import write_pvd, write_vti
 
 FORMATS = ("vtk", "netcdf")
@@ -89,7 +90,9 @@ class FieldWriter:
                 with netCDF4.Dataset(self.out / "fields.nc") as ds:
                     kept_nc = int((ds["time"][:] <= append_after * (1 + 1e-12)).sum())
         x, y = coordinates(grid)
-        self.netcdf = NetCDFWriter(self.out / "fields.nc", x, y, provenance) if "netcdf" in self.formats else None
+        # the NetCDF attributes need a provenance: this process's when none is given
+        nc_provenance = provenance if provenance is not None else make_provenance()
+        self.netcdf = NetCDFWriter(self.out / "fields.nc", x, y, nc_provenance) if "netcdf" in self.formats else None
         if self.netcdf is not None:
             self.netcdf.records = kept_nc
         if "vtk" in self.formats:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,7 @@ def _ghia():
 
 def _refine_min(psi: np.ndarray, dx: float, dy: float):
     """Minimum of ψ at nodes refined by a quadratic fit on the 3×3 neighbourhood."""
-    j, i = np.unravel_index(np.argmin(psi), psi.shape)
+    j, i = (int(k) for k in np.unravel_index(np.argmin(psi), psi.shape))
     j = min(max(j, 1), psi.shape[0] - 2)
     i = min(max(i, 1), psi.shape[1] - 2)
     f = psi[j - 1:j + 2, i - 1:i + 2]
@@ -135,7 +136,7 @@ def cavity(re: float, n: int, threads: int = 1):
         "steady_change": change, "pressure_iterations_median": float(np.median(iters)) if iters else 0.0,
     }
     # the published references exist at Re = 100 and 1000 only: elsewhere passed is None
-    reference = {"acceptance": "none: published references at Re = 100 (Ghia et al. 1982) and 1000 (Botella & Peyret "
+    reference: dict[str, Any] = {"acceptance": "none: published references at Re = 100 (Ghia et al. 1982) and 1000 (Botella & Peyret "
                                "1998) only; passed null"}
     passed = None
     if abs(re - 1000) < 1e-9:

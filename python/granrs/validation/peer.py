@@ -38,7 +38,7 @@ import json
 import math
 import tempfile
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
@@ -145,7 +145,7 @@ def compare(run: dict, ref: dict, finer: bool) -> dict:
     rel = np.abs(hg[bulk] - hr[bulk]) / hr[bulk]
     worst = int(np.argmax(rel))
     og, orf = _profile_observables(xr, hg, ref["dx"]), _profile_observables(xr, hr, ref["dx"])
-    m = {"bulk_end_m": BULK_END_M,
+    m: dict[str, Any] = {"bulk_end_m": BULK_END_M,
          "bulk_max_rel_diff": float(rel.max()), "bulk_max_rel_diff_at_m": float(xr[bulk][worst]),
          "bulk_l1_rel_diff": float(np.sum(np.abs(hg[bulk] - hr[bulk])) / np.sum(hr[bulk])),
          "tail_l1_rel_diff": float(np.sum(np.abs(hg[~bulk] - hr[~bulk])) / np.sum(hr[~bulk])),
@@ -217,8 +217,8 @@ def peer_dry_column(n=REFERENCE_RESOLUTIONS, threads: int = 1, t_end: float = 3.
         peer_case(k)  # the parameter's check, before any run
     finest = max((k for k in ns if load_reference(k) is not None), default=None)
     tmp = tempfile.TemporaryDirectory() if out is None else None
-    base = Path(out) if out is not None else Path(tmp.name)
-    metrics = {"cells_per_hc": ns, "runs": {}}
+    base = Path(tmp.name) if tmp is not None else Path(str(out))
+    metrics: dict[str, Any] = {"cells_per_hc": ns, "runs": {}}
     verdicts = []
     try:
         for k in ns:

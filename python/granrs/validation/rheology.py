@@ -17,6 +17,7 @@ Every case returns (metrics, reference, passed). Geometry conventions:
 from __future__ import annotations
 
 import math
+from typing import Any, Optional
 
 import numpy as np
 
@@ -121,7 +122,7 @@ def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_
     independent check of the same discretisation."""
     grid = Grid(n, n, 1.0, 1.0)
     rheo = Bingham(bn) if bn > 0 else Newtonian()
-    kw = dict(plastic="papanastasiou", regularisation=float(regularised)) if regularised and bn > 0 else {}
+    kw: dict[str, Any] = dict(plastic="papanastasiou", regularisation=float(regularised)) if regularised and bn > 0 else {}
     m = Model(grid, Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)), rheology=rheo, threads=threads,
               numerics=Numerics(dt=dt, cfl_abort=100.0, convection=False, theta=theta, picard_tol=1e-8,
                                 picard_max_iterations=5000, pressure_update="rotational", anderson_depth=anderson_depth,
@@ -222,7 +223,7 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0, regularised_che
     ys = [r["vortex_y"] for r in rows]
     monotone = all(psis[i + 1] < psis[i] for i in range(len(psis) - 1)) and all(ys[i + 1] > ys[i] for i in range(len(ys) - 1))
     metrics["psi_decreases_and_vortex_rises"] = monotone
-    passed = monotone
+    passed: Optional[bool] = monotone
     reference = {"stokes_psi_max_abs": STOKES_CAVITY_PSI_MAX, "stokes_vortex_y": 0.765,
                  "stokes_centreline_u_min": STOKES_CAVITY_U_MIN,
                  "source": "Stokes cavity, Bn = 0 (docs/reference-data.md, \"Lid-driven cavity\"); centreline min u of the Stokes cavity: "
@@ -459,7 +460,7 @@ def run_block(slope: float, n: int = 32, dt: float = 1e-3, t_end: float = 0.2, u
     ph = H - yc
     hv = np.where(ph < -eps, 0.0, np.where(ph > eps, 1.0, 0.5 * (1 + ph / eps + np.sin(np.pi * ph / eps) / np.pi)))
     if u0:
-        m.set_initial(u=lambda x, y: u0 * np.interp(y, yc, hv))
+        m.set_initial(u=lambda x, y: np.asarray(u0 * np.interp(y, yc, hv)))
     t, U = [0.0], [float(np.sum(hv * m.u[:, 2]) / np.sum(hv))]
     while m.time < t_end - 1e-12:
         m.advance(max_steps=1)

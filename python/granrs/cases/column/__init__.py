@@ -47,24 +47,39 @@ from .build import _rheology_kwargs as _rheology_kwargs
 from .build import build_model, side_walls
 from .case import G, MODELS, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
 from .depth_averaged import build_depth_averaged, depth_averaged_front_depth, run_column_depth_averaged
-from .measures import (DEPOSIT_QUANTILE, basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position,
-                       surface_profile)
-from .outputs import _progress as _progress
-from .outputs import FRONT_NAMES, front_columns, write_energy, write_outputs
-from .plots import _front_band as _front_band
-from .plots import _front_label as _front_label
-from .plots import _label as _label
-from .plots import _read_front as _read_front
-from .plots import plot_energy, plot_fluidisation, plot_front, plot_profiles
+from .measures import (
+    DEPOSIT_QUANTILE,
+    basal_pore_pressure_ratio,
+    deposit_quantile,
+    farthest_material,
+    front_position,
+    surface_profile,
+)
+from .outputs import FRONT_NAMES, _progress as _progress, front_columns, write_energy, write_outputs
+from .plots import (
+    _front_band as _front_band,
+    _front_label as _front_label,
+    _label as _label,
+    _read_front as _read_front,
+    plot_energy,
+    plot_fluidisation,
+    plot_front,
+    plot_profiles,
+)
 from .run import FLUSH_RECORDS, run_column
-from .summaries import _energy_row as _energy_row
-from .summaries import _observables_summary as _observables_summary
-from .summaries import _record_observables as _record_observables
-from .summaries import ENERGY_COLUMNS, arrest_summary, energy_summary, fluidisation_summary
+from .summaries import (
+    ENERGY_COLUMNS,
+    _energy_row as _energy_row,
+    _observables_summary as _observables_summary,
+    _record_observables as _record_observables,
+    arrest_summary,
+    energy_summary,
+    fluidisation_summary,
+)
 
 __all__ = [
     "DEPOSIT_QUANTILE", "ENERGY_COLUMNS", "FLUSH_RECORDS", "FRONT_NAMES", "G", "MODELS",
-    "PAPER_RUNOUT_EXP", "PAPER_RUNOUT_SIM", "RUNOUT_TOLERANCE", "ColumnCase", "arrest_summary",
+    "PAPER_RUNOUT_EXP", "PAPER_RUNOUT_SIM", "ColumnCase", "arrest_summary",
     "basal_pore_pressure_ratio", "build_depth_averaged", "build_model", "deposit_quantile",
     "depth_averaged_front_depth", "energy_summary", "farthest_material", "fluidisation_summary", "front_columns",
     "front_position", "plot_energy", "plot_fluidisation", "plot_front", "plot_profiles", "run_column",

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, Union
 
 from ..._granrs import ParameterError
 from ...grid import Grid
 from ... import options
 from ...model import check_side_walls, estimate_memory, memory_check
-
 
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
@@ -143,7 +142,7 @@ class ColumnCase:
     # depth-averaged model only: earth-pressure coefficient k ("savage-hutter": the active
     # coefficient from friction_angle and wall_friction_angle, reduced by the pore pressure; or a
     # number; docs/models.md) and cells across min(L_c, H_c)
-    earth_pressure: object = "savage-hutter"
+    earth_pressure: Union[str, float] = "savage-hutter"
     da_resolution: int = 64
 
     def validate(self) -> None:

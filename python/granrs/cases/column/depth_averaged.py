@@ -8,13 +8,13 @@ import math
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
 from ... import __version__
 from ..._granrs import SimulationError
-from .case import G, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
+from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .measures import deposit_quantile
 from .outputs import write_outputs
 from .plots import plot_front, plot_profiles
@@ -61,8 +61,8 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
     lc, hc = case.width, case.column_height
     threshold = depth_averaged_front_depth(case)
     mass0 = m.mass()
-    rec = {"t": [], "front": [], "area": [], "max_granular_speed": []}
-    profiles = {}
+    rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": []}
+    profiles: dict = {}
     pending = sorted(case.profile_times)
     rest_since = None
     stop_reason = "t_end"
@@ -106,7 +106,7 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
     profiles["final"] = m.h.copy()
     front = np.array(rec["front"])
     area = np.array(rec["area"])
-    summary = {
+    summary: dict[str, Any] = {
         "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
         "runout_thin_m": m.front(1e-3 * hc) - lc, "farthest_material_m": m.front(1e-6 * hc) - lc,
         "runout_q99_m": deposit_quantile(profiles["final"], m.dx, lc),

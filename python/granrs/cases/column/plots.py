@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
@@ -160,7 +160,8 @@ def plot_profiles(out: Path) -> None:
     cmap = plt.get_cmap("viridis")
     for n, (k, name) in enumerate(cols):
         label = "final deposit" if name == "h_final" else f"t = {float(name[2:]):g} s"
-        style = dict(color="k", lw=2) if name == "h_final" else dict(color=cmap(n / max(1, len(cols) - 1)), lw=1)
+        style: dict[str, Any] = (dict(color="k", lw=2) if name == "h_final"
+                                 else dict(color=cmap(n / max(1, len(cols) - 1)), lw=1))
         ax.plot(data[:, 0], data[:, k], label=label, **style)
     if "hvol_final" in header and meta.get("model") != "depth-averaged":
         ax.plot(data[:, 0], data[:, header.index("hvol_final")], color="C3", ls="--", lw=1.2,

@@ -7,12 +7,11 @@ from __future__ import annotations
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
-from ... import __version__
-from ... import observables as obs
+from ... import __version__, observables as obs
 from ..._granrs import ParameterError, SimulationError, SolverError
 from ...io.outputs import OutputError, RunOutputs
 from ...simulation import Callback, Simulation
@@ -23,7 +22,6 @@ from .measures import basal_pore_pressure_ratio, deposit_quantile, farthest_mate
 from .outputs import _progress, write_energy, write_outputs
 from .plots import plot_energy, plot_fluidisation, plot_front, plot_profiles
 from .summaries import _observables_summary, _record_observables, arrest_summary, energy_summary, fluidisation_summary
-
 
 #: run_column rewrites summary.json, front.csv and history.npz every this many records (0.1 s)
 FLUSH_RECORDS = 10
@@ -60,15 +58,15 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     lc = case.width
     outputs = outputs if outputs is not None else RunOutputs(out)
     area0 = outputs.start_area or model.dense_area()
-    rec = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
+    rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
     # fluidisation: the basal pore pressure over the weight, under the reservoir and in the channel
     fluid = model.pore_pressure is not None
     xs_c = (np.arange(grid.nx) + 0.5) * grid.dx
     under_reservoir = xs_c < lc
     if fluid:
         rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
-    profiles = {}
-    state = {"rest_since": None}
+    profiles: dict = {}
+    state: dict[str, Optional[float]] = {"rest_since": None}
     pending_profiles = sorted(case.profile_times)
 
     def granular_speed() -> float:
@@ -100,8 +98,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         while pending_profiles and t >= pending_profiles[0] - 1e-9:
             profiles[round(pending_profiles.pop(0), 6)] = surface_profile(model.phi, grid.dy)
         if t > 0.1 and speed < case.rest_speed:
-            state["rest_since"] = state["rest_since"] if state["rest_since"] is not None else t
-            if t - state["rest_since"] >= case.rest_duration:
+            since = state["rest_since"] = state["rest_since"] if state["rest_since"] is not None else t
+            if t - since >= case.rest_duration:
                 sim.stop, sim.stop_reason = True, "rest"
         else:
             state["rest_since"] = None
@@ -126,7 +124,8 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     hist = sim.history_arrays()
     front = np.array(rec["front"])
     area = np.array(rec["area"])
-    summary = {
+    walls = side_walls(case)
+    summary: dict[str, Any] = {
         "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
         "runout_q99_m": deposit_quantile(profiles["final"], grid.dx, lc),
         "farthest_material_m": farthest_material(model.phi, grid.dx) - lc, "t_end_s": model.time, "steps": model.step_count,
@@ -135,8 +134,7 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
         "interface_yield": case.interface_yield, "wall_normal_stress": case.wall_normal_stress,
         "yield_pressure": case.yield_pressure, "sigma_location": case.sigma_location,
-        "channel_width_m": case.channel_width, "side_wall_friction_angle": (None if case.channel_width is None else
-                                                                             side_walls(case).friction_angle),
+        "channel_width_m": case.channel_width, "side_wall_friction_angle": None if walls is None else walls.friction_angle,
         "r_neighbourhood": case.r_neighbourhood,
         "active_region": case.active_region,
         "active_region_sides": case.active_region_sides, "threads": case.threads, "version": __version__,
