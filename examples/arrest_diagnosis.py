@@ -49,8 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs.cases.column import build as col
-from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
+from granrs.cases.column import ColumnCase, build as col, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, thickness_front, volume_profile
 
 VARIANTS = {
@@ -69,15 +68,33 @@ VARIANTS = {
     # Uzawa (θ = 0: the fixed point is eq. 11 itself) with Anderson mixing
     "uzawa-anderson-10": {"case": {"theta": 0.0}, "anderson_depth": 10},
     "theta-0.3-anderson-5": {"case": {"theta": 0.3}, "anderson_depth": 5},
-    "density-support-proximal-20": {"case": {"interface_yield": "density-support", "proximal_restarts": 20}, "anderson_depth": 5},
-    "no-mass-correction-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "mass_correction": False},
+    "density-support-proximal-20": {
+        "case": {"interface_yield": "density-support", "proximal_restarts": 20},
+        "anderson_depth": 5,
+    },
+    "no-mass-correction-proximal-20": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "mass_correction": False,
+    },
     "redistance-50-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "redistance_every": 50},
-    "no-mass-correction-redistance-50-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5,
-                                                     "redistance_every": 50, "mass_correction": False},
-    "no-mass-correction-no-redistancing-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5,
-                                                       "redistance_every": 0, "mass_correction": False},
-    "density-support-no-mass-correction-proximal-20": {"case": {"interface_yield": "density-support", "proximal_restarts": 20},
-                                                       "anderson_depth": 5, "mass_correction": False},
+    "no-mass-correction-redistance-50-proximal-20": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "redistance_every": 50,
+        "mass_correction": False,
+    },
+    "no-mass-correction-no-redistancing-proximal-20": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "redistance_every": 0,
+        "mass_correction": False,
+    },
+    "density-support-no-mass-correction-proximal-20": {
+        "case": {"interface_yield": "density-support", "proximal_restarts": 20},
+        "anderson_depth": 5,
+        "mass_correction": False,
+    },
 }
 
 
@@ -132,7 +149,11 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         granular = phi > 0
         j, i = np.unravel_index(np.argmax(np.where(granular, speed, -1.0)), speed.shape)
         row["speed_granular"] = float(speed[j, i])
-        row["where_x"], row["where_y"], row["where_phi_over_h"] = (i + 0.5) * g.dx - lc, (j + 0.5) * g.dy, phi[j, i] / g.dy
+        row["where_x"], row["where_y"], row["where_phi_over_h"] = (
+            (i + 0.5) * g.dx - lc,
+            (j + 0.5) * g.dy,
+            phi[j, i] / g.dy,
+        )
         tn = m.trial_norm
         row["trial_norm_bulk_max"] = float(tn[groups["bulk"]].max()) if groups["bulk"].any() else 0.0
         b = m.energy_budget()
@@ -156,16 +177,26 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     imax = int(np.argmax(front))
     late = t >= 1.5
     out = {
-        "variant": name, "wall_s": wall, "steps": m.step_count,
-        "max_front_m": float(front[imax]), "max_front_time_s": float(t[imax]), "front_end_m": float(front[-1]),
-        "retreat_m": float(front[imax] - front[-1]), "retreat_cells": float((front[imax] - front[-1]) / g.dx),
+        "variant": name,
+        "wall_s": wall,
+        "steps": m.step_count,
+        "max_front_m": float(front[imax]),
+        "max_front_time_s": float(t[imax]),
+        "front_end_m": float(front[-1]),
+        "retreat_m": float(front[imax] - front[-1]),
+        "retreat_cells": float((front[imax] - front[-1]) / g.dx),
         "area_rel_drift": float(np.max(np.abs(area / area[0] - 1.0))),
-        "late_speed_max": {key: float(max(r[f"speed_{key}"] for r, is_late in zip(rows, late) if is_late))
-                           for key in ("bulk", "band", "air_band", "granular")},
+        "late_speed_max": {
+            key: float(max(r[f"speed_{key}"] for r, is_late in zip(rows, late) if is_late))
+            for key in ("bulk", "band", "air_band", "granular")
+        },
         "speed_at_end": {key: rows[-1][f"speed_{key}"] for key in ("bulk", "band", "air_band", "granular")},
         "trial_norm_bulk_max_late": float(max(r["trial_norm_bulk_max"] for r, is_late in zip(rows, late) if is_late)),
-        "where_at_end": {"x_from_gate_m": rows[-1]["where_x"], "y_m": rows[-1]["where_y"],
-                         "phi_over_h": rows[-1]["where_phi_over_h"]},
+        "where_at_end": {
+            "x_from_gate_m": rows[-1]["where_x"],
+            "y_m": rows[-1]["where_y"],
+            "phi_over_h": rows[-1]["where_phi_over_h"],
+        },
     }
     i15 = int(np.searchsorted(t, 1.5 - 1e-9))
     out["plastic_work_after_1p5_J_m"] = rows[-1]["plastic_work"] - rows[i15]["plastic_work"]
@@ -180,8 +211,12 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     if arrest is not None:
         after = t > arrest + case.rest_duration
         out["profile_change_after_arrest_m"] = float(np.max(np.abs(surface_profile(m.phi, g.dy) - arrest_profile[0])))
-        out["volume_profile_change_after_arrest_m"] = float(np.max(np.abs(volume_profile(m.phi, g.dy) - arrest_profile[1])))
-        out["granular_speed_after_arrest_max"] = float(max((r["speed_granular"] for r, l in zip(rows, after) if l), default=0.0))
+        out["volume_profile_change_after_arrest_m"] = float(
+            np.max(np.abs(volume_profile(m.phi, g.dy) - arrest_profile[1]))
+        )
+        out["granular_speed_after_arrest_max"] = float(
+            max((r["speed_granular"] for r, is_after in zip(rows, after) if is_after), default=0.0)
+        )
         out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
     if 1.5 in profiles and t_end in profiles:
         out["profile_change_1p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[1.5])))

@@ -31,32 +31,47 @@ def main() -> None:
     ap.add_argument("--out", default="out/calibration")
     args = ap.parse_args()
 
-    cfg = load_config("examples/paper_fluidised.toml",
-                      [f"grid.ny={args.ny}", f"numerics.t_end={args.t_end}", "output.fields_every_s=0",
-                       "output.animation=false"])
+    cfg = load_config(
+        "examples/paper_fluidised.toml",
+        [f"grid.ny={args.ny}", f"numerics.t_end={args.t_end}", "output.fields_every_s=0", "output.animation=false"],
+    )
     t0 = time.perf_counter()
-    result = run_sweep(cfg, [f"materials.diffusivity={args.kappa}", f"materials.granular_viscosity={args.eta}"],
-                       workers=args.workers, out=args.out)
+    result = run_sweep(
+        cfg,
+        [f"materials.diffusivity={args.kappa}", f"materials.granular_viscosity={args.eta}"],
+        workers=args.workers,
+        out=args.out,
+    )
     wall = time.perf_counter() - t0
 
-    print(f"{len(result.table)} members, ny = {args.ny}, t_end = {args.t_end} s, {args.workers} workers: {wall:.1f} s wall")
+    print(
+        f"{len(result.table)} members, ny = {args.ny}, t_end = {args.t_end} s, {args.workers} workers: {wall:.1f} s wall"
+    )
     print(f"{'kappa_f':>8} {'eta_s':>6} {'status':>7} {'t (s)':>6} {'run-out (m)':>11}  stop reason")
     for r in result.table:
-        print(f"{r['materials.diffusivity']:8.3g} {r['materials.granular_viscosity']:6.3g} {r['status']:>7} "
-              f"{r['t_end_s']:6.3f} {r['runout_m']:11.4f}  {r['stop_reason'][:70]}")
+        print(
+            f"{r['materials.diffusivity']:8.3g} {r['materials.granular_viscosity']:6.3g} {r['status']:>7} "
+            f"{r['t_end_s']:6.3f} {r['runout_m']:11.4f}  {r['stop_reason'][:70]}"
+        )
     finished = [r for r in result.table if r["status"] == "ok"]
     if not finished:
-        print(f"\nno fit: every member stopped early, so every run-out above is only a lower bound at the time the "
-              f"run stopped; the experimental {PAPER_RUNOUT_EXP} m cannot be matched until the runs reach rest.")
+        print(
+            f"\nno fit: every member stopped early, so every run-out above is only a lower bound at the time the "
+            f"run stopped; the experimental {PAPER_RUNOUT_EXP} m cannot be matched until the runs reach rest."
+        )
     else:
         best = min(finished, key=lambda r: abs(r["runout_m"] - PAPER_RUNOUT_EXP))
-        print(f"\nclosest to the experiment ({PAPER_RUNOUT_EXP} m) among {len(finished)} finished members: "
-              f"kappa_f = {best['materials.diffusivity']:g} m2/s, eta_s = {best['materials.granular_viscosity']:g} Pa s, "
-              f"run-out {best['runout_m']:.4f} m (misfit {best['runout_m'] - PAPER_RUNOUT_EXP:+.4f} m) on a coarse "
-              f"ny = {args.ny} grid; the best point of a {len(result.table)}-point grid, not an optimum.")
+        print(
+            f"\nclosest to the experiment ({PAPER_RUNOUT_EXP} m) among {len(finished)} finished members: "
+            f"kappa_f = {best['materials.diffusivity']:g} m2/s, eta_s = {best['materials.granular_viscosity']:g} Pa s, "
+            f"run-out {best['runout_m']:.4f} m (misfit {best['runout_m'] - PAPER_RUNOUT_EXP:+.4f} m) on a coarse "
+            f"ny = {args.ny} grid; the best point of a {len(result.table)}-point grid, not an optimum."
+        )
         if best["stop_reason"] != "rest":
-            print(f"note: that member stopped by '{best['stop_reason']}', not at rest: its run-out is the front "
-                  f"position at t = {best['t_end_s']:.3g} s.")
+            print(
+                f"note: that member stopped by '{best['stop_reason']}', not at rest: its run-out is the front "
+                f"position at t = {best['t_end_s']:.3g} s."
+            )
     print("wrote " + ", ".join(str(p) for p in result.files.values()))
 
 

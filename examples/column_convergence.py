@@ -58,11 +58,14 @@ def case_for(ny: int, fluidised: bool, threads: int, channel_width, air_supply: 
     """The study's case on the grid ny: the whole domain below ACTIVE_REGION_FROM_NY, the open
     active window (BAND = ny/16) from it up."""
     window = dict(active_region=ny // 16, active_region_sides="open-right-top") if ny >= ACTIVE_REGION_FROM_NY else {}
-    return ColumnCase(ny=ny, fluidised=fluidised, threads=threads, channel_width=channel_width, air_supply=air_supply,
-                      **window)
+    return ColumnCase(
+        ny=ny, fluidised=fluidised, threads=threads, channel_width=channel_width, air_supply=air_supply, **window
+    )
 
 
-def run_or_load(ny: int, fluidised: bool, out: Path, threads: int, channel_width=None, air_supply: str = "injection") -> dict:
+def run_or_load(
+    ny: int, fluidised: bool, out: Path, threads: int, channel_width=None, air_supply: str = "injection"
+) -> dict:
     """The run's summary.json, running the case first if it is not there yet."""
     name = ("fluidised" if fluidised else "dry") + ("-literal" if air_supply == "literal" else "")
     folder = out / f"{name}-{ny}"
@@ -117,14 +120,28 @@ def write_ensemble_statistics(specs: list, path: Path = ENSEMBLE) -> None:
         members = sorted(Path(folder).glob("member-*/summary.json"))
         summaries = [json.loads(m.read_text()) for m in members]
         for key in ["runout_m"] + observable_keys() + ["centre_of_mass_travel_m"]:
-            vals = np.array([s["runout_m"] if key == "runout_m" else s["observables"][key] for s in summaries], dtype=float)
-            rows.append({"ny": summaries[0]["ny"], "state": state, "observable": key, "members": len(vals),
-                         "mean_m": vals.mean(), "std_m": vals.std(ddof=1), "min_m": vals.min(), "max_m": vals.max()})
+            vals = np.array(
+                [s["runout_m"] if key == "runout_m" else s["observables"][key] for s in summaries], dtype=float
+            )
+            rows.append(
+                {
+                    "ny": summaries[0]["ny"],
+                    "state": state,
+                    "observable": key,
+                    "members": len(vals),
+                    "mean_m": vals.mean(),
+                    "std_m": vals.std(ddof=1),
+                    "min_m": vals.min(),
+                    "max_m": vals.max(),
+                }
+            )
     with open(path, "w", newline="") as f:
-        f.write("# Round-off ensembles of the column's observables (granrs.observables; summary.json[\"observables\"]):\n"
-                "# examples/runout_ensemble.py --ny 32 --members 8 [--dry], member k with the column width scaled by\n"
-                "# 1 + k*1e-12, then examples/column_convergence.py --ensemble fluidised=DIR dry=DIR.\n"
-                "# 2-core x86-64 VM, 2026-12-01. Statistics over the members (std with ddof = 1): regression reference.\n")
+        f.write(
+            '# Round-off ensembles of the column\'s observables (granrs.observables; summary.json["observables"]):\n'
+            "# examples/runout_ensemble.py --ny 32 --members 8 [--dry], member k with the column width scaled by\n"
+            "# 1 + k*1e-12, then examples/column_convergence.py --ensemble fluidised=DIR dry=DIR.\n"
+            "# 2-core x86-64 VM, 2026-12-01. Statistics over the members (std with ddof = 1): regression reference.\n"
+        )
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         for row in rows:
@@ -136,12 +153,26 @@ def main() -> None:
     ap.add_argument("--ny", type=int, nargs="+", default=[32, 64, 128, 256])
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default="out/convergence")
-    ap.add_argument("--channel-width", dest="channel_width", type=float, default=None,
-                    help="friction of side walls this far apart (m; not in the paper's 2D model)")
-    ap.add_argument("--literal-sign", dest="literal_sign", action="store_true",
-                    help="also run the fluidised column with the printed sign of the air supply (an outflow)")
-    ap.add_argument("--ensemble", nargs="+", metavar="STATE=DIR", default=None,
-                    help="write the round-off spreads of the observables of these ensembles and stop")
+    ap.add_argument(
+        "--channel-width",
+        dest="channel_width",
+        type=float,
+        default=None,
+        help="friction of side walls this far apart (m; not in the paper's 2D model)",
+    )
+    ap.add_argument(
+        "--literal-sign",
+        dest="literal_sign",
+        action="store_true",
+        help="also run the fluidised column with the printed sign of the air supply (an outflow)",
+    )
+    ap.add_argument(
+        "--ensemble",
+        nargs="+",
+        metavar="STATE=DIR",
+        default=None,
+        help="write the round-off spreads of the observables of these ensembles and stop",
+    )
     args = ap.parse_args()
     if args.ensemble:
         write_ensemble_statistics(args.ensemble)
@@ -152,9 +183,18 @@ def main() -> None:
     rows = []
     for ny in sorted(args.ny):
         wet, dry = (run_or_load(ny, fl, out, args.threads, args.channel_width) for fl in (True, False))
-        rows.append({"ny": ny, "h_m": wet["h_m"], "runout_fluidised_m": wet["runout_m"], "runout_dry_m": dry["runout_m"],
-                     "ratio": wet["runout_m"] / dry["runout_m"], "wall_fluidised_s": wet["wall_s"], "wall_dry_s": dry["wall_s"],
-                     "mass_rel_error_max": max(wet["mass_rel_error"], dry["mass_rel_error"])})
+        rows.append(
+            {
+                "ny": ny,
+                "h_m": wet["h_m"],
+                "runout_fluidised_m": wet["runout_m"],
+                "runout_dry_m": dry["runout_m"],
+                "ratio": wet["runout_m"] / dry["runout_m"],
+                "wall_fluidised_s": wet["wall_s"],
+                "wall_dry_s": dry["wall_s"],
+                "mass_rel_error_max": max(wet["mass_rel_error"], dry["mass_rel_error"]),
+            }
+        )
     for prev, row in zip(rows, rows[1:]):
         row["diff_fluidised_m"] = row["runout_fluidised_m"] - prev["runout_fluidised_m"]
         row["diff_dry_m"] = row["runout_dry_m"] - prev["runout_dry_m"]
@@ -174,14 +214,22 @@ def main() -> None:
     for state, fl, supply in states:
         summaries = [run_or_load(ny, fl, out, args.threads, args.channel_width, supply) for ny in sorted(args.ny)]
         obs_rows += convergence_rows(state, summaries)
-    keys = ["state", "observable"] + [f"ny{ny}" for ny in sorted(args.ny)] + [f"d{ny}" for ny in sorted(args.ny)[1:]] + [
-        "ratio", "extrapolated", "error_bar", "round_off_std_ny32"]
+    keys = (
+        ["state", "observable"]
+        + [f"ny{ny}" for ny in sorted(args.ny)]
+        + [f"d{ny}" for ny in sorted(args.ny)[1:]]
+        + ["ratio", "extrapolated", "error_bar", "round_off_std_ny32"]
+    )
     with open(out / "observables.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys)
         w.writeheader()
         for row in obs_rows:
-            w.writerow({k: (f"{row[k]:.5g}" if isinstance(row.get(k), float) else ("" if row.get(k) is None else row[k]))
-                        for k in keys})
+            w.writerow(
+                {
+                    k: (f"{row[k]:.5g}" if isinstance(row.get(k), float) else ("" if row.get(k) is None else row[k]))
+                    for k in keys
+                }
+            )
 
     import matplotlib
 
@@ -192,14 +240,21 @@ def main() -> None:
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     ax.plot(h, [r["runout_fluidised_m"] for r in rows], "o-", label="fluidised (β = 0.9)")
     ax.plot(h, [r["runout_dry_m"] for r in rows], "s-", label="non-fluidised")
-    ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation (h = 1.76 mm): {PAPER_RUNOUT_SIM} m")
+    ax.axhline(
+        PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation (h = 1.76 mm): {PAPER_RUNOUT_SIM} m"
+    )
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"paper, experiment: {PAPER_RUNOUT_EXP} m")
     ax.axvline(0.45 / 256 * 1e3, color="grey", lw=0.8)
     walls = f", side walls {100 * args.channel_width:g} cm apart" if args.channel_width else ""
-    ax.set(xscale="log", xlabel="cell size h (mm)", ylabel="run-out from the gate (m)",
-           title=f"Column collapse{walls}: run-out against the grid")
+    ax.set(
+        xscale="log",
+        xlabel="cell size h (mm)",
+        ylabel="run-out from the gate (m)",
+        title=f"Column collapse{walls}: run-out against the grid",
+    )
     ax.grid(alpha=0.3, which="both")
     from matplotlib.ticker import NullFormatter, ScalarFormatter
+
     ax.xaxis.set_major_formatter(ScalarFormatter())
     ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xticks(sorted(set(np.round(h, 2).tolist() + [round(0.45 / 256 * 1e3, 2)])))
@@ -211,10 +266,17 @@ def main() -> None:
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
     for k, row in enumerate(rows):
         for fl, style in ((True, "-"), (False, "--")):
-            data = np.genfromtxt(out / f"{'fluidised' if fl else 'dry'}-{row['ny']}" / "front.csv", delimiter=",",
-                                 skip_header=1, ndmin=2)
-            ax.plot(data[:, 0], data[:, 1], style, color=f"C{k}", lw=1.5,
-                    label=f"ny = {row['ny']}, {'fluidised' if fl else 'dry'}")
+            data = np.genfromtxt(
+                out / f"{'fluidised' if fl else 'dry'}-{row['ny']}" / "front.csv", delimiter=",", skip_header=1, ndmin=2
+            )
+            ax.plot(
+                data[:, 0],
+                data[:, 1],
+                style,
+                color=f"C{k}",
+                lw=1.5,
+                label=f"ny = {row['ny']}, {'fluidised' if fl else 'dry'}",
+            )
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=0.8)
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.2)
     ax.set(xlabel="t (s)", ylabel="front position from the gate (m)", title=f"Column collapse{walls}: front curves")

@@ -49,7 +49,10 @@ def main() -> None:
             s = column.run_column(case, Path(args.out) / name, progress=False)
         finally:
             build.Numerics = original
-        print(json.dumps({"variant": name, **{k: s[k] for k in ("runout_m", "max_front_m", "wall_s", "steps")}}), flush=True)
+        print(
+            json.dumps({"variant": name, **{k: s[k] for k in ("runout_m", "max_front_m", "wall_s", "steps")}}),
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

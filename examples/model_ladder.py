@@ -76,27 +76,59 @@ def main() -> None:
             tp = run(replace(base, model="two-phase"), out / f"two-phase-{tag}", args.reuse)
             length = tp["case"]["length"]  # None unless the channel had to be lengthened
             da = run(replace(base, model="depth-averaged", length=length), out / f"depth-averaged-{tag}")
-            fine = run(replace(base, model="depth-averaged", length=length, da_resolution=128),
-                       out / f"depth-averaged-fine-{tag}")
-            k1 = run(replace(base, model="depth-averaged", length=length, earth_pressure=1.0),
-                     out / f"depth-averaged-k1-{tag}")
+            fine = run(
+                replace(base, model="depth-averaged", length=length, da_resolution=128),
+                out / f"depth-averaged-fine-{tag}",
+            )
+            k1 = run(
+                replace(base, model="depth-averaged", length=length, earth_pressure=1.0),
+                out / f"depth-averaged-k1-{tag}",
+            )
             rel = (da["runout_m"] - tp["runout_m"]) / tp["runout_m"]
-            row = {"aspect_ratio": a, "fluidised": fluidised, "runout_two_phase_m": tp["runout_m"],
-                   "runout_depth_averaged_m": da["runout_m"], "rel_diff": rel,
-                   "within_tolerance": abs(rel) <= RUNOUT_TOLERANCE,
-                   "runout_depth_averaged_fine_m": fine["runout_m"], "runout_depth_averaged_thin_m": da["runout_thin_m"],
-                   "runout_depth_averaged_k1_m": k1["runout_m"],
-                   "rel_diff_k1": (k1["runout_m"] - tp["runout_m"]) / tp["runout_m"],
-                   "front_depth_m": da["front_depth_m"], "t_end_two_phase_s": tp["t_end_s"],
-                   "t_end_depth_averaged_s": da["t_end_s"], "stop_two_phase": tp["stop_reason"],
-                   "stop_depth_averaged": da["stop_reason"], "wall_two_phase_s": tp["wall_s"],
-                   "wall_depth_averaged_s": da["wall_s"], "cells_two_phase": tp["cells"],
-                   "cells_depth_averaged": da["cells"], "channel_m": tp["nx"] * tp["h_m"]}
+            row = {
+                "aspect_ratio": a,
+                "fluidised": fluidised,
+                "runout_two_phase_m": tp["runout_m"],
+                "runout_depth_averaged_m": da["runout_m"],
+                "rel_diff": rel,
+                "within_tolerance": abs(rel) <= RUNOUT_TOLERANCE,
+                "runout_depth_averaged_fine_m": fine["runout_m"],
+                "runout_depth_averaged_thin_m": da["runout_thin_m"],
+                "runout_depth_averaged_k1_m": k1["runout_m"],
+                "rel_diff_k1": (k1["runout_m"] - tp["runout_m"]) / tp["runout_m"],
+                "front_depth_m": da["front_depth_m"],
+                "t_end_two_phase_s": tp["t_end_s"],
+                "t_end_depth_averaged_s": da["t_end_s"],
+                "stop_two_phase": tp["stop_reason"],
+                "stop_depth_averaged": da["stop_reason"],
+                "wall_two_phase_s": tp["wall_s"],
+                "wall_depth_averaged_s": da["wall_s"],
+                "cells_two_phase": tp["cells"],
+                "cells_depth_averaged": da["cells"],
+                "channel_m": tp["nx"] * tp["h_m"],
+            }
             rows.append(row)
-            print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()
-                              if k in ("aspect_ratio", "fluidised", "runout_two_phase_m", "runout_depth_averaged_m",
-                                       "rel_diff", "runout_depth_averaged_fine_m", "rel_diff_k1", "wall_two_phase_s",
-                                       "wall_depth_averaged_s")}), flush=True)
+            print(
+                json.dumps(
+                    {
+                        k: (round(v, 4) if isinstance(v, float) else v)
+                        for k, v in row.items()
+                        if k
+                        in (
+                            "aspect_ratio",
+                            "fluidised",
+                            "runout_two_phase_m",
+                            "runout_depth_averaged_m",
+                            "rel_diff",
+                            "runout_depth_averaged_fine_m",
+                            "rel_diff_k1",
+                            "wall_two_phase_s",
+                            "wall_depth_averaged_s",
+                        )
+                    }
+                ),
+                flush=True,
+            )
     img = ROOT / "docs" / "img"
     img.mkdir(parents=True, exist_ok=True)
     with open(img / "model_ladder.csv", "w", newline="") as f:
@@ -109,7 +141,9 @@ def main() -> None:
         ok = [r["within_tolerance"] for r in rows if r["fluidised"] == fluidised]
         n_ok = next((i for i, v in enumerate(ok) if not v), len(ok))
         a_max = ASPECT_RATIOS[n_ok - 1] if n_ok else None
-        print(f"agreement within {RUNOUT_TOLERANCE:.0%}, {'fluidised' if fluidised else 'non-fluidised'}: from the smallest a up to a = {a_max}")
+        print(
+            f"agreement within {RUNOUT_TOLERANCE:.0%}, {'fluidised' if fluidised else 'non-fluidised'}: from the smallest a up to a = {a_max}"
+        )
     print(f"total wall time {time.perf_counter() - t_start:.0f} s")
 
 
@@ -125,18 +159,37 @@ def plot(rows: list, path: Path) -> None:
         a = [r["aspect_ratio"] for r in rs]
         name = "fluidised" if fluidised else "non-fluidised"
         ax1.plot(a, [r["runout_two_phase_m"] for r in rs], f"C{k}o-", label=f"two-phase, ny = 32, {name}")
-        ax1.plot(a, [r["runout_depth_averaged_m"] for r in rs], f"C{k}s--", mfc="none",
-                 label=f"depth-averaged (Savage–Hutter k), {name}")
-        ax1.plot(a, [r["runout_depth_averaged_k1_m"] for r in rs], f"C{k}^:", mfc="none", alpha=0.6,
-                 label=f"depth-averaged, k = 1, {name}")
+        ax1.plot(
+            a,
+            [r["runout_depth_averaged_m"] for r in rs],
+            f"C{k}s--",
+            mfc="none",
+            label=f"depth-averaged (Savage–Hutter k), {name}",
+        )
+        ax1.plot(
+            a,
+            [r["runout_depth_averaged_k1_m"] for r in rs],
+            f"C{k}^:",
+            mfc="none",
+            alpha=0.6,
+            label=f"depth-averaged, k = 1, {name}",
+        )
         ax2.plot(a, [100 * r["rel_diff"] for r in rs], f"C{k}s--", mfc="none", label=f"Savage–Hutter k, {name}")
         ax2.plot(a, [100 * r["rel_diff_k1"] for r in rs], f"C{k}^:", mfc="none", alpha=0.6, label=f"k = 1, {name}")
-    ax1.set(xscale="log", xlabel="aspect ratio a = H_c / L_c", ylabel="run-out from the gate (m)",
-            title="Column collapse: run-out of the two models")
+    ax1.set(
+        xscale="log",
+        xlabel="aspect ratio a = H_c / L_c",
+        ylabel="run-out from the gate (m)",
+        title="Column collapse: run-out of the two models",
+    )
     ax2.axhspan(-100 * RUNOUT_TOLERANCE, 100 * RUNOUT_TOLERANCE, color="0.85", label="±5 %")
     ax2.axhline(0, color="k", lw=0.8)
-    ax2.set(xscale="log", xlabel="aspect ratio a = H_c / L_c", ylabel="(depth-averaged − two-phase) / two-phase (%)",
-            title="Relative difference of the run-out")
+    ax2.set(
+        xscale="log",
+        xlabel="aspect ratio a = H_c / L_c",
+        ylabel="(depth-averaged − two-phase) / two-phase (%)",
+        title="Relative difference of the run-out",
+    )
     from matplotlib.ticker import NullFormatter
 
     for ax in (ax1, ax2):

@@ -96,9 +96,14 @@ def divergence_time(t_common: np.ndarray, fronts: np.ndarray, threshold: float =
 def statistics(values: list[float]) -> dict:
     v = np.asarray(values, dtype=float)
     mean = float(v.mean())
-    return {"mean": mean, "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "min": float(v.min()),
-            "max": float(v.max()), "relative_spread": float((v.max() - v.min()) / mean) if mean else float("nan"),
-            "n": int(v.size)}
+    return {
+        "mean": mean,
+        "std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
+        "min": float(v.min()),
+        "max": float(v.max()),
+        "relative_spread": float((v.max() - v.min()) / mean) if mean else float("nan"),
+        "n": int(v.size),
+    }
 
 
 def compare(summary: dict, other: dict) -> dict:
@@ -111,8 +116,11 @@ def compare(summary: dict, other: dict) -> dict:
         if not (isinstance(a, dict) and isinstance(b, dict) and "mean" in a and "mean" in b) or not b["mean"]:
             continue
         se = math.sqrt(a["std"] ** 2 / a["n"] + b["std"] ** 2 / b["n"])
-        out[key] = {"difference": a["mean"] - b["mean"], "relative_difference": a["mean"] / b["mean"] - 1.0,
-                    "relative_standard_error": se / abs(b["mean"])}
+        out[key] = {
+            "difference": a["mean"] - b["mean"],
+            "relative_difference": a["mean"] / b["mean"] - 1.0,
+            "relative_standard_error": se / abs(b["mean"]),
+        }
     return out
 
 
@@ -123,30 +131,59 @@ def main() -> None:
     ap.add_argument("--eps", type=float, default=1e-12, help="relative perturbation of the width per member")
     ap.add_argument("--model", default="two-phase", choices=["two-phase", "granular"])
     ap.add_argument("--active-region", type=int, default=None)
-    ap.add_argument("--active-region-sides", default="walls", choices=ACTIVE_REGION_SIDES,
-                    help="the window's right and top sides (ColumnCase.active_region_sides)")
+    ap.add_argument(
+        "--active-region-sides",
+        default="walls",
+        choices=ACTIVE_REGION_SIDES,
+        help="the window's right and top sides (ColumnCase.active_region_sides)",
+    )
     ap.add_argument("--dry", action="store_true")
     ap.add_argument("--t-end", type=float, default=None)
-    ap.add_argument("--theta", type=float, default=None, help="the Picard relaxation θ of eq. (12) (ColumnCase.theta; default 0.8)")
-    ap.add_argument("--channel-width", dest="channel_width", type=float, default=None,
-                    help="the friction of side walls this far apart (m; ColumnCase.channel_width; not in the paper's model)")
+    ap.add_argument(
+        "--theta", type=float, default=None, help="the Picard relaxation θ of eq. (12) (ColumnCase.theta; default 0.8)"
+    )
+    ap.add_argument(
+        "--channel-width",
+        dest="channel_width",
+        type=float,
+        default=None,
+        help="the friction of side walls this far apart (m; ColumnCase.channel_width; not in the paper's model)",
+    )
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default=None)
-    ap.add_argument("--compare-with", default=None, metavar="DIR",
-                    help="another ensemble's output folder: writes comparison.json (differences of the means, ± standard error)")
+    ap.add_argument(
+        "--compare-with",
+        default=None,
+        metavar="DIR",
+        help="another ensemble's output folder: writes comparison.json (differences of the means, ± standard error)",
+    )
     args = ap.parse_args()
     if args.members < 2:
         raise SystemExit(f"invalid parameter `--members` = {args.members}: allowed an integer >= 2")
-    tag = (f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}" + (f"-band{args.active_region}" if args.active_region else "")
-           + (f"-{args.active_region_sides}" if args.active_region and args.active_region_sides != "walls" else "")
-           + (f"-theta{args.theta:g}" if args.theta is not None else "")
-           + (f"-walls{args.channel_width:g}" if args.channel_width is not None else ""))
+    tag = (
+        f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}"
+        + (f"-band{args.active_region}" if args.active_region else "")
+        + (f"-{args.active_region_sides}" if args.active_region and args.active_region_sides != "walls" else "")
+        + (f"-theta{args.theta:g}" if args.theta is not None else "")
+        + (f"-walls{args.channel_width:g}" if args.channel_width is not None else "")
+    )
     out = Path(args.out or f"out/ensemble-{tag}")
     out.mkdir(parents=True, exist_ok=True)
 
-    extra = {k: v for k, v in (("t_end", args.t_end), ("theta", args.theta), ("channel_width", args.channel_width)) if v is not None}
-    base = ColumnCase(ny=args.ny, fluidised=not args.dry, model=args.model, active_region=args.active_region,
-                      active_region_sides=args.active_region_sides, threads=args.threads, **extra)
+    extra = {
+        k: v
+        for k, v in (("t_end", args.t_end), ("theta", args.theta), ("channel_width", args.channel_width))
+        if v is not None
+    }
+    base = ColumnCase(
+        ny=args.ny,
+        fluidised=not args.dry,
+        model=args.model,
+        active_region=args.active_region,
+        active_region_sides=args.active_region_sides,
+        threads=args.threads,
+        **extra,
+    )
     rows, curves = [], []
     for k in range(args.members):
         folder = out / f"member-{k}"
@@ -156,9 +193,15 @@ def main() -> None:
         s = json.loads((folder / "summary.json").read_text())
         t, f = read_front(folder)
         curves.append((t, f))
-        row = {"member": k, "width_rel_perturbation": k * args.eps, "runout_m": s["runout_m"],
-               "max_front_m": s.get("max_front_m", float(np.max(f))), "runout_q99_m": q99(folder), "steps": s["steps"],
-               "wall_s": s["wall_s"]}
+        row = {
+            "member": k,
+            "width_rel_perturbation": k * args.eps,
+            "runout_m": s["runout_m"],
+            "max_front_m": s.get("max_front_m", float(np.max(f))),
+            "runout_q99_m": q99(folder),
+            "steps": s["steps"],
+            "wall_s": s["wall_s"],
+        }
         for tt in TIMES:
             row[f"front_{tt:g}s_m"] = float(np.interp(tt, t, f)) if t[-1] >= tt else float("nan")
         rows.append(row)
@@ -168,10 +211,15 @@ def main() -> None:
         w.writeheader()
         w.writerows(rows)
     t_common, fronts = common_fronts(curves)
-    summary = {"case": tag, "eps": args.eps, "runout_m": statistics([r["runout_m"] for r in rows]),
-               "max_front_m": statistics([r["max_front_m"] for r in rows]),
-               "runout_q99_m": statistics([r["runout_q99_m"] for r in rows]),
-               "divergence_threshold": DIVERGENCE, "divergence_time_s": divergence_time(t_common, fronts)}
+    summary = {
+        "case": tag,
+        "eps": args.eps,
+        "runout_m": statistics([r["runout_m"] for r in rows]),
+        "max_front_m": statistics([r["max_front_m"] for r in rows]),
+        "runout_q99_m": statistics([r["runout_q99_m"] for r in rows]),
+        "divergence_threshold": DIVERGENCE,
+        "divergence_time_s": divergence_time(t_common, fronts),
+    }
     for tt in TIMES:
         vals = [r[f"front_{tt:g}s_m"] for r in rows if np.isfinite(r[f"front_{tt:g}s_m"])]
         if len(vals) > 1:
@@ -179,8 +227,10 @@ def main() -> None:
     (out / "ensemble_summary.json").write_text(json.dumps(summary, indent=2))
 
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     ax.fill_between(t_common, fronts.min(axis=0), fronts.max(axis=0), color="0.85", label="range of the members")
     for k, (t, f) in enumerate(curves):
@@ -191,8 +241,11 @@ def main() -> None:
     if td is not None:
         ax.axvline(td, color="r", lw=0.8, label=f"fronts differ by > {DIVERGENCE:.0%} from t = {td:.2f} s")
     r = summary["runout_m"]
-    ax.set_title(f"{tag}: {len(rows)} members, width × (1 + k·{args.eps:g});\nrun-out {r['mean']:.3f} ± {r['std']:.3f} m "
-                 f"(range {r['relative_spread']:.1%})", fontsize=9)
+    ax.set_title(
+        f"{tag}: {len(rows)} members, width × (1 + k·{args.eps:g});\nrun-out {r['mean']:.3f} ± {r['std']:.3f} m "
+        f"(range {r['relative_spread']:.1%})",
+        fontsize=9,
+    )
     ax.set_xlabel("t (s)")
     ax.set_ylabel("front from the gate (m)")
     ax.legend(fontsize=7, loc="lower right")

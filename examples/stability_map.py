@@ -48,8 +48,21 @@ from granrs.validation.pore_pressure import KAPPA, pore_diffusion_error
 from granrs.validation.rheology import REST_SPEED, creep_verdict, run_heap
 
 ROOT = Path(__file__).resolve().parents[1]
-FIELDS = ["family", "method", "n", "h_m", "dt_s", "cfl", "stable", "outcome", "metric_name", "metric", "steps", "wall_s",
-          "message"]
+FIELDS = [
+    "family",
+    "method",
+    "n",
+    "h_m",
+    "dt_s",
+    "cfl",
+    "stable",
+    "outcome",
+    "metric_name",
+    "metric",
+    "steps",
+    "wall_s",
+    "message",
+]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -82,13 +95,36 @@ def trial(family: str, method: str, n: int, h: float, dt: float, run, cfl: float
         # an adaptive run's δt: the median of the steps it took before failing
         done = getattr(err, "history", {}).get("dt", [])
         stable, outcome, mname, metric, steps, message, dt_used, cfl = (
-            False, classify(err), "", math.nan, getattr(err, "step", -1), str(err),
-            float(np.median(done)) if math.isnan(dt) and len(done) else dt, cfl)
-    row = {"_x": dt, "family": family, "method": method, "n": n, "h_m": h, "dt_s": dt_used, "cfl": cfl, "stable": stable,
-           "outcome": outcome, "metric_name": mname, "metric": metric, "steps": steps,
-           "wall_s": time.perf_counter() - t0, "message": message}
-    print(f"  {method:38s} n={n:3d} dt={dt_used:.3e} cfl={cfl:.3g} -> {outcome:24s} ({row['wall_s']:.1f} s)"
-          + ("" if stable else f"  [{message[:110]}]"), flush=True)
+            False,
+            classify(err),
+            "",
+            math.nan,
+            getattr(err, "step", -1),
+            str(err),
+            float(np.median(done)) if math.isnan(dt) and len(done) else dt,
+            cfl,
+        )
+    row = {
+        "_x": dt,
+        "family": family,
+        "method": method,
+        "n": n,
+        "h_m": h,
+        "dt_s": dt_used,
+        "cfl": cfl,
+        "stable": stable,
+        "outcome": outcome,
+        "metric_name": mname,
+        "metric": metric,
+        "steps": steps,
+        "wall_s": time.perf_counter() - t0,
+        "message": message,
+    }
+    print(
+        f"  {method:38s} n={n:3d} dt={dt_used:.3e} cfl={cfl:.3g} -> {outcome:24s} ({row['wall_s']:.1f} s)"
+        + ("" if stable else f"  [{message[:110]}]"),
+        flush=True,
+    )
     return row
 
 
@@ -141,9 +177,19 @@ def heap_family(ns, iterations, rows, t_end=1.0):
                     steps = max(1, round(t_end / dt))
                     m, log = run_heap(20.0, n, dt=t_end / steps, t_end=t_end, picard_max_iterations=1000, **kw)
                     v = creep_verdict(log)
-                    outcome = "stable" if v["verdict"] == "at rest" else ("creep" if v["verdict"] == "creeps" else "blow-up")
-                    return (v["verdict"] == "at rest", outcome, "creep_speed_m_s", v["creep_speed"], m.step_count,
-                            v["message"], t_end / steps, math.nan)
+                    outcome = (
+                        "stable" if v["verdict"] == "at rest" else ("creep" if v["verdict"] == "creeps" else "blow-up")
+                    )
+                    return (
+                        v["verdict"] == "at rest",
+                        outcome,
+                        "creep_speed_m_s",
+                        v["creep_speed"],
+                        m.step_count,
+                        v["message"],
+                        t_end / steps,
+                        math.nan,
+                    )
 
                 return trial("heap", method, n, h, dt, run)
 
@@ -162,16 +208,26 @@ def pore_family(ns, iterations, rows, t_end=0.064):
 
             def evaluate(dt, n=n, h=h, scheme=scheme, method=method, limit=limit):
                 def run():
-                    err, _, model = pore_diffusion_error(n, dt_factor=dt / limit, time_scheme=scheme, t_end=t_end, seed=1e-9)
+                    err, _, model = pore_diffusion_error(
+                        n, dt_factor=dt / limit, time_scheme=scheme, t_end=t_end, seed=1e-9
+                    )
                     used = model.time / model.step_count
                     ok = math.isfinite(err) and err < 1.0
-                    return (ok, "stable" if ok else "blow-up", "l2_rel_error", err, model.step_count,
-                            f"relative L2 error {err:.3e} at t = {model.time:.3g} (dt/limit = {used / limit:.3f})", used, math.nan)
+                    return (
+                        ok,
+                        "stable" if ok else "blow-up",
+                        "l2_rel_error",
+                        err,
+                        model.step_count,
+                        f"relative L2 error {err:.3e} at t = {model.time:.3g} (dt/limit = {used / limit:.3f})",
+                        used,
+                        math.nan,
+                    )
 
                 return trial("pore", method, n, h, dt, run)
 
             # from a quarter of the explicit limit by factors of 2 up to a single step over the run
-            grid = [0.25 * limit * 2.0 ** k for k in range(40) if 0.25 * limit * 2.0 ** k < 0.9 * t_end] + [t_end]
+            grid = [0.25 * limit * 2.0**k for k in range(40) if 0.25 * limit * 2.0**k < 0.9 * t_end] + [t_end]
             scan_and_bisect(evaluate, grid, iterations, rows)
 
 
@@ -180,15 +236,29 @@ def pore_family(ns, iterations, rows, t_end=0.064):
 # ---------------------------------------------------------------------------------------------
 def with_numerics(model: Model, **changes) -> Model:
     """The same model and initial state with some numerical settings replaced."""
-    m = Model(model.grid, model.dense, model.light, bc=model.bc, gravity=model.gravity,
-              numerics=dataclasses.replace(model.numerics, **changes), threads=model.threads, rheology=model.rheology,
-              pore_pressure=model.pore_pressure)
+    m = Model(
+        model.grid,
+        model.dense,
+        model.light,
+        bc=model.bc,
+        gravity=model.gravity,
+        numerics=dataclasses.replace(model.numerics, **changes),
+        threads=model.threads,
+        rheology=model.rheology,
+        pore_pressure=model.pore_pressure,
+    )
     m.set_initial(phi=model.phi.copy(), pf=None if model.pore_pressure is None else model.pf.copy(), p=model.p.copy())
     return m
 
 
-def column_family(nys, cfls, iterations, rows, t_end=0.6, guards=((1.0, "column: CFL, cfl_abort = 1 (default)"),
-                                                                   (100.0, "column: CFL, guard lifted (cfl_abort = 100)"))):
+def column_family(
+    nys,
+    cfls,
+    iterations,
+    rows,
+    t_end=0.6,
+    guards=((1.0, "column: CFL, cfl_abort = 1 (default)"), (100.0, "column: CFL, guard lifted (cfl_abort = 100)")),
+):
     for cfl_abort, method in guards:
         for ny in nys:
             base = build_model(ColumnCase(ny=ny, t_end=t_end))
@@ -199,8 +269,16 @@ def column_family(nys, cfls, iterations, rows, t_end=0.6, guards=((1.0, "column:
                     m = with_numerics(base, cfl=cfl, cfl_abort=cfl_abort)
                     log = m.advance(t_end=t_end)
                     dts = np.asarray(log["dt"])
-                    return (True, "stable", "max_cfl", float(np.max(log["cfl"])), m.step_count,
-                            f"reached t = {m.time:.3g} s, max CFL {np.max(log['cfl']):.3f}", float(np.median(dts)), cfl)
+                    return (
+                        True,
+                        "stable",
+                        "max_cfl",
+                        float(np.max(log["cfl"])),
+                        m.step_count,
+                        f"reached t = {m.time:.3g} s, max CFL {np.max(log['cfl']):.3f}",
+                        float(np.median(dts)),
+                        cfl,
+                    )
 
                 r = trial("column", method, ny, h, math.nan, run, cfl=cfl)
                 r["cfl"], r["_x"] = cfl, cfl
@@ -227,21 +305,28 @@ def summarise(rows: list) -> list:
         low_ok = min(ok, key=par) if ok else None
         below = [r for r in bad if low_ok is not None and par(r) < par(low_ok)]
         fail_low = max(below, key=par) if below else None
-        out.append({
-            "family": fam, "method": method, "n": n, "h_m": float(rs[0]["h_m"]),
-            "largest_stable_dt_s": float(best["dt_s"]) if best else math.nan,
-            "largest_stable_cfl": float(best["cfl"]) if best and fam == "column" else math.nan,
-            "first_failure_dt_s": float(fail["dt_s"]) if fail else math.nan,
-            "first_failure_cfl": float(fail["cfl"]) if fail and fam == "column" else math.nan,
-            "failure": fail["outcome"] if fail else ("none in the range tried" if best else "fails everywhere tried"),
-            "fails_everywhere": best is None,
-            "failure_message": fail["message"] if fail else "",
-            "smallest_stable_dt_s": float(low_ok["dt_s"]) if low_ok else math.nan,
-            "failure_below_dt_s": float(fail_low["dt_s"]) if fail_low else math.nan,
-            "failure_below": fail_low["outcome"] if fail_low else "",
-            "failure_below_message": fail_low["message"] if fail_low else "",
-            "outcomes": ", ".join(sorted({r["outcome"] for r in bad})),
-        })
+        out.append(
+            {
+                "family": fam,
+                "method": method,
+                "n": n,
+                "h_m": float(rs[0]["h_m"]),
+                "largest_stable_dt_s": float(best["dt_s"]) if best else math.nan,
+                "largest_stable_cfl": float(best["cfl"]) if best and fam == "column" else math.nan,
+                "first_failure_dt_s": float(fail["dt_s"]) if fail else math.nan,
+                "first_failure_cfl": float(fail["cfl"]) if fail and fam == "column" else math.nan,
+                "failure": fail["outcome"]
+                if fail
+                else ("none in the range tried" if best else "fails everywhere tried"),
+                "fails_everywhere": best is None,
+                "failure_message": fail["message"] if fail else "",
+                "smallest_stable_dt_s": float(low_ok["dt_s"]) if low_ok else math.nan,
+                "failure_below_dt_s": float(fail_low["dt_s"]) if fail_low else math.nan,
+                "failure_below": fail_low["outcome"] if fail_low else "",
+                "failure_below_message": fail_low["message"] if fail_low else "",
+                "outcomes": ", ".join(sorted({r["outcome"] for r in bad})),
+            }
+        )
     return out
 
 
@@ -254,8 +339,14 @@ STYLE = {  # method -> (colour, linestyle)
     "column: CFL, cfl_abort = 1 (default)": ("tab:red", "-"),
     "column: CFL, guard lifted (cfl_abort = 100)": ("tab:orange", "--"),
 }
-FAILURE_MARKERS = {"blow-up": "X", "p_f instability": "P", "CFL abort": "^", "creep": "s", "Picard non-convergence": "D",
-                   "solver non-convergence": "v"}
+FAILURE_MARKERS = {
+    "blow-up": "X",
+    "p_f instability": "P",
+    "CFL abort": "^",
+    "creep": "s",
+    "Picard non-convergence": "D",
+    "solver non-convergence": "v",
+}
 
 
 def plot(summary: list, rows: list, path: Path) -> None:
@@ -281,22 +372,52 @@ def plot(summary: list, rows: list, path: Path) -> None:
                 # no stable step in the range: the smallest step tried, with its failure
                 tried = [r for r in rows if r["method"] == method and int(r["n"]) == s["n"]]
                 low = min(tried, key=lambda r: float(r["dt_s"]))
-                ax.plot([s["h_m"] * shift], [float(low["dt_s"])], marker=FAILURE_MARKERS.get(low["outcome"], "*"), ms=11,
-                        color=colour, mec="k", mew=0.8, ls="none")
+                ax.plot(
+                    [s["h_m"] * shift],
+                    [float(low["dt_s"])],
+                    marker=FAILURE_MARKERS.get(low["outcome"], "*"),
+                    ms=11,
+                    color=colour,
+                    mec="k",
+                    mew=0.8,
+                    ls="none",
+                )
                 if s is ss[0]:
-                    ax.annotate(f"{method.split(': ')[-1]}: fails at every δt tried\n({s['outcomes']})",
-                                (s["h_m"] * shift, float(low["dt_s"])), textcoords="offset points",
-                                xytext=(8, -26 if "Papa" in method else 10), fontsize=7, color=colour)
+                    ax.annotate(
+                        f"{method.split(': ')[-1]}: fails at every δt tried\n({s['outcomes']})",
+                        (s["h_m"] * shift, float(low["dt_s"])),
+                        textcoords="offset points",
+                        xytext=(8, -26 if "Papa" in method else 10),
+                        fontsize=7,
+                        color=colour,
+                    )
                 continue
             if math.isfinite(s["failure_below_dt_s"]):
-                ax.plot([s["h_m"]], [s["failure_below_dt_s"]], marker=FAILURE_MARKERS.get(s["failure_below"], "*"), ms=10,
-                        color=colour, mec="k", mew=0.8, ls="none", alpha=0.9)
-                ax.plot([s["h_m"]] * 2, [s["failure_below_dt_s"], s["smallest_stable_dt_s"]], color=colour, lw=0.8, ls=":")
+                ax.plot(
+                    [s["h_m"]],
+                    [s["failure_below_dt_s"]],
+                    marker=FAILURE_MARKERS.get(s["failure_below"], "*"),
+                    ms=10,
+                    color=colour,
+                    mec="k",
+                    mew=0.8,
+                    ls="none",
+                    alpha=0.9,
+                )
+                ax.plot(
+                    [s["h_m"]] * 2, [s["failure_below_dt_s"], s["smallest_stable_dt_s"]], color=colour, lw=0.8, ls=":"
+                )
                 if s is ss[0]:
-                    ax.annotate(f"Uzawa: {s['failure_below']} below {s['smallest_stable_dt_s']:.2g} s"
-                                if "Uzawa" in method else f"{s['failure_below']} below {s['smallest_stable_dt_s']:.2g} s",
-                                (s["h_m"], s["failure_below_dt_s"]),
-                                textcoords="offset points", xytext=(-25, 10), fontsize=7, color=colour)
+                    ax.annotate(
+                        f"Uzawa: {s['failure_below']} below {s['smallest_stable_dt_s']:.2g} s"
+                        if "Uzawa" in method
+                        else f"{s['failure_below']} below {s['smallest_stable_dt_s']:.2g} s",
+                        (s["h_m"], s["failure_below_dt_s"]),
+                        textcoords="offset points",
+                        xytext=(-25, 10),
+                        fontsize=7,
+                        color=colour,
+                    )
             if math.isfinite(s["first_failure_dt_s"]):
                 fdt = s["first_failure_dt_s"]
                 if s["family"] == "column":
@@ -304,60 +425,114 @@ def plot(summary: list, rows: list, path: Path) -> None:
                     # comparable with the median of a whole run: drawn at the stable run's δt
                     # scaled by the ratio of the CFL numbers
                     fdt = s["largest_stable_dt_s"] * s["first_failure_cfl"] / s["largest_stable_cfl"]
-                ax.plot([s["h_m"]], [fdt], marker=FAILURE_MARKERS.get(s["failure"], "*"), ms=10,
-                        color=colour, mec="k", mew=0.8, ls="none", alpha=0.9)
+                ax.plot(
+                    [s["h_m"]],
+                    [fdt],
+                    marker=FAILURE_MARKERS.get(s["failure"], "*"),
+                    ms=10,
+                    color=colour,
+                    mec="k",
+                    mew=0.8,
+                    ls="none",
+                    alpha=0.9,
+                )
             elif s["failure"] == "none in the range tried":
-                ax.annotate("", xy=(s["h_m"], s["largest_stable_dt_s"] * 2.2), xytext=(s["h_m"], s["largest_stable_dt_s"]),
-                            arrowprops=dict(arrowstyle="->", color=colour, lw=1.5))
+                ax.annotate(
+                    "",
+                    xy=(s["h_m"], s["largest_stable_dt_s"] * 2.2),
+                    xytext=(s["h_m"], s["largest_stable_dt_s"]),
+                    arrowprops=dict(arrowstyle="->", color=colour, lw=1.5),
+                )
             if s["family"] == "column" and math.isfinite(s["largest_stable_cfl"]):
-                ax.annotate(f"CFL {s['largest_stable_cfl']:.2g}", (s["h_m"], s["largest_stable_dt_s"]),
-                            textcoords="offset points", xytext=(7, 5 if "guard" in method else -11), fontsize=7, color=colour)
+                ax.annotate(
+                    f"CFL {s['largest_stable_cfl']:.2g}",
+                    (s["h_m"], s["largest_stable_dt_s"]),
+                    textcoords="offset points",
+                    xytext=(7, 5 if "guard" in method else -11),
+                    fontsize=7,
+                    color=colour,
+                )
     # reference slopes: h through the column at its default guard, h² through the explicit diffusion
     hs = np.array(sorted({s["h_m"] for s in summary}))
     hh = np.geomspace(hs.min() / 1.3, hs.max() * 1.3, 10)
 
     def anchor(method, fallback):
-        pts = [(s["h_m"], s["largest_stable_dt_s"]) for s in summary if s["method"] == method and math.isfinite(s["largest_stable_dt_s"])]
+        pts = [
+            (s["h_m"], s["largest_stable_dt_s"])
+            for s in summary
+            if s["method"] == method and math.isfinite(s["largest_stable_dt_s"])
+        ]
         if not pts:
             return fallback
         return math.exp(np.mean([math.log(d) - p * math.log(h) for h, d in pts for p in [fallback[1]]])), fallback[1]
 
-    for method, (c0, p) in (("column: CFL, cfl_abort = 1 (default)", (0.2, 1)), ("pore diffusion: explicit", (0.25, 2))):
+    for method, (c0, p) in (
+        ("column: CFL, cfl_abort = 1 (default)", (0.2, 1)),
+        ("pore diffusion: explicit", (0.25, 2)),
+    ):
         c, p = anchor(method, (c0, p))
-        ax.plot(hh, c * hh ** p, color="0.45", lw=1, ls=(0, (6, 3)) if p == 1 else (0, (1, 2)), zorder=0)
-        ax.annotate("∝ h" if p == 1 else "∝ h²", (hh[-1], c * hh[-1] ** p), fontsize=9, color="0.35", xytext=(3, 0),
-                    textcoords="offset points")
+        ax.plot(hh, c * hh**p, color="0.45", lw=1, ls=(0, (6, 3)) if p == 1 else (0, (1, 2)), zorder=0)
+        ax.annotate(
+            "∝ h" if p == 1 else "∝ h²",
+            (hh[-1], c * hh[-1] ** p),
+            fontsize=9,
+            color="0.35",
+            xytext=(3, 0),
+            textcoords="offset points",
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("cell size h (m)  [heap: layer 0.1 m; pore diffusion: unit box, κ = 1; column: 0.45 m high]")
     ax.set_ylabel("largest stable δt (s)")
-    ax.set_title("granrs stability map: largest stable δt against h (circles and lines); filled markers: the first failing\n"
-                 "step above it and how granrs reported it (below it: a failure at small δt); arrows: no failure up to the "
-                 "largest δt tried.\nColumn: adaptive δt, median step of the run at the largest stable CFL number (labelled)",
-                 fontsize=9)
+    ax.set_title(
+        "granrs stability map: largest stable δt against h (circles and lines); filled markers: the first failing\n"
+        "step above it and how granrs reported it (below it: a failure at small δt); arrows: no failure up to the "
+        "largest δt tried.\nColumn: adaptive δt, median step of the run at the largest stable CFL number (labelled)",
+        fontsize=9,
+    )
     ax.grid(alpha=0.3, which="both")
-    leg1 = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, title="method (largest stable δt)",
-                     title_fontsize=8, frameon=False)
+    leg1 = ax.legend(
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        fontsize=8,
+        title="method (largest stable δt)",
+        title_fontsize=8,
+        frameon=False,
+    )
     ax.add_artist(leg1)
-    handles = [Line2D([], [], marker=mk, color="0.6", mec="k", ls="none", ms=9, label=name)
-               for name, mk in FAILURE_MARKERS.items()]
-    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(1.01, 0.0), fontsize=8, title="failure (granrs's report)",
-              title_fontsize=8, frameon=False)
+    handles = [
+        Line2D([], [], marker=mk, color="0.6", mec="k", ls="none", ms=9, label=name)
+        for name, mk in FAILURE_MARKERS.items()
+    ]
+    ax.legend(
+        handles=handles,
+        loc="lower left",
+        bbox_to_anchor=(1.01, 0.0),
+        fontsize=8,
+        title="failure (granrs's report)",
+        title_fontsize=8,
+        frameon=False,
+    )
     fig.savefig(path, dpi=130)
     plt.close(fig)
 
 
 def markdown(summary: list) -> str:
-    lines = ["| method | n | h (m) | largest stable δt (s) | CFL | first failure above it | δt there (s) | failure below the stable range |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| method | n | h (m) | largest stable δt (s) | CFL | first failure above it | δt there (s) | failure below the stable range |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for s in summary:
         cfl = f"{s['largest_stable_cfl']:.3g}" if math.isfinite(s["largest_stable_cfl"]) else ""
         if math.isfinite(s["first_failure_cfl"]):
             cfl += f" (fails at {s['first_failure_cfl']:.3g})"
         dt = f"{s['largest_stable_dt_s']:.3g}" if math.isfinite(s["largest_stable_dt_s"]) else "none"
         fdt = f"{s['first_failure_dt_s']:.3g}" if math.isfinite(s["first_failure_dt_s"]) else ""
-        low = (f"{s['failure_below']} at {s['failure_below_dt_s']:.3g} s (stable from {s['smallest_stable_dt_s']:.3g} s)"
-               if s["failure_below"] else "")
+        low = (
+            f"{s['failure_below']} at {s['failure_below_dt_s']:.3g} s (stable from {s['smallest_stable_dt_s']:.3g} s)"
+            if s["failure_below"]
+            else ""
+        )
         fail = s["failure"] if not s["fails_everywhere"] else f"fails everywhere tried: {s['outcomes']}"
         lines.append(f"| {s['method']} | {s['n']} | {s['h_m']:.4g} | {dt} | {cfl} | {fail} | {fdt} | {low} |")
     return "\n".join(lines)
@@ -376,7 +551,9 @@ def read_rows(path: Path) -> list:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=str(ROOT / "docs/img"), help="folder of stability_map.csv and .png")
-    ap.add_argument("--quick", action="store_true", help="1 bisection step per edge instead of 3 (a check of the script)")
+    ap.add_argument(
+        "--quick", action="store_true", help="1 bisection step per edge instead of 3 (a check of the script)"
+    )
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from an existing CSV")
     ap.add_argument("--families", default="heap,pore,column", help="comma-separated subset of heap,pore,column")
     args = ap.parse_args(argv)
@@ -408,8 +585,11 @@ def main(argv=None) -> int:
     plot(summary, rows, png_path)
     wall = time.perf_counter() - t0
     print(markdown(summary))
-    print(f"\nwrote {csv_path} ({len(rows)} trials) and {png_path} in {wall:.0f} s (granrs {granrs.__version__}, "
-          f"rest criterion {REST_SPEED:g} m/s)", file=sys.stderr)
+    print(
+        f"\nwrote {csv_path} ({len(rows)} trials) and {png_path} in {wall:.0f} s (granrs {granrs.__version__}, "
+        f"rest criterion {REST_SPEED:g} m/s)",
+        file=sys.stderr,
+    )
     return 0
 
 

@@ -97,34 +97,57 @@ def plot(rows: list[dict], png: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(16, 6.0))
-    panels = [("runout_err_ref", "run-out error vs finest D-P run"),
-              ("runout_err_exp", f"run-out error vs experiment ({PAPER_RUNOUT_EXP} m)"),
-              ("front_err_ref", "front-curve error (RMS) vs finest D-P run")]
+    panels = [
+        ("runout_err_ref", "run-out error vs finest D-P run"),
+        ("runout_err_exp", f"run-out error vs experiment ({PAPER_RUNOUT_EXP} m)"),
+        ("front_err_ref", "front-curve error (RMS) vs finest D-P run"),
+    ]
     variants = list(dict.fromkeys(r["variant"] for r in rows))
     colours = dict(zip(variants, plt.rcParams["axes.prop_cycle"].by_key()["color"]))
     for ax, (key, title) in zip(axes, panels):
         for v in variants:
             for fl, ls, mk in ((1, "-", "o"), (0, "--", "s")):
-                pts = sorted((r["wall_s"], r[key], r["ny"]) for r in rows
-                             if r["variant"] == v and r["fluidised"] == fl and r[key] not in ("", None) and float(r[key]) > 0)
+                pts = sorted(
+                    (r["wall_s"], r[key], r["ny"])
+                    for r in rows
+                    if r["variant"] == v and r["fluidised"] == fl and r[key] not in ("", None) and float(r[key]) > 0
+                )
                 if not pts:
                     continue
                 w, e, n = zip(*pts)
-                ax.loglog(w, e, ls, marker=mk, color=colours[v],
-                          label=f"{v}, {'fluidised' if fl else 'dry'}", mfc="white" if not fl else colours[v])
+                ax.loglog(
+                    w,
+                    e,
+                    ls,
+                    marker=mk,
+                    color=colours[v],
+                    label=f"{v}, {'fluidised' if fl else 'dry'}",
+                    mfc="white" if not fl else colours[v],
+                )
                 for wi, ei, ni in pts:
-                    ax.annotate(f"{int(ni)}", (wi, ei), textcoords="offset points", xytext=(4, 4), fontsize=7, color=colours[v])
+                    ax.annotate(
+                        f"{int(ni)}", (wi, ei), textcoords="offset points", xytext=(4, 4), fontsize=7, color=colours[v]
+                    )
         if key == "runout_err_exp":
             ax.axhline(0.085, color="grey", lw=0.8, ls=":")
-            ax.text(ax.get_xlim()[0] if ax.has_data() else 1, 0.085, " paper's simulation (8.5 %)", fontsize=8, va="bottom", color="grey")
+            ax.text(
+                ax.get_xlim()[0] if ax.has_data() else 1,
+                0.085,
+                " paper's simulation (8.5 %)",
+                fontsize=8,
+                va="bottom",
+                color="grey",
+            )
         ax.set_xlabel("wall time of the run [s] (one thread)")
         ax.set_ylabel("relative error")
         ax.set_title(title, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8, frameon=False)
-    fig.suptitle("Column collapse (a = 2) to t = 3 s: work-precision (numbers at the points: ny; "
-                 "depth-averaged: cells per column width)")
+    fig.suptitle(
+        "Column collapse (a = 2) to t = 3 s: work-precision (numbers at the points: ny; "
+        "depth-averaged: cells per column width)"
+    )
     fig.tight_layout(rect=(0, 0.1, 1, 0.97))
     fig.savefig(png, dpi=110)
     plt.close(fig)
@@ -134,8 +157,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ny", type=int, nargs="+", default=[16, 32, 64])
     ap.add_argument("--out", default="out/work_precision")
-    ap.add_argument("--reference-from", default=None,
-                    help="a column_convergence.py output folder whose {fluidised,dry}-NY runs serve as the baseline")
+    ap.add_argument(
+        "--reference-from",
+        default=None,
+        help="a column_convergence.py output folder whose {fluidised,dry}-NY runs serve as the baseline",
+    )
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     ap.add_argument("--docs", default="docs/img")
     ap.add_argument("--plot-only", action="store_true")
@@ -144,7 +170,10 @@ def main() -> None:
     csv_path, png = docs / "work_precision.csv", docs / "work_precision.png"
     if args.plot_only:
         with open(csv_path) as f:
-            rows = [{k: (float(v) if k not in ("variant",) and v != "" else v) for k, v in r.items()} for r in csv.DictReader(f)]
+            rows = [
+                {k: (float(v) if k not in ("variant",) and v != "" else v) for k, v in r.items()}
+                for r in csv.DictReader(f)
+            ]
         plot(rows, png)
         return
     if args.reference_from:  # reuse the convergence study's runs as the baseline variant
@@ -166,7 +195,9 @@ def main() -> None:
     # plus any runs stored in OUT on other grids (e.g. ny = 128 runs made by an earlier call with
     # --ny 128 --variants ...): the finest baseline grid that has both runs is the reference
     for v in [BASELINE] + [v for v in args.variants if v != BASELINE]:
-        stored = sorted({int(p.name.split("-")[1]) for p in folder_of(out, v).glob("*-*") if (p / "summary.json").exists()})
+        stored = sorted(
+            {int(p.name.split("-")[1]) for p in folder_of(out, v).glob("*-*") if (p / "summary.json").exists()}
+        )
         for ny in stored:
             for fl in (True, False):
                 if (v, ny, fl) not in runs:
@@ -178,12 +209,20 @@ def main() -> None:
     for (v, ny, fl), r in sorted(runs.items(), key=lambda kv: (kv[0][0], kv[0][1], not kv[0][2])):
         ref = runs[(BASELINE, finest, fl)]
         is_ref = (v, ny) == (BASELINE, finest)
-        rows.append({"variant": v, "ny": ny, "fluidised": int(fl), "wall_s": r["wall_s"], "steps": r["steps"],
-                     "runout_m": r["runout_m"],
-                     "runout_err_ref": "" if is_ref else abs(r["runout_m"] / ref["runout_m"] - 1),
-                     "runout_err_exp": abs(r["runout_m"] / PAPER_RUNOUT_EXP - 1) if fl else "",
-                     "front_err_ref": "" if is_ref else front_error(r, ref),
-                     "reference_ny": finest})
+        rows.append(
+            {
+                "variant": v,
+                "ny": ny,
+                "fluidised": int(fl),
+                "wall_s": r["wall_s"],
+                "steps": r["steps"],
+                "runout_m": r["runout_m"],
+                "runout_err_ref": "" if is_ref else abs(r["runout_m"] / ref["runout_m"] - 1),
+                "runout_err_exp": abs(r["runout_m"] / PAPER_RUNOUT_EXP - 1) if fl else "",
+                "front_err_ref": "" if is_ref else front_error(r, ref),
+                "reference_ny": finest,
+            }
+        )
     docs.mkdir(parents=True, exist_ok=True)
     with open(csv_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -30,7 +30,9 @@ FLOORS = [
 ]
 FLOOR = {room: k for k, rooms in enumerate(FLOORS) for room in rooms}
 
-SRC = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "rust" / "granrs-core" / "src"
+SRC = (
+    Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "rust" / "granrs-core" / "src"
+)
 
 
 def strip_comments(text: str) -> str:
@@ -73,7 +75,9 @@ def file_edges(room_dir: Path) -> dict[str, set[str]]:
     mod_code = strip_comments(files["mod"].read_text(encoding="utf-8")) if "mod" in files else ""
     # items the room's mod.rs re-exports from its files: `pub use file::{A, B}` / `pub use file::A`
     item_file: dict[str, str] = {}
-    for name, group in re.findall(r"\bpub(?:\([a-z]+\))?\s+use\s+(?:self::)?([a-z_][a-z0-9_]*)::(\{[^}]*\}|[A-Za-z_][A-Za-z0-9_]*)", mod_code):
+    for name, group in re.findall(
+        r"\bpub(?:\([a-z]+\))?\s+use\s+(?:self::)?([a-z_][a-z0-9_]*)::(\{[^}]*\}|[A-Za-z_][A-Za-z0-9_]*)", mod_code
+    ):
         if name in files:
             for item in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", group):
                 if item != "self":
@@ -112,7 +116,7 @@ def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
         stack.append(node)
         for t in sorted(edges.get(node, ())):
             if state.get(t) == 1:
-                out.append(stack[stack.index(t):] + [t])
+                out.append(stack[stack.index(t) :] + [t])
             elif t not in state:
                 visit(t)
         stack.pop()
@@ -145,7 +149,9 @@ def main() -> int:
     for room, targets in sorted(edges.items()):
         for target, files in sorted(targets.items()):
             if FLOOR[target] > FLOOR[room]:
-                problems.append(f"{room} (floor {FLOOR[room]}) imports {target} (floor {FLOOR[target]}), a floor up: {', '.join(sorted(set(files)))}")
+                problems.append(
+                    f"{room} (floor {FLOOR[room]}) imports {target} (floor {FLOOR[target]}), a floor up: {', '.join(sorted(set(files)))}"
+                )
     # cycles among the rooms (depth-first search on the room graph)
     state: dict[str, int] = {}
     stack: list[str] = []
@@ -155,7 +161,7 @@ def main() -> int:
         stack.append(room)
         for target in sorted(edges.get(room, {})):
             if state.get(target) == 1:
-                cycle = stack[stack.index(target):] + [target]
+                cycle = stack[stack.index(target) :] + [target]
                 problems.append("import cycle: " + " -> ".join(cycle))
             elif target not in state:
                 visit(target)

@@ -13,12 +13,15 @@ def cavity(n=16, **kw):
     return Model(Grid(n, n, 1.0, 1.0), Material(1.0, 0.01), bc=BoundaryConditions(top=Velocity(tangential=1.0)), **kw)
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(nx=-4, ny=8, lx=1.0, ly=1.0), "nx"),
-    (dict(nx=8, ny=1, lx=1.0, ly=1.0), "ny"),
-    (dict(nx=8, ny=8, lx=math.nan, ly=1.0), "lx"),
-    (dict(nx=8, ny=8, lx=1.0, ly=-2.0), "ly"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(nx=-4, ny=8, lx=1.0, ly=1.0), "nx"),
+        (dict(nx=8, ny=1, lx=1.0, ly=1.0), "ny"),
+        (dict(nx=8, ny=8, lx=math.nan, ly=1.0), "lx"),
+        (dict(nx=8, ny=8, lx=1.0, ly=-2.0), "ly"),
+    ],
+)
 def test_grid_rejects_bad_sizes(kwargs, name):
     with pytest.raises(ParameterError, match=f"`{name}`"):
         Grid(**kwargs)
@@ -45,6 +48,7 @@ def test_material_and_numerics_errors_name_the_parameter():
     with pytest.raises(ParameterError, match=r"`proximal_restarts` = -1: allowed an integer in \[0, 1000000\]"):
         cavity(numerics=Numerics(proximal_restarts=-1))
     from granrs.cases.column import ColumnCase
+
     with pytest.raises(ParameterError, match="`interface_yield`"):
         ColumnCase(interface_yield="sharp").validate()
     with pytest.raises(ParameterError, match=r"`kappa_air` = 0.5: allowed a number in \[1, 1e16\]"):
@@ -59,7 +63,11 @@ def test_impossible_boundary_combination_is_rejected():
     with pytest.raises(ParameterError, match="net inflow"):
         Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 0.01), bc=bc)
     # with an outflow side it is fine
-    Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 0.01), bc=BoundaryConditions(left=Velocity(normal=1.0), right=granrs.Outflow()))
+    Model(
+        Grid(8, 8, 1.0, 1.0),
+        Material(1.0, 0.01),
+        bc=BoundaryConditions(left=Velocity(normal=1.0), right=granrs.Outflow()),
+    )
 
 
 def test_wrong_array_shape_names_the_field():

@@ -21,7 +21,9 @@ def test_validate_writes_the_json_record(tmp_path):
 def test_bad_parameter_exits_with_a_clear_message():
     r = run("validate", "cavity", "--n", "-3")
     assert r.returncode == 2
-    assert "invalid parameter `--n` = '-3': allowed an integer in [2, 65536]" in r.stderr and "Traceback" not in r.stderr
+    assert (
+        "invalid parameter `--n` = '-3': allowed an integer in [2, 65536]" in r.stderr and "Traceback" not in r.stderr
+    )
 
 
 def test_unknown_case_is_rejected():

@@ -18,8 +18,15 @@ import numpy as np
 import pytest
 
 from granrs import ParameterError, SimulationError
-from granrs.cases.column import (PAPER_RUNOUT_SIM, ColumnCase, basal_pore_pressure_ratio, deposit_quantile,
-                                 farthest_material, front_position, run_column)
+from granrs.cases.column import (
+    PAPER_RUNOUT_SIM,
+    ColumnCase,
+    basal_pore_pressure_ratio,
+    deposit_quantile,
+    farthest_material,
+    front_position,
+    run_column,
+)
 
 
 def _run_cli(out: Path, *args: str) -> dict:
@@ -41,8 +48,20 @@ def test_outputs_are_complete(coarse_runs):
     base, dry, wet = coarse_runs
     for name in ("summary.json", "front.csv", "profiles.csv", "history.npz", "front.png", "profiles.png"):
         assert (base / "wet" / name).stat().st_size > 0
-    for key in ("runout_m", "t_end_s", "steps", "nx", "ny", "cells", "wall_s", "mass_rel_error", "fluidised",
-                "rheology", "threads", "version"):
+    for key in (
+        "runout_m",
+        "t_end_s",
+        "steps",
+        "nx",
+        "ny",
+        "cells",
+        "wall_s",
+        "mass_rel_error",
+        "fluidised",
+        "rheology",
+        "threads",
+        "version",
+    ):
         assert key in wet
     assert wet["fluidised"] and not dry["fluidised"]
     assert wet["ny"] == 32 and wet["cells"] == wet["nx"] * wet["ny"]
@@ -66,7 +85,8 @@ def test_observables_are_reported_for_the_two_phase_runs(coarse_runs):
         assert o["q50_m"] < o["q90_m"] < o["q95_m"] < o["q99_m"] <= o["front_h1mm_m"] + o["cell_m"]
         # the column starts centred L_c/2 behind the gate and its centre of mass moves downstream
         assert o["centre_of_mass_travel_m"] > 0.1 and o["centre_of_mass_m"] == pytest.approx(
-            -0.1 + o["centre_of_mass_travel_m"], abs=0.011)
+            -0.1 + o["centre_of_mass_travel_m"], abs=0.011
+        )
         # the volume profile holds the dense area: Σ h Δx against the sub-cell dense_area(),
         # measured −0.03 % at ny = 32 (the fill fraction ½ + Φ/Δy is exact for level interfaces only)
         assert o["profile_area_m2"] == pytest.approx(0.08, rel=0.01)
@@ -196,7 +216,7 @@ def test_front_has_three_phases(coarse_runs):
     speed = np.gradient(x, t)
     k = np.argmax(speed)
     assert t[k] > 0.15, "the front accelerates first"
-    plateau = (speed > 0.8 * speed[k])
+    plateau = speed > 0.8 * speed[k]
     assert t[plateau].max() - t[plateau].min() > 0.3, "a stretch of near-constant speed"
     assert np.abs(speed[t > 2.5]).mean() < 0.1 * speed[k], "the front decelerates to rest"
 
@@ -205,8 +225,8 @@ def test_front_position_bridges_small_gaps_and_ignores_droplets():
     dx = 0.01
     phi = -np.ones((3, 40))
     phi[0, :10] = 0.5 * dx
-    phi[0, 12:15] = 0.5 * dx        # a 2-cell gap: bridged
-    phi[0, 30:32] = 0.5 * dx        # a droplet 15 cells ahead: ignored by the front
+    phi[0, 12:15] = 0.5 * dx  # a 2-cell gap: bridged
+    phi[0, 30:32] = 0.5 * dx  # a droplet 15 cells ahead: ignored by the front
     x = front_position(phi, dx)
     assert 0.145 < x < 0.16
     assert farthest_material(phi, dx) == pytest.approx(0.32)
@@ -234,19 +254,35 @@ def test_far_end_is_an_error_with_outputs_kept(tmp_path):
     assert summary["stop_reason"].startswith("error") and (tmp_path / "front.png").exists()
 
 
-@pytest.mark.parametrize("field,value", [("ny", 4), ("aspect_ratio", -1.0), ("pore_pressure_ratio", 1.5),
-                                         ("cfl", 0.0), ("rheology", "bingham"), ("r_neighbourhood", 5),
-                                         ("r_neighbourhood", -1), ("sigma_location", "nodes"),
-                                         ("proximal_restarts", -1), ("proximal_restarts", 2.0)])
+@pytest.mark.parametrize(
+    "field,value",
+    [
+        ("ny", 4),
+        ("aspect_ratio", -1.0),
+        ("pore_pressure_ratio", 1.5),
+        ("cfl", 0.0),
+        ("rheology", "bingham"),
+        ("r_neighbourhood", 5),
+        ("r_neighbourhood", -1),
+        ("sigma_location", "nodes"),
+        ("proximal_restarts", -1),
+        ("proximal_restarts", 2.0),
+    ],
+)
 def test_bad_parameters_name_themselves(tmp_path, field, value):
     with pytest.raises(ParameterError, match=f"`{field}`"):
         run_column(ColumnCase(**{field: value}), tmp_path, progress=False)
 
 
-@pytest.mark.parametrize("kwargs,name", [(dict(channel_width=0.0), "channel_width"),
-                                         (dict(channel_width=0.1, side_wall_friction_angle=95.0), "side_wall_friction_angle"),
-                                         (dict(side_wall_friction_angle=15.0), "side_wall_friction_angle"),
-                                         (dict(channel_width=0.1, model="depth-averaged"), "channel_width")])
+@pytest.mark.parametrize(
+    "kwargs,name",
+    [
+        (dict(channel_width=0.0), "channel_width"),
+        (dict(channel_width=0.1, side_wall_friction_angle=95.0), "side_wall_friction_angle"),
+        (dict(side_wall_friction_angle=15.0), "side_wall_friction_angle"),
+        (dict(channel_width=0.1, model="depth-averaged"), "channel_width"),
+    ],
+)
 def test_bad_side_walls_name_themselves(tmp_path, kwargs, name):
     with pytest.raises(ParameterError, match=f"`{name}`"):
         run_column(ColumnCase(**kwargs), tmp_path, progress=False)
@@ -284,8 +320,11 @@ def test_side_walls_shorten_the_column_and_take_their_share_of_gravitys_work(tmp
 def _ensemble(ny: int, fluidised: bool, channel_width: float = 0.0) -> dict:
     lines = (Path(__file__).parent / "data" / "column_ensemble.csv").read_text().splitlines()
     rows = csv.DictReader(line for line in lines if not line.startswith("#"))
-    row = next(r for r in rows if int(r["ny"]) == ny and int(r["fluidised"]) == int(fluidised)
-               and float(r["channel_width_m"]) == channel_width)
+    row = next(
+        r
+        for r in rows
+        if int(r["ny"]) == ny and int(r["fluidised"]) == int(fluidised) and float(r["channel_width_m"]) == channel_width
+    )
     return {k: float(v) for k, v in row.items()}
 
 
@@ -313,8 +352,11 @@ def _observables_ensemble(ny: int) -> dict:
     """(state, observable) → the ensemble row of tests/data/column_observables_ensemble.csv."""
     lines = (Path(__file__).parent / "data" / "column_observables_ensemble.csv").read_text().splitlines()
     rows = csv.DictReader(line for line in lines if not line.startswith("#"))
-    return {(r["state"], r["observable"]): {k: float(r[k]) for k in ("mean_m", "std_m", "min_m", "max_m")}
-            for r in rows if int(r["ny"]) == ny}
+    return {
+        (r["state"], r["observable"]): {k: float(r[k]) for k in ("mean_m", "std_m", "min_m", "max_m")}
+        for r in rows
+        if int(r["ny"]) == ny
+    }
 
 
 def test_known_gap_every_observable_stays_within_its_round_off_spread(coarse_runs):
@@ -336,7 +378,9 @@ def test_known_gap_every_observable_stays_within_its_round_off_spread(coarse_run
             if not abs(v - e["mean_m"]) <= 3 * e["std_m"]:
                 moved.append(f"{state} {key} = {v:.5f} m, recorded {e['mean_m']:.5f} ± 3 × {e['std_m']:.2g} m")
     gap = wet["runout_m"] - PAPER_RUNOUT_SIM
-    assert not moved, f"the column's answer moved (fluidised run-out {gap:+.3f} m from the paper's): " + "; ".join(moved)
+    assert not moved, f"the column's answer moved (fluidised run-out {gap:+.3f} m from the paper's): " + "; ".join(
+        moved
+    )
 
 
 @pytest.mark.slow
@@ -357,7 +401,8 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
         bound = max(3 * e["runout_std_m"], 0.005 * e["runout_mean_m"])
         assert abs(summary["runout_m"] - e["runout_mean_m"]) <= bound, (
             f"known gap moved: {'fluidised' if fluidised else 'dry'} run-out at ny = 64 is {summary['runout_m']:.4f} m, "
-            f"recorded {e['runout_mean_m']:.4f} ± {bound:.4f} m (paper: {PAPER_RUNOUT_SIM} m)")
+            f"recorded {e['runout_mean_m']:.4f} ± {bound:.4f} m (paper: {PAPER_RUNOUT_SIM} m)"
+        )
         folder = tmp_path / ("wet" if fluidised else "dry")
         assert _front_at(folder, 1.0) == pytest.approx(e["front_1s_mean_m"], rel=0.01), fluidised
     assert 1.7 <= wet["runout_m"] / dry["runout_m"] <= 2.2
@@ -373,13 +418,18 @@ def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path,
     with the option r_neighbourhood = 2 the adaptive run-out is 26 % short of
     its own δt = 1e-4 s run (1.52 against 2.05 m). About 2 min on one core."""
     import functools
+
     import granrs.cases.column.build as build
 
     adaptive = {w: run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"a{w}", progress=False) for w in (0, 2)}
     # a fixed step: build_model reads Numerics from its module
     monkeypatch.setattr(build, "Numerics", functools.partial(build.Numerics, dt=1e-4))
-    out = {w: adaptive[w]["runout_m"] / run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"f{w}",
-                                                   progress=False)["runout_m"] - 1.0 for w in (0, 2)}
+    out = {
+        w: adaptive[w]["runout_m"]
+        / run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"f{w}", progress=False)["runout_m"]
+        - 1.0
+        for w in (0, 2)
+    }
     # w = 0: −2.0 % measured (8-member adaptive mean −2.0 ± 1.0 %); 4 % leaves room for its
     # round-off scatter (std 1.0 %) and stays far from w = 2's −26 %
     assert abs(out[0]) < 0.04, out
@@ -394,6 +444,7 @@ def test_active_region_runs_the_column_on_a_window(tmp_path, sides):
     ny = 64 differences in the docs); the views stay the whole domain's, and the air beyond
     the window's right side is at rest (an open right side passes air through its own faces only)."""
     from granrs.cases.column import build_model
+
     fronts = {}
     for band in (None, 8):
         m = build_model(ColumnCase(ny=16, active_region=band, active_region_sides=sides))
@@ -405,7 +456,7 @@ def test_active_region_runs_the_column_on_a_window(tmp_path, sides):
         else:
             wx, wy = m.active_window
             assert wx < 128 and wx % 8 == 0 and wy <= 16
-            assert np.all(m.u[:, wx + 1:] == 0.0), "the air outside the window is at rest"
+            assert np.all(m.u[:, wx + 1 :] == 0.0), "the air outside the window is at rest"
             side_flux = np.abs(m.u[:wy, wx]).max()
             assert (side_flux > 0.0) == (sides != "walls"), f"air speed through the window's side {side_flux}"
             if wy < 16:
@@ -419,7 +470,9 @@ def test_open_window_sides_are_refused_for_the_granular_only_model(tmp_path, sid
     """The granular-only model carries no air, so an open window side has nothing to let through:
     refused by the Rust core, with the parameter named."""
     with pytest.raises(ParameterError, match="`active_region_sides`.*granular-only"):
-        run_column(ColumnCase(ny=16, model="granular", active_region=8, active_region_sides=sides), tmp_path, progress=False)
+        run_column(
+            ColumnCase(ny=16, model="granular", active_region=8, active_region_sides=sides), tmp_path, progress=False
+        )
 
 
 def test_active_region_sides_bad_value_names_itself(tmp_path):
@@ -435,6 +488,7 @@ def test_active_region_bad_band_names_itself(tmp_path, value):
 
 def test_active_region_refused_for_a_single_phase_model():
     from granrs import Grid, Material, Model, Numerics
+
     with pytest.raises(ParameterError, match="active_region"):
         Model(Grid(16, 16, 1.0, 1.0), Material(1.0, 0.01), numerics=Numerics(active_region=4))
 
@@ -443,6 +497,7 @@ def test_wall_normal_stress_choice_names_itself(tmp_path):
     with pytest.raises(ParameterError, match="`wall_normal_stress`"):
         run_column(ColumnCase(ny=16, wall_normal_stress="effective"), tmp_path, progress=False)
     from granrs import Grid, Material, Model, Numerics
+
     with pytest.raises(ParameterError, match="wall_normal_stress"):
         Model(Grid(16, 16, 1.0, 1.0), Material(1.0, 0.01), numerics=Numerics(wall_normal_stress="effective"))
 
@@ -458,8 +513,26 @@ def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
     for eps in (1e-12, 1e-2):
         out = tmp_path / f"eps{eps:g}"
         compare = ["--compare-with", str(tmp_path / "eps1e-12")] if eps == 1e-2 else []
-        subprocess.run([sys.executable, str(script), "--ny", "16", "--members", "2", "--t-end", "0.4",
-                        "--eps", repr(eps), "--out", str(out), *compare], check=True, capture_output=True, text=True)
+        subprocess.run(
+            [
+                sys.executable,
+                str(script),
+                "--ny",
+                "16",
+                "--members",
+                "2",
+                "--t-end",
+                "0.4",
+                "--eps",
+                repr(eps),
+                "--out",
+                str(out),
+                *compare,
+            ],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
         s0, s1 = (json.loads((out / f"member-{k}" / "summary.json").read_text()) for k in (0, 1))
         assert (s0["nx"], s0["ny"]) == (s1["nx"], s1["ny"]), "the members share the grid"
         summary = json.loads((out / "ensemble_summary.json").read_text())
@@ -474,10 +547,15 @@ def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
     assert fronts[1e-2] > 1e-3
     # --compare-with: the difference of the means relative to the other ensemble's, ± the
     # standard error of the difference, from the two ensemble_summary.json files
-    a, b = (json.loads((tmp_path / f"eps{e}" / "ensemble_summary.json").read_text())["max_front_m"] for e in ("0.01", "1e-12"))
+    a, b = (
+        json.loads((tmp_path / f"eps{e}" / "ensemble_summary.json").read_text())["max_front_m"]
+        for e in ("0.01", "1e-12")
+    )
     c = json.loads((tmp_path / "eps0.01" / "comparison.json").read_text())["max_front_m"]
     assert c["relative_difference"] == pytest.approx(a["mean"] / b["mean"] - 1)
-    assert c["relative_standard_error"] == pytest.approx(np.hypot(a["std"] / np.sqrt(a["n"]), b["std"] / np.sqrt(b["n"])) / b["mean"])
+    assert c["relative_standard_error"] == pytest.approx(
+        np.hypot(a["std"] / np.sqrt(a["n"]), b["std"] / np.sqrt(b["n"])) / b["mean"]
+    )
     assert c["relative_difference"] != 0.0 and c["relative_standard_error"] > 0.0
 
 
@@ -515,6 +593,7 @@ def test_energy_budget_of_the_active_region_matches_the_whole_domain():
     budget with the active region is the whole domain's to 0.5 % of gravity's work (measured:
     kinetic 1.0e-3, plastic 4e-4, friction 2e-4 of it); serial and parallel budgets agree bit for bit."""
     from granrs.cases.column import build_model
+
     budgets = {}
     for band, threads in ((None, 1), (8, 1), (None, 2)):
         m = build_model(ColumnCase(ny=16, active_region=band, threads=threads))

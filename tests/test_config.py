@@ -2,14 +2,24 @@
 
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from granrs import ParameterError
 from granrs.cases.column import ColumnCase
-from granrs.config import KEYS, apply_sets, column_case, describe, dumps, load_config, parse_scalar, resolve, write_config
+from granrs.config import (
+    KEYS,
+    apply_sets,
+    column_case,
+    describe,
+    dumps,
+    load_config,
+    parse_scalar,
+    resolve,
+    write_config,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -44,8 +54,16 @@ def test_integers_are_accepted_for_float_keys_and_written_as_floats():
 
 
 def test_sets_are_parsed_as_toml_scalars():
-    raw = apply_sets({"numerics": {"cfl": 0.5}}, ["numerics.cfl=0.3", "case.fluidised=false", "case.rheology=mu-i",
-                                                  'output.formats=["netcdf"]', 'output.dir="out/x y"'])
+    raw = apply_sets(
+        {"numerics": {"cfl": 0.5}},
+        [
+            "numerics.cfl=0.3",
+            "case.fluidised=false",
+            "case.rheology=mu-i",
+            'output.formats=["netcdf"]',
+            'output.dir="out/x y"',
+        ],
+    )
     cfg = resolve(raw)
     assert cfg["numerics"]["cfl"] == 0.3 and cfg["case"]["fluidised"] is False
     assert cfg["case"]["rheology"] == "mu-i" and cfg["output"]["formats"] == ["netcdf"]
@@ -101,7 +119,9 @@ MALFORMED = [
 ]
 
 
-@pytest.mark.parametrize("text,key,allowed", MALFORMED, ids=[f"{i:02d}-{m[1] or 'syntax'}" for i, m in enumerate(MALFORMED)])
+@pytest.mark.parametrize(
+    "text,key,allowed", MALFORMED, ids=[f"{i:02d}-{m[1] or 'syntax'}" for i, m in enumerate(MALFORMED)]
+)
 def test_malformed_run_files_are_rejected_naming_the_key(tmp_path, text, key, allowed):
     path = tmp_path / "bad.toml"
     path.write_text(text + "\n")
@@ -121,16 +141,38 @@ def test_keys_table_documents_every_key_with_its_unit():
 
 def test_cli_runs_a_file_with_sets_and_writes_the_resolved_configuration(tmp_path):
     out = tmp_path / "run"
-    r = cli("run", str(EXAMPLES / "paper_fluidised.toml"), "--set", "grid.ny=16", "--set", "numerics.t_end=0.04",
-            "--set", "output.fields_every_s=0.02", "--set", 'output.formats=["vtk"]', "--set", "output.animation=false",
-            "--out", str(out), "--quiet")
+    r = cli(
+        "run",
+        str(EXAMPLES / "paper_fluidised.toml"),
+        "--set",
+        "grid.ny=16",
+        "--set",
+        "numerics.t_end=0.04",
+        "--set",
+        "output.fields_every_s=0.02",
+        "--set",
+        'output.formats=["vtk"]',
+        "--set",
+        "output.animation=false",
+        "--out",
+        str(out),
+        "--quiet",
+    )
     assert r.returncode == 0, r.stderr
     resolved = out / "config.resolved.toml"
     text = resolved.read_text()
     assert text.startswith("# granrs ") and "command: " in text and "--set grid.ny=16" in text
-    expected = load_config(EXAMPLES / "paper_fluidised.toml",
-                           ["grid.ny=16", "numerics.t_end=0.04", "output.fields_every_s=0.02", 'output.formats=["vtk"]',
-                            "output.animation=false", f'output.dir="{out}"'])
+    expected = load_config(
+        EXAMPLES / "paper_fluidised.toml",
+        [
+            "grid.ny=16",
+            "numerics.t_end=0.04",
+            "output.fields_every_s=0.02",
+            'output.formats=["vtk"]',
+            "output.animation=false",
+            f'output.dir="{out}"',
+        ],
+    )
     assert load_config(resolved) == expected
     assert (out / "summary.json").exists() and (out / "fields.pvd").exists()
 

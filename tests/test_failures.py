@@ -16,9 +16,13 @@ from granrs.validation.rheology import REST_SPEED, creep_verdict, run_heap
 
 
 def _cavity(n=32, **numerics):
-    return granrs.Model(granrs.Grid(n, n, 1.0, 1.0), granrs.Material(1.0, numerics.pop("viscosity", 1e-3)),
-                        bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
-                        rheology=numerics.pop("rheology", None), numerics=granrs.Numerics(**numerics))
+    return granrs.Model(
+        granrs.Grid(n, n, 1.0, 1.0),
+        granrs.Material(1.0, numerics.pop("viscosity", 1e-3)),
+        bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
+        rheology=numerics.pop("rheology", None),
+        numerics=granrs.Numerics(**numerics),
+    )
 
 
 # ---- blow-up and CFL ------------------------------------------------------------------------
@@ -39,7 +43,9 @@ def test_blow_up_is_a_non_finite_velocity_error_not_a_silent_nan():
     # predictor overflows to inf/NaN in the first step. It is reported as a blow-up of the velocity
     # with its cell, not as an invalid right-hand side of the pressure solve (as it was before)
     m = _cavity(n=16, viscosity=1e200, dt=1e-3, viscous="explicit", cfl_abort=100.0)
-    with pytest.raises(SimulationError, match=r"non-finite velocity \([uv] is NaN or inf\) after the momentum predictor") as info:
+    with pytest.raises(
+        SimulationError, match=r"non-finite velocity \([uv] is NaN or inf\) after the momentum predictor"
+    ) as info:
         m.advance(max_steps=5)
     err = info.value
     assert err.step == 1 and err.location is not None
@@ -65,7 +71,9 @@ def test_pressure_solver_non_convergence_is_reported():
 def test_viscous_solver_non_convergence_is_reported():
     # ν δt/h² = 1 · 0.1 · 1024 ≈ 100: Jacobi-CG needs tens of iterations, the cap is one
     m = _cavity(viscosity=1.0, dt=0.1, viscous_max_iterations=1, viscous_rtol=1e-14)
-    with pytest.raises(SimulationError, match=r"viscous CG \(momentum predictor\) did not converge: .* after 1 iterations") as info:
+    with pytest.raises(
+        SimulationError, match=r"viscous CG \(momentum predictor\) did not converge: .* after 1 iterations"
+    ) as info:
         m.advance(max_steps=2)
     assert info.value.step == 1
     with pytest.raises(granrs.ParameterError, match="`viscous_max_iterations`"):
@@ -73,9 +81,17 @@ def test_viscous_solver_non_convergence_is_reported():
 
 
 def test_picard_non_convergence_is_reported_with_its_cap():
-    m = _cavity(viscosity=1.0, rheology=granrs.Bingham(5.0), dt=0.05, convection=False, picard_max_iterations=2,
-                picard_tol=1e-12)
-    with pytest.raises(SimulationError, match="Picard iteration of the plastic projection did not converge: .* after 2 iterations") as info:
+    m = _cavity(
+        viscosity=1.0,
+        rheology=granrs.Bingham(5.0),
+        dt=0.05,
+        convection=False,
+        picard_max_iterations=2,
+        picard_tol=1e-12,
+    )
+    with pytest.raises(
+        SimulationError, match="Picard iteration of the plastic projection did not converge: .* after 2 iterations"
+    ) as info:
         m.advance(max_steps=2)
     assert info.value.step == 1
 
@@ -84,10 +100,19 @@ def test_picard_failure_names_where_and_is_retaken_then_undone():
     # adaptive δt, a cap of 2 Picard iterations that no step size meets: the step is retaken twice
     # with δt halved, the error names the node where Σ moved most and how often it was retaken, and
     # the model is left at its last accepted state (t = 0, at rest)
-    m = _cavity(viscosity=1.0, rheology=granrs.Bingham(5.0), convection=False, picard_max_iterations=2,
-                picard_tol=1e-12, step_retries=2)
-    with pytest.raises(SimulationError, match=r"largest increment .* in Sigma_x[xy] at (node|cell) \(i=\d+, j=\d+\).*"
-                                              r"retaken 2 times with δt halved") as info:
+    m = _cavity(
+        viscosity=1.0,
+        rheology=granrs.Bingham(5.0),
+        convection=False,
+        picard_max_iterations=2,
+        picard_tol=1e-12,
+        step_retries=2,
+    )
+    with pytest.raises(
+        SimulationError,
+        match=r"largest increment .* in Sigma_x[xy] at (node|cell) \(i=\d+, j=\d+\).*"
+        r"retaken 2 times with δt halved",
+    ) as info:
         m.advance(max_steps=2)
     assert info.value.step == 1
     assert m.time == 0.0 and np.all(m.u == 0.0)
@@ -148,7 +173,9 @@ def test_failed_column_run_keeps_summary_and_front(tmp_path):
     # does not converge within the case's 1000 iterations at the third step of the collapse
     # (increment 2.1e-8, t = 5.9 ms). With w = 0 the same run converges.
     with pytest.raises(SimulationError, match="Picard iteration .* did not converge.*outputs written to"):
-        run_column(ColumnCase(ny=16, t_end=0.3, theta=0.0, picard_tol=1e-8, r_neighbourhood=2), tmp_path, progress=False)
+        run_column(
+            ColumnCase(ny=16, t_end=0.3, theta=0.0, picard_tol=1e-8, r_neighbourhood=2), tmp_path, progress=False
+        )
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["stop_reason"].startswith("error:") and "Picard" in summary["stop_reason"], summary
     assert summary["steps"] >= 1 and summary["t_end_s"] > 0

@@ -13,8 +13,15 @@ import pytest
 from granrs import Callback, ParameterError, Simulation, SimulationError
 from granrs.cases.column import build_model
 from granrs.config import column_case, load_config, resolve, tomllib
-from granrs.io import (deferred_interrupt, load_checkpoint, read_pvd, read_vti, restore_checkpoint, save_checkpoint,
-                       write_vti)
+from granrs.io import (
+    deferred_interrupt,
+    load_checkpoint,
+    read_pvd,
+    read_vti,
+    restore_checkpoint,
+    save_checkpoint,
+    write_vti,
+)
 from granrs.runner import run_config
 
 xr = pytest.importorskip("xarray")
@@ -24,8 +31,13 @@ TIMES = [0.0, 0.02, 0.04, 0.06]
 
 
 def tiny(out, **output) -> dict:
-    return resolve({"grid": {"ny": 16}, "numerics": {"t_end": 0.06},
-                    "output": {"dir": str(out), "fields_every_s": 0.02, "formats": ["vtk", "netcdf"], **output}})
+    return resolve(
+        {
+            "grid": {"ny": 16},
+            "numerics": {"t_end": 0.06},
+            "output": {"dir": str(out), "fields_every_s": 0.02, "formats": ["vtk", "netcdf"], **output},
+        }
+    )
 
 
 @pytest.fixture(scope="module")
@@ -125,8 +137,12 @@ def test_vti_reads_with_the_vtk_package(run):
 
 def test_vti_round_trip_of_arbitrary_fields(tmp_path):
     rng = np.random.default_rng(1)
-    fields = {"phi": rng.normal(size=(3, 5)), "u": rng.normal(size=(3, 5)), "v": rng.normal(size=(3, 5)),
-              "yielded": rng.integers(0, 2, size=(3, 5)).astype(np.uint8)}
+    fields = {
+        "phi": rng.normal(size=(3, 5)),
+        "u": rng.normal(size=(3, 5)),
+        "v": rng.normal(size=(3, 5)),
+        "yielded": rng.integers(0, 2, size=(3, 5)).astype(np.uint8),
+    }
     write_vti(tmp_path / "a.vti", fields, (0.5, 0.25), 1.25, {"command_line": "a -- b --- c"})
     back = read_vti(tmp_path / "a.vti")
     assert back["time"] == 1.25 and back["spacing"] == (0.5, 0.25, 0.5)
@@ -144,8 +160,9 @@ def test_a_vti_without_its_image_data_is_refused_naming_the_element(tmp_path):
 
 
 def test_netcdf_fields_without_a_given_provenance_carry_this_process_provenance(tmp_path):
-    import granrs
     import netCDF4
+
+    import granrs
     from granrs.io import FieldWriter
 
     model = granrs.Model(granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0))
@@ -158,6 +175,7 @@ def _stop_at(t_stop, exc):
     def func(sim):
         if sim.model.time >= t_stop:
             raise exc
+
     return Callback(func, every_time=0.01)
 
 
@@ -209,8 +227,13 @@ class _FakeCore:
         return getattr(self._rust, name)
 
     def checkpoint_state(self):
-        return {"u": np.arange(6.0).reshape(2, 3), "history": np.ones((2, 2), dtype=np.int32), "time": 0.125,
-                "step_count": 7, "dt_previous": 1 / 3}
+        return {
+            "u": np.arange(6.0).reshape(2, 3),
+            "history": np.ones((2, 2), dtype=np.int32),
+            "time": 0.125,
+            "step_count": 7,
+            "dt_previous": 1 / 3,
+        }
 
     def restore_state(self, state):
         self.restored = state

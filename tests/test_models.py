@@ -15,8 +15,12 @@ from granrs.cli import main
 
 
 def test_depth_averaged_model_views_are_read_only_and_live():
-    m = DepthAveragedModel(cells=200, length=2.0, basal_friction_angle=15.0,
-                           pore=DepthAveragedPore(diffusivity=0.035, supply_ratio=0.9, supply_x_max=0.2))
+    m = DepthAveragedModel(
+        cells=200,
+        length=2.0,
+        basal_friction_angle=15.0,
+        pore=DepthAveragedPore(diffusivity=0.035, supply_ratio=0.9, supply_x_max=0.2),
+    )
     m.set_state(h=np.where(m.x < 0.2, 0.4, 0.0), beta=np.where(m.x < 0.2, 0.9, 0.0))
     h = m.h
     assert h.shape == (200,) and m.u.shape == (200,) and m.beta.shape == (200,)
@@ -57,9 +61,14 @@ def test_depth_averaged_column_through_the_case_api(tmp_path):
     assert np.sum(prof["h_final"]) * dx == pytest.approx(0.02, rel=1e-5)
 
 
-@pytest.mark.parametrize("name,needle", [("banana", "allowed 'two-phase', 'granular' or"),
-                                         ("auto", "no automatic choice"),
-                                         ("two_phase", "'depth-averaged'")])
+@pytest.mark.parametrize(
+    "name,needle",
+    [
+        ("banana", "allowed 'two-phase', 'granular' or"),
+        ("auto", "no automatic choice"),
+        ("two_phase", "'depth-averaged'"),
+    ],
+)
 def test_bad_model_is_rejected_with_the_parameter_named(tmp_path, capsys, name, needle):
     with pytest.raises(ParameterError, match="`model`"):
         ColumnCase(model=name).validate()

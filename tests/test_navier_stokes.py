@@ -34,8 +34,12 @@ def test_cavity_re1000_botella_peyret_at_256():
 
 
 def _cavity_fields(threads, n=128, steps=20):
-    m = granrs.Model(granrs.Grid(n, n, 1.0, 1.0), granrs.Material(1.0, 1e-3),
-                     bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)), threads=threads)
+    m = granrs.Model(
+        granrs.Grid(n, n, 1.0, 1.0),
+        granrs.Material(1.0, 1e-3),
+        bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
+        threads=threads,
+    )
     m.advance(max_steps=steps)
     return m.u.copy(), m.v.copy(), m.p.copy()
 

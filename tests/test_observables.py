@@ -33,11 +33,11 @@ def test_triangle_fronts_quantiles_centre_and_heights(n):
     # cumulative misses it by at most dx² |h'| / (8 h(x_q)) (the 99 % quantile has the smallest h)
     for q in obs.DEPOSIT_QUANTILES:
         exact = L * (1 - math.sqrt(1 - q))
-        bound = dx ** 2 * (H / L) / (8 * H * (1 - exact / L)) + 1e-12
+        bound = dx**2 * (H / L) / (8 * H * (1 - exact / L)) + 1e-12
         assert abs(obs.area_quantile(h, dx, q) - exact) <= bound, q
     # centre of mass L/3: the midpoint rule on x h(x) exceeds the integral by exactly
     # −dx²/24 [ (x h)' ]_0^L = H dx²/12, over the exact area H L/2: x_c = L/3 + dx²/(6L)
-    assert obs.centre_of_mass(h, dx) == pytest.approx(L / 3 + dx ** 2 / (6 * L), abs=1e-12)
+    assert obs.centre_of_mass(h, dx) == pytest.approx(L / 3 + dx**2 / (6 * L), abs=1e-12)
     assert obs.height_at(h, dx, 0.5) == pytest.approx(H / 2, abs=1e-12)
     o = obs.observe_profile(h, dx, cell=dx, x_ref=0.2)
     assert o["profile_area_m2"] == pytest.approx(H * L / 2, abs=1e-12)
@@ -45,7 +45,7 @@ def test_triangle_fronts_quantiles_centre_and_heights(n):
     assert o["h_gate_m"] == pytest.approx(H * (1 - 0.2 / L), abs=1e-12)
     assert o["front_h20mm_m"] == pytest.approx(L * (1 - 0.02 / H) - 0.2, abs=1e-12)
     assert o["front_h2cell_m"] == pytest.approx(L * (1 - 2 * dx / H) - 0.2, abs=1e-12)
-    assert o["q50_m"] == pytest.approx(L * (1 - math.sqrt(0.5)) - 0.2, abs=dx ** 2)
+    assert o["q50_m"] == pytest.approx(L * (1 - math.sqrt(0.5)) - 0.2, abs=dx**2)
 
 
 def test_flat_sheet_fronts_quantiles_and_centre():
@@ -87,18 +87,27 @@ def test_summary_travel_and_front_maxima():
     assert out["max_front_h1mm_m"] == 1.3 and "max_centre_of_mass_m" not in out
     assert out["q50_m"] is None  # undefined values are JSON nulls
     assert "volume per column" in out["profile_definition"]
-    assert obs.observable_keys()[:5] == ["front_h1mm_m", "front_h2mm_m", "front_h5mm_m", "front_h10mm_m", "front_h20mm_m"]
+    assert obs.observable_keys()[:5] == [
+        "front_h1mm_m",
+        "front_h2mm_m",
+        "front_h5mm_m",
+        "front_h10mm_m",
+        "front_h20mm_m",
+    ]
 
 
-@pytest.mark.parametrize("call, name", [
-    (lambda: obs.thickness_front([0.1, 0.0], 0.1, 0.0), "thickness"),
-    (lambda: obs.area_quantile([0.1, 0.0], 0.1, 1.5), "q"),
-    (lambda: obs.centre_of_mass([[0.1]], 0.1), "h"),
-    (lambda: obs.centre_of_mass([0.1, np.nan], 0.1), "h"),
-    (lambda: obs.height_at([0.1], -1.0, 0.0), "dx"),
-    (lambda: obs.volume_profile(np.zeros(3), 0.1), "phi"),
-    (lambda: obs.observe_profile([0.1], 0.1, 0.0, 0.0), "cell"),
-])
+@pytest.mark.parametrize(
+    "call, name",
+    [
+        (lambda: obs.thickness_front([0.1, 0.0], 0.1, 0.0), "thickness"),
+        (lambda: obs.area_quantile([0.1, 0.0], 0.1, 1.5), "q"),
+        (lambda: obs.centre_of_mass([[0.1]], 0.1), "h"),
+        (lambda: obs.centre_of_mass([0.1, np.nan], 0.1), "h"),
+        (lambda: obs.height_at([0.1], -1.0, 0.0), "dx"),
+        (lambda: obs.volume_profile(np.zeros(3), 0.1), "phi"),
+        (lambda: obs.observe_profile([0.1], 0.1, 0.0, 0.0), "cell"),
+    ],
+)
 def test_bad_input_names_the_parameter(call, name):
     with pytest.raises(ValueError, match=f"`{name}`"):
         call()

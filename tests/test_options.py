@@ -15,7 +15,7 @@ import pytest
 import granrs
 from granrs import ParameterError, _granrs, config, options
 from granrs.cases.column import ColumnCase
-from granrs.cases.column.case import COLUMN_NUMERICS, OPTION_FIELDS
+from granrs.cases.column.case import COLUMN_NUMERICS
 
 ROOT = Path(__file__).resolve().parent.parent
 FLAT = [s for s in options.SCHEMA if not s.object]
@@ -29,8 +29,17 @@ def test_schema_is_the_rust_tables_and_keys_are_unique():
     assert {s.group for s in options.SCHEMA} == {"common", "variant"}
     # the research switches the common case does not need are in the group of variants
     variants = {s.key for s in options.SCHEMA if s.group == "variant"}
-    assert {"interface_yield", "wall_normal_stress", "yield_pressure", "sigma_location", "r_neighbourhood",
-            "proximal_restarts", "pressure_gauge", "formulation", "kappa_air"} <= variants
+    assert {
+        "interface_yield",
+        "wall_normal_stress",
+        "yield_pressure",
+        "sigma_location",
+        "r_neighbourhood",
+        "proximal_restarts",
+        "pressure_gauge",
+        "formulation",
+        "kappa_air",
+    } <= variants
 
 
 def test_every_default_passes_its_own_validation_in_rust():
@@ -67,8 +76,11 @@ def test_python_defaults_agree_with_rust():
     for s in FLAT:
         if s.key in fields:
             assert getattr(n, s.key) == s.default, s.key
-    for cls, room in ((granrs.TimeStepping, "time"), (granrs.BiProjection, "bi_projection"),
-                      (granrs.ActiveRegion, "active_region")):
+    for cls, room in (
+        (granrs.TimeStepping, "time"),
+        (granrs.BiProjection, "bi_projection"),
+        (granrs.ActiveRegion, "active_region"),
+    ):
         obj = cls() if cls is not granrs.ActiveRegion else cls(band=8)
         assert {s.key for s in cls.FIELDS.values()} == {s.key for s in options.room(room)}
         for name, s in cls.FIELDS.items():
@@ -89,8 +101,16 @@ def test_python_defaults_agree_with_rust():
 
 #: the column's own choices, where its run-file default is not the schema's (the reasons are in
 #: granrs.cases.column's docstring and beside each field of ColumnCase)
-COLUMN_CHOICES = {"theta": 0.8, "picard_tol": 1e-3, "mass_correction": True, "convection_scheme": "weno5",
-                  "kappa_air": 1e8, "friction_angle": 27.0, "wall_friction_angle": 15.0, "diffusivity": 0.035}
+COLUMN_CHOICES = {
+    "theta": 0.8,
+    "picard_tol": 1e-3,
+    "mass_correction": True,
+    "convection_scheme": "weno5",
+    "kappa_air": 1e8,
+    "friction_angle": 27.0,
+    "wall_friction_angle": 15.0,
+    "diffusivity": 0.035,
+}
 
 
 def test_every_run_file_key_of_an_option_has_the_schemas_range_and_a_stated_default():
@@ -100,13 +120,21 @@ def test_every_run_file_key_of_an_option_has_the_schemas_range_and_a_stated_defa
             by_option.setdefault((k.option.room, k.option.key), []).append(k)
             o = k.option
             if not o.optional:
-                assert (k.lo, k.hi, k.lo_open, k.hi_open, tuple(k.choices)) == (o.lo, o.hi, o.lo_open, o.hi_open, o.choices), k.full
+                assert (k.lo, k.hi, k.lo_open, k.hi_open, tuple(k.choices)) == (
+                    o.lo,
+                    o.hi,
+                    o.lo_open,
+                    o.hi_open,
+                    o.choices,
+                ), k.full
                 assert k.allowed() == o.allowed
             assert k.section == ("variants" if o.group == "variant" else k.section), k.full
             if k.name == "active_region":
                 assert k.default == 0 and o.default is None  # 0: off, the run files' None
             elif k.default != o.default:
-                assert COLUMN_CHOICES.get(k.name) == k.default, f"{k.full}: default {k.default!r} is neither the schema's nor a stated column choice"
+                assert COLUMN_CHOICES.get(k.name) == k.default, (
+                    f"{k.full}: default {k.default!r} is neither the schema's nor a stated column choice"
+                )
     # every option of the model that TOML can hold is a run-file key (only the Model arguments'
     # `air` and the options off by default, None, are not)
     for s in FLAT:
@@ -146,8 +174,18 @@ def test_a_variant_in_numerics_names_its_section():
 
 # ---- provenance: from the CLI flag or run-file key to the Rust use, each default and range once
 #: the Python files on the way from the CLI and the run files to the Rust model
-CHAIN = ["cli.py", "config.py", "options.py", "model.py", "rheology.py", "boundary.py", "cases/column/case.py",
-         "cases/column/build.py", "cases/column/run.py", "cases/column/__init__.py"]
+CHAIN = [
+    "cli.py",
+    "config.py",
+    "options.py",
+    "model.py",
+    "rheology.py",
+    "boundary.py",
+    "cases/column/case.py",
+    "cases/column/build.py",
+    "cases/column/run.py",
+    "cases/column/__init__.py",
+]
 
 
 def _python_sources():
@@ -160,8 +198,12 @@ def _rust_sources():
 
 def _count(paths, pattern):
     rx = re.compile(pattern)
-    return [(p.relative_to(ROOT) if p.is_relative_to(ROOT) else p, i + 1) for p in paths for i, line in enumerate(p.read_text().splitlines())
-            if rx.search(line)]
+    return [
+        (p.relative_to(ROOT) if p.is_relative_to(ROOT) else p, i + 1)
+        for p in paths
+        for i, line in enumerate(p.read_text().splitlines())
+        if rx.search(line)
+    ]
 
 
 def test_the_friction_angle_is_declared_once():
@@ -172,10 +214,15 @@ def test_the_friction_angle_is_declared_once():
     spec = options.spec("friction_angle", "drucker-prager")
     assert (key.default, key.lo, key.hi, key.lo_open, key.hi_open) == (spec.default, 0.0, 90.0, True, True)
     assert ColumnCase().friction_angle == spec.default == granrs.DruckerPrager().friction_angle
-    rust = [(p, m.group(0)) for p in _rust_sources()
-            for m in re.finditer(r'"friction_angle",\s*27(\.0)?\s*,', p.read_text())]
+    rust = [
+        (p, m.group(0))
+        for p in _rust_sources()
+        for m in re.finditer(r'"friction_angle",\s*27(\.0)?\s*,', p.read_text())
+    ]
     assert len(rust) == 1 and "rheology" in str(rust[0][0]), rust
-    py = _count(_python_sources(), r"friction_angle.*\b27(\.0)?\b|friction.*\b(89|90)(\.0)?\b|FRICTION_ANGLE_RANGE\s*=\s*\(\s*0")
+    py = _count(
+        _python_sources(), r"friction_angle.*\b27(\.0)?\b|friction.*\b(89|90)(\.0)?\b|FRICTION_ANGLE_RANGE\s*=\s*\(\s*0"
+    )
     assert py == [], py
 
 
@@ -187,7 +234,9 @@ def test_the_pore_pressure_ratio_is_declared_once():
     assert key.default == ColumnCase().pore_pressure_ratio and (key.lo, key.hi) == (0.0, 1.0)
     defaults = _count(_python_sources(), r"pore_pressure_ratio\s*(:\s*float\s*)?=\s*[0-9]|β \(0\.9")
     assert [str(p) for p, _ in defaults] == ["python/granrs/cases/column/case.py"], defaults
-    ranges = _count(_python_sources(), r'"pore_pressure_ratio"[^)]*\(\s*0\.0\s*,\s*1\.0\s*\)|pore_pressure_ratio.*0\.0, 1\.0')
+    ranges = _count(
+        _python_sources(), r'"pore_pressure_ratio"[^)]*\(\s*0\.0\s*,\s*1\.0\s*\)|pore_pressure_ratio.*0\.0, 1\.0'
+    )
     assert len(ranges) == 1 and str(ranges[0][0]) == "python/granrs/cases/column/case.py", ranges
     assert _count(_rust_sources(), r"pore_pressure_ratio") == []
 

@@ -16,9 +16,17 @@ def _as_run(ref: dict, scale=None, shift: int = 0) -> dict:
     if shift:
         h = np.concatenate([np.zeros(shift), h[:-shift]])
     f = ref["fronts"]
-    return {"x": ref["x"], "h": h, "dx": ref["dx"],
-            "fronts": {"t_s": f["t_s"], "front_m": f["front_first_row_m"], "front_h20mm_m": f["front_h_2cm_m"],
-                       "front_h0.5cell_m": f["front_h_half_cell_m"]}}
+    return {
+        "x": ref["x"],
+        "h": h,
+        "dx": ref["dx"],
+        "fronts": {
+            "t_s": f["t_s"],
+            "front_m": f["front_first_row_m"],
+            "front_h20mm_m": f["front_h_2cm_m"],
+            "front_h0.5cell_m": f["front_h_half_cell_m"],
+        },
+    }
 
 
 @pytest.mark.parametrize("n", peer.REFERENCE_RESOLUTIONS)
@@ -41,6 +49,7 @@ def test_the_reference_against_itself_passes_with_no_difference(n):
 
 def test_a_bulk_off_by_more_than_the_tolerance_fails_at_the_finer_resolution_only():
     ref = peer.load_reference(64)
+
     # 12 % more near the back wall (x < −0.1 m), the rest untouched: the centre of mass moves by
     # less than its 10 %, the pointwise bulk check fails
     def bump(x):
@@ -95,9 +104,12 @@ def test_granrs_agrees_with_basilisk_in_the_bulk_and_the_centre_of_mass(peer_rec
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured 2026-12-01: the bulk differs by 10.1 % (10 % allowed) one cell behind "
-                                       "the gate at 64 cells per H_c, and the centre of mass by -11.5 % at 32 cells "
-                                       "per H_c; docs/validation.md, 'Cross-code check: Basilisk'")
+@pytest.mark.xfail(
+    strict=True,
+    reason="measured 2026-12-01: the bulk differs by 10.1 % (10 % allowed) one cell behind "
+    "the gate at 64 cells per H_c, and the centre of mass by -11.5 % at 32 cells "
+    "per H_c; docs/validation.md, 'Cross-code check: Basilisk'",
+)
 def test_the_cross_code_case_passes(peer_record):
     """The case's own verdict. It fails today by the margins in the reason: this test turns red
     (strict) the day it passes, so that the docs are updated with it."""

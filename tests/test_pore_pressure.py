@@ -1,6 +1,5 @@
 """Pore gas pressure: exact 1D diffusion, implicit time step beyond the explicit limit, API."""
 
-import numpy as np
 import pytest
 
 import granrs

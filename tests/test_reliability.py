@@ -6,8 +6,8 @@ import errno
 import hashlib
 import json
 import math
-import re
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -24,7 +24,6 @@ from granrs.cli import main
 from granrs.config import KEYS, load_config, resolve
 from granrs.io import checkpoint as ckpt
 from granrs.io.outputs import OutputError
-from granrs.model import estimate_memory
 from granrs.runner import run_config
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -41,14 +40,20 @@ def cli(capsys, *argv):
 
 def snapshot(folder: Path) -> dict:
     """Every file under ``folder`` with its bytes' hash and modification time."""
-    return {str(p.relative_to(folder)): (hashlib.sha256(p.read_bytes()).hexdigest(), p.stat().st_mtime_ns)
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): (hashlib.sha256(p.read_bytes()).hexdigest(), p.stat().st_mtime_ns)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def run_file(tmp_path, name="run.toml", **sections) -> Path:
     """A small run file (ny = 8, t_end = 0.04 s) with the given extra tables."""
-    tables = {"grid": {"ny": 8}, "numerics": {"t_end": 0.04},
-              "output": {"dir": str(tmp_path / "out"), "fields_every_s": 0.02, "animation": False}}
+    tables = {
+        "grid": {"ny": 8},
+        "numerics": {"t_end": 0.04},
+        "output": {"dir": str(tmp_path / "out"), "fields_every_s": 0.02, "animation": False},
+    }
     for section, table in sections.items():
         tables.setdefault(section, {}).update(table)
     lines = []
@@ -67,7 +72,10 @@ CLI_BAD = [
     (["run", "column", "--length", "inf"], "`--length` = 'inf': allowed a number in [0.01, 1000]"),
     (["run", "column", "--length", "-1"], "`--length` = '-1': allowed a number in [0.01, 1000]"),
     (["run", "column", "--length", "1e9"], "`--length` = '1e9': allowed a number in [0.01, 1000]"),
-    (["run", "column", "--length", "0.15"], "`length` = 0.15: allowed None (the default) or a number of metres in (0.2, 1000]"),
+    (
+        ["run", "column", "--length", "0.15"],
+        "`length` = 0.15: allowed None (the default) or a number of metres in (0.2, 1000]",
+    ),
     (["run", "column", "--ny", "abc"], "`--ny` = 'abc': allowed an integer in [8, 4096]"),
     (["run", "column", "--ny", "7"], "`--ny` = '7': allowed an integer in [8, 4096]"),
     (["run", "column", "--ny", "4097"], "`--ny` = '4097': allowed an integer in [8, 4096]"),
@@ -81,10 +89,22 @@ CLI_BAD = [
     (["run", "column", "--pore-pressure-ratio", "1.5"], "`--pore-pressure-ratio` = '1.5': allowed a number in [0, 1]"),
     (["run", "column", "--active-region", "1"], "`--active-region` = '1': allowed an integer in [2, 100000]"),
     (["run", "column", "--channel-width", "0"], "`--channel-width` = '0': allowed a number in (0, 1000]"),
-    (["run", "column", "--active-region-sides", "open-right"], "`--active-region-sides` = 'open-right': allowed only with --active-region"),
-    (["run", "column", "--model", "depth-averaged", "--active-region", "8"], "`--active-region` = 8 with --model depth-averaged"),
-    (["run", "column", "--model", "depth-averaged", "--channel-width", "0.1"], "`--channel-width` = 0.1 with --model depth-averaged"),
-    (["run", "column", "--model", "shallow"], "`model` = 'shallow': allowed 'two-phase', 'granular' or 'depth-averaged'"),
+    (
+        ["run", "column", "--active-region-sides", "open-right"],
+        "`--active-region-sides` = 'open-right': allowed only with --active-region",
+    ),
+    (
+        ["run", "column", "--model", "depth-averaged", "--active-region", "8"],
+        "`--active-region` = 8 with --model depth-averaged",
+    ),
+    (
+        ["run", "column", "--model", "depth-averaged", "--channel-width", "0.1"],
+        "`--channel-width` = 0.1 with --model depth-averaged",
+    ),
+    (
+        ["run", "column", "--model", "shallow"],
+        "`model` = 'shallow': allowed 'two-phase', 'granular' or 'depth-averaged'",
+    ),
     (["run", "column", "--re", "10"], "`--re` with `granrs run column`: not used by this case"),
     (["run", "cavity", "--ny", "16"], "`--ny` with `granrs run cavity`: not used by this case"),
     (["run", "cavity", "--n", "4"], "`--n` = '4': allowed an integer in [8, 1024]"),
@@ -92,7 +112,10 @@ CLI_BAD = [
     (["run", "column", "--restart", "ck.npz"], "`--restart`: allowed only with a run file"),
     (["run", "column", "--allow-changes"], "`--allow-changes`: allowed only with a run file"),
     (["run", "nosuchcase"], "`case` = 'nosuchcase': allowed 'column', 'cavity' or a run file"),
-    (["sweep", "x.toml", "--param", "grid.ny=8", "--workers", "0"], "`--workers` = '0': allowed an integer in [1, 256]"),
+    (
+        ["sweep", "x.toml", "--param", "grid.ny=8", "--workers", "0"],
+        "`--workers` = '0': allowed an integer in [1, 256]",
+    ),
     (["validate", "cavity", "--n", "1"], "`--n` = '1': allowed an integer in [2, 65536]"),
     (["validate", "cavity", "--threads", "x"], "`--threads` = 'x': allowed an integer in [1, 1024]"),
 ]
@@ -110,9 +133,12 @@ def test_cli_bad_flag_is_refused_with_its_range(tmp_path, capsys, argv, message)
 def test_cli_out_is_checked_before_any_work(tmp_path, capsys):
     a_file = tmp_path / "a_file"
     a_file.write_text("not a folder")
-    for out, message in (("", "`--out` = '': an empty path"), ("/proc/granrs-out", "inside /proc, a virtual file system"),
-                         (str(a_file), "it is a file, not a folder"),
-                         (str(a_file / "sub"), f"its parent '{a_file}' is a file")):
+    for out, message in (
+        ("", "`--out` = '': an empty path"),
+        ("/proc/granrs-out", "inside /proc, a virtual file system"),
+        (str(a_file), "it is a file, not a folder"),
+        (str(a_file / "sub"), f"its parent '{a_file}' is a file"),
+    ):
         rc, err = cli(capsys, "run", "column", "--ny", "8", "--out", out)
         assert rc == 2 and message in err and "allowed" in err, (out, err)
     assert a_file.read_text() == "not a folder" and sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
@@ -139,7 +165,7 @@ RUN_FILE_BAD = [
     ("[materials]\nfriction_angle = 0\n", "`materials.friction_angle` = 0: allowed a number in (0, 90) (degree)"),
     ("[materials]\nfriction_angle = 90\n", "`materials.friction_angle` = 90: allowed a number in (0, 90)"),
     ("[grid]\nny = 4097\n", "`grid.ny` = 4097: allowed an integer in [8, 4096] (cells)"),
-    ("[grid]\nny = \"16\"\n", "`grid.ny` = '16': allowed an integer in [8, 4096]"),
+    ('[grid]\nny = "16"\n', "`grid.ny` = '16': allowed an integer in [8, 4096]"),
     ("[grid]\nny = 16.0\n", "`grid.ny` = 16.0: allowed an integer in [8, 4096]"),
     ("[numerics]\ncfl = nan\n", "`numerics.cfl` = nan: allowed a number in [1e-6, 2]"),
     ("[numerics]\nt_end = inf\n", "`numerics.t_end` = inf: allowed a number in [1e-06, 10000] (s)"),
@@ -147,11 +173,17 @@ RUN_FILE_BAD = [
     ("[numerics]\nthreads = 0\n", "`numerics.threads` = 0: allowed an integer in [1, 1024]"),
     ("[numerics]\nstep_retries = 21\n", "`numerics.step_retries` = 21: allowed an integer in [0, 20]"),
     ("[grid]\nlength = 0.1\n", "`grid.length` = 0.1: allowed a length (m) greater than case.width = 0.2 m"),
-    ("[output]\nformats = [\"png\"]\n", "`output.formats` = ['png']: allowed a list of distinct items from 'vtk', 'netcdf'"),
-    ("[output]\ndir = \"\"\n", "`output.dir` = '': allowed a non-empty string"),
-    ("[output]\nfields_every_s = 0\nanimation = true\n", "`output.animation` = true: allowed only with output.fields_every_s > 0"),
+    (
+        '[output]\nformats = ["png"]\n',
+        "`output.formats` = ['png']: allowed a list of distinct items from 'vtk', 'netcdf'",
+    ),
+    ('[output]\ndir = ""\n', "`output.dir` = '': allowed a non-empty string"),
+    (
+        "[output]\nfields_every_s = 0\nanimation = true\n",
+        "`output.animation` = true: allowed only with output.fields_every_s > 0",
+    ),
     ("[case]\nfluidised = 1\n", "`case.fluidised` = 1: allowed true or false"),
-    ("[case]\nrheology = \"bingham\"\n", "`case.rheology` = 'bingham': allowed one of 'drucker-prager', 'mu-i'"),
+    ('[case]\nrheology = "bingham"\n', "`case.rheology` = 'bingham': allowed one of 'drucker-prager', 'mu-i'"),
     ("[numerics]\nfoo = 1\n", "`numerics.foo`: unknown key in [numerics]"),
     ("[solver]\ncfl = 0.3\n", "`solver`: unknown section"),
     ("grid = 3\n", "`grid` = 3: allowed a table [grid]"),
@@ -186,7 +218,9 @@ def test_one_friction_angle_range_everywhere(capsys):
     row = next(line for line in capsys.readouterr().out.splitlines() if "`materials.friction_angle`" in line)
     assert f"({lo:g}, {hi:g})" in row, row
     for bad in (lo, hi):
-        with pytest.raises(ParameterError, match=rf"`friction_angle` = {bad:g}: allowed a number in \(0, 90\) \(degree\)"):
+        with pytest.raises(
+            ParameterError, match=rf"`friction_angle` = {bad:g}: allowed a number in \(0, 90\) \(degree\)"
+        ):
             granrs.DruckerPrager(bad)
         with pytest.raises(ParameterError, match=r"`friction_angle`.*\(0, 90\)"):
             ColumnCase(friction_angle=bad).validate()
@@ -206,15 +240,25 @@ except ImportError:  # pragma: no cover - hypothesis is in the Makefile's instal
 NUMERIC_KEYS = [k for k in KEYS if k.kind in ("float", "int")]
 
 if given is not None:
+
     @settings(max_examples=150, deadline=None)
-    @given(key=st.sampled_from(NUMERIC_KEYS),
-           value=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**7, 10**7), st.booleans(),
-                           st.text(max_size=4)))
+    @given(
+        key=st.sampled_from(NUMERIC_KEYS),
+        value=st.one_of(
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.integers(-(10**7), 10**7),
+            st.booleans(),
+            st.text(max_size=4),
+        ),
+    )
     def test_run_file_numbers_are_accepted_exactly_inside_their_range(key, value):
-        inside = (not isinstance(value, (bool, str)) and (key.kind == "float" or isinstance(value, int))
-                  and math.isfinite(value)
-                  and (value > key.lo if key.lo_open else value >= key.lo)
-                  and (value < key.hi if key.hi_open else value <= key.hi))
+        inside = (
+            not isinstance(value, (bool, str))
+            and (key.kind == "float" or isinstance(value, int))
+            and math.isfinite(value)
+            and (value > key.lo if key.lo_open else value >= key.lo)
+            and (value < key.hi if key.hi_open else value <= key.hi)
+        )
         raw = {key.section: {key.name: value}}
         if key.full == "grid.length":
             raw["case"] = {"width": 0.001}  # below the key's range: any length in range is beyond the gate
@@ -230,8 +274,9 @@ if given is not None:
     @settings(max_examples=60, deadline=None)
     @given(value=st.one_of(st.text(min_size=1, max_size=8), st.floats(allow_nan=True, allow_infinity=True)))
     def test_cli_ny_is_accepted_exactly_as_an_integer_in_range(value):
-        from granrs.cli import _key_type
         import argparse
+
+        from granrs.cli import _key_type
 
         parse = _key_type("--ny", "grid.ny")
         text = str(value)
@@ -263,9 +308,18 @@ PYTHON_BAD = [
     (lambda: _model(gravity=(0.0, -9.81, 0.0)), "`gravity` = (0.0, -9.81, 0.0): allowed a pair"),
     (lambda: _model(numerics="fast"), "`numerics` = 'fast': allowed a granrs.Numerics"),
     (lambda: _model(threads=0), "`threads` = 0: allowed an integer in [1, 1024]"),
-    (lambda: _model().set_initial(u=lambda x, y: 0.0), "`u`: the function's result is 0.0; allowed an array of shape (8, 9)"),
-    (lambda: _model().set_initial(phi=lambda x, y: None), "`phi`: the function's result is None; allowed an array of shape (8, 8)"),
-    (lambda: _model().set_initial(p=np.zeros((8, 8), complex)), "`p`: the value has dtype complex128; allowed real numbers"),
+    (
+        lambda: _model().set_initial(u=lambda x, y: 0.0),
+        "`u`: the function's result is 0.0; allowed an array of shape (8, 9)",
+    ),
+    (
+        lambda: _model().set_initial(phi=lambda x, y: None),
+        "`phi`: the function's result is None; allowed an array of shape (8, 8)",
+    ),
+    (
+        lambda: _model().set_initial(p=np.zeros((8, 8), complex)),
+        "`p`: the value has dtype complex128; allowed real numbers",
+    ),
     (lambda: _model().set_initial(v=np.zeros((8, 8))), "`v`: the value has shape (8, 8); allowed shape (9, 8)"),
     (lambda: _model().set_initial(phi=np.full((8, 8), np.nan)), "`phi`: the value is not finite at (j, i) = (0, 0)"),
     (lambda: _model().set_initial(pf=np.zeros((8, 8))), "`pf`: allowed only for a model with pore_pressure"),
@@ -273,16 +327,31 @@ PYTHON_BAD = [
     (lambda: _model().advance(t_end=-1.0), "`t_end` = -1.0: allowed a finite time >= the model time 0.0 s"),
     (lambda: _model().advance(t_end=float("nan")), "`t_end` = nan: allowed a finite time"),
     (lambda: _model().advance(), "`t_end/max_steps`: allowed at least one of them"),
-    (lambda: Simulation(_model(), stop_iteration=-5), "`stop_iteration` = -5: allowed an integer > the model's step count 0"),
+    (
+        lambda: Simulation(_model(), stop_iteration=-5),
+        "`stop_iteration` = -5: allowed an integer > the model's step count 0",
+    ),
     (lambda: Simulation(_model(), stop_iteration=2.5), "`stop_iteration` = 2.5: allowed an integer"),
     (lambda: Simulation(_model(), stop_time=-1.0), "`stop_time` = -1.0: allowed a finite time > the model time"),
-    (lambda: Simulation(_model(), stop_time=1.0, wall_limit=0), "`wall_limit` = 0: allowed a finite number of seconds > 0"),
+    (
+        lambda: Simulation(_model(), stop_time=1.0, wall_limit=0),
+        "`wall_limit` = 0: allowed a finite number of seconds > 0",
+    ),
     (lambda: Simulation(_model(), stop_time=1.0, callbacks=[print]), "`callbacks`"),
-    (lambda: Simulation(_model(), stop_time=1.0, speed_limit=-1.0), "`speed_limit` = -1.0: allowed None or a finite speed > 0"),
+    (
+        lambda: Simulation(_model(), stop_time=1.0, speed_limit=-1.0),
+        "`speed_limit` = -1.0: allowed None or a finite speed > 0",
+    ),
     (lambda: Callback(print, every_time=0.0), "`every_time` = 0.0: allowed a finite number > 0"),
     (lambda: granrs.DruckerPrager(0.0), "`friction_angle` = 0: allowed a number in (0, 90) (degree)"),
-    (lambda: ColumnCase(length=float("nan")).validate(), "`length` = nan: allowed None (the default) or a number of metres"),
-    (lambda: ColumnCase(length=0.1).validate(), "`length` = 0.1: allowed None (the default) or a number of metres in (0.2, 1000]"),
+    (
+        lambda: ColumnCase(length=float("nan")).validate(),
+        "`length` = nan: allowed None (the default) or a number of metres",
+    ),
+    (
+        lambda: ColumnCase(length=0.1).validate(),
+        "`length` = 0.1: allowed None (the default) or a number of metres in (0.2, 1000]",
+    ),
     (lambda: ColumnCase(ny=True).validate(), "`ny` = True: allowed an integer in [8, 4096]"),
     (lambda: ColumnCase(threads=0).validate(), "`threads` = 0: allowed an integer in [1, 1024]"),
     (lambda: ColumnCase(active_region=1).validate(), "`active_region` = 1: allowed None or an integer in [2, 100000]"),
@@ -319,6 +388,7 @@ def small_fs(tmp_path):
             pytest.skip("mounting a tmpfs needs root: " + r.stderr.decode(errors="replace").strip())
         mounts.append(path)
         return path
+
     yield make
     for path in reversed(mounts):
         subprocess.run(["umount", "-l", str(path)], capture_output=True)
@@ -396,16 +466,20 @@ def test_refused_runs_into_an_existing_run_leave_it_byte_identical(tmp_path, cap
     before = snapshot(out)
     assert "fields.pvd" in before and "summary.json" in before
     for argv, message in (
-            ([], "the folder is not empty"),
-            (["--set", "materials.friction_angle=0"], "`materials.friction_angle` = 0: allowed a number in (0, 90)"),
-            (["--set", "grid.ny=4097"], "`grid.ny` = 4097"),
-            (["--overwrite", "--set", "numerics.cfl=2.5"], "`numerics.cfl` = 2.5: allowed a number in [1e-6, 2]"),
-            (["--restart", str(tmp_path / "missing.npz")], "cannot be read")):
+        ([], "the folder is not empty"),
+        (["--set", "materials.friction_angle=0"], "`materials.friction_angle` = 0: allowed a number in (0, 90)"),
+        (["--set", "grid.ny=4097"], "`grid.ny` = 4097"),
+        (["--overwrite", "--set", "numerics.cfl=2.5"], "`numerics.cfl` = 2.5: allowed a number in [1e-6, 2]"),
+        (["--restart", str(tmp_path / "missing.npz")], "cannot be read"),
+    ):
         rc, err = cli(capsys, "run", str(path), "--quiet", *argv)
         assert rc == 2 and message in err, (argv, err)
         assert snapshot(out) == before, argv
-    for argv in (["column", "--ny", "8"], ["column", "--ny", "8", "--length", "0.1", "--overwrite"],
-                 ["cavity", "--n", "8"]):
+    for argv in (
+        ["column", "--ny", "8"],
+        ["column", "--ny", "8", "--length", "0.1", "--overwrite"],
+        ["cavity", "--n", "8"],
+    ):
         rc, err = cli(capsys, "run", *argv, "--quiet", "--out", str(out))
         assert rc == 2 and ("the folder is not empty" in err or "`length` = 0.1" in err), (argv, err)
         assert snapshot(out) == before, argv
@@ -420,6 +494,7 @@ def test_the_summary_is_written_during_the_run_with_a_truthful_stop_reason(tmp_p
     def look(sim):
         if sim.model.time > 0.15 and not seen:
             seen.append(json.loads((tmp_path / "out" / "summary.json").read_text()))
+
     cfg = load_config(run_file(tmp_path, numerics={"t_end": 0.2}))
     summary = run_config(cfg, progress=False, extra_callbacks=[Callback(look, every_time=0.01)])
     # records every 0.01 s, written every 10th: the first at t = 0.09 s
@@ -430,8 +505,13 @@ def test_the_summary_is_written_during_the_run_with_a_truthful_stop_reason(tmp_p
 
 # ---- faults: signals -------------------------------------------------------------------------------
 def _start(tmp_path, *argv):
-    return subprocess.Popen([sys.executable, "-m", "granrs.cli", *map(str, argv)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    return subprocess.Popen(
+        [sys.executable, "-m", "granrs.cli", *map(str, argv)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
 
 
 def _wait_for(predicate, timeout=60.0):
@@ -477,8 +557,11 @@ def test_kill_9_then_restart_appends_to_the_same_run(tmp_path, capsys):
     assert killed["stop_reason"].startswith("incomplete: written during the run")
     first_config = (out / "config.resolved.toml").read_bytes()
     t_ck = ckpt.load_checkpoint(out / "checkpoint.npz").meta["time"]
-    vti_before = {p.name: p.read_bytes() for p in (out / "fields").glob("*.vti")
-                  if float(p.stem.split("_")[1]) * 0.02 <= t_ck + 1e-9}
+    vti_before = {
+        p.name: p.read_bytes()
+        for p in (out / "fields").glob("*.vti")
+        if float(p.stem.split("_")[1]) * 0.02 <= t_ck + 1e-9
+    }
     rc, err = cli(capsys, "run", str(path), "--quiet", "--restart", str(out / "checkpoint.npz"))
     assert rc == 0, err
     summary = json.loads((out / "summary.json").read_text())
@@ -498,14 +581,43 @@ def test_a_restart_with_another_configuration_is_refused_naming_the_keys(tmp_pat
     path, out = _tiny_run(tmp_path, output={"checkpoint_every_s": 0.02})
     before = snapshot(out)
     ck = str(out / "checkpoint.npz")
-    rc, err = cli(capsys, "run", str(path), "--quiet", "--restart", ck, "--set", "numerics.t_end=0.06",
-                  "--set", "materials.granular_viscosity=0.5", "--set", "case.rheology=\"mu-i\"")
-    assert rc == 2 and "materials.granular_viscosity: 0.1 -> 0.5" in err and "case.rheology: 'drucker-prager' -> 'mu-i'" in err
+    rc, err = cli(
+        capsys,
+        "run",
+        str(path),
+        "--quiet",
+        "--restart",
+        ck,
+        "--set",
+        "numerics.t_end=0.06",
+        "--set",
+        "materials.granular_viscosity=0.5",
+        "--set",
+        'case.rheology="mu-i"',
+    )
+    assert (
+        rc == 2
+        and "materials.granular_viscosity: 0.1 -> 0.5" in err
+        and "case.rheology: 'drucker-prager' -> 'mu-i'" in err
+    )
     assert "--allow-changes" in err and snapshot(out) == before
-    rc, err = cli(capsys, "run", str(path), "--quiet", "--restart", ck, "--set", "grid.ny=16", "--set", "numerics.t_end=0.06")
+    rc, err = cli(
+        capsys, "run", str(path), "--quiet", "--restart", ck, "--set", "grid.ny=16", "--set", "numerics.t_end=0.06"
+    )
     assert rc == 2 and "the checkpoint's grid" in err and snapshot(out) == before
-    rc, err = cli(capsys, "run", str(path), "--quiet", "--restart", ck, "--set", "numerics.t_end=0.06",
-                  "--set", "materials.granular_viscosity=0.5", "--allow-changes")
+    rc, err = cli(
+        capsys,
+        "run",
+        str(path),
+        "--quiet",
+        "--restart",
+        ck,
+        "--set",
+        "numerics.t_end=0.06",
+        "--set",
+        "materials.granular_viscosity=0.5",
+        "--allow-changes",
+    )
     assert rc == 0, err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["restart"]["configuration_changes"] == ["materials.granular_viscosity: 0.1 -> 0.5"]
@@ -522,7 +634,7 @@ def test_a_damaged_checkpoint_is_a_parameter_error_naming_the_file(tmp_path, cap
         ck.write_bytes(b"")
     elif damage == "corrupted":
         mid = len(data) // 2
-        ck.write_bytes(data[:mid] + bytes(b ^ 0xFF for b in data[mid:mid + 64]) + data[mid + 64:])
+        ck.write_bytes(data[:mid] + bytes(b ^ 0xFF for b in data[mid : mid + 64]) + data[mid + 64 :])
     else:
         with np.load(ck) as z:
             arrays = {k: z[k] for k in z.files}
@@ -532,16 +644,25 @@ def test_a_damaged_checkpoint_is_a_parameter_error_naming_the_file(tmp_path, cap
     before = snapshot(out)
     rc, err = cli(capsys, "run", str(path), "--quiet", "--restart", str(ck), "--set", "numerics.t_end=0.06")
     assert rc == 2 and f"invalid checkpoint `{ck}`" in err and "Traceback" not in err, err
-    expected = {"truncated": "truncated or corrupted", "emptied": "the file is empty", "corrupted": "truncated or corrupted",
-                "not-finite": "entry `u` holds a non-finite value (inf at index 3)"}[damage]
+    expected = {
+        "truncated": "truncated or corrupted",
+        "emptied": "the file is empty",
+        "corrupted": "truncated or corrupted",
+        "not-finite": "entry `u` holds a non-finite value (inf at index 3)",
+    }[damage]
     assert expected in err, err
     assert snapshot(out) == before
 
 
 # ---- faults: the simulation ----------------------------------------------------------------------
 def _dam_break():
-    m = granrs.Model(granrs.Grid(16, 16, 1.0, 1.0), granrs.Material(1000.0, 1e-6), light=granrs.Material(1.0, 1e-8),
-                     gravity=(0.0, -9.81), numerics=granrs.Numerics(cfl=2.0, cfl_abort=100.0))
+    m = granrs.Model(
+        granrs.Grid(16, 16, 1.0, 1.0),
+        granrs.Material(1000.0, 1e-6),
+        light=granrs.Material(1.0, 1e-8),
+        gravity=(0.0, -9.81),
+        numerics=granrs.Numerics(cfl=2.0, cfl_abort=100.0),
+    )
     m.set_shape(granrs.shapes.Rectangle(-1.0, 0.4, -1.0, 0.6))
     return m
 
@@ -573,8 +694,11 @@ def test_the_simulations_speed_limit_stops_a_run_at_its_last_accepted_chunk():
     # the domain): the simulation's own guard stops it before the core's does
     m = _dam_break()
     sim = Simulation(m, stop_time=2.0, speed_limit=2.0)
-    with pytest.raises(SimulationError, match=r"blow-up at step \d+, t = .* at cell \(i=\d+, j=\d+\): the largest "
-                                              r"speed .* exceeds the limit 2 m/s") as info:
+    with pytest.raises(
+        SimulationError,
+        match=r"blow-up at step \d+, t = .* at cell \(i=\d+, j=\d+\): the largest "
+        r"speed .* exceeds the limit 2 m/s",
+    ) as info:
         sim.run()
     assert m.step_count < info.value.step and np.max(np.abs(m.u)) <= 2.0
     assert len(sim.history.get("time", [])) == m.step_count  # the history ends at the restored state
@@ -584,8 +708,12 @@ def test_a_step_that_fails_leaves_the_model_at_its_last_accepted_state():
     # a fixed step 3.2 times the lid's CFL limit: the core refuses a step once the flow has spun up
     # (SimulationError). The model must stay where it was before that step, however often the
     # step is retried: same time, step count and fields (the core's restore of a failed step)
-    m = granrs.Model(granrs.Grid(16, 16, 1.0, 1.0), granrs.Material(1.0, 1e-3),
-                     bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)), numerics=granrs.Numerics(dt=0.2))
+    m = granrs.Model(
+        granrs.Grid(16, 16, 1.0, 1.0),
+        granrs.Material(1.0, 1e-3),
+        bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
+        numerics=granrs.Numerics(dt=0.2),
+    )
     for _ in range(20):
         u, v, p, t, n = m.u.copy(), m.v.copy(), m.p.copy(), m.time, m.step_count
         try:
@@ -616,14 +744,17 @@ def test_the_memory_estimate_bounds_what_the_model_takes():
     # steps, against the estimate: the count is 16-30 % above the measured peak at 8544 x 96
     # (granrs.model.MEMORY_MARGIN); at this size the interpreter's own pages blur it, so the
     # bound is [0.7, 2] × the growth
-    code = ("import granrs, json\nfrom granrs.cases.column import ColumnCase, build_model\n"
-            "from granrs.model import estimate_memory\n"
-            "rss = lambda: int(open('/proc/self/statm').read().split()[1]) * 4096\n"
-            "case = ColumnCase(ny=16, length=100.0); g = case.grid(); r0 = rss(); m = build_model(case)\n"
-            "granrs.Simulation(m, stop_iteration=2).run()\n"
-            "print(json.dumps([rss() - r0, estimate_memory(g, pore_pressure=True), g.cells]))\n")
-    grown, est, cells = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                                                  check=True).stdout)
+    code = (
+        "import granrs, json\nfrom granrs.cases.column import ColumnCase, build_model\n"
+        "from granrs.model import estimate_memory\n"
+        "rss = lambda: int(open('/proc/self/statm').read().split()[1]) * 4096\n"
+        "case = ColumnCase(ny=16, length=100.0); g = case.grid(); r0 = rss(); m = build_model(case)\n"
+        "granrs.Simulation(m, stop_iteration=2).run()\n"
+        "print(json.dumps([rss() - r0, estimate_memory(g, pore_pressure=True), g.cells]))\n"
+    )
+    grown, est, cells = json.loads(
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    )
     assert cells > 50_000
     assert 0.7 * grown <= est <= 2.0 * grown, (grown, est)
 

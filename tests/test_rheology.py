@@ -1,14 +1,25 @@
 """Viscoplastic rheology: bi-projection, Coulomb walls, regularised laws (fast sizes; `slow` for
 the fine cavity). Each tolerance says which number justifies it."""
 
-import math
-
 import numpy as np
 import pytest
 
 import granrs
-from granrs import (Bingham, BoundaryConditions, Coulomb, DruckerPrager, FullyDeveloped, Grid, Material, Model, MuI,
-                    Numerics, ParameterError, SimulationError, Velocity)
+from granrs import (
+    Bingham,
+    BoundaryConditions,
+    Coulomb,
+    DruckerPrager,
+    FullyDeveloped,
+    Grid,
+    Material,
+    Model,
+    MuI,
+    Numerics,
+    ParameterError,
+    SimulationError,
+    Velocity,
+)
 from granrs.validation import run_case
 from granrs.validation.rheology import fit_ratio, run_poiseuille
 
@@ -72,10 +83,17 @@ def test_sliding_block_accelerates_and_stops():
 
 def test_wall_friction_is_exposed():
     g = Grid(4, 16, 0.1, 0.1)
-    bc = BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=Coulomb(friction_angle=15.0),
-                            top=granrs.Outflow())
-    m = Model(g, Material(1450.0, 0.1), bc=bc, gravity=(4.9, -8.5), rheology=DruckerPrager(27.0),
-              numerics=Numerics(dt=1e-3, convection=False, pressure_rtol=1e-12, pressure_max_iterations=20000))
+    bc = BoundaryConditions(
+        left=FullyDeveloped(), right=FullyDeveloped(), bottom=Coulomb(friction_angle=15.0), top=granrs.Outflow()
+    )
+    m = Model(
+        g,
+        Material(1450.0, 0.1),
+        bc=bc,
+        gravity=(4.9, -8.5),
+        rheology=DruckerPrager(27.0),
+        numerics=Numerics(dt=1e-3, convection=False, pressure_rtol=1e-12, pressure_max_iterations=20000),
+    )
     m.set_initial(u=0.0)
     m.advance(max_steps=50)
     s, tau_b = m.wall_friction("bottom")
@@ -109,15 +127,25 @@ def test_fit_ratio_recovers_a_geometric_sequence():
 
 
 def test_picard_non_convergence_is_a_clear_error():
-    m = Model(Grid(16, 16, 1.0, 1.0), Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)),
-              rheology=Bingham(5.0), numerics=Numerics(dt=0.05, convection=False, picard_max_iterations=2, picard_tol=1e-12))
+    m = Model(
+        Grid(16, 16, 1.0, 1.0),
+        Material(1.0, 1.0),
+        bc=BoundaryConditions(top=Velocity(tangential=1.0)),
+        rheology=Bingham(5.0),
+        numerics=Numerics(dt=0.05, convection=False, picard_max_iterations=2, picard_tol=1e-12),
+    )
     with pytest.raises(SimulationError, match="Picard iteration of the plastic projection did not converge: increment"):
         m.step()
 
 
 def test_advance_log_reports_picard_iterations_and_increment():
-    m = Model(Grid(16, 16, 1.0, 1.0), Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)),
-              rheology=Bingham(2.0), numerics=Numerics(dt=0.05, convection=False, picard_tol=1e-9))
+    m = Model(
+        Grid(16, 16, 1.0, 1.0),
+        Material(1.0, 1.0),
+        bc=BoundaryConditions(top=Velocity(tangential=1.0)),
+        rheology=Bingham(2.0),
+        numerics=Numerics(dt=0.05, convection=False, picard_tol=1e-9),
+    )
     log = m.advance(max_steps=3)
     assert len(log["picard_iterations"]) == 3 and min(log["picard_iterations"]) >= 1
     assert max(log["picard_increment"]) <= 1e-9
@@ -158,7 +186,13 @@ def test_cavity_projection_agrees_with_the_regularised_law(cavity16):
 
 
 def test_stokes_cavity_against_an_independent_biharmonic_solution():
-    from granrs.validation.rheology import STOKES_CAVITY_U_MIN, run_cavity_bingham, stokes_cavity_biharmonic, centreline_u
+    from granrs.validation.rheology import (
+        STOKES_CAVITY_U_MIN,
+        centreline_u,
+        run_cavity_bingham,
+        stokes_cavity_biharmonic,
+    )
+
     # the reference: Richardson limit of the 13-point biharmonic stream-function solution
     # (second order; n = 32, 64 give -0.20616, -0.20735)
     a, b = stokes_cavity_biharmonic(32)[0], stokes_cavity_biharmonic(64)[0]
@@ -194,42 +228,51 @@ def test_cavity_bingham_default_case():
 
 
 # ---- API, errors, determinism ----------------------------------------------------------------
-@pytest.mark.parametrize("make, name", [
-    (lambda: Bingham(-1.0), "yield_stress"),
-    (lambda: DruckerPrager(95.0), "friction_angle"),
-    (lambda: MuI(0.5, 0.4, 0.3, 1e-3, 2500.0), "mu_2"),
-    (lambda: MuI(0.38, 0.64, 0.0, 1e-3, 2500.0), "i0"),
-    (lambda: Coulomb(friction_angle=100.0), "friction_angle"),
-])
+@pytest.mark.parametrize(
+    "make, name",
+    [
+        (lambda: Bingham(-1.0), "yield_stress"),
+        (lambda: DruckerPrager(95.0), "friction_angle"),
+        (lambda: MuI(0.5, 0.4, 0.3, 1e-3, 2500.0), "mu_2"),
+        (lambda: MuI(0.38, 0.64, 0.0, 1e-3, 2500.0), "i0"),
+        (lambda: Coulomb(friction_angle=100.0), "friction_angle"),
+    ],
+)
 def test_bad_rheology_parameters_name_the_parameter(make, name):
     with pytest.raises(ParameterError, match=f"`{name}`"):
         make()
 
 
-@pytest.mark.parametrize("numerics, name", [
-    (dict(theta=1.0), "theta"),
-    (dict(theta=-0.1), "theta"),
-    (dict(r=-1.0), "r"),
-    (dict(r_wall=0.0), "r_wall"),
-    (dict(picard_tol=0.0), "picard_tol"),
-    (dict(picard_max_iterations=0), "picard_max_iterations"),
-    (dict(plastic="augmented"), "plastic"),
-    (dict(plastic="papanastasiou"), "regularisation"),
-    (dict(plastic="papanastasiou", regularisation=-5.0), "regularisation"),
-    (dict(viscous_rtol=0.0), "viscous_rtol"),
-    (dict(sigma_location="nodes"), "sigma_location"),
-    (dict(sigma_location="centres", anderson_depth=2), "anderson_depth"),
-])
+@pytest.mark.parametrize(
+    "numerics, name",
+    [
+        (dict(theta=1.0), "theta"),
+        (dict(theta=-0.1), "theta"),
+        (dict(r=-1.0), "r"),
+        (dict(r_wall=0.0), "r_wall"),
+        (dict(picard_tol=0.0), "picard_tol"),
+        (dict(picard_max_iterations=0), "picard_max_iterations"),
+        (dict(plastic="augmented"), "plastic"),
+        (dict(plastic="papanastasiou"), "regularisation"),
+        (dict(plastic="papanastasiou", regularisation=-5.0), "regularisation"),
+        (dict(viscous_rtol=0.0), "viscous_rtol"),
+        (dict(sigma_location="nodes"), "sigma_location"),
+        (dict(sigma_location="centres", anderson_depth=2), "anderson_depth"),
+    ],
+)
 def test_bad_numerics_are_rejected_by_rust_with_the_name(numerics, name):
     with pytest.raises(ParameterError, match=f"`{name}`"):
         Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 1.0), rheology=Bingham(1.0), numerics=Numerics(**numerics))
 
 
-@pytest.mark.parametrize("make, name", [
-    (lambda: granrs.SideWalls(0.0, 15.0), "side_walls.width"),
-    (lambda: granrs.SideWalls(0.1, 90.0), "side_walls.friction_angle"),
-    (lambda: Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 1.0), side_walls=(0.1, 15.0)), "side_walls"),
-])
+@pytest.mark.parametrize(
+    "make, name",
+    [
+        (lambda: granrs.SideWalls(0.0, 15.0), "side_walls.width"),
+        (lambda: granrs.SideWalls(0.1, 90.0), "side_walls.friction_angle"),
+        (lambda: Model(Grid(8, 8, 1.0, 1.0), Material(1.0, 1.0), side_walls=(0.1, 15.0)), "side_walls"),
+    ],
+)
 def test_bad_side_walls_name_the_parameter(make, name):
     with pytest.raises(ParameterError, match=f"`{name}`"):
         make()
@@ -248,8 +291,13 @@ def test_newtonian_model_has_no_plastic_tensor():
 
 
 def test_plastic_views_are_read_only_and_live():
-    m = Model(Grid(16, 16, 1.0, 1.0), Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)),
-              rheology=Bingham(2.0), numerics=Numerics(dt=0.05, convection=False))
+    m = Model(
+        Grid(16, 16, 1.0, 1.0),
+        Material(1.0, 1.0),
+        bc=BoundaryConditions(top=Velocity(tangential=1.0)),
+        rheology=Bingham(2.0),
+        numerics=Numerics(dt=0.05, convection=False),
+    )
     s = m.sigma_xy
     assert s.shape == (17, 17) and m.sigma_xx.shape == (16, 16) and not s.flags.writeable
     m.advance(max_steps=2)
@@ -258,9 +306,14 @@ def test_plastic_views_are_read_only_and_live():
 
 
 def _bingham_cavity(threads):
-    m = Model(Grid(64, 64, 1.0, 1.0), Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)),
-              rheology=Bingham(5.0), threads=threads, numerics=Numerics(dt=0.05, convection=False, picard_tol=1e-9, cfl_abort=100.0,
-                                                                               pressure_max_iterations=5000))
+    m = Model(
+        Grid(64, 64, 1.0, 1.0),
+        Material(1.0, 1.0),
+        bc=BoundaryConditions(top=Velocity(tangential=1.0)),
+        rheology=Bingham(5.0),
+        threads=threads,
+        numerics=Numerics(dt=0.05, convection=False, picard_tol=1e-9, cfl_abort=100.0, pressure_max_iterations=5000),
+    )
     m.advance(max_steps=3)
     return m.u.copy(), m.v.copy(), m.sigma_xx.copy(), m.sigma_xy.copy()
 
@@ -277,6 +330,7 @@ def test_mu_i_viscosity_follows_the_law_in_simple_shear():
     # single-phase μ(I) layer after some steps: where the flow is a simple shear, the lagged
     # viscosity matches (μ₂ − μ_s) p / (2|D| + (I₀/d)√(p/ρ_s)) + background
     from granrs.validation.rheology import run_bagnold
+
     m, _ = run_bagnold(16, t_max=20.0)
     p = m.p[:, 2]
     du = np.gradient(m.u[:, 2], 1.0 / 16)
@@ -290,9 +344,13 @@ def test_bingham_stress_in_simple_shear_is_eta_gamma_dot_plus_tau_y():
     # Couette flow between a fixed bottom and a lid at speed 1, η = 1, τ_y = 0.5: steady shear
     # stress = η γ̇ + τ_y with γ̇ = 1 (the norm |D| = √(½ΣD²) of the paper), so |Σ_xy| = 1
     g = Grid(4, 16, 0.25, 1.0)
-    m = Model(g, Material(1.0, 1.0), bc=BoundaryConditions(left=granrs.Outflow(), right=granrs.Outflow(),
-                                                          top=Velocity(tangential=1.0)),
-              rheology=Bingham(0.5), numerics=Numerics(dt=0.5, cfl_abort=100.0))
+    m = Model(
+        g,
+        Material(1.0, 1.0),
+        bc=BoundaryConditions(left=granrs.Outflow(), right=granrs.Outflow(), top=Velocity(tangential=1.0)),
+        rheology=Bingham(0.5),
+        numerics=Numerics(dt=0.5, cfl_abort=100.0),
+    )
     m.advance(max_steps=60)
     assert np.allclose(m.u[:, 2], (np.arange(16) + 0.5) / 16, atol=1e-8)
     assert np.allclose(m.sigma_xy[1:-1, 2], 1.0, atol=1e-8)

@@ -19,8 +19,14 @@ def _stubtest(stub_dir: Path | None, cwd: Path) -> subprocess.CompletedProcess:
     env.pop("MYPYPATH", None)
     if stub_dir is not None:
         env["MYPYPATH"] = str(stub_dir)
-    return subprocess.run([sys.executable, "-m", "mypy.stubtest", "--concise", "granrs._granrs"], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "mypy.stubtest", "--concise", "granrs._granrs"],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_stub_names_match_the_extension():
@@ -30,7 +36,7 @@ def test_stub_names_match_the_extension():
     exported = {k for k in dir(ext) if not k.startswith("__") or k == "__version__"}
     exported.discard("__version__")
     stub.discard("__version__")
-    assert stub == exported, (stub ^ exported)
+    assert stub == exported, stub ^ exported
     cls = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "RustModel")
     methods = {n.name for n in cls.body if isinstance(n, ast.FunctionDef)} - {"__new__"}
     assert methods == {k for k in dir(ext.RustModel) if not k.startswith("_")}
@@ -45,7 +51,7 @@ def test_stubtest_finds_the_stubs_consistent_with_the_extension(tmp_path):
 def _defaulted(fn: ast.FunctionDef) -> list[tuple[ast.arg, ast.expr]]:
     """(parameter, default) pairs of ``fn`` whose default is a plain literal (not ``...``, not None)."""
     args = fn.args.posonlyargs + fn.args.args
-    pairs = list(zip(args[len(args) - len(fn.args.defaults):], fn.args.defaults))
+    pairs = list(zip(args[len(args) - len(fn.args.defaults) :], fn.args.defaults))
     pairs += [(a, d) for a, d in zip(fn.args.kwonlyargs, fn.args.kw_defaults) if d is not None]
     return [(a, d) for a, d in pairs if isinstance(d, ast.Constant) and d.value not in (None, Ellipsis)]
 
@@ -79,5 +85,7 @@ def test_stubtest_fails_on_a_wrong_default_and_on_a_missing_parameter(tmp_path):
     assert r.returncode != 0, out
     assert f'runtime parameter "{arg.arg}" has a default value of {v!r}' in out, out
     # a keyword-only parameter is reported missing; a positional one also shifts those after it
-    assert any("is inconsistent" in line and f'"{victim.arg}"' in line and f".{removed_from.name} " in line
-               for line in out.splitlines()), out
+    assert any(
+        "is inconsistent" in line and f'"{victim.arg}"' in line and f".{removed_from.name} " in line
+        for line in out.splitlines()
+    ), out

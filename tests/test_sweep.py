@@ -19,8 +19,13 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def base(out) -> dict:
-    return resolve({"grid": {"ny": 16}, "numerics": {"t_end": 0.05, "threads": 1},
-                    "output": {"dir": str(out), "fields_every_s": 0.0, "animation": False}})
+    return resolve(
+        {
+            "grid": {"ny": 16},
+            "numerics": {"t_end": 0.05, "threads": 1},
+            "output": {"dir": str(out), "fields_every_s": 0.0, "animation": False},
+        }
+    )
 
 
 def test_parse_linear_ranges_and_lists():
@@ -31,9 +36,16 @@ def test_parse_linear_ranges_and_lists():
     assert parse_param("case.fluidised=true,false") == ("case.fluidised", [True, False])
 
 
-@pytest.mark.parametrize("bad,match", [("numerics.cfll=0.3", "`numerics.cfll`"), ("numerics.cfl", "key=a:b:n"),
-                                       ("numerics.cfl=0.3:0.5:0", "integer n >= 1"), ("grid.ny=16:21:3", "not integers"),
-                                       ("numerics.cfl=0.3,0.3", "distinct")])
+@pytest.mark.parametrize(
+    "bad,match",
+    [
+        ("numerics.cfll=0.3", "`numerics.cfll`"),
+        ("numerics.cfl", "key=a:b:n"),
+        ("numerics.cfl=0.3:0.5:0", "integer n >= 1"),
+        ("grid.ny=16:21:3", "not integers"),
+        ("numerics.cfl=0.3,0.3", "distinct"),
+    ],
+)
 def test_bad_parameters_are_rejected(bad, match):
     with pytest.raises(ParameterError, match=match):
         parse_param(bad)
@@ -59,7 +71,9 @@ def test_sweep_on_a_local_cluster_equals_the_runs_one_by_one(tmp_path):
     assert result.table[0]["runout_m"] > 0
     ds = result.dataset
     assert dict(ds.sizes) == {"numerics.cfl": 2, "materials.diffusivity": 2}
-    assert float(ds["runout_m"].sel({"numerics.cfl": 0.5, "materials.diffusivity": 0.035})) == result.table[3]["runout_m"]
+    assert (
+        float(ds["runout_m"].sel({"numerics.cfl": 0.5, "materials.diffusivity": 0.035})) == result.table[3]["runout_m"]
+    )
     assert ds["runout_m"].attrs["units"] == "m" and "granrs_version" in ds.attrs
     rows = list(csv.DictReader(open(result.files["csv"])))
     assert len(rows) == 4 and float(rows[2]["runout_m"]) == pytest.approx(result.table[2]["runout_m"], rel=1e-12)
@@ -71,8 +85,9 @@ def test_a_failing_member_is_reported_and_the_others_kept(tmp_path):
     from dask.distributed import LocalCluster
 
     # grid.length = 0.25 m passes validation but the column already touches the far end: a run-time error
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None) as cluster:
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
         result = run_sweep(base(tmp_path), ["grid.length=0.25,2.25"], scheduler=cluster.scheduler_address)
     failed, ok = result.table
     assert failed["status"] == "failed" and "SimulationError" in failed["error"] and "far end" in failed["error"]
@@ -82,8 +97,20 @@ def test_a_failing_member_is_reported_and_the_others_kept(tmp_path):
 
 
 def test_cli_sweep_rejects_a_bad_parameter_before_any_work(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "granrs.cli", "sweep", str(EXAMPLES / "paper_dry.toml"),
-                        "--param", "materials.friction_angle=20,95", "--out", str(tmp_path / "s")],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "granrs.cli",
+            "sweep",
+            str(EXAMPLES / "paper_dry.toml"),
+            "--param",
+            "materials.friction_angle=20,95",
+            "--out",
+            str(tmp_path / "s"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 2 and "`materials.friction_angle` = 95" in r.stderr
     assert not (tmp_path / "s").exists()

@@ -42,8 +42,9 @@ def run(fluidised):
 
 runs = {name: run(name == "fluidised") for name in ("dry", "fluidised")}
 for name, (_case, model, rec) in runs.items():
-    print(f"{name:9s}: front {rec['front'][-1]:.3f} m from the gate at t = {model.time:.2f} s, "
-          f"{model.step_count} steps")
+    print(
+        f"{name:9s}: front {rec['front'][-1]:.3f} m from the gate at t = {model.time:.2f} s, {model.step_count} steps"
+    )
 
 # %%
 # The front against time
@@ -68,11 +69,19 @@ pf_image = None
 for ax, (name, (case, model, _)) in zip(axes, runs.items()):
     g = model.grid
     extent = (0, g.lx, 0, g.ly)
-    ax.imshow(np.where(model.phi > 0, 1.0, np.nan), origin="lower", extent=extent, cmap="Oranges",
-              vmin=0, vmax=1.5, aspect="auto")
+    ax.imshow(
+        np.where(model.phi > 0, 1.0, np.nan),
+        origin="lower",
+        extent=extent,
+        cmap="Oranges",
+        vmin=0,
+        vmax=1.5,
+        aspect="auto",
+    )
     if model.pore_pressure is not None:
-        pf_image = ax.imshow(np.where(model.phi > 0, model.pf, np.nan), origin="lower", extent=extent,
-                             cmap="viridis", aspect="auto")
+        pf_image = ax.imshow(
+            np.where(model.phi > 0, model.pf, np.nan), origin="lower", extent=extent, cmap="viridis", aspect="auto"
+        )
     ax.axvline(case.width, color="k", lw=0.8, ls="--")
     ax.set(xlim=(0, 2.0), ylabel="y (m)", title=f"{name}, t = {model.time:.1f} s")
 axes[-1].set_xlabel("x (m); dashed: the gate; orange: grains without pore pressure")

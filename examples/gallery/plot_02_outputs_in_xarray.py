@@ -25,11 +25,22 @@ from granrs.runner import run_config
 
 out = Path(tempfile.mkdtemp()) / "fluidised"
 # the run file of the paper's fluidised case, found from the repository or its examples/gallery
-run_file = next(d / "examples" / "paper_fluidised.toml" for d in (Path.cwd(), *Path.cwd().parents)
-                if (d / "examples" / "paper_fluidised.toml").exists())
-cfg = load_config(run_file,
-                  ["grid.ny=16", "numerics.t_end=0.2", "output.fields_every_s=0.05",
-                   'output.formats=["netcdf", "vtk"]', "output.animation=false", f'output.dir="{out}"'])
+run_file = next(
+    d / "examples" / "paper_fluidised.toml"
+    for d in (Path.cwd(), *Path.cwd().parents)
+    if (d / "examples" / "paper_fluidised.toml").exists()
+)
+cfg = load_config(
+    run_file,
+    [
+        "grid.ny=16",
+        "numerics.t_end=0.2",
+        "output.fields_every_s=0.05",
+        'output.formats=["netcdf", "vtk"]',
+        "output.animation=false",
+        f'output.dir="{out}"',
+    ],
+)
 summary = run_config(cfg, progress=False)
 print(sorted(p.name for p in out.iterdir()))
 
@@ -47,8 +58,11 @@ fig, axes = plt.subplots(len(ds.time), 1, figsize=(7, 1.4 * len(ds.time)), share
 vmax = float(ds["pf"].max())
 for ax, t in zip(axes, ds.time.values):
     snap = ds.sel(time=t)
-    image = snap["pf"].where(snap["phi"] > 0).plot(ax=ax, x=snap["phi"].dims[-1], add_colorbar=False, cmap="viridis",
-                                                   vmin=0, vmax=vmax)
+    image = (
+        snap["pf"]
+        .where(snap["phi"] > 0)
+        .plot(ax=ax, x=snap["phi"].dims[-1], add_colorbar=False, cmap="viridis", vmin=0, vmax=vmax)
+    )
     snap["phi"].plot.contour(ax=ax, x=snap["phi"].dims[-1], levels=[0.0], colors="k", linewidths=0.8)
     ax.set(xlim=(0, 1.0), title=f"t = {float(t):.2f} s", xlabel="", ylabel="y (m)")
 axes[-1].set_xlabel("x (m)")
@@ -66,4 +80,6 @@ entries = read_pvd(out / "fields.pvd")
 print(entries[:2])
 t_last, vti = entries[-1]
 snap = read_vti(vti)
-print(f"t = {t_last:.2f} s: {snap['shape']} cells of {snap['spacing'][0] * 1e3:.1f} mm, fields {sorted(snap['fields'])}")
+print(
+    f"t = {t_last:.2f} s: {snap['shape']} cells of {snap['spacing'][0] * 1e3:.1f} mm, fields {sorted(snap['fields'])}"
+)

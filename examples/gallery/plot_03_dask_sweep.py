@@ -20,16 +20,22 @@ import matplotlib.pyplot as plt
 from granrs.config import load_config
 from granrs.sweep import run_sweep
 
-if __name__ == "__main__":   # Dask's worker processes re-import the main module
-    run_file = next(d / "examples" / "paper_fluidised.toml" for d in (Path.cwd(), *Path.cwd().parents)
-                    if (d / "examples" / "paper_fluidised.toml").exists())
-    cfg = load_config(run_file, ["grid.ny=16", "numerics.t_end=0.5", "output.fields_every_s=0",
-                                 "output.animation=false"])
+if __name__ == "__main__":  # Dask's worker processes re-import the main module
+    run_file = next(
+        d / "examples" / "paper_fluidised.toml"
+        for d in (Path.cwd(), *Path.cwd().parents)
+        if (d / "examples" / "paper_fluidised.toml").exists()
+    )
+    cfg = load_config(
+        run_file, ["grid.ny=16", "numerics.t_end=0.5", "output.fields_every_s=0", "output.animation=false"]
+    )
     out = Path(tempfile.mkdtemp()) / "sweep"
     result = run_sweep(cfg, ["materials.diffusivity=0.01,0.1", "numerics.cfl=0.25,0.5"], workers=2, out=out)
     for row in result.table:
-        print(f"κ_f = {row['materials.diffusivity']:5.3f}, CFL = {row['numerics.cfl']:.2f}: "
-              f"front {row['runout_m']:.3f} m at t = {row['t_end_s']:.2f} s ({row['status']}, {row['steps']} steps)")
+        print(
+            f"κ_f = {row['materials.diffusivity']:5.3f}, CFL = {row['numerics.cfl']:.2f}: "
+            f"front {row['runout_m']:.3f} m at t = {row['t_end_s']:.2f} s ({row['status']}, {row['steps']} steps)"
+        )
 
     # the Dataset has one dimension per swept key
     ds = result.dataset
@@ -38,8 +44,12 @@ if __name__ == "__main__":   # Dask's worker processes re-import the main module
     for cfl in ds["numerics.cfl"].values:
         sel = ds.sel({"numerics.cfl": cfl})
         ax.plot(sel["materials.diffusivity"], sel["runout_m"], "o-", label=f"CFL {cfl:g}")
-    ax.set(xscale="log", xlabel="κ_f (m² s⁻¹)", ylabel="front at 0.5 s (m)",
-           title="a faster-draining pore pressure shortens the flow")
+    ax.set(
+        xscale="log",
+        xlabel="κ_f (m² s⁻¹)",
+        ylabel="front at 0.5 s (m)",
+        title="a faster-draining pore pressure shortens the flow",
+    )
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()

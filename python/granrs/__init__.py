@@ -15,10 +15,20 @@ The pipeline is grid → model → simulation → run::
     model.u   # read-only zero-copy view of the x-velocity, shape (ny, nx + 1)
 """
 
-from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
 from . import shapes
+from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
+from .boundary import (
+    BoundaryConditions,
+    Coulomb,
+    CoulombWall,
+    FreeSlip,
+    FullyDeveloped,
+    NavierSlip,
+    NoSlip,
+    Outflow,
+    Velocity,
+)
 from .depth_averaged import DepthAveragedModel, DepthAveragedPore
-from .boundary import BoundaryConditions, Coulomb, CoulombWall, FreeSlip, FullyDeveloped, NavierSlip, NoSlip, Outflow, Velocity
 from .grid import Grid
 from .materials import AIR, WATER, Material
 from .model import Model, PorePressure, SideWalls

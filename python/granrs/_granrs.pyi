@@ -6,12 +6,23 @@ import numpy as np
 import numpy.typing as npt
 from typing_extensions import Self
 
-__all__ = ["RustModel", "RustDepthAveraged", "build_info", "levelset_validation", "schema", "check_option", "__version__", "ParameterError",
-           "SolverError", "SimulationError"]
+__all__ = [
+    "RustModel",
+    "RustDepthAveraged",
+    "build_info",
+    "levelset_validation",
+    "schema",
+    "check_option",
+    "__version__",
+    "ParameterError",
+    "SolverError",
+    "SimulationError",
+]
 
 __version__: str
 
 class ParameterError(ValueError): ...
+
 class SimulationError(RuntimeError):
     step: int
     time: float
@@ -23,8 +34,9 @@ class SolverError(SimulationError): ...
 def build_info() -> dict[str, Any]: ...
 def schema() -> list[dict[str, Any]]: ...
 def check_option(key: str, value: Any, room: Optional[str] = None, name: Optional[str] = None) -> Any: ...
-def levelset_validation(case: str, n: int, period: float, redistance_every: int, cfl: float,
-                        threads: int = 1) -> dict[str, Any]: ...
+def levelset_validation(
+    case: str, n: int, period: float, redistance_every: int, cfl: float, threads: int = 1
+) -> dict[str, Any]: ...
 
 @final
 class RustModel:
@@ -60,11 +72,23 @@ class RustModel:
 
 @final
 class RustDepthAveraged:
-    def __new__(cls, cells: int, length: float, gravity: float = 9.81, earth_pressure: float = 1.0,
-                basal_friction_angle: float = 0.0, cfl: float = 0.4, dry_depth: float = 1e-6, max_dt: float = 1e-2,
-                pore: Optional[dict[str, float]] = None, internal_friction_angle: Optional[float] = None) -> Self: ...
+    def __new__(
+        cls,
+        cells: int,
+        length: float,
+        gravity: float = 9.81,
+        earth_pressure: float = 1.0,
+        basal_friction_angle: float = 0.0,
+        cfl: float = 0.4,
+        dry_depth: float = 1e-6,
+        max_dt: float = 1e-2,
+        pore: Optional[dict[str, float]] = None,
+        internal_friction_angle: Optional[float] = None,
+    ) -> Self: ...
     def field_storage(self, name: str) -> npt.NDArray[np.float64]: ...
-    def set_state(self, h: npt.NDArray[np.float64], u: npt.NDArray[np.float64], beta: npt.NDArray[np.float64]) -> None: ...
+    def set_state(
+        self, h: npt.NDArray[np.float64], u: npt.NDArray[np.float64], beta: npt.NDArray[np.float64]
+    ) -> None: ...
     def set_bed(self, bed: npt.NDArray[np.float64]) -> None: ...
     def step(self) -> float: ...
     def advance(self, t_end: float, max_steps: Optional[int] = None) -> int: ...

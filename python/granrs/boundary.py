@@ -117,10 +117,15 @@ class BoundaryConditions:
             if not isinstance(v, _KINDS):
                 raise ParameterError(
                     f"invalid parameter `bc.{side}` = {v!r}: allowed one of NoSlip(), FreeSlip(), Velocity(...), "
-                    "NavierSlip(...), Outflow(), Coulomb(...), FullyDeveloped()")
+                    "NavierSlip(...), Outflow(), Coulomb(...), FullyDeveloped()"
+                )
 
     def spec(self) -> dict:
         return {s: getattr(self, s).spec() for s in ("left", "right", "bottom", "top")}
 
     def __repr__(self) -> str:
-        return "BoundaryConditions(" + ", ".join(f"{s}={getattr(self, s)}" for s in ("left", "right", "bottom", "top")) + ")"
+        return (
+            "BoundaryConditions("
+            + ", ".join(f"{s}={getattr(self, s)}" for s in ("left", "right", "bottom", "top"))
+            + ")"
+        )

@@ -24,10 +24,13 @@ def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False):
         try:
             v = int(text) if kind == "int" else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}") from None
+            raise argparse.ArgumentTypeError(
+                f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}"
+            ) from None
         if kind == "float" and not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
             raise argparse.ArgumentTypeError(f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}")
         return v
+
     return parse
 
 
@@ -60,8 +63,24 @@ def _validate(args) -> int:
             print(f"{name:16s} {doc}  (defaults: {defaults})")
         return 0
     params = {}
-    for key in ("n", "re", "steps", "period", "redistance_every", "cfl", "ny", "t_end",
-                "tau_y", "bn", "geometry", "regularised", "slope", "dt", "theta", "air"):
+    for key in (
+        "n",
+        "re",
+        "steps",
+        "period",
+        "redistance_every",
+        "cfl",
+        "ny",
+        "t_end",
+        "tau_y",
+        "bn",
+        "geometry",
+        "regularised",
+        "slope",
+        "dt",
+        "theta",
+        "air",
+    ):
         val = getattr(args, key)
         if val is not None:
             params[key] = val[0] if isinstance(val, list) and len(val) == 1 else val
@@ -72,26 +91,46 @@ def _validate(args) -> int:
         Path(args.json).write_text(text + "\n")
     print(text)
     if record["passed"] is None:
-        print(f"granrs: {args.name}: not judged (passed: null): the parameters are outside the range of its "
-              "reference", file=sys.stderr)
+        print(
+            f"granrs: {args.name}: not judged (passed: null): the parameters are outside the range of its reference",
+            file=sys.stderr,
+        )
     return 1 if record["passed"] is False else 0
 
 
-_COLUMN_OPTIONS = ("aspect_ratio", "width", "fluidised", "pore_pressure_ratio", "ny", "t_end", "rheology", "cfl",
-                   "length", "compare_with", "threads", "re", "n", "model", "active_region", "active_region_sides",
-                   "channel_width")
+_COLUMN_OPTIONS = (
+    "aspect_ratio",
+    "width",
+    "fluidised",
+    "pore_pressure_ratio",
+    "ny",
+    "t_end",
+    "rheology",
+    "cfl",
+    "length",
+    "compare_with",
+    "threads",
+    "re",
+    "n",
+    "model",
+    "active_region",
+    "active_region_sides",
+    "channel_width",
+)
 _CAVITY_OPTIONS = ("re", "n")
 
 
 def _run_file(args, parser) -> int:
-    from .config import load_config, set_value
+    from .config import load_config
     from .io.provenance import command_line
     from .runner import run_config
 
     given = [f"--{k.replace('_', '-')}" for k in _COLUMN_OPTIONS if getattr(args, k) != parser.get_default(k)]
     if given:
-        raise ParameterError(f"invalid parameter `{given[0]}` with a run file: allowed --set section.key=value "
-                             "(e.g. --set grid.ny=64), --out, --restart, --allow-changes, --overwrite, --quiet")
+        raise ParameterError(
+            f"invalid parameter `{given[0]}` with a run file: allowed --set section.key=value "
+            "(e.g. --set grid.ny=64), --out, --restart, --allow-changes, --overwrite, --quiet"
+        )
     if args.allow_changes and not args.restart:
         raise ParameterError("invalid parameter `--allow-changes`: allowed only with --restart CHECKPOINT")
     if args.out is not None and not args.out.strip():
@@ -99,9 +138,15 @@ def _run_file(args, parser) -> int:
     sets = list(args.set or [])
     cfg = load_config(args.case, sets + ([f"output.dir={json.dumps(args.out)}"] if args.out else []))
     try:
-        summary = run_config(cfg, command=command_line(), progress=not args.quiet, restart=args.restart,
-                             overwrite=args.overwrite, allow_changes=args.allow_changes,
-                             out_name="--out" if args.out else "output.dir")
+        summary = run_config(
+            cfg,
+            command=command_line(),
+            progress=not args.quiet,
+            restart=args.restart,
+            overwrite=args.overwrite,
+            allow_changes=args.allow_changes,
+            out_name="--out" if args.out else "output.dir",
+        )
     except KeyboardInterrupt:
         return _interrupted(cfg["output"]["dir"], not args.quiet)
     keys = ("runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error", "fluidised", "stop_reason")
@@ -114,9 +159,12 @@ def _sweep(args) -> int:
     from .sweep import run_sweep
 
     cfg = load_config(args.file, args.set or [])
-    result = run_sweep(cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out,
-                       overwrite=args.overwrite)
-    keys = [k for k in result.table[0] if k not in ("dir", "error", "member", "stop_reason", "wall_s", "mass_rel_error")]
+    result = run_sweep(
+        cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out, overwrite=args.overwrite
+    )
+    keys = [
+        k for k in result.table[0] if k not in ("dir", "error", "member", "stop_reason", "wall_s", "mass_rel_error")
+    ]
     print(",".join(keys))
     for row in result.table:
         print(",".join(f"{row[k]:.6g}" if isinstance(row[k], float) else str(row[k]) for k in keys))
@@ -131,60 +179,90 @@ def _run(args, parser) -> int:
     if args.case.endswith(".toml") or Path(args.case).is_file():
         return _run_file(args, parser)
     if args.case not in ("column", "cavity") and (Path(args.case).exists() or "/" in args.case):
-        raise ParameterError(f"invalid parameter `case` = {args.case!r}: not a readable run file; allowed 'column', "
-                             "'cavity' or a run file FILE.toml")
+        raise ParameterError(
+            f"invalid parameter `case` = {args.case!r}: not a readable run file; allowed 'column', "
+            "'cavity' or a run file FILE.toml"
+        )
     for flag in ("set", "restart", "allow_changes"):
         if getattr(args, flag):
-            raise ParameterError(f"invalid parameter `--{flag.replace('_', '-')}`: allowed only with a run file "
-                                 "(granrs run FILE.toml)")
+            raise ParameterError(
+                f"invalid parameter `--{flag.replace('_', '-')}`: allowed only with a run file (granrs run FILE.toml)"
+            )
     if args.case not in ("column", "cavity"):
-        raise ParameterError(f"invalid parameter `case` = {args.case!r}: allowed 'column', 'cavity' or a run file "
-                             "FILE.toml (an existing file)")
+        raise ParameterError(
+            f"invalid parameter `case` = {args.case!r}: allowed 'column', 'cavity' or a run file "
+            "FILE.toml (an existing file)"
+        )
     if args.out is None:
         raise ParameterError(f"invalid parameter `--out`: required for `granrs run {args.case}`")
-    other = _CAVITY_OPTIONS if args.case == "column" else tuple(k for k in _COLUMN_OPTIONS if k not in _CAVITY_OPTIONS
-                                                                 and k != "threads")
+    other = (
+        _CAVITY_OPTIONS
+        if args.case == "column"
+        else tuple(k for k in _COLUMN_OPTIONS if k not in _CAVITY_OPTIONS and k != "threads")
+    )
     given = [f"--{k.replace('_', '-')}" for k in other if getattr(args, k) != parser.get_default(k)]
     if given:
         allowed = "--re, --n" if args.case == "cavity" else "the column's flags (granrs run --help)"
-        raise ParameterError(f"invalid parameter `{given[0]}` with `granrs run {args.case}`: not used by this case; "
-                             f"allowed {allowed}, --threads, --out, --overwrite, --quiet")
+        raise ParameterError(
+            f"invalid parameter `{given[0]}` with `granrs run {args.case}`: not used by this case; "
+            f"allowed {allowed}, --threads, --out, --overwrite, --quiet"
+        )
     if args.case == "column":
         from .cases.column import ColumnCase, run_column
 
         if args.active_region_sides is not None and args.active_region is None:
-            raise ParameterError(f"invalid parameter `--active-region-sides` = {args.active_region_sides!r}: allowed only "
-                                 "with --active-region BAND")
+            raise ParameterError(
+                f"invalid parameter `--active-region-sides` = {args.active_region_sides!r}: allowed only "
+                "with --active-region BAND"
+            )
         if args.model == "depth-averaged":
-            for flag, v in (("--active-region", args.active_region), ("--channel-width", args.channel_width),
-                            ("--rheology", args.rheology), ("--cfl", args.cfl), ("--threads", args.threads)):
+            for flag, v in (
+                ("--active-region", args.active_region),
+                ("--channel-width", args.channel_width),
+                ("--rheology", args.rheology),
+                ("--cfl", args.cfl),
+                ("--threads", args.threads),
+            ):
                 if v is not None and v != parser.get_default(flag[2:].replace("-", "_")):
-                    raise ParameterError(f"invalid parameter `{flag}` = {v!r} with --model depth-averaged: not used by "
-                                         "the depth-averaged model; allowed only with --model two-phase or granular")
+                    raise ParameterError(
+                        f"invalid parameter `{flag}` = {v!r} with --model depth-averaged: not used by "
+                        "the depth-averaged model; allowed only with --model two-phase or granular"
+                    )
         compare = None
         if args.compare_with is not None:
             compare = Path(args.compare_with)
             missing = [n for n in ("summary.json", "front.csv") if not (compare / n).is_file()]
             if missing:
-                raise ParameterError(f"invalid parameter `--compare-with` = {args.compare_with!r}: "
-                                     f"{'no such folder' if not compare.is_dir() else 'no ' + ' or '.join(missing) + ' there'}"
-                                     "; allowed the output folder of a finished column run")
+                raise ParameterError(
+                    f"invalid parameter `--compare-with` = {args.compare_with!r}: "
+                    f"{'no such folder' if not compare.is_dir() else 'no ' + ' or '.join(missing) + ' there'}"
+                    "; allowed the output folder of a finished column run"
+                )
         d = ColumnCase()
-        case = ColumnCase(aspect_ratio=_given(args.aspect_ratio, d.aspect_ratio), width=_given(args.width, d.width),
-                          fluidised=args.fluidised,
-                          pore_pressure_ratio=_given(args.pore_pressure_ratio, d.pore_pressure_ratio),
-                          ny=_given(args.ny, 32), t_end=_given(args.t_end, d.t_end),
-                          rheology=_given(args.rheology, d.rheology), cfl=_given(args.cfl, d.cfl),
-                          threads=_given(args.threads, 1), length=args.length, model=args.model,
-                          active_region=args.active_region,
-                          active_region_sides=_given(args.active_region_sides, d.active_region_sides),
-                          channel_width=args.channel_width)
+        case = ColumnCase(
+            aspect_ratio=_given(args.aspect_ratio, d.aspect_ratio),
+            width=_given(args.width, d.width),
+            fluidised=args.fluidised,
+            pore_pressure_ratio=_given(args.pore_pressure_ratio, d.pore_pressure_ratio),
+            ny=_given(args.ny, 32),
+            t_end=_given(args.t_end, d.t_end),
+            rheology=_given(args.rheology, d.rheology),
+            cfl=_given(args.cfl, d.cfl),
+            threads=_given(args.threads, 1),
+            length=args.length,
+            model=args.model,
+            active_region=args.active_region,
+            active_region_sides=_given(args.active_region_sides, d.active_region_sides),
+            channel_width=args.channel_width,
+        )
         case.validate()
         if case.model in ("two-phase", "granular", "auto"):
             lx = case.domain()[0]
             if lx <= case.width:
-                raise ParameterError(f"invalid parameter `--length` = {lx!r}: allowed a length (m) greater than --width "
-                                     f"= {case.width!r} m (the gate)")
+                raise ParameterError(
+                    f"invalid parameter `--length` = {lx!r}: allowed a length (m) greater than --width "
+                    f"= {case.width!r} m (the gate)"
+                )
         from .io.outputs import commit_output_dir
 
         commit_output_dir(_out_plan(args.out, args.overwrite))
@@ -192,8 +270,19 @@ def _run(args, parser) -> int:
             summary = run_column(case, Path(args.out), progress=not args.quiet, compare_with=compare)
         except KeyboardInterrupt:
             return _interrupted(args.out, not args.quiet)
-        keys = ("model", "model_reason", "runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error",
-                "fluidised", "stop_reason")
+        keys = (
+            "model",
+            "model_reason",
+            "runout_m",
+            "t_end_s",
+            "steps",
+            "nx",
+            "ny",
+            "wall_s",
+            "mass_rel_error",
+            "fluidised",
+            "stop_reason",
+        )
         print(json.dumps({k: summary[k] for k in keys}, indent=2))
         return 0
     from .cases.cavity import run_cavity_case
@@ -201,7 +290,9 @@ def _run(args, parser) -> int:
 
     commit_output_dir(_out_plan(args.out, args.overwrite))
     try:
-        run_cavity_case(re=_given(args.re, 100.0), n=_given(args.n, 64), out=Path(args.out), threads=_given(args.threads, 1))
+        run_cavity_case(
+            re=_given(args.re, 100.0), n=_given(args.n, 64), out=Path(args.out), threads=_given(args.threads, 1)
+        )
     except KeyboardInterrupt:
         return _interrupted(args.out)
     return 0
@@ -217,89 +308,183 @@ def main(argv=None) -> int:
 
     v = sub.add_parser("validate", help="run a named validation case and write its JSON record")
     v.add_argument("name", help="case name, or 'list'")
-    v.add_argument("--n", type=_number("--n", "int", 2, 65536), action="append", help="grid size (repeat for a convergence study)")
+    v.add_argument(
+        "--n", type=_number("--n", "int", 2, 65536), action="append", help="grid size (repeat for a convergence study)"
+    )
     v.add_argument("--re", type=_number("--re", "float", 0.0, 1e6, lo_open=True), help="Reynolds number (cavity)")
     v.add_argument("--steps", type=_number("--steps", "int", 1, 10**7), help="number of steps (hydrostatic)")
-    v.add_argument("--period", type=_number("--period", "float", 0.0, 1e4, lo_open=True), help="period T (single-vortex)")
-    v.add_argument("--redistance-every", dest="redistance_every", type=_number("--redistance-every", "int", 0, 10**6),
-                   help="redistancing frequency (level-set cases)")
-    v.add_argument("--cfl", type=_number("--cfl", "float", 0.0, 10.0, lo_open=True), help="CFL number (level-set cases)")
+    v.add_argument(
+        "--period", type=_number("--period", "float", 0.0, 1e4, lo_open=True), help="period T (single-vortex)"
+    )
+    v.add_argument(
+        "--redistance-every",
+        dest="redistance_every",
+        type=_number("--redistance-every", "int", 0, 10**6),
+        help="redistancing frequency (level-set cases)",
+    )
+    v.add_argument(
+        "--cfl", type=_number("--cfl", "float", 0.0, 10.0, lo_open=True), help="CFL number (level-set cases)"
+    )
     v.add_argument("--ny", type=_number("--ny", "int", 8, 4096), help="cells across the height (column-type cases)")
-    v.add_argument("--t-end", dest="t_end", type=_number("--t-end", "float", 0.0, 1e4, lo_open=True), help="end time (s)")
-    v.add_argument("--tau-y", dest="tau_y", type=_number("--tau-y", "float", 0.0, 1e9),
-                   help="yield stress (poiseuille-bingham, cessation)")
-    v.add_argument("--bn", type=_number("--bn", "float", 0.0, 1e6), action="append",
-                   help="Bingham number (cavity-bingham; repeat for several)")
+    v.add_argument(
+        "--t-end", dest="t_end", type=_number("--t-end", "float", 0.0, 1e4, lo_open=True), help="end time (s)"
+    )
+    v.add_argument(
+        "--tau-y",
+        dest="tau_y",
+        type=_number("--tau-y", "float", 0.0, 1e9),
+        help="yield stress (poiseuille-bingham, cessation)",
+    )
+    v.add_argument(
+        "--bn",
+        type=_number("--bn", "float", 0.0, 1e6),
+        action="append",
+        help="Bingham number (cavity-bingham; repeat for several)",
+    )
     v.add_argument("--geometry", choices=["couette", "poiseuille"], help="cessation geometry")
-    v.add_argument("--regularised", action="store_true", default=None, help="also run the regularised law (heap-at-rest)")
-    v.add_argument("--slope", type=_number("--slope", "float", 0.0, 89.0), help="slope in degrees (sliding-block, heap-at-rest)")
-    v.add_argument("--dt", type=_number("--dt", "float", 0.0, 1e3, lo_open=True), action="append",
-                   help="time step (cessation; repeat for a convergence study)")
-    v.add_argument("--theta", type=_number("--theta", "float", 0.0, 1.0), action="append",
-                   help="pseudo-relaxation (picard-ratio; repeat)")
-    v.add_argument("--air", choices=["resolved", "free-surface"],
-                   help="dam-break: the two-phase model (resolved, default) or the granular-only model's free surface")
+    v.add_argument(
+        "--regularised", action="store_true", default=None, help="also run the regularised law (heap-at-rest)"
+    )
+    v.add_argument(
+        "--slope", type=_number("--slope", "float", 0.0, 89.0), help="slope in degrees (sliding-block, heap-at-rest)"
+    )
+    v.add_argument(
+        "--dt",
+        type=_number("--dt", "float", 0.0, 1e3, lo_open=True),
+        action="append",
+        help="time step (cessation; repeat for a convergence study)",
+    )
+    v.add_argument(
+        "--theta",
+        type=_number("--theta", "float", 0.0, 1.0),
+        action="append",
+        help="pseudo-relaxation (picard-ratio; repeat)",
+    )
+    v.add_argument(
+        "--air",
+        choices=["resolved", "free-surface"],
+        help="dam-break: the two-phase model (resolved, default) or the granular-only model's free surface",
+    )
     v.add_argument("--threads", type=_key_type("--threads", "numerics.threads"), default=1)
     v.add_argument("--json", help="write the JSON record to this file")
 
     r = sub.add_parser("run", help="run a case or a run file (FILE.toml) and write its outputs and plots")
     r.add_argument("case", help="'column', 'cavity', or a run file FILE.toml (see `granrs keys`)")
-    r.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="run file: override a key, e.g. --set numerics.cfl=0.3 (TOML value; repeat)")
-    r.add_argument("--restart", metavar="CHECKPOINT",
-                   help="run file: start from a checkpoint.npz (into its own folder: the run is continued, appended to)")
-    r.add_argument("--allow-changes", dest="allow_changes", action="store_true",
-                   help="with --restart: allow a configuration that differs from the checkpoint's")
+    r.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="run file: override a key, e.g. --set numerics.cfl=0.3 (TOML value; repeat)",
+    )
+    r.add_argument(
+        "--restart",
+        metavar="CHECKPOINT",
+        help="run file: start from a checkpoint.npz (into its own folder: the run is continued, appended to)",
+    )
+    r.add_argument(
+        "--allow-changes",
+        dest="allow_changes",
+        action="store_true",
+        help="with --restart: allow a configuration that differs from the checkpoint's",
+    )
     r.add_argument("--overwrite", action="store_true", help="replace the outputs of a run already in --out")
     r.add_argument("--re", type=_number("--re", "float", 0.0, 1e5, lo_open=True), help="Reynolds number (cavity; 100)")
     r.add_argument("--n", type=_number("--n", "int", 8, 1024), help="cells per side (cavity; 64)")
-    r.add_argument("--aspect-ratio", dest="aspect_ratio", type=_key_type("--aspect-ratio", "case.aspect_ratio"),
-                   help="H_c / L_c (column; 2)")
+    r.add_argument(
+        "--aspect-ratio",
+        dest="aspect_ratio",
+        type=_key_type("--aspect-ratio", "case.aspect_ratio"),
+        help="H_c / L_c (column; 2)",
+    )
     r.add_argument("--width", type=_key_type("--width", "case.width"), help="column width L_c in m (0.2)")
     fl = r.add_mutually_exclusive_group()
-    fl.add_argument("--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)")
+    fl.add_argument(
+        "--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)"
+    )
     fl.add_argument("--no-fluidised", dest="fluidised", action="store_false", help="no pore pressure")
-    r.add_argument("--pore-pressure-ratio", dest="pore_pressure_ratio",
-                   type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"), help="β, pore pressure over the lithostatic one (case.pore_pressure_ratio: `granrs keys`)")
-    r.add_argument("--ny", type=_key_type("--ny", "grid.ny"),
-                   help="cells over the domain height (column; 32; 256 is the paper's grid)")
-    r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "numerics.t_end"), help="end time in s (column; 3)")
+    r.add_argument(
+        "--pore-pressure-ratio",
+        dest="pore_pressure_ratio",
+        type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"),
+        help="β, pore pressure over the lithostatic one (case.pore_pressure_ratio: `granrs keys`)",
+    )
+    r.add_argument(
+        "--ny",
+        type=_key_type("--ny", "grid.ny"),
+        help="cells over the domain height (column; 32; 256 is the paper's grid)",
+    )
+    r.add_argument(
+        "--t-end", dest="t_end", type=_key_type("--t-end", "numerics.t_end"), help="end time in s (column; 3)"
+    )
     r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], help="column: drucker-prager (default) or mu-i")
-    r.add_argument("--model", default="two-phase", metavar="two-phase|granular|depth-averaged",
-                   help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
-                        "surface at p = 0) or the depth-averaged one (docs/howto/choosing-a-model.md)")
+    r.add_argument(
+        "--model",
+        default="two-phase",
+        metavar="two-phase|granular|depth-averaged",
+        help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
+        "surface at p = 0) or the depth-averaged one (docs/howto/choosing-a-model.md)",
+    )
     r.add_argument("--cfl", type=_key_type("--cfl", "numerics.cfl"), help="CFL number (column; 0.5)")
-    r.add_argument("--active-region", dest="active_region", type=_number("--active-region", "int", 2, 100000),
-                   metavar="BAND",
-                   help="column: run each step on a window around the granular phase with BAND cells of air "
-                        "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
-                        "is within 0.1 %% of the whole-domain run-out, BAND = 8 2.4 %% long); default: the whole domain")
-    r.add_argument("--active-region-sides", dest="active_region_sides", choices=ACTIVE_REGION_SIDES,
-                   help="column, with --active-region: the window's right and top sides are walls (default), or its "
-                        "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or "
-                        "its right and top sides are open with backflow stabilisation (open-right-top; with the two-phase "
-                        "model and --active-region 4: 4.3x faster at ny = 64, docs/models.md)")
-    r.add_argument("--channel-width", dest="channel_width", type=_number("--channel-width", "float", 0.0, 1000.0, lo_open=True),
-                   metavar="W",
-                   help="column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
-                        "not in the paper's 2D model; friction angle that of the base; docs/validation.md)")
-    r.add_argument("--length", type=_key_type("--length", "grid.length"),
-                   help="domain length in m, beyond --width (default L_c + 8.25 H_c, rounded up to the grid)")
-    r.add_argument("--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png")
+    r.add_argument(
+        "--active-region",
+        dest="active_region",
+        type=_number("--active-region", "int", 2, 100000),
+        metavar="BAND",
+        help="column: run each step on a window around the granular phase with BAND cells of air "
+        "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
+        "is within 0.1 %% of the whole-domain run-out, BAND = 8 2.4 %% long); default: the whole domain",
+    )
+    r.add_argument(
+        "--active-region-sides",
+        dest="active_region_sides",
+        choices=ACTIVE_REGION_SIDES,
+        help="column, with --active-region: the window's right and top sides are walls (default), or its "
+        "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or "
+        "its right and top sides are open with backflow stabilisation (open-right-top; with the two-phase "
+        "model and --active-region 4: 4.3x faster at ny = 64, docs/models.md)",
+    )
+    r.add_argument(
+        "--channel-width",
+        dest="channel_width",
+        type=_number("--channel-width", "float", 0.0, 1000.0, lo_open=True),
+        metavar="W",
+        help="column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
+        "not in the paper's 2D model; friction angle that of the base; docs/validation.md)",
+    )
+    r.add_argument(
+        "--length",
+        type=_key_type("--length", "grid.length"),
+        help="domain length in m, beyond --width (default L_c + 8.25 H_c, rounded up to the grid)",
+    )
+    r.add_argument(
+        "--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png"
+    )
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--threads", type=_key_type("--threads", "numerics.threads"), help="Rust threads (1)")
     r.add_argument("--out", help="output folder, new or empty unless --overwrite (a run file's output.dir by default)")
 
     s = sub.add_parser("sweep", help="run the cartesian product of swept keys of a run file on dask")
     s.add_argument("file", help="the base run file FILE.toml")
-    s.add_argument("--param", action="append", required=True, metavar="KEY=SPEC",
-                   help="swept key: KEY=a:b:n (n values from a to b) or KEY=v1,v2,... (repeat for a product)")
+    s.add_argument(
+        "--param",
+        action="append",
+        required=True,
+        metavar="KEY=SPEC",
+        help="swept key: KEY=a:b:n (n values from a to b) or KEY=v1,v2,... (repeat for a product)",
+    )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a key of the base file (repeat)")
     s.add_argument("--scheduler", help="address of a running dask scheduler (default: a LocalCluster)")
-    s.add_argument("--workers", type=_number("--workers", "int", 1, 256), default=2,
-                   help="LocalCluster worker processes, one thread each (2)")
-    s.add_argument("--out", help="sweep folder: member-NNN/, sweep.csv, sweep.nc, sweep_runout.png "
-                                 "(default: the file's output.dir; new or empty unless --overwrite)")
+    s.add_argument(
+        "--workers",
+        type=_number("--workers", "int", 1, 256),
+        default=2,
+        help="LocalCluster worker processes, one thread each (2)",
+    )
+    s.add_argument(
+        "--out",
+        help="sweep folder: member-NNN/, sweep.csv, sweep.nc, sweep_runout.png "
+        "(default: the file's output.dir; new or empty unless --overwrite)",
+    )
     s.add_argument("--overwrite", action="store_true", help="replace a sweep already in --out")
 
     sub.add_parser("keys", help="the keys of a run file: type, range, unit, default")
@@ -324,7 +509,9 @@ def main(argv=None) -> int:
 
             path = make_animation(Path(args.dir))
             if path is None:
-                raise ParameterError(f"invalid parameter `dir` = {args.dir!r}: allowed a folder with fields.nc or fields.pvd")
+                raise ParameterError(
+                    f"invalid parameter `dir` = {args.dir!r}: allowed a folder with fields.nc or fields.pvd"
+                )
             print(path)
             return 0
         print(json.dumps(build_info() | {"python_package": __version__}))

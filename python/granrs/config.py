@@ -18,11 +18,13 @@ import dataclasses
 import json
 import math
 import sys
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Optional, Union
+from typing import Optional, Union
 
 from . import options
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # the same parser, before it joined the standard library
@@ -98,8 +100,20 @@ def _from_schema(section: str, name: str, spec: OptionInfo, default, doc: Option
     kind = "choice" if spec.kind == "choice" else spec.kind
     lo = spec.lo if spec.kind != "int" or spec.lo is None else int(spec.lo)
     hi = spec.hi if spec.kind != "int" or spec.hi is None else int(spec.hi)
-    return Key(section, name, kind, default, spec.unit, doc or spec.doc, lo, hi, hi_open=spec.hi_open,
-               choices=tuple(spec.choices), lo_open=spec.lo_open, option=spec)
+    return Key(
+        section,
+        name,
+        kind,
+        default,
+        spec.unit,
+        doc or spec.doc,
+        lo,
+        hi,
+        hi_open=spec.hi_open,
+        choices=tuple(spec.choices),
+        lo_open=spec.lo_open,
+        option=spec,
+    )
 
 
 def _column_option(section: str, name: str, doc: Optional[str] = None) -> Key:
@@ -119,38 +133,128 @@ _GENERIC = tuple(
 
 KEYS: tuple[Key, ...] = (
     Key("case", "name", "choice", "column", "", "the case to run", choices=("column",)),
-    Key("case", "aspect_ratio", "float", _D["aspect_ratio"], "1", "a = H_c / L_c, column height over width", *_R["aspect_ratio"]),
+    Key(
+        "case",
+        "aspect_ratio",
+        "float",
+        _D["aspect_ratio"],
+        "1",
+        "a = H_c / L_c, column height over width",
+        *_R["aspect_ratio"],
+    ),
     Key("case", "width", "float", _D["width"], "m", "L_c, width of the reservoir (gate at x = L_c)", *_R["width"]),
     Key("case", "fluidised", "bool", _D["fluidised"], "", "pore gas pressure on (initial p_f and basal air supply)"),
-    Key("case", "pore_pressure_ratio", "float", _D["pore_pressure_ratio"], "1", "β: initial and supplied pore pressure over the lithostatic one", *_R["pore_pressure_ratio"]),
-    Key("case", "air_supply", "choice", _D["air_supply"], "",
+    Key(
+        "case",
+        "pore_pressure_ratio",
+        "float",
+        _D["pore_pressure_ratio"],
+        "1",
+        "β: initial and supplied pore pressure over the lithostatic one",
+        *_R["pore_pressure_ratio"],
+    ),
+    Key(
+        "case",
+        "air_supply",
+        "choice",
+        _D["air_supply"],
+        "",
         "sign of the basal air supply: injection (∂p_f/∂y = −β φρ_s g, gas flows up into the column) or the printed literal "
-        "∂p_f/∂n = −β φρ_s g with n the outward normal (an outflow)", choices=SCENE_CHOICES["air_supply"]),
-    Key("case", "back_wall", "choice", _D["back_wall"], "",
+        "∂p_f/∂n = −β φρ_s g with n the outward normal (an outflow)",
+        choices=SCENE_CHOICES["air_supply"],
+    ),
+    Key(
+        "case",
+        "back_wall",
+        "choice",
+        _D["back_wall"],
+        "",
         "the wall at x = 0: Coulomb friction at wall_friction_angle (the paper's), or free-slip (the cross-code check)",
-        choices=SCENE_CHOICES["back_wall"]),
+        choices=SCENE_CHOICES["back_wall"],
+    ),
     Key("case", "rheology", "choice", _D["rheology"], "", "granular rheology", choices=("drucker-prager", "mu-i")),
-    Key("case", "channel_width", "float", 0.0, "m",
+    Key(
+        "case",
+        "channel_width",
+        "float",
+        0.0,
+        "m",
         "friction of a channel's side walls this far apart (not in the paper's 2D model; the experiment's: 0.1), at the "
-        "base's friction angle; 0: none", 0.0, options.spec("width", "side_walls").hi),
+        "base's friction angle; 0: none",
+        0.0,
+        options.spec("width", "side_walls").hi,
+    ),
     Key("grid", "ny", "int", _D["ny"], "cells", "cells over the domain height (256 is the paper's grid)", *_R["ny"]),
-    Key("grid", "length", "float", None, "m", f"channel length; default from the column case ({_PAPER_LENGTH:g} m for the paper's column)", 0.01, 1000.0),
-    Key("materials", "solid_fraction", "float", _D["solid_fraction"], "1", "φ, solid volume fraction of the column", *_R["solid_fraction"]),
-    Key("materials", "grain_density", "float", _D["grain_density"], "kg m-3", "ρ_s, density of the grains", 1.0, 25000.0),
-    Key("materials", "grain_diameter", "float", _D["grain_diameter"], "m", "d_s, grain diameter (used by mu-i)", 1e-7, 0.1),
+    Key(
+        "grid",
+        "length",
+        "float",
+        None,
+        "m",
+        f"channel length; default from the column case ({_PAPER_LENGTH:g} m for the paper's column)",
+        0.01,
+        1000.0,
+    ),
+    Key(
+        "materials",
+        "solid_fraction",
+        "float",
+        _D["solid_fraction"],
+        "1",
+        "φ, solid volume fraction of the column",
+        *_R["solid_fraction"],
+    ),
+    Key(
+        "materials", "grain_density", "float", _D["grain_density"], "kg m-3", "ρ_s, density of the grains", 1.0, 25000.0
+    ),
+    Key(
+        "materials",
+        "grain_diameter",
+        "float",
+        _D["grain_diameter"],
+        "m",
+        "d_s, grain diameter (used by mu-i)",
+        1e-7,
+        0.1,
+    ),
     _column_option("materials", "friction_angle"),
     _column_option("materials", "wall_friction_angle", "α_b, friction angle of the base and back wall"),
-    Key("materials", "granular_viscosity", "float", _D["granular_viscosity"], "Pa s", "η_s, viscosity of the granular phase", *_R["granular_viscosity"]),
+    Key(
+        "materials",
+        "granular_viscosity",
+        "float",
+        _D["granular_viscosity"],
+        "Pa s",
+        "η_s, viscosity of the granular phase",
+        *_R["granular_viscosity"],
+    ),
     _column_option("materials", "diffusivity"),
-    Key("numerics", "t_end", "float", _D["t_end"], "s", "end of the simulated time (the run stops earlier at rest)", *_R["t_end"]),
+    Key(
+        "numerics",
+        "t_end",
+        "float",
+        _D["t_end"],
+        "s",
+        "end of the simulated time (the run stops earlier at rest)",
+        *_R["t_end"],
+    ),
     _column_option("numerics", "cfl"),
     _column_option("numerics", "threads"),
     _column_option("numerics", "picard_tol"),
     _column_option("numerics", "theta"),
     _column_option("numerics", "step_retries"),
     _column_option("numerics", "mass_correction"),
-    Key("numerics", "active_region", "int", 0, "cells", _AR.doc.replace("(None: the whole domain)", "(0: the whole domain)"),
-        0, int(_AR.hi), option=_AR),
+    Key(
+        "numerics",
+        "active_region",
+        "int",
+        0,
+        "cells",
+        _AR.doc.replace("(None: the whole domain)", "(0: the whole domain)"),
+        0,
+        int(_AR.hi),
+        option=_AR,
+    ),
     _column_option("numerics", "active_region_sides"),
     *(k for k in _GENERIC if k.section == "numerics"),
     _column_option("variants", "pore_formulation"),
@@ -164,7 +268,15 @@ KEYS: tuple[Key, ...] = (
     *(k for k in _GENERIC if k.section == "variants"),
     Key("output", "dir", "str", "out/run", "path", "output folder, relative to the current directory"),
     Key("output", "fields_every_s", "float", 0.05, "s", "simulated time between field snapshots; 0: none", 0.0, 1e4),
-    Key("output", "formats", "list", ["vtk"], "", "field formats: 'vtk' (.vti + .pvd), 'netcdf' (fields.nc)", choices=("vtk", "netcdf")),
+    Key(
+        "output",
+        "formats",
+        "list",
+        ["vtk"],
+        "",
+        "field formats: 'vtk' (.vti + .pvd), 'netcdf' (fields.nc)",
+        choices=("vtk", "netcdf"),
+    ),
     Key("output", "animation", "bool", True, "", "write animation.gif from the saved fields at the end"),
     Key("output", "checkpoint_every_s", "float", 0.0, "s", "simulated time between checkpoints; 0: none", 0.0, 1e4),
 )
@@ -204,8 +316,11 @@ def _check_value(key: Key, value):
             raise _bad(key, value)
         return value
     if key.kind == "list":
-        if (not isinstance(value, list) or not all(isinstance(v, str) and v in key.choices for v in value)
-                or len(set(value)) != len(value)):
+        if (
+            not isinstance(value, list)
+            or not all(isinstance(v, str) and v in key.choices for v in value)
+            or len(set(value)) != len(value)
+        ):
             raise _bad(key, value)
         return list(value)
     if not isinstance(value, str) or not value.strip():
@@ -220,17 +335,23 @@ def resolve(raw: dict) -> Config:
         raise ParameterError(f"invalid run file: allowed a TOML table with sections {', '.join(SECTIONS)}")
     for section, table in raw.items():
         if section not in SECTIONS:
-            raise ParameterError(f"invalid parameter `{section}`: unknown section; allowed sections "
-                                 + ", ".join(f"[{s}]" for s in SECTIONS))
+            raise ParameterError(
+                f"invalid parameter `{section}`: unknown section; allowed sections "
+                + ", ".join(f"[{s}]" for s in SECTIONS)
+            )
         if not isinstance(table, dict):
             raise ParameterError(f"invalid parameter `{section}` = {table!r}: allowed a table [{section}]")
         for name in table:
             if section == "numerics" and name in _VARIANT_NAMES:
-                raise ParameterError(f"invalid parameter `numerics.{name}`: a numerical variant; allowed as "
-                                     f"`variants.{name}` in the section [variants] (docs/models.md, \"Variants\")")
+                raise ParameterError(
+                    f"invalid parameter `numerics.{name}`: a numerical variant; allowed as "
+                    f'`variants.{name}` in the section [variants] (docs/models.md, "Variants")'
+                )
             if f"{section}.{name}" not in _BY_NAME:
                 names = ", ".join(k.name for k in KEYS if k.section == section)
-                raise ParameterError(f"invalid parameter `{section}.{name}`: unknown key in [{section}]; allowed keys {names}")
+                raise ParameterError(
+                    f"invalid parameter `{section}.{name}`: unknown key in [{section}]; allowed keys {names}"
+                )
     cfg: Config = {s: {} for s in SECTIONS}
     for key in KEYS:
         table = raw.get(key.section, {})
@@ -251,12 +372,16 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
         length = ColumnCase(aspect_ratio=case["aspect_ratio"], width=case["width"]).domain()[0]
         grid["length"] = float(f"{length:.12g}")  # 3.5, not 3.5000000000000004
     if grid["length"] <= case["width"]:
-        raise ParameterError(f"invalid parameter `grid.length` = {grid['length']!r}: allowed a length (m) greater than "
-                             f"case.width = {case['width']!r} m (the gate)")
+        raise ParameterError(
+            f"invalid parameter `grid.length` = {grid['length']!r}: allowed a length (m) greater than "
+            f"case.width = {case['width']!r} m (the gate)"
+        )
     if out["animation"] and not (out["fields_every_s"] > 0 and out["formats"]):
         if ("output", "animation") in given:
-            raise ParameterError(f"invalid parameter `output.animation` = true: allowed only with output.fields_every_s "
-                                 f"> 0 and a non-empty output.formats (the animation is made from the saved fields)")
+            raise ParameterError(
+                "invalid parameter `output.animation` = true: allowed only with output.fields_every_s "
+                "> 0 and a non-empty output.formats (the animation is made from the saved fields)"
+            )
         out["animation"] = False  # the default animates saved fields: with none saved there is nothing to animate
 
 
@@ -283,8 +408,9 @@ def apply_sets(raw: dict, sets: Iterable[str]) -> dict:
 def set_value(raw: dict, dotted: str, value) -> None:
     """Sets ``raw[section][key] = value`` in place for a dotted key known to ``KEYS``."""
     if dotted not in _BY_NAME:
-        raise ParameterError(f"invalid parameter `{dotted}`: unknown key; allowed keys "
-                             + ", ".join(k.full for k in KEYS))
+        raise ParameterError(
+            f"invalid parameter `{dotted}`: unknown key; allowed keys " + ", ".join(k.full for k in KEYS)
+        )
     section, name = dotted.split(".", 1)
     table = raw.setdefault(section, {})
     if not isinstance(table, dict):
@@ -307,8 +433,10 @@ def read_raw(path: Union[str, Path]) -> dict:
     except OSError as err:
         raise ParameterError(f"invalid run file `{path}`: cannot be read ({err.strerror or err})") from None
     except UnicodeDecodeError as err:
-        raise ParameterError(f"invalid run file `{path}`: not UTF-8 text (byte {err.object[err.start]:#04x} at offset "
-                             f"{err.start}); allowed a TOML file in UTF-8") from None
+        raise ParameterError(
+            f"invalid run file `{path}`: not UTF-8 text (byte {err.object[err.start]:#04x} at offset "
+            f"{err.start}); allowed a TOML file in UTF-8"
+        ) from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -380,11 +508,27 @@ def column_case(cfg: Config) -> ColumnCase:
     fields = {name: section[name] for section in (m, n, v) for name in section if name in OPTION_FIELDS}
     fields["active_region"] = n["active_region"] or None
     # the schema's other options: passed on where they differ from the column's values
-    extra = {k.name: cfg[k.section][k.name] for k in _GENERIC
-             if cfg[k.section][k.name] != COLUMN_NUMERICS.get(k.name, k.option.default if k.option else None)}
-    return ColumnCase(aspect_ratio=c["aspect_ratio"], width=c["width"], fluidised=c["fluidised"],
-                      channel_width=c["channel_width"] or None, air_supply=c["air_supply"], back_wall=c["back_wall"],
-                      pore_pressure_ratio=c["pore_pressure_ratio"], rheology=c["rheology"], ny=g["ny"],
-                      length=g["length"], t_end=n["t_end"], solid_fraction=m["solid_fraction"],
-                      grain_density=m["grain_density"], grain_diameter=m["grain_diameter"],
-                      granular_viscosity=m["granular_viscosity"], numerics=extra, **fields)
+    extra = {
+        k.name: cfg[k.section][k.name]
+        for k in _GENERIC
+        if cfg[k.section][k.name] != COLUMN_NUMERICS.get(k.name, k.option.default if k.option else None)
+    }
+    return ColumnCase(
+        aspect_ratio=c["aspect_ratio"],
+        width=c["width"],
+        fluidised=c["fluidised"],
+        channel_width=c["channel_width"] or None,
+        air_supply=c["air_supply"],
+        back_wall=c["back_wall"],
+        pore_pressure_ratio=c["pore_pressure_ratio"],
+        rheology=c["rheology"],
+        ny=g["ny"],
+        length=g["length"],
+        t_end=n["t_end"],
+        solid_fraction=m["solid_fraction"],
+        grain_density=m["grain_density"],
+        grain_diameter=m["grain_diameter"],
+        granular_viscosity=m["granular_viscosity"],
+        numerics=extra,
+        **fields,
+    )

@@ -45,14 +45,36 @@ class DepthAveragedModel:
     """The depth-averaged model (see the module docstring). ``pore=None``: not fluidised, β ≡ 0
     and no pore pressure is solved."""
 
-    def __init__(self, cells: int, length: float, gravity: float = 9.81, earth_pressure: float = 1.0,
-                 basal_friction_angle: float = 0.0, cfl: float = 0.4, dry_depth: float = 1e-6,
-                 max_dt: float = 1e-2, pore: Optional[DepthAveragedPore] = None,
-                 internal_friction_angle: Optional[float] = None) -> None:
-        pore_dict = None if pore is None else {"diffusivity": pore.diffusivity, "supply_ratio": pore.supply_ratio,
-                                               "supply_x_max": pore.supply_x_max}
-        self._rust = RustDepthAveraged(cells, length, gravity, earth_pressure, basal_friction_angle, cfl,
-                                       dry_depth, max_dt, pore_dict, internal_friction_angle)
+    def __init__(
+        self,
+        cells: int,
+        length: float,
+        gravity: float = 9.81,
+        earth_pressure: float = 1.0,
+        basal_friction_angle: float = 0.0,
+        cfl: float = 0.4,
+        dry_depth: float = 1e-6,
+        max_dt: float = 1e-2,
+        pore: Optional[DepthAveragedPore] = None,
+        internal_friction_angle: Optional[float] = None,
+    ) -> None:
+        pore_dict = (
+            None
+            if pore is None
+            else {"diffusivity": pore.diffusivity, "supply_ratio": pore.supply_ratio, "supply_x_max": pore.supply_x_max}
+        )
+        self._rust = RustDepthAveraged(
+            cells,
+            length,
+            gravity,
+            earth_pressure,
+            basal_friction_angle,
+            cfl,
+            dry_depth,
+            max_dt,
+            pore_dict,
+            internal_friction_angle,
+        )
         self.pore = pore
         n, _, dx, ghosts = self._rust.grid
         self.cells, self.length, self.dx = n, length, dx

@@ -26,8 +26,12 @@ class Grid:
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed an integer in [2, 65536]")
         for name in ("lx", "ly"):
             v = getattr(self, name)
-            if (isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.floating, np.integer))
-                    or not math.isfinite(v) or v <= 0):
+            if (
+                isinstance(v, (bool, np.bool_))
+                or not isinstance(v, (int, float, np.floating, np.integer))
+                or not math.isfinite(v)
+                or v <= 0
+            ):
                 raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a finite number > 0 (m)")
 
     @property
@@ -72,5 +76,7 @@ class Grid:
         return np.meshgrid(x, y)
 
     def __repr__(self) -> str:
-        return (f"Grid({self.nx} × {self.ny} cells on {self.lx:g} m × {self.ly:g} m, "
-                f"dx = {self.dx:.4g} m, dy = {self.dy:.4g} m)")
+        return (
+            f"Grid({self.nx} × {self.ny} cells on {self.lx:g} m × {self.ly:g} m, "
+            f"dx = {self.dx:.4g} m, dy = {self.dy:.4g} m)"
+        )

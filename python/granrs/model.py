@@ -7,17 +7,17 @@ state, indexed ``[j, i]`` (rows along y). They stay live: after a step they show
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Callable, Optional, Union
+from typing import Optional, Union
 
 import numpy as np
 
-from . import _granrs
+from . import _granrs, options
 from ._granrs import ParameterError
 from .boundary import BoundaryConditions, Coulomb
 from .grid import Grid
 from .materials import Material
-from . import options
 from .options import ActiveRegion, Numerics, TimeStepping, Variants
 from .rheology import RHEOLOGIES, Bingham, DruckerPrager, MuI, Newtonian
 
@@ -58,9 +58,11 @@ class PorePressure:
         for name, s in _PORE.items():
             object.__setattr__(self, name, s.check(getattr(self, name)))
         if self.time_scheme == "explicit" and self.formulation != "granular-only":
-            raise ParameterError(f"invalid parameter `time_scheme` = 'explicit' with formulation {self.formulation!r}: "
-                                 "allowed only with 'granular-only' (kappa_air in the air makes the explicit limit "
-                                 "h²/(4κ) vanish)")
+            raise ParameterError(
+                f"invalid parameter `time_scheme` = 'explicit' with formulation {self.formulation!r}: "
+                "allowed only with 'granular-only' (kappa_air in the air makes the explicit limit "
+                "h²/(4κ) vanish)"
+            )
 
     def options(self) -> dict:
         return asdict(self)
@@ -92,18 +94,29 @@ def check_side_walls(width, friction_angle, width_name: str, angle_name: str) ->
 
 
 # ---- memory ------------------------------------------------------------------------------------
-def estimate_memory(grid: Grid, *, plastic: bool = True, pore_pressure: bool = False, air: str = "resolved",
-                    side_walls: bool = False, step_retries: int = 3, pressure_solver: str = "multigrid-cg") -> int:
+def estimate_memory(
+    grid: Grid,
+    *,
+    plastic: bool = True,
+    pore_pressure: bool = False,
+    air: str = "resolved",
+    side_walls: bool = False,
+    step_retries: int = 3,
+    pressure_solver: str = "multigrid-cg",
+) -> int:
     """Bytes the core allocates for a model on ``grid`` with these options: the Rust count
     (``ModelConfig::memory_estimate``, models/memory.rs) of a model with Coulomb walls
     (``plastic``), a pore pressure, the granular-only model (``air = 'free-surface'``), side
     walls, step retries and the chosen pressure solver."""
-    config = {"grid": (grid.nx, grid.ny, float(grid.lx), float(grid.ly)),
-              "bc": {"bottom": ("coulomb", {"friction_angle": 15.0}) if plastic else ("no-slip", {})},
-              "dense": (1000.0, 0.1), "light": (1.0, 2e-5),
-              "pore_pressure": {"diffusivity": 1.0} if pore_pressure else None,
-              "side_walls": {"width": 0.1, "friction_angle": 15.0} if side_walls else None,
-              "options": {"air": air, "step_retries": step_retries, "pressure_solver": pressure_solver}}
+    config = {
+        "grid": (grid.nx, grid.ny, float(grid.lx), float(grid.ly)),
+        "bc": {"bottom": ("coulomb", {"friction_angle": 15.0}) if plastic else ("no-slip", {})},
+        "dense": (1000.0, 0.1),
+        "light": (1.0, 2e-5),
+        "pore_pressure": {"diffusivity": 1.0} if pore_pressure else None,
+        "side_walls": {"width": 0.1, "friction_angle": 15.0} if side_walls else None,
+        "options": {"air": air, "step_retries": step_retries, "pressure_solver": pressure_solver},
+    }
     return int(_granrs.RustModel.estimate_memory(config)[0])
 
 
@@ -124,10 +137,12 @@ def memory_check(grid: Grid, estimate: int, what: str = "the model") -> None:
     exceeds it (nothing is checked where /proc/meminfo is missing)."""
     avail = available_memory()
     if avail is not None and estimate > avail:
-        raise ParameterError(f"invalid parameter `grid` = {grid.nx} x {grid.ny} cells: {what} needs about "
-                             f"{estimate / 2**30:.3g} GiB, more than the {avail / 2**30:.3g} GiB of memory available "
-                             f"(MemAvailable); allowed a grid of at most about "
-                             f"{int(grid.cells * avail / estimate):d} cells on this machine")
+        raise ParameterError(
+            f"invalid parameter `grid` = {grid.nx} x {grid.ny} cells: {what} needs about "
+            f"{estimate / 2**30:.3g} GiB, more than the {avail / 2**30:.3g} GiB of memory available "
+            f"(MemAvailable); allowed a grid of at most about "
+            f"{int(grid.cells * avail / estimate):d} cells on this machine"
+        )
 
 
 #: the values of ActiveRegion.sides / Numerics.active_region_sides (the Rust schema's)
@@ -158,15 +173,28 @@ class Model:
     (``granrs.options``); ``model.numerics`` holds the options in force.
     """
 
-    def __init__(self, grid: Grid, dense: Material, light: Optional[Material] = None,
-                 bc: Optional[BoundaryConditions] = None, gravity=(0.0, 0.0),
-                 numerics: Optional[Numerics] = None, threads: int = 1, rheology=None,
-                 pore_pressure: Optional[PorePressure] = None, air: str = "resolved",
-                 side_walls: Optional[SideWalls] = None, time_stepping: Optional[TimeStepping] = None,
-                 active_region: Optional[ActiveRegion] = None, variants: Optional[Variants] = None):
+    def __init__(
+        self,
+        grid: Grid,
+        dense: Material,
+        light: Optional[Material] = None,
+        bc: Optional[BoundaryConditions] = None,
+        gravity=(0.0, 0.0),
+        numerics: Optional[Numerics] = None,
+        threads: int = 1,
+        rheology=None,
+        pore_pressure: Optional[PorePressure] = None,
+        air: str = "resolved",
+        side_walls: Optional[SideWalls] = None,
+        time_stepping: Optional[TimeStepping] = None,
+        active_region: Optional[ActiveRegion] = None,
+        variants: Optional[Variants] = None,
+    ):
         air = options.spec("air").check(air)
         if air == "free-surface" and light is None:
-            raise ParameterError("invalid parameter `air` = 'free-surface': allowed only with a light material (the surface is Φ = 0)")
+            raise ParameterError(
+                "invalid parameter `air` = 'free-surface': allowed only with a light material (the surface is Φ = 0)"
+            )
         if not isinstance(grid, Grid):
             raise ParameterError(f"invalid parameter `grid` = {grid!r}: allowed a granrs.Grid")
         if not isinstance(dense, Material):
@@ -177,8 +205,10 @@ class Model:
         if rheology is None:
             rheology = Newtonian()
         if not isinstance(rheology, RHEOLOGIES):
-            raise ParameterError(f"invalid parameter `rheology` = {rheology!r}: allowed granrs.Newtonian(), Bingham(...), "
-                                 "DruckerPrager(...) or MuI(...)")
+            raise ParameterError(
+                f"invalid parameter `rheology` = {rheology!r}: allowed granrs.Newtonian(), Bingham(...), "
+                "DruckerPrager(...) or MuI(...)"
+            )
         if side_walls is not None and not isinstance(side_walls, SideWalls):
             raise ParameterError(f"invalid parameter `side_walls` = {side_walls!r}: allowed a granrs.SideWalls or None")
         self.side_walls = side_walls
@@ -189,21 +219,34 @@ class Model:
         self.bc = bc if bc is not None else BoundaryConditions()
         if bc is not None and not isinstance(bc, BoundaryConditions):
             raise ParameterError(f"invalid parameter `bc` = {bc!r}: allowed a granrs.BoundaryConditions or None")
-        if (isinstance(gravity, (str, bytes)) or not hasattr(gravity, "__len__") or len(gravity) != 2
-                or not all(isinstance(g, (int, float, np.integer, np.floating)) and not isinstance(g, bool)
-                           and math.isfinite(g) for g in gravity)):
-            raise ParameterError(f"invalid parameter `gravity` = {gravity!r}: allowed a pair of finite numbers (g_x, g_y) "
-                                 "in m/s², e.g. (0.0, -9.81)")
+        if (
+            isinstance(gravity, (str, bytes))
+            or not hasattr(gravity, "__len__")
+            or len(gravity) != 2
+            or not all(
+                isinstance(g, (int, float, np.integer, np.floating)) and not isinstance(g, bool) and math.isfinite(g)
+                for g in gravity
+            )
+        ):
+            raise ParameterError(
+                f"invalid parameter `gravity` = {gravity!r}: allowed a pair of finite numbers (g_x, g_y) "
+                "in m/s², e.g. (0.0, -9.81)"
+            )
         self.gravity = (float(gravity[0]), float(gravity[1]))
         if numerics is not None and not isinstance(numerics, Numerics):
             raise ParameterError(f"invalid parameter `numerics` = {numerics!r}: allowed a granrs.Numerics or None")
         if pore_pressure is not None and not isinstance(pore_pressure, PorePressure):
-            raise ParameterError(f"invalid parameter `pore_pressure` = {pore_pressure!r}: allowed a granrs.PorePressure or None")
+            raise ParameterError(
+                f"invalid parameter `pore_pressure` = {pore_pressure!r}: allowed a granrs.PorePressure or None"
+            )
         self.pore_pressure = pore_pressure
         # the flat options: numerics, then each room's object given (it wins over numerics)
         opts = (numerics if numerics is not None else Numerics()).options()
-        for name, obj, cls in (("time_stepping", time_stepping, TimeStepping), ("active_region", active_region, ActiveRegion),
-                               ("variants", variants, Variants)):
+        for name, obj, cls in (
+            ("time_stepping", time_stepping, TimeStepping),
+            ("active_region", active_region, ActiveRegion),
+            ("variants", variants, Variants),
+        ):
             if obj is None:
                 continue
             if not isinstance(obj, cls):
@@ -215,13 +258,16 @@ class Model:
         self.numerics = Numerics(**opts)
         opts.update(threads=threads, air=air)
         self.config = {
-            "grid": (grid.nx, grid.ny, float(grid.lx), float(grid.ly)), "bc": self.bc.spec(),
+            "grid": (grid.nx, grid.ny, float(grid.lx), float(grid.ly)),
+            "bc": self.bc.spec(),
             "dense": (dense.density, dense.viscosity),
             "light": None if light is None else (light.density, light.viscosity),
-            "gravity": self.gravity, "rheology": rheology.spec(),
+            "gravity": self.gravity,
+            "rheology": rheology.spec(),
             "pore_pressure": None if pore_pressure is None else pore_pressure.options(),
-            "side_walls": None if side_walls is None else {"width": float(side_walls.width),
-                                                           "friction_angle": float(side_walls.friction_angle)},
+            "side_walls": None
+            if side_walls is None
+            else {"width": float(side_walls.width), "friction_angle": float(side_walls.friction_angle)},
             "options": opts,
         }
         # memory before any work: the Rust count of this configuration (models/memory.rs)
@@ -234,7 +280,8 @@ class Model:
         self._views = {name: self._view(name) for name in names}
         self._has_plastic = isinstance(rheology, (Bingham, DruckerPrager, MuI)) or any(
             isinstance(getattr(self.bc, s), Coulomb) and getattr(self.bc, s).friction_angle is not None
-            for s in ("left", "right", "bottom", "top"))
+            for s in ("left", "right", "bottom", "top")
+        )
         if self._has_plastic:
             for name in ("sigma_xx", "sigma_xy", "trial_norm", "yield_stress"):
                 self._views[name] = self._view(name)
@@ -271,7 +318,9 @@ class Model:
     def pf(self) -> np.ndarray:
         """Pore gas pressure at cell centres, shape (ny, nx), read-only live view (fluidised models only)."""
         if "pf" not in self._views:
-            raise ParameterError("invalid parameter `pf`: allowed only for a model with pore_pressure (this one is not fluidised)")
+            raise ParameterError(
+                "invalid parameter `pf`: allowed only for a model with pore_pressure (this one is not fluidised)"
+            )
         return self._views["pf"]
 
     @property
@@ -322,14 +371,25 @@ class Model:
         out = self._rust.wall_friction(side)
         return None if out is None else (np.asarray(out[0]), np.asarray(out[1]))
 
-    def set_initial(self, u: Optional[ArrayOrFn] = None, v: Optional[ArrayOrFn] = None, p: Optional[ArrayOrFn] = None,
-                    phi: Optional[ArrayOrFn] = None, pf: Optional[ArrayOrFn] = None,
-                    balance_pressure: bool = True) -> None:
+    def set_initial(
+        self,
+        u: Optional[ArrayOrFn] = None,
+        v: Optional[ArrayOrFn] = None,
+        p: Optional[ArrayOrFn] = None,
+        phi: Optional[ArrayOrFn] = None,
+        pf: Optional[ArrayOrFn] = None,
+        balance_pressure: bool = True,
+    ) -> None:
         """Sets initial fields from arrays, constants or functions f(x, y) evaluated at the
         field's points. With ``balance_pressure`` (and no explicit ``p``), p is set so that the
         body force is balanced (one pressure solve)."""
-        points = {"u": self.grid.xfaces, "v": self.grid.yfaces, "p": self.grid.centres, "phi": self.grid.centres,
-                  "pf": self.grid.centres}
+        points = {
+            "u": self.grid.xfaces,
+            "v": self.grid.yfaces,
+            "p": self.grid.centres,
+            "phi": self.grid.centres,
+            "pf": self.grid.centres,
+        }
         arrays = {}
         for name, value in (("phi", phi), ("pf", pf), ("u", u), ("v", v), ("p", p)):
             if value is None:
@@ -342,26 +402,36 @@ class Model:
                 try:
                     value = value(x, y)
                 except Exception as err:  # noqa: BLE001 - the user's function
-                    raise ParameterError(f"invalid parameter `{name}`: the function f(x, y) raised {type(err).__name__}: "
-                                         f"{err}; allowed a function of NumPy arrays x, y of shape {x.shape}") from None
+                    raise ParameterError(
+                        f"invalid parameter `{name}`: the function f(x, y) raised {type(err).__name__}: "
+                        f"{err}; allowed a function of NumPy arrays x, y of shape {x.shape}"
+                    ) from None
                 what = "the function's result"
                 if value is None or np.ndim(value) == 0:
-                    raise ParameterError(f"invalid parameter `{name}`: {what} is {value!r}; allowed an array of shape "
-                                         f"{x.shape} (write f(x, y) with NumPy, e.g. np.where(...) or 0 * x + c)")
+                    raise ParameterError(
+                        f"invalid parameter `{name}`: {what} is {value!r}; allowed an array of shape "
+                        f"{x.shape} (write f(x, y) with NumPy, e.g. np.where(...) or 0 * x + c)"
+                    )
             raw = np.asarray(value)
             if raw.dtype.kind not in "biuf":
-                raise ParameterError(f"invalid parameter `{name}`: {what} has dtype {raw.dtype}; allowed real numbers "
-                                     f"(float64), shape {x.shape}")
+                raise ParameterError(
+                    f"invalid parameter `{name}`: {what} has dtype {raw.dtype}; allowed real numbers "
+                    f"(float64), shape {x.shape}"
+                )
             arr = raw.astype(float)
             if arr.ndim == 0:
                 arr = np.full(x.shape, float(arr))
             if arr.shape != x.shape:
-                raise ParameterError(f"invalid parameter `{name}`: {what} has shape {arr.shape}; allowed shape {x.shape} "
-                                     f"(ny, nx) = ({self.grid.ny}, {self.grid.nx}) for {name}")
+                raise ParameterError(
+                    f"invalid parameter `{name}`: {what} has shape {arr.shape}; allowed shape {x.shape} "
+                    f"(ny, nx) = ({self.grid.ny}, {self.grid.nx}) for {name}"
+                )
             if not np.all(np.isfinite(arr)):
                 bad = np.argwhere(~np.isfinite(arr))[0]
-                raise ParameterError(f"invalid parameter `{name}`: {what} is not finite at (j, i) = ({bad[0]}, {bad[1]}); "
-                                     "allowed finite numbers")
+                raise ParameterError(
+                    f"invalid parameter `{name}`: {what} is not finite at (j, i) = ({bad[0]}, {bad[1]}); "
+                    "allowed finite numbers"
+                )
             arrays[name] = arr
         for name, arr in arrays.items():
             self._rust.set_field(name, np.ascontiguousarray(arr))
@@ -416,12 +486,18 @@ class Model:
         viscous_iterations, picard_iterations, picard_increment)."""
         if t_end is None and max_steps is None:
             raise ParameterError("invalid parameter `t_end/max_steps`: allowed at least one of them")
-        if t_end is not None and (isinstance(t_end, bool) or not isinstance(t_end, (int, float, np.floating))
-                                  or not math.isfinite(t_end) or t_end < self.time):
-            raise ParameterError(f"invalid parameter `t_end` = {t_end!r}: allowed a finite time >= the model time "
-                                 f"{self.time!r} s")
-        if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
-                                      or max_steps < 0):
+        if t_end is not None and (
+            isinstance(t_end, bool)
+            or not isinstance(t_end, (int, float, np.floating))
+            or not math.isfinite(t_end)
+            or t_end < self.time
+        ):
+            raise ParameterError(
+                f"invalid parameter `t_end` = {t_end!r}: allowed a finite time >= the model time {self.time!r} s"
+            )
+        if max_steps is not None and (
+            isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 0
+        ):
             raise ParameterError(f"invalid parameter `max_steps` = {max_steps!r}: allowed an integer >= 0")
         return self._rust.advance(t_end, max_steps)
 
@@ -451,13 +527,19 @@ class Model:
     def summary(self) -> dict:
         return {
             "grid": {"nx": self.grid.nx, "ny": self.grid.ny, "lx": self.grid.lx, "ly": self.grid.ly},
-            "dense": asdict(self.dense), "light": None if self.light is None else asdict(self.light),
-            "bc": {k: v[0] for k, v in self.bc.spec().items()}, "gravity": list(self.gravity),
-            "numerics": self.numerics.options(), "threads": self.threads,
-            "pore_pressure": None if self.pore_pressure is None else asdict(self.pore_pressure), "rheology": self.rheology.spec(),
+            "dense": asdict(self.dense),
+            "light": None if self.light is None else asdict(self.light),
+            "bc": {k: v[0] for k, v in self.bc.spec().items()},
+            "gravity": list(self.gravity),
+            "numerics": self.numerics.options(),
+            "threads": self.threads,
+            "pore_pressure": None if self.pore_pressure is None else asdict(self.pore_pressure),
+            "rheology": self.rheology.spec(),
         }
 
     def __repr__(self) -> str:
         phases = f"dense {self.dense}" + ("" if self.light is None else f", light {self.light}")
-        return (f"Model on {self.grid}\n  {phases}\n  {self.bc}\n  gravity {self.gravity}, threads {self.threads}\n"
-                f"  t = {self.time:.6g} s after {self.step_count} steps")
+        return (
+            f"Model on {self.grid}\n  {phases}\n  {self.bc}\n  gravity {self.gravity}, threads {self.threads}\n"
+            f"  t = {self.time:.6g} s after {self.step_count} steps"
+        )

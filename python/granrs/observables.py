@@ -30,7 +30,8 @@ column case):
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Optional
+from collections.abc import Iterable
+from typing import Any, Optional
 
 import numpy as np
 
@@ -41,8 +42,10 @@ FRONT_THICKNESSES_CELLS = (0.5, 1.0, 2.0)
 #: Area fractions of :func:`observe_profile`'s deposit quantiles.
 DEPOSIT_QUANTILES = (0.5, 0.9, 0.95, 0.99)
 
-PROFILE_DEFINITION = ("h(x) = sum_j f_ij dy, the granular volume per column of cells, f = min(1, max(0, 1/2 + "
-                      "phi/dy)) the cell's fill fraction from the level set (as a VOF code's sum_j f dy)")
+PROFILE_DEFINITION = (
+    "h(x) = sum_j f_ij dy, the granular volume per column of cells, f = min(1, max(0, 1/2 + "
+    "phi/dy)) the cell's fill fraction from the level set (as a VOF code's sum_j f dy)"
+)
 
 
 def _check_profile(h, dx: float) -> np.ndarray:
@@ -204,9 +207,16 @@ def quantile_keys(quantiles: Iterable[float] = DEPOSIT_QUANTILES) -> list:
     return [f"q{100 * q:g}_m" for q in quantiles]
 
 
-def observe_profile(h, dx: float, cell: float, x_ref: float, x0: float = 0.0,
-                    metres: Iterable[float] = FRONT_THICKNESSES_M, cells: Iterable[float] = FRONT_THICKNESSES_CELLS,
-                    quantiles: Iterable[float] = DEPOSIT_QUANTILES) -> dict:
+def observe_profile(
+    h,
+    dx: float,
+    cell: float,
+    x_ref: float,
+    x0: float = 0.0,
+    metres: Iterable[float] = FRONT_THICKNESSES_M,
+    cells: Iterable[float] = FRONT_THICKNESSES_CELLS,
+    quantiles: Iterable[float] = DEPOSIT_QUANTILES,
+) -> dict:
     """Every observable of one profile, as distances from ``x_ref``.
 
     Parameters
@@ -248,11 +258,17 @@ def observe_profile(h, dx: float, cell: float, x_ref: float, x0: float = 0.0,
     return out
 
 
-def observable_keys(metres: Iterable[float] = FRONT_THICKNESSES_M, cells: Iterable[float] = FRONT_THICKNESSES_CELLS,
-                    quantiles: Iterable[float] = DEPOSIT_QUANTILES) -> list:
+def observable_keys(
+    metres: Iterable[float] = FRONT_THICKNESSES_M,
+    cells: Iterable[float] = FRONT_THICKNESSES_CELLS,
+    quantiles: Iterable[float] = DEPOSIT_QUANTILES,
+) -> list:
     """Every key of :func:`observe_profile`, in its order (the columns of a time series)."""
-    return front_keys(cells, metres) + quantile_keys(quantiles) + ["centre_of_mass_m", "h_back_wall_m", "h_gate_m",
-                                                                  "profile_area_m2"]
+    return (
+        front_keys(cells, metres)
+        + quantile_keys(quantiles)
+        + ["centre_of_mass_m", "h_back_wall_m", "h_gate_m", "profile_area_m2"]
+    )
 
 
 def summarise(final: dict, initial: dict, records: Optional[dict] = None) -> dict:

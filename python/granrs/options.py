@@ -100,46 +100,71 @@ def _options_class(cls_name: str, title: str, fields: list[tuple[str, OptionInfo
         """The values by their schema keys."""
         return {specs[n].key: getattr(self, n) for n in specs}
 
-    ns = {"__post_init__": __post_init__, "options": options, "__doc__": _doc(title, fields), "__module__": module,
-          "FIELDS": specs}
+    ns = {
+        "__post_init__": __post_init__,
+        "options": options,
+        "__doc__": _doc(title, fields),
+        "__module__": module,
+        "FIELDS": specs,
+    }
     cls = dataclasses.make_dataclass(
         cls_name,
         [(n, Any) if s.required else (n, Any, dataclasses.field(default=s.default)) for n, s in ordered],
-        namespace=ns, frozen=True)
+        namespace=ns,
+        frozen=True,
+    )
     return cls
 
 
 def _strip(prefix: str, key: str) -> str:
-    return key[len(prefix):] if key.startswith(prefix) and key != prefix.rstrip("_") else key
+    return key[len(prefix) :] if key.startswith(prefix) and key != prefix.rstrip("_") else key
 
 
 #: The simulation's clock (room "time"): CFL number, a fixed δt, caps and step retries.
-TimeStepping: Any = _options_class("TimeStepping", "The simulation's clock: how δt is chosen (Rust TimeConfig).",
-                                   [(s.key, s) for s in room("time")], "granrs")
+TimeStepping: Any = _options_class(
+    "TimeStepping",
+    "The simulation's clock: how δt is chosen (Rust TimeConfig).",
+    [(s.key, s) for s in room("time")],
+    "granrs",
+)
 
 #: The numerics of the bi-projection (paper eq. 12) and of how the yield stress is imposed.
-_BP_NAMES = {"picard_tol": "tolerance", "picard_max_iterations": "max_iterations",
-             "picard_solve_max_iterations": "solve_max_iterations"}
+_BP_NAMES = {
+    "picard_tol": "tolerance",
+    "picard_max_iterations": "max_iterations",
+    "picard_solve_max_iterations": "solve_max_iterations",
+}
 BiProjection: Any = _options_class(
-    "BiProjection", "The bi-projection Σ = P(Σ + r D(u)) and its Picard iteration (paper eq. 11–12; Rust RheologyConfig).",
-    [(_BP_NAMES.get(s.key, s.key), s) for s in room("bi_projection")], "granrs")
+    "BiProjection",
+    "The bi-projection Σ = P(Σ + r D(u)) and its Picard iteration (paper eq. 11–12; Rust RheologyConfig).",
+    [(_BP_NAMES.get(s.key, s.key), s) for s in room("bi_projection")],
+    "granrs",
+)
 
 #: The active window around the granular phase (docs/models.md, "Active region").
 ActiveRegion: Any = _options_class(
-    "ActiveRegion", "Each step on a window around the granular phase (Rust ActiveRegion; docs/models.md).",
+    "ActiveRegion",
+    "Each step on a window around the granular phase (Rust ActiveRegion; docs/models.md).",
     [("band" if s.key == "active_region" else _strip("active_region_", s.key), s) for s in room("active_region")],
-    "granrs")
+    "granrs",
+)
 
 #: Every option of the group of variants: readings of the paper and numerical variants kept for
 #: study, each at its measured default (docs/models.md, "Variants").
 Variants: Any = _options_class(
-    "Variants", "Numerical variants kept for study; the common case needs none (docs/models.md, \"Variants\").",
-    [(s.key, s) for s in SCHEMA if not s.object and s.group == "variant"], "granrs")
+    "Variants",
+    'Numerical variants kept for study; the common case needs none (docs/models.md, "Variants").',
+    [(s.key, s) for s in SCHEMA if not s.object and s.group == "variant"],
+    "granrs",
+)
 
 #: Keys of the flat options that are arguments of ``Model`` itself rather than numerics.
 MODEL_ARGUMENTS = ("threads", "air")
 
 #: The flat form of every option of a model by its key (``Model(numerics=...)``).
 Numerics: Any = _options_class(
-    "Numerics", "Every numerical option of a model by its schema key (the rooms' objects hold the same options).",
-    [(s.key, s) for s in SCHEMA if not s.object and s.key not in MODEL_ARGUMENTS], "granrs")
+    "Numerics",
+    "Every numerical option of a model by its schema key (the rooms' objects hold the same options).",
+    [(s.key, s) for s in SCHEMA if not s.object and s.key not in MODEL_ARGUMENTS],
+    "granrs",
+)

@@ -112,7 +112,9 @@ class MuI:
         for k in ("mu_s", "mu_2", "i0", "grain_diameter", "grain_density"):
             object.__setattr__(self, k, _law_param("mu-i", k, getattr(self, k)))
         if not self.mu_2 > self.mu_s:
-            raise ParameterError(f"invalid parameter `mu_2` = {self.mu_2!r}: allowed a finite number > mu_s = {self.mu_s}")
+            raise ParameterError(
+                f"invalid parameter `mu_2` = {self.mu_2!r}: allowed a finite number > mu_s = {self.mu_s}"
+            )
         _projection(self)
 
     def spec(self):

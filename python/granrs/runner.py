@@ -39,29 +39,40 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
     Returns the loaded ``Checkpoint`` (None without a restart)."""
     out = cfg["output"]
     if "netcdf" in out["formats"] and out["fields_every_s"] > 0 and not netcdf_available():
-        raise ParameterError("invalid parameter `output.formats` item 'netcdf': needs the optional dependency netCDF4 "
-                             "(pip install 'granrs[io]')")
+        raise ParameterError(
+            "invalid parameter `output.formats` item 'netcdf': needs the optional dependency netCDF4 "
+            "(pip install 'granrs[io]')"
+        )
     if restart is None:
         return None
     ck = ckpt.load_checkpoint(restart)
     meta = ck.meta
     if meta["time"] >= cfg["numerics"]["t_end"]:
-        raise ParameterError(f"invalid parameter `numerics.t_end` = {cfg['numerics']['t_end']!r}: allowed a time "
-                             f"after the checkpoint's t = {meta['time']!r} s")
+        raise ParameterError(
+            f"invalid parameter `numerics.t_end` = {cfg['numerics']['t_end']!r}: allowed a time "
+            f"after the checkpoint's t = {meta['time']!r} s"
+        )
     grid = column_case(cfg).grid()
     want = meta["grid"]
-    if (grid.nx, grid.ny) != (want["nx"], want["ny"]) or abs(grid.lx - want["lx"]) > 1e-12 * want["lx"] \
-            or abs(grid.ly - want["ly"]) > 1e-12 * want["ly"]:
-        raise ParameterError(f"invalid parameter `--restart` = {str(restart)!r}: the checkpoint's grid {want['nx']} x "
-                             f"{want['ny']} cells on {want['lx']:g} m x {want['ly']:g} m differs from this "
-                             f"configuration's {grid.nx} x {grid.ny} on {grid.lx:g} m x {grid.ly:g} m; allowed a "
-                             "checkpoint of the same grid")
+    if (
+        (grid.nx, grid.ny) != (want["nx"], want["ny"])
+        or abs(grid.lx - want["lx"]) > 1e-12 * want["lx"]
+        or abs(grid.ly - want["ly"]) > 1e-12 * want["ly"]
+    ):
+        raise ParameterError(
+            f"invalid parameter `--restart` = {str(restart)!r}: the checkpoint's grid {want['nx']} x "
+            f"{want['ny']} cells on {want['lx']:g} m x {want['ly']:g} m differs from this "
+            f"configuration's {grid.nx} x {grid.ny} on {grid.lx:g} m x {grid.ly:g} m; allowed a "
+            "checkpoint of the same grid"
+        )
     changes = ckpt.configuration_changes(ck, cfg)
     if changes and not allow_changes:
-        raise ParameterError(f"invalid parameter `--restart` = {str(restart)!r}: the configuration differs from the "
-                             f"checkpoint's in {'; '.join(changes)}; allowed the same configuration (except "
-                             f"{', '.join(ckpt.RESTART_FREE_KEYS)} and output.*), or --allow-changes to restart with "
-                             "these changes")
+        raise ParameterError(
+            f"invalid parameter `--restart` = {str(restart)!r}: the configuration differs from the "
+            f"checkpoint's in {'; '.join(changes)}; allowed the same configuration (except "
+            f"{', '.join(ckpt.RESTART_FREE_KEYS)} and output.*), or --allow-changes to restart with "
+            "these changes"
+        )
     return ck
 
 
@@ -73,9 +84,17 @@ def _own_run(out: Path, restart) -> bool:
         return False
 
 
-def run_config(cfg: Config, *, command: Optional[str] = None, progress: bool = True, restart: Optional[str] = None,
-               extra_callbacks: Optional[list] = None, overwrite: bool = False, allow_changes: bool = False,
-               out_name: str = "output.dir") -> dict:
+def run_config(
+    cfg: Config,
+    *,
+    command: Optional[str] = None,
+    progress: bool = True,
+    restart: Optional[str] = None,
+    extra_callbacks: Optional[list] = None,
+    overwrite: bool = False,
+    allow_changes: bool = False,
+    out_name: str = "output.dir",
+) -> dict:
     """Runs the configuration (validated again here) and returns the case's summary dict.
 
     ``command``: the command line recorded in the provenance (default: this process's);
@@ -101,37 +120,55 @@ def run_config(cfg: Config, *, command: Optional[str] = None, progress: bool = T
     if plan.mode == "append":
         assert t_start is not None  # an append continues the run of a checkpoint
         front_prefix, history_prefix = resume_outputs(out, t_start)
-    outputs = RunOutputs(out, front_prefix, history_prefix,
-                         start_area=float(np.ravel(ck.state["reference_area"])[0]) if ck is not None and "reference_area" in ck.state
-                         else None)
+    outputs = RunOutputs(
+        out,
+        front_prefix,
+        history_prefix,
+        start_area=float(np.ravel(ck.state["reference_area"])[0])
+        if ck is not None and "reference_area" in ck.state
+        else None,
+    )
 
     callbacks = list(extra_callbacks or [])
     writer = None
     if out_cfg["fields_every_s"] > 0 and out_cfg["formats"]:
         from .io.writer import FieldWriter
 
-        writer = FieldWriter(out, case.grid(), out_cfg["formats"], prov,
-                             append_after=t_start if plan.mode == "append" else None)
+        writer = FieldWriter(
+            out, case.grid(), out_cfg["formats"], prov, append_after=t_start if plan.mode == "append" else None
+        )
         callbacks.append(Callback(writer, every_time=out_cfg["fields_every_s"]))
     if out_cfg["checkpoint_every_s"] > 0:
-        callbacks.append(Callback(lambda sim: ckpt.save_checkpoint(sim.model, out / "checkpoint.npz", prov),
-                                  every_time=out_cfg["checkpoint_every_s"]))
+        callbacks.append(
+            Callback(
+                lambda sim: ckpt.save_checkpoint(sim.model, out / "checkpoint.npz", prov),
+                every_time=out_cfg["checkpoint_every_s"],
+            )
+        )
     prepare = (lambda model: ckpt.restore_checkpoint(model, ck)) if ck is not None else None
-    extra = {"provenance": {k: v for k, v in prov.items() if k != "configuration"}, "config": cfg,
-             "restart_from": str(restart) if restart is not None else None,
-             "fields": {"formats": list(out_cfg["formats"]) if writer else [], "every_s": out_cfg["fields_every_s"]}}
+    extra = {
+        "provenance": {k: v for k, v in prov.items() if k != "configuration"},
+        "config": cfg,
+        "restart_from": str(restart) if restart is not None else None,
+        "fields": {"formats": list(out_cfg["formats"]) if writer else [], "every_s": out_cfg["fields_every_s"]},
+    }
     if ck is not None:
         whole = plan.mode == "append" and front_prefix is not None
         extra["restart"] = {
-            "checkpoint": str(restart), "t_start_s": t_start, "step_start": ck.meta["step_count"],
-            "front_and_history_from": "the run's start (appended to this folder's run)" if whole else
-                                      f"the restart at t = {t_start:g} s",
+            "checkpoint": str(restart),
+            "t_start_s": t_start,
+            "step_start": ck.meta["step_count"],
+            "front_and_history_from": "the run's start (appended to this folder's run)"
+            if whole
+            else f"the restart at t = {t_start:g} s",
             "mass_rel_error_from": "the run's start (the checkpoint's reference area)",
             "energy_from": f"the restart at t = {t_start:g} s (the budget starts again from a restored state)",
-            "configuration_changes": ckpt.configuration_changes(ck, cfg)}
+            "configuration_changes": ckpt.configuration_changes(ck, cfg),
+        }
     try:
-        summary = run_column(case, out, progress=progress, callbacks=callbacks, extra_summary=extra, prepare=prepare,
-                             outputs=outputs)
+        summary = run_column(
+            case, out, progress=progress, callbacks=callbacks, extra_summary=extra, prepare=prepare, outputs=outputs
+        )
     except (SimulationError, SolverError):
         _animate(out_cfg, out, writer)  # the failure is data: animate what was saved
         raise
@@ -148,5 +185,7 @@ def _animate(out_cfg: dict, out: Path, writer) -> None:
         except OSError as err:
             from .io.outputs import OutputError
 
-            raise OutputError(f"cannot write {out / 'animation.gif'} ({err.strerror or err}); the files written before "
-                              f"are kept in {out}") from None
+            raise OutputError(
+                f"cannot write {out / 'animation.gif'} ({err.strerror or err}); the files written before "
+                f"are kept in {out}"
+            ) from None

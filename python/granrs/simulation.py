@@ -22,8 +22,9 @@ from __future__ import annotations
 import math
 import sys
 import time as _time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -37,7 +38,7 @@ class Callback:
     """Calls ``func(simulation)`` every ``every_time`` seconds of simulated time (landing on those
     times exactly) or every ``every_steps`` steps."""
 
-    func: Callable[["Simulation"], object]  # what it returns is not used
+    func: Callable[[Simulation], object]  # what it returns is not used
     every_time: Optional[float] = None
     every_steps: Optional[int] = None
 
@@ -61,26 +62,54 @@ class Simulation:
     #: most steps per call into the core between two blow-up checks
     chunk_steps = 50
 
-    def __init__(self, model: Model, stop_time: Optional[float] = None, stop_iteration: Optional[int] = None,
-                 callbacks: Optional[list] = None, progress: bool = False, wall_limit: Optional[float] = None,
-                 speed_limit: Optional[float] = None, dt_collapse: float = 1e-6):
+    def __init__(
+        self,
+        model: Model,
+        stop_time: Optional[float] = None,
+        stop_iteration: Optional[int] = None,
+        callbacks: Optional[list] = None,
+        progress: bool = False,
+        wall_limit: Optional[float] = None,
+        speed_limit: Optional[float] = None,
+        dt_collapse: float = 1e-6,
+    ):
         if stop_time is None and stop_iteration is None:
             raise ParameterError("invalid parameter `stop_time/stop_iteration`: allowed at least one of them")
-        if stop_time is not None and (isinstance(stop_time, bool) or not isinstance(stop_time, (int, float))
-                                      or not (math.isfinite(stop_time) and stop_time > model.time)):
-            raise ParameterError(f"invalid parameter `stop_time` = {stop_time!r}: allowed a finite time > the model time {model.time}")
-        if stop_iteration is not None and (isinstance(stop_iteration, bool) or not isinstance(stop_iteration, int)
-                                           or stop_iteration <= model.step_count):
-            raise ParameterError(f"invalid parameter `stop_iteration` = {stop_iteration!r}: allowed an integer > the model's "
-                                 f"step count {model.step_count}")
-        if wall_limit is not None and (isinstance(wall_limit, bool) or not isinstance(wall_limit, (int, float))
-                                       or not (math.isfinite(wall_limit) and wall_limit > 0)):
-            raise ParameterError(f"invalid parameter `wall_limit` = {wall_limit!r}: allowed a finite number of seconds > 0")
+        if stop_time is not None and (
+            isinstance(stop_time, bool)
+            or not isinstance(stop_time, (int, float))
+            or not (math.isfinite(stop_time) and stop_time > model.time)
+        ):
+            raise ParameterError(
+                f"invalid parameter `stop_time` = {stop_time!r}: allowed a finite time > the model time {model.time}"
+            )
+        if stop_iteration is not None and (
+            isinstance(stop_iteration, bool)
+            or not isinstance(stop_iteration, int)
+            or stop_iteration <= model.step_count
+        ):
+            raise ParameterError(
+                f"invalid parameter `stop_iteration` = {stop_iteration!r}: allowed an integer > the model's "
+                f"step count {model.step_count}"
+            )
+        if wall_limit is not None and (
+            isinstance(wall_limit, bool)
+            or not isinstance(wall_limit, (int, float))
+            or not (math.isfinite(wall_limit) and wall_limit > 0)
+        ):
+            raise ParameterError(
+                f"invalid parameter `wall_limit` = {wall_limit!r}: allowed a finite number of seconds > 0"
+            )
         if callbacks is not None and not all(isinstance(cb, Callback) for cb in callbacks):
             raise ParameterError(f"invalid parameter `callbacks` = {callbacks!r}: allowed a list of granrs.Callback")
-        if speed_limit is not None and (isinstance(speed_limit, bool) or not isinstance(speed_limit, (int, float))
-                                        or not (math.isfinite(speed_limit) and speed_limit > 0)):
-            raise ParameterError(f"invalid parameter `speed_limit` = {speed_limit!r}: allowed None or a finite speed > 0 (m/s)")
+        if speed_limit is not None and (
+            isinstance(speed_limit, bool)
+            or not isinstance(speed_limit, (int, float))
+            or not (math.isfinite(speed_limit) and speed_limit > 0)
+        ):
+            raise ParameterError(
+                f"invalid parameter `speed_limit` = {speed_limit!r}: allowed None or a finite speed > 0 (m/s)"
+            )
         if isinstance(dt_collapse, bool) or not isinstance(dt_collapse, (int, float)) or not 0 <= dt_collapse < 1:
             raise ParameterError(f"invalid parameter `dt_collapse` = {dt_collapse!r}: allowed a number in [0, 1)")
         self.speed_limit = speed_limit if speed_limit is not None else _default_speed_limit(model)
@@ -118,7 +147,7 @@ class Simulation:
         assert every is not None  # Callback holds exactly one of every_time, every_steps
         return m.step_count // every > n_before // every
 
-    def run(self) -> "Simulation":
+    def run(self) -> Simulation:
         """Runs to the stop condition. A failure (SimulationError, SolverError) propagates after
         the history gathered so far is kept in ``history``."""
         m = self.model
@@ -177,22 +206,31 @@ class Simulation:
             if not (math.isfinite(t) and math.isfinite(dt) and math.isfinite(speed)):
                 why = f"a non-finite step (δt = {dt!r}, max speed {speed!r} m/s)"
             elif speed * dt / h > cfl_abort:
-                why = (f"the CFL number after the step, max|u| δt/h = {speed * dt / h:.4g}, exceeds cfl_abort = "
-                       f"{cfl_abort:g} (max speed {speed:.4g} m/s)")
+                why = (
+                    f"the CFL number after the step, max|u| δt/h = {speed * dt / h:.4g}, exceeds cfl_abort = "
+                    f"{cfl_abort:g} (max speed {speed:.4g} m/s)"
+                )
             elif speed > self.speed_limit:
-                why = (f"the largest speed {speed:.4g} m/s exceeds the limit {self.speed_limit:.4g} m/s (unbounded "
-                       "growth: Simulation(speed_limit=...))")
+                why = (
+                    f"the largest speed {speed:.4g} m/s exceeds the limit {self.speed_limit:.4g} m/s (unbounded "
+                    "growth: Simulation(speed_limit=...))"
+                )
             elif self._dt_max > 0 and dt < self.dt_collapse * self._dt_max:
-                why = (f"the time step collapsed: δt = {dt:.3g} s is below {self.dt_collapse:g} × the largest step "
-                       f"{self._dt_max:.3g} s (max speed {speed:.4g} m/s)")
+                why = (
+                    f"the time step collapsed: δt = {dt:.3g} s is below {self.dt_collapse:g} × the largest step "
+                    f"{self._dt_max:.3g} s (max speed {speed:.4g} m/s)"
+                )
             if why is None:
                 self._dt_max = max(self._dt_max, dt)
                 continue
             location = _fastest_cell(m)
             restored = _restore(m, good)
             where = f" at cell (i={location[0]}, j={location[1]})" if location is not None else ""
-            back = (f"; the model is back at t = {t_before:.6g} s, step {n_before}" if restored
-                    else "; the model holds the state after the blow-up")
+            back = (
+                f"; the model is back at t = {t_before:.6g} s, step {n_before}"
+                if restored
+                else "; the model holds the state after the blow-up"
+            )
             err = SimulationError(f"blow-up at step {n_before + k + 1}, t = {t:.6g} s{where}: {why}{back}")
             err.step, err.time, err.location = n_before + k + 1, t, location
             err.history = {}
@@ -205,8 +243,10 @@ class Simulation:
             frac = min(1.0, m.time / self.stop_time)
             left = wall / frac * (1 - frac) if frac > 0 else math.nan
             bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
-            sys.stderr.write(f"\r[{bar}] t = {m.time:.4g}/{self.stop_time:g} s  wall {wall:.1f} s  left ~{left:.0f} s  "
-                             f"step {m.step_count}  ")
+            sys.stderr.write(
+                f"\r[{bar}] t = {m.time:.4g}/{self.stop_time:g} s  wall {wall:.1f} s  left ~{left:.0f} s  "
+                f"step {m.step_count}  "
+            )
         else:
             sys.stderr.write(f"\rstep {m.step_count}/{self.stop_iteration}  t = {m.time:.4g} s  wall {wall:.1f} s ")
         sys.stderr.flush()

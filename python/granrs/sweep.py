@@ -28,9 +28,10 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Optional, Sequence, Union
+from typing import Optional, Union
 
 import numpy as np
 
@@ -50,14 +51,21 @@ def parse_param(text: str) -> tuple[str, list]:
     k = config_key(name)
     if spec.count(":") == 2 and "[" not in spec and '"' not in spec:
         a, b, n = (parse_scalar(s.strip()) for s in spec.split(":"))
-        if (isinstance(n, bool) or not isinstance(n, int) or n < 1 or any(isinstance(v, bool) or not isinstance(v, (int, float))
-                                                                        for v in (a, b))):
-            raise ParameterError(f"invalid parameter `--param {name}` = {spec!r}: allowed a:b:n with numbers a, b and an "
-                                 "integer n >= 1")
+        if (
+            isinstance(n, bool)
+            or not isinstance(n, int)
+            or n < 1
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in (a, b))
+        ):
+            raise ParameterError(
+                f"invalid parameter `--param {name}` = {spec!r}: allowed a:b:n with numbers a, b and an integer n >= 1"
+            )
         values = [float(v) for v in np.linspace(a, b, n)]
         if k.kind == "int":
             if any(v != round(v) for v in values):
-                raise ParameterError(f"invalid parameter `--param {name}` = {spec!r}: {k.allowed()}, and {values} are not integers")
+                raise ParameterError(
+                    f"invalid parameter `--param {name}` = {spec!r}: {k.allowed()}, and {values} are not integers"
+                )
             values = [int(round(v)) for v in values]
     else:
         values = [parse_scalar(s.strip()) for s in spec.split(",")]
@@ -145,8 +153,12 @@ def run_member(cfg: Config) -> dict:
     SIGKILL from the system's out-of-memory killer, SIGABRT) or exits without a record is a
     'failed' member naming how it ended, with what its summary.json held by then."""
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "granrs.sweep", "member", str(cfg["output"]["dir"])],
-                          input=json.dumps(cfg), capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "granrs.sweep", "member", str(cfg["output"]["dir"])],
+        input=json.dumps(cfg),
+        capture_output=True,
+        text=True,
+    )
     lines = proc.stdout.strip().splitlines()
     if proc.returncode == 0 and lines:
         try:
@@ -155,8 +167,9 @@ def run_member(cfg: Config) -> dict:
             pass
     if proc.returncode < 0:
         name = signal.Signals(-proc.returncode).name if -proc.returncode in signal.Signals._value2member_map_ else "?"
-        why = (f"the member's process died from signal {name} ({-proc.returncode})"
-               + (": killed from outside or by the system's out-of-memory killer" if name == "SIGKILL" else ""))
+        why = f"the member's process died from signal {name} ({-proc.returncode})" + (
+            ": killed from outside or by the system's out-of-memory killer" if name == "SIGKILL" else ""
+        )
     else:
         tail = proc.stderr.strip().splitlines()[-1:] or [""]
         why = f"the member's process exited with status {proc.returncode} without a result: {tail[0]}"
@@ -183,8 +196,15 @@ class SweepResult:
     files: dict
 
 
-def run_sweep(config: Union[str, Path, Config], params, scheduler: Optional[str] = None, workers: int = 2,
-              out: Optional[Union[str, Path]] = None, plot: bool = True, overwrite: bool = False) -> SweepResult:
+def run_sweep(
+    config: Union[str, Path, Config],
+    params,
+    scheduler: Optional[str] = None,
+    workers: int = 2,
+    out: Optional[Union[str, Path]] = None,
+    plot: bool = True,
+    overwrite: bool = False,
+) -> SweepResult:
     """Runs every member on dask.distributed and gathers the results (see the module docstring).
     Writes ``<out>/sweep.csv`` (after every finished member), ``sweep.nc`` and ``sweep_runout.png``."""
     from .io.outputs import commit_output_dir, plan_output_dir
@@ -208,8 +228,15 @@ def run_sweep(config: Union[str, Path, Config], params, scheduler: Optional[str]
             from .io.outputs import clear_run
 
             clear_run(old)
-    table = [{"member": m.index, **m.values, **{k: ("pending" if k == "status" else None) for k in RECORD_KEYS},
-              "dir": m.config["output"]["dir"]} for m in mems]
+    table = [
+        {
+            "member": m.index,
+            **m.values,
+            **{k: ("pending" if k == "status" else None) for k in RECORD_KEYS},
+            "dir": m.config["output"]["dir"],
+        }
+        for m in mems
+    ]
 
     def finished(i: int, rec: dict) -> None:
         table[i].update({k: rec.get(k) for k in RECORD_KEYS})
@@ -237,8 +264,14 @@ def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished
     cluster = None
     if scheduler is None:
         with dask.config.set({"distributed.scheduler.allowed-failures": 0}):  # a dead worker: report, not retry
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
         client = Client(cluster)
     else:
         client = Client(scheduler)
@@ -250,8 +283,11 @@ def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished
             try:
                 rec = fut.result()
             except Exception as err:  # the worker itself died: still a reported failure
-                rec = _record({"status": "failed", "error": f"{type(err).__name__}: {err}"}, _read_summary(configs[i]),
-                              time.perf_counter())
+                rec = _record(
+                    {"status": "failed", "error": f"{type(err).__name__}: {err}"},
+                    _read_summary(configs[i]),
+                    time.perf_counter(),
+                )
                 rec["wall_s"] = math.nan
             finished(i, rec)
     finally:
@@ -267,6 +303,7 @@ def _write_csv(path: Path, table: list) -> Path:
         w = csv.DictWriter(f, fieldnames=list(table[0]))
         w.writeheader()
         w.writerows(table)
+
     return atomic_write(path, write)
 
 
@@ -312,27 +349,52 @@ def plot_runout(table: list, keys: list, path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for n, (combo, rows) in enumerate(groups.items()):
         rows = sorted(rows, key=lambda r: r[first])
-        label = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in zip(rest, combo)) or "run-out"
+        label = (
+            ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in zip(rest, combo))
+            or "run-out"
+        )
         x = [r[first] for r in rows]
         y = [r["runout_m"] for r in rows]
         ok = [r["status"] == "ok" for r in rows]
-        ax.plot([a for a, o in zip(x, ok) if o], [b for b, o in zip(y, ok) if o], f"C{n}o-", label=label if any(ok) else None)
-        ax.plot([a for a, o in zip(x, ok) if not o], [b for b, o in zip(y, ok) if not o], f"C{n}o", mfc="none",
-                label=None if any(ok) else label)
+        ax.plot(
+            [a for a, o in zip(x, ok) if o],
+            [b for b, o in zip(y, ok) if o],
+            f"C{n}o-",
+            label=label if any(ok) else None,
+        )
+        ax.plot(
+            [a for a, o in zip(x, ok) if not o],
+            [b for b, o in zip(y, ok) if not o],
+            f"C{n}o",
+            mfc="none",
+            label=None if any(ok) else label,
+        )
         for r, a, b, o in zip(rows, x, y, ok):
             if not o and math.isfinite(b):
-                ax.annotate(f"t={r['t_end_s']:.2f} s", (a, b), textcoords="offset points", xytext=(4, 3), fontsize=6,
-                            color=f"C{n}")
+                ax.annotate(
+                    f"t={r['t_end_s']:.2f} s",
+                    (a, b),
+                    textcoords="offset points",
+                    xytext=(4, 3),
+                    fontsize=6,
+                    color=f"C{n}",
+                )
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"experiment: {PAPER_RUNOUT_EXP} m")
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper's simulation: {PAPER_RUNOUT_SIM} m")
     failed = sum(r["status"] != "ok" for r in table)
     xs = [r[first] for r in table if isinstance(r[first], (int, float))]
     if xs and min(xs) > 0 and max(xs) / min(xs) >= 10:
         ax.set_xscale("log")
-    ax.set(xlabel=f"{first} ({config_key(first).unit_words})" if config_key(first).unit else first,
-           ylabel="run-out from the gate (m)",
-           title=f"sweep of {len(table)} members" + (f": {failed} stopped early\n(open markers: run-out at the time "
-                                                     "they stopped, a lower bound)" if failed else ""))
+    ax.set(
+        xlabel=f"{first} ({config_key(first).unit_words})" if config_key(first).unit else first,
+        ylabel="run-out from the gate (m)",
+        title=f"sweep of {len(table)} members"
+        + (
+            f": {failed} stopped early\n(open markers: run-out at the time they stopped, a lower bound)"
+            if failed
+            else ""
+        ),
+    )
     ax.title.set_fontsize(9)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)

@@ -43,16 +43,28 @@ def run_cavity_case(re: float, n: int, out: Path, threads: int = 1) -> dict:
         gu, gv = _ghia()
         ax.plot(gu[:, 1], gu[:, 0], "C0o", mfc="none", label="u  Ghia et al. 1982")
         ax.plot(gv[:, 0], gv[:, 1], "C1s", mfc="none", label="v  Ghia et al. 1982")
-    ax.set(xlabel="velocity / U  (u)   or   x / L  (v)", ylabel="y / L  (u)   or   velocity / U  (v)",
-           title="Centreline profiles")
+    ax.set(
+        xlabel="velocity / U  (u)   or   x / L  (v)",
+        ylabel="y / L  (u)   or   velocity / U  (v)",
+        title="Centreline profiles",
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "cavity.png", dpi=120)
     plt.close(fig)
-    summary = {"case": "cavity", "re": re, "n": n, "t_final": model.time, "steps": model.step_count,
-               "steady_change": change, "wall_s": wall, "psi_min": float(psi.min()),
-               "pressure_iterations_median": float(np.median(iters)), "threads": threads}
+    summary = {
+        "case": "cavity",
+        "re": re,
+        "n": n,
+        "t_final": model.time,
+        "steps": model.step_count,
+        "steady_change": change,
+        "wall_s": wall,
+        "psi_min": float(psi.min()),
+        "pressure_iterations_median": float(np.median(iters)),
+        "threads": threads,
+    }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(summary, indent=2))
     return summary

@@ -15,6 +15,24 @@ from .provenance import git_revision, provenance
 from .vtk import read_pvd, read_vti, write_pvd, write_vti
 from .writer import FieldWriter, deferred_interrupt
 
-__all__ = ["Checkpoint", "FIELDS", "FieldWriter", "NetCDFWriter", "coordinates", "deferred_interrupt", "git_revision",
-           "load_checkpoint", "load_frames", "make_animation", "provenance", "read_netcdf", "read_pvd", "read_vti",
-           "restore_checkpoint", "save_checkpoint", "snapshot", "write_pvd", "write_vti"]
+__all__ = [
+    "Checkpoint",
+    "FIELDS",
+    "FieldWriter",
+    "NetCDFWriter",
+    "coordinates",
+    "deferred_interrupt",
+    "git_revision",
+    "load_checkpoint",
+    "load_frames",
+    "make_animation",
+    "provenance",
+    "read_netcdf",
+    "read_pvd",
+    "read_vti",
+    "restore_checkpoint",
+    "save_checkpoint",
+    "snapshot",
+    "write_pvd",
+    "write_vti",
+]

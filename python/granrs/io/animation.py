@@ -25,8 +25,14 @@ def load_frames(out) -> Optional[dict]:
         f = data["fields"]
         if data["time"].size == 0:
             return None
-        return {"time": data["time"], "x": data["x"], "y": data["y"], "phi": f["phi"],
-                "speed": np.hypot(f["u"], f["v"]), "pf": f.get("pf")}
+        return {
+            "time": data["time"],
+            "x": data["x"],
+            "y": data["y"],
+            "phi": f["phi"],
+            "speed": np.hypot(f["u"], f["v"]),
+            "pf": f.get("pf"),
+        }
     if (out / "fields.pvd").exists():
         frames = [read_vti(p) for _, p in read_pvd(out / "fields.pvd")]
         if not frames:
@@ -34,10 +40,14 @@ def load_frames(out) -> Optional[dict]:
         ny, nx = frames[0]["shape"]
         dx, dy = frames[0]["spacing"][:2]
         fields = [fr["fields"] for fr in frames]
-        return {"time": np.array([fr["time"] for fr in frames]), "x": (np.arange(nx) + 0.5) * dx,
-                "y": (np.arange(ny) + 0.5) * dy, "phi": np.array([f["phi"] for f in fields]),
-                "speed": np.array([np.hypot(f["velocity"][..., 0], f["velocity"][..., 1]) for f in fields]),
-                "pf": np.array([f["pf"] for f in fields]) if "pf" in fields[0] else None}
+        return {
+            "time": np.array([fr["time"] for fr in frames]),
+            "x": (np.arange(nx) + 0.5) * dx,
+            "y": (np.arange(ny) + 0.5) * dy,
+            "phi": np.array([f["phi"] for f in fields]),
+            "speed": np.array([np.hypot(f["velocity"][..., 0], f["velocity"][..., 1]) for f in fields]),
+            "pf": np.array([f["pf"] for f in fields]) if "pf" in fields[0] else None,
+        }
     return None
 
 
@@ -59,14 +69,23 @@ def make_animation(out, path=None, fps: int = 8, dpi: int = 90) -> Optional[Path
     if data["pf"] is not None:
         panels.append(("pore pressure p_f (Pa)", np.where(phi > 0, data["pf"], np.nan), "magma"))
     lx, ly = x[-1] + x[0], y[-1] + y[0]
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 0.8 + len(panels) * 9 * ly / lx * 1.1), squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(
+        len(panels), 1, figsize=(9, 0.8 + len(panels) * 9 * ly / lx * 1.1), squeeze=False, layout="constrained"
+    )
     extent = (0, lx, 0, ly)
     images, contours = [], []
     for ax, (label, values, cmap) in zip(axes[:, 0], panels):
         vmax = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
-        im = ax.imshow(values[0], origin="lower", extent=extent, cmap=cmap, vmin=0.0, vmax=max(vmax, 1e-12),
-                       aspect="equal", interpolation="nearest")
+        im = ax.imshow(
+            values[0],
+            origin="lower",
+            extent=extent,
+            cmap=cmap,
+            vmin=0.0,
+            vmax=max(vmax, 1e-12),
+            aspect="equal",
+            interpolation="nearest",
+        )
         fig.colorbar(im, ax=ax, label=label, fraction=0.025, pad=0.01)
         ax.set(ylabel="y (m)")
         images.append((im, values))

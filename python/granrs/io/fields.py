@@ -19,8 +19,12 @@ FIELDS: dict[str, dict[str, Any]] = {
     "v": {"long_name": "y-velocity at cell centres (upwards)", "units": "m s-1"},
     "p": {"long_name": "pressure", "units": "Pa"},
     "pf": {"long_name": "pore gas pressure", "units": "Pa"},
-    "yielded": {"long_name": "yielded granular cell: 1 where phi > 0 and the trial stress norm exceeds 1, else 0",
-                "units": "1", "flag_values": [0, 1], "flag_meanings": "not_yielded yielded"},
+    "yielded": {
+        "long_name": "yielded granular cell: 1 where phi > 0 and the trial stress norm exceeds 1, else 0",
+        "units": "1",
+        "flag_values": [0, 1],
+        "flag_meanings": "not_yielded yielded",
+    },
 }
 
 

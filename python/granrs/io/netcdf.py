@@ -17,8 +17,10 @@ import numpy as np
 
 from .fields import FIELDS
 
-REFERENCE = ("Aravena, Chupin, Dubois & Roche, Fluidisation by pore pressure of dense granular flows: "
-             "numerical simulations versus experiments")
+REFERENCE = (
+    "Aravena, Chupin, Dubois & Roche, Fluidisation by pore pressure of dense granular flows: "
+    "numerical simulations versus experiments"
+)
 
 
 def available() -> bool:
@@ -44,20 +46,28 @@ class NetCDFWriter:
 
         ds = netCDF4.Dataset(self.path, "w", format="NETCDF4")
         prov = self.provenance
-        ds.setncatts({
-            "Conventions": "CF-1.10", "title": self.title,
-            "source": f"granrs {prov['granrs_version']} (git {prov['git_revision'] or 'unknown'})",
-            "history": f"{prov['created_utc']}: {prov['command_line']}", "references": REFERENCE,
-            "comment": "2D fluidised granular column collapse: level-set two-phase Navier-Stokes, viscoplastic rheology",
-            **{k: str(v) for k, v in prov.items()},
-        })
+        ds.setncatts(
+            {
+                "Conventions": "CF-1.10",
+                "title": self.title,
+                "source": f"granrs {prov['granrs_version']} (git {prov['git_revision'] or 'unknown'})",
+                "history": f"{prov['created_utc']}: {prov['command_line']}",
+                "references": REFERENCE,
+                "comment": "2D fluidised granular column collapse: level-set two-phase Navier-Stokes, viscoplastic rheology",
+                **{k: str(v) for k, v in prov.items()},
+            }
+        )
         ds.createDimension("time", None)
         ds.createDimension("y", self.y.size)
         ds.createDimension("x", self.x.size)
         t = ds.createVariable("time", "f8", ("time",))
-        t.setncatts({"standard_name": "time", "long_name": "simulated time since the release", "units": "s", "axis": "T"})
-        for name, values, long_name, axis in (("x", self.x, "distance along the channel from the back wall", "X"),
-                                              ("y", self.y, "height above the base", "Y")):
+        t.setncatts(
+            {"standard_name": "time", "long_name": "simulated time since the release", "units": "s", "axis": "T"}
+        )
+        for name, values, long_name, axis in (
+            ("x", self.x, "distance along the channel from the back wall", "X"),
+            ("y", self.y, "height above the base", "Y"),
+        ):
             var = ds.createVariable(name, "f8", (name,))
             var.setncatts({"long_name": long_name, "units": "m", "axis": axis})
             var[:] = values
@@ -87,5 +97,10 @@ def read_netcdf(path) -> dict:
 
     with netCDF4.Dataset(path) as ds:
         names = [n for n in ds.variables if n not in ("time", "x", "y")]
-        return {"time": np.array(ds["time"][:]), "x": np.array(ds["x"][:]), "y": np.array(ds["y"][:]),
-                "fields": {n: np.array(ds[n][:]) for n in names}, "attrs": {k: ds.getncattr(k) for k in ds.ncattrs()}}
+        return {
+            "time": np.array(ds["time"][:]),
+            "x": np.array(ds["x"][:]),
+            "y": np.array(ds["y"][:]),
+            "fields": {n: np.array(ds[n][:]) for n in names},
+            "attrs": {k: ds.getncattr(k) for k in ds.ncattrs()},
+        }

@@ -24,18 +24,32 @@ from __future__ import annotations
 import csv
 import json
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any, Optional
 
 import numpy as np
 
 from .._granrs import ParameterError, SimulationError
 
 #: The files and patterns a run writes into its folder (what ``overwrite`` deletes).
-RUN_FILES = ("summary.json", "front.csv", "profiles.csv", "history.npz", "energy.csv", "config.resolved.toml",
-             "config.restart-*.toml", "fields.pvd", "fields.nc", "animation.gif", "checkpoint.npz", "*.png",
-             "fields/fields_*.vti", "*.tmp")
+RUN_FILES = (
+    "summary.json",
+    "front.csv",
+    "profiles.csv",
+    "history.npz",
+    "energy.csv",
+    "config.resolved.toml",
+    "config.restart-*.toml",
+    "fields.pvd",
+    "fields.nc",
+    "animation.gif",
+    "checkpoint.npz",
+    "*.png",
+    "fields/fields_*.vti",
+    "*.tmp",
+)
 #: Free space below which a folder counts as full (bytes): one snapshot of a ny = 32 run is ~0.3 MB.
 MIN_FREE_BYTES = 1 << 20
 _VIRTUAL = ("/proc", "/sys", "/dev")
@@ -88,8 +102,12 @@ def plan_output_dir(path, *, overwrite: bool = False, append: bool = False, name
         raise _bad(name, p, f"{str(ancestor)!r} is not writable by this user")
     free = st.f_bavail * st.f_frsize
     if free < MIN_FREE_BYTES:
-        raise _bad(name, p, f"the file system of {str(ancestor)!r} is full ({free} bytes free, fewer than "
-                            f"{MIN_FREE_BYTES} bytes)", "a folder with at least 1 MiB free")
+        raise _bad(
+            name,
+            p,
+            f"the file system of {str(ancestor)!r} is full ({free} bytes free, fewer than {MIN_FREE_BYTES} bytes)",
+            "a folder with at least 1 MiB free",
+        )
     existing = sorted(e.name for e in p.iterdir()) if p.is_dir() else []
     if not existing:
         return OutputPlan(p, "fresh")
@@ -98,9 +116,13 @@ def plan_output_dir(path, *, overwrite: bool = False, append: bool = False, name
     if overwrite:
         return OutputPlan(p, "overwrite", existing)
     shown = ", ".join(existing[:5]) + (", ..." if len(existing) > 5 else "")
-    raise _bad(name, p, f"the folder is not empty (it holds {shown}); nothing was changed",
-               "a new or empty folder, --overwrite to replace the run there, or --restart from its checkpoint.npz "
-               "to continue it")
+    raise _bad(
+        name,
+        p,
+        f"the folder is not empty (it holds {shown}); nothing was changed",
+        "a new or empty folder, --overwrite to replace the run there, or --restart from its checkpoint.npz "
+        "to continue it",
+    )
 
 
 def clear_run(path: Path) -> None:
@@ -123,8 +145,10 @@ def commit_output_dir(plan: OutputPlan) -> Path:
         probe.write_bytes(b"granrs")
         probe.unlink()
     except OSError as err:
-        raise ParameterError(f"invalid parameter `--out` = {str(p)!r}: cannot write there ({err.strerror}); allowed a "
-                             "writable folder on a disk") from None
+        raise ParameterError(
+            f"invalid parameter `--out` = {str(p)!r}: cannot write there ({err.strerror}); allowed a "
+            "writable folder on a disk"
+        ) from None
     return p
 
 
@@ -143,8 +167,9 @@ def atomic_write(path, write: Callable, binary: bool = False) -> Path:
             tmp.unlink(missing_ok=True)
         except OSError:
             pass
-        raise OutputError(f"cannot write {path} ({err.strerror or err}); the files written before are kept in "
-                          f"{path.parent}") from None
+        raise OutputError(
+            f"cannot write {path} ({err.strerror or err}); the files written before are kept in {path.parent}"
+        ) from None
     return path
 
 
@@ -165,6 +190,7 @@ def write_columns(path, columns: dict, prefix: Optional[dict] = None) -> Path:
         if prefix and list(prefix) == names:
             w.writerows(zip(*prefix.values()))
         w.writerows([f"{v:.6g}" for v in row] for row in rows)
+
     return atomic_write(path, write)
 
 
@@ -180,8 +206,9 @@ def read_columns(path) -> dict:
 def write_npz(path, arrays: dict, prefix: Optional[dict] = None) -> Path:
     """``np.savez`` of ``arrays``, each preceded by ``prefix[name]`` when given."""
     if prefix:
-        arrays = {k: np.concatenate([np.asarray(prefix[k]), np.asarray(v)]) if k in prefix else v
-                  for k, v in arrays.items()}
+        arrays = {
+            k: np.concatenate([np.asarray(prefix[k]), np.asarray(v)]) if k in prefix else v for k, v in arrays.items()
+        }
     return atomic_write(path, lambda f: np.savez(f, **arrays), binary=True)
 
 
@@ -190,8 +217,13 @@ class RunOutputs:
     (``front_prefix``, ``history_prefix``: the rows before its start) and where its mass balance
     starts (``start_area``: the dense area at the run's original start, None: the model's own)."""
 
-    def __init__(self, path, front_prefix: Optional[dict] = None, history_prefix: Optional[dict] = None,
-                 start_area: Optional[float] = None):
+    def __init__(
+        self,
+        path,
+        front_prefix: Optional[dict] = None,
+        history_prefix: Optional[dict] = None,
+        start_area: Optional[float] = None,
+    ):
         self.path = Path(path)
         self.front_prefix = front_prefix
         self.history_prefix = history_prefix

@@ -12,8 +12,9 @@ import json
 import shlex
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Optional
 
 from .. import __version__
 
@@ -25,12 +26,17 @@ def git_revision() -> Optional[str]:
     """The git commit of the source tree ("<sha>" or "<sha>-dirty"), or None when unknown (an
     installed wheel, no git): failures are ignored."""
     try:
-        sha = subprocess.run(["git", "-C", str(_SOURCE), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=10)
+        sha = subprocess.run(
+            ["git", "-C", str(_SOURCE), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10
+        )
         if sha.returncode != 0:
             return None
-        dirty = subprocess.run(["git", "-C", str(_SOURCE), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=10)
+        dirty = subprocess.run(
+            ["git", "-C", str(_SOURCE), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
         return sha.stdout.strip() + ("-dirty" if dirty.returncode == 0 and dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return None
@@ -57,8 +63,10 @@ def provenance(config_text: str = "", command: Optional[str] = None) -> dict:
 
 def header_lines(prov: dict) -> list[str]:
     """Provenance as comment lines (for the resolved TOML file)."""
-    return [f"granrs {prov['granrs_version']}, git {prov['git_revision'] or 'unknown'}, {prov['created_utc']}",
-            f"command: {prov['command_line']}"]
+    return [
+        f"granrs {prov['granrs_version']}, git {prov['git_revision'] or 'unknown'}, {prov['created_utc']}",
+        f"command: {prov['command_line']}",
+    ]
 
 
 def xml_comment(prov: dict) -> str:
@@ -76,4 +84,4 @@ def from_xml(text: str) -> Optional[dict]:
     if start < 0:
         return None
     end = text.find(" -->", start)
-    return json.loads(text[start + len("<!-- granrs-provenance "):end])
+    return json.loads(text[start + len("<!-- granrs-provenance ") : end])

@@ -10,7 +10,6 @@ simulated time is FieldData "TimeValue". Provenance is an XML comment holding JS
 from __future__ import annotations
 
 import base64
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Optional
@@ -20,8 +19,13 @@ import numpy as np
 
 from .provenance import from_xml, xml_comment
 
-_VTK_TYPES: dict[np.dtype, str] = {np.dtype("<f8"): "Float64", np.dtype("<f4"): "Float32", np.dtype("uint8"): "UInt8",
-              np.dtype("<i4"): "Int32", np.dtype("<i8"): "Int64"}
+_VTK_TYPES: dict[np.dtype, str] = {
+    np.dtype("<f8"): "Float64",
+    np.dtype("<f4"): "Float32",
+    np.dtype("uint8"): "UInt8",
+    np.dtype("<i4"): "Int32",
+    np.dtype("<i8"): "Int64",
+}
 _NP_TYPES: dict[str, np.dtype] = {v: k for k, v in _VTK_TYPES.items()}
 
 
@@ -33,9 +37,11 @@ def _data_array(name: str, data: np.ndarray, components: int = 1) -> str:
         data = data.astype("<i8")
     raw = data.tobytes()
     encoded = base64.b64encode(np.array([len(raw)], dtype="<u8").tobytes() + raw).decode("ascii")
-    return (f'        <DataArray type="{_VTK_TYPES[data.dtype]}" Name={quoteattr(name)} '
-            f'NumberOfComponents="{components}" NumberOfTuples="{data.size // components}" format="binary">\n'
-            f'          {encoded}\n        </DataArray>\n')
+    return (
+        f'        <DataArray type="{_VTK_TYPES[data.dtype]}" Name={quoteattr(name)} '
+        f'NumberOfComponents="{components}" NumberOfTuples="{data.size // components}" format="binary">\n'
+        f"          {encoded}\n        </DataArray>\n"
+    )
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -54,11 +60,12 @@ def write_vti(path, fields: dict, spacing: tuple[float, float], time: float, pro
     parts = ['<?xml version="1.0"?>\n']
     if provenance is not None:
         parts.append(xml_comment(provenance) + "\n")
-    parts.append('<VTKFile type="ImageData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
-                 f'  <ImageData WholeExtent="0 {nx} 0 {ny} 0 0" Origin="0 0 0" Spacing="{dx!r} {dy!r} {dx!r}">\n'
-                 '    <FieldData>\n' + _data_array("TimeValue", np.array([time], dtype=float))
-                 + '    </FieldData>\n'
-                 f'    <Piece Extent="0 {nx} 0 {ny} 0 0">\n      <CellData Scalars="phi" Vectors="velocity">\n')
+    parts.append(
+        '<VTKFile type="ImageData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
+        f'  <ImageData WholeExtent="0 {nx} 0 {ny} 0 0" Origin="0 0 0" Spacing="{dx!r} {dy!r} {dx!r}">\n'
+        "    <FieldData>\n" + _data_array("TimeValue", np.array([time], dtype=float)) + "    </FieldData>\n"
+        f'    <Piece Extent="0 {nx} 0 {ny} 0 0">\n      <CellData Scalars="phi" Vectors="velocity">\n'
+    )
     for name, arr in fields.items():
         if name in ("u", "v") and "u" in fields and "v" in fields:
             continue
@@ -108,7 +115,7 @@ def _decode(elem: ET.Element, count: int) -> np.ndarray:
         return np.array((elem.text or "").split(), dtype=dtype).reshape(count, comps)
     raw = base64.b64decode("".join((elem.text or "").split()))
     nbytes = int(np.frombuffer(raw[:8], dtype="<u8")[0])
-    return np.frombuffer(raw[8:8 + nbytes], dtype=dtype).reshape(count, comps)
+    return np.frombuffer(raw[8 : 8 + nbytes], dtype=dtype).reshape(count, comps)
 
 
 def read_vti(path) -> dict:
@@ -124,10 +131,14 @@ def read_vti(path) -> dict:
         data = _decode(arr, nx * ny)
         fields[_attr(arr, "Name")] = data.reshape(ny, nx) if data.shape[1] == 1 else data.reshape(ny, nx, data.shape[1])
     time_elem = image.find("FieldData/DataArray[@Name='TimeValue']")
-    return {"time": float(_decode(time_elem, 1)[0, 0]) if time_elem is not None else None,
-            "spacing": tuple(float(s) for s in _attr(image, "Spacing").split()),
-            "origin": tuple(float(s) for s in _attr(image, "Origin").split()), "shape": (ny, nx),
-            "fields": fields, "provenance": from_xml(text)}
+    return {
+        "time": float(_decode(time_elem, 1)[0, 0]) if time_elem is not None else None,
+        "spacing": tuple(float(s) for s in _attr(image, "Spacing").split()),
+        "origin": tuple(float(s) for s in _attr(image, "Origin").split()),
+        "shape": (ny, nx),
+        "fields": fields,
+        "provenance": from_xml(text),
+    }
 
 
 def read_pvd(path) -> list[tuple[float, Path]]:

@@ -13,8 +13,8 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from .._granrs import ParameterError
 from .fields import coordinates, snapshot
@@ -51,8 +51,10 @@ def _output_errors(out: Path):
     except OutputError:
         raise
     except OSError as err:
-        raise OutputError(f"cannot write a field snapshot in {out} ({err.strerror or err}); the files written before "
-                          f"are kept in {out}") from None
+        raise OutputError(
+            f"cannot write a field snapshot in {out} ({err.strerror or err}); the files written before "
+            f"are kept in {out}"
+        ) from None
 
 
 class FieldWriter:
@@ -60,16 +62,24 @@ class FieldWriter:
     replaces the snapshots in ``out``; with ``append_after`` = t (a restart at t) it keeps those
     up to t and numbers its own after them."""
 
-    def __init__(self, out, grid, formats: Iterable[str] = ("vtk",), provenance: dict | None = None,
-                 append_after: float | None = None):
+    def __init__(
+        self,
+        out,
+        grid,
+        formats: Iterable[str] = ("vtk",),
+        provenance: dict | None = None,
+        append_after: float | None = None,
+    ):
         self.out = Path(out)
         self.formats = tuple(formats)
         for f in self.formats:
             if f not in FORMATS:
                 raise ParameterError(f"invalid parameter `formats` item {f!r}: allowed 'vtk' or 'netcdf'")
         if "netcdf" in self.formats and not available():
-            raise ParameterError("invalid parameter `output.formats` item 'netcdf': needs the optional dependency "
-                                 "netCDF4 (pip install 'granrs[io]')")
+            raise ParameterError(
+                "invalid parameter `output.formats` item 'netcdf': needs the optional dependency "
+                "netCDF4 (pip install 'granrs[io]')"
+            )
         self.grid = grid
         self.provenance = provenance
         self.entries: list[tuple[float, str]] = []
@@ -82,8 +92,11 @@ class FieldWriter:
             from .vtk import read_pvd
 
             if (self.out / "fields.pvd").exists():
-                self.entries = [(t, str(Path(name).relative_to(self.out))) for t, name in read_pvd(self.out / "fields.pvd")
-                                if t <= append_after * (1 + 1e-12)]
+                self.entries = [
+                    (t, str(Path(name).relative_to(self.out)))
+                    for t, name in read_pvd(self.out / "fields.pvd")
+                    if t <= append_after * (1 + 1e-12)
+                ]
             if (self.out / "fields.nc").exists():
                 import netCDF4
 

@@ -12,7 +12,7 @@ against another), which has no external reference.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 from . import levelset, navier_stokes, peer, pore_pressure, rheology
 
@@ -21,32 +21,72 @@ CASES: dict[str, tuple[Callable, dict, str]] = {
     "taylor-green": (navier_stokes.taylor_green, {"n": [32, 64, 128]}, "decaying Taylor–Green vortex, free-slip box"),
     "cavity": (navier_stokes.cavity, {"re": 100.0, "n": 64}, "lid-driven cavity to steady state"),
     "hydrostatic": (navier_stokes.hydrostatic, {"steps": 1000, "n": 32}, "heavy fluid under a light one, at rest"),
-    "zalesak": (levelset.zalesak, {"n": 100, "redistance_every": 0, "cfl": 0.5}, "Zalesak's slotted disk, one revolution"),
-    "single-vortex": (levelset.single_vortex, {"n": 128, "period": 2.0, "redistance_every": 0, "cfl": 0.5},
-                      "Rider-Kothe single vortex, back at t = T"),
-    "dam-break": (levelset.dam_break, {"n": 32, "mass_correction": True, "air": "resolved"},
-                  "water column under air against Martin & Moyce (1952); --air free-surface: the granular-only model's free surface"),
-    "pore-formulations": (pore_pressure.pore_formulations, {"ny": 32, "t_end": 0.15, "kappa_air": 1e16},
-                          "cross-check: granular-only against kappa-infinity pore pressure on a collapsing column"),
-    "fluidised-layer": (pore_pressure.fluidised_layer, {"ny": 32, "slope_deg": 20.0, "t_end": 1.0},
-                        "granular layer on a slope below its friction angle: at rest dry, flowing when fluidised"),
-    "pore-diffusion": (pore_pressure.pore_diffusion, {"n": [16, 32, 64, 128], "dt_factor": 10.0, "formulation": "granular-only"},
-                       "pore pressure in a static layer with a basal air flux, exact 1D series"),
-    "poiseuille-bingham": (rheology.poiseuille_bingham, {"tau_y": 0.25, "n": [16, 32, 64]},
-                           "Bingham plane Poiseuille flow against the exact solution"),
-    "cavity-bingham": (rheology.cavity_bingham, {"bn": [0.0, 2.0, 5.0, 20.0, 50.0], "n": 32},
-                       "Bingham lid-driven cavity at Re = 0: vortex and plug against Bn"),
-    "cessation": (rheology.cessation, {"geometry": "couette", "tau_y": 0.5, "dt": [4e-3, 2e-3, 1e-3], "n": 32},
-                  "Bingham flow left without forcing: finite stopping time against the bound"),
+    "zalesak": (
+        levelset.zalesak,
+        {"n": 100, "redistance_every": 0, "cfl": 0.5},
+        "Zalesak's slotted disk, one revolution",
+    ),
+    "single-vortex": (
+        levelset.single_vortex,
+        {"n": 128, "period": 2.0, "redistance_every": 0, "cfl": 0.5},
+        "Rider-Kothe single vortex, back at t = T",
+    ),
+    "dam-break": (
+        levelset.dam_break,
+        {"n": 32, "mass_correction": True, "air": "resolved"},
+        "water column under air against Martin & Moyce (1952); --air free-surface: the granular-only model's free surface",
+    ),
+    "pore-formulations": (
+        pore_pressure.pore_formulations,
+        {"ny": 32, "t_end": 0.15, "kappa_air": 1e16},
+        "cross-check: granular-only against kappa-infinity pore pressure on a collapsing column",
+    ),
+    "fluidised-layer": (
+        pore_pressure.fluidised_layer,
+        {"ny": 32, "slope_deg": 20.0, "t_end": 1.0},
+        "granular layer on a slope below its friction angle: at rest dry, flowing when fluidised",
+    ),
+    "pore-diffusion": (
+        pore_pressure.pore_diffusion,
+        {"n": [16, 32, 64, 128], "dt_factor": 10.0, "formulation": "granular-only"},
+        "pore pressure in a static layer with a basal air flux, exact 1D series",
+    ),
+    "poiseuille-bingham": (
+        rheology.poiseuille_bingham,
+        {"tau_y": 0.25, "n": [16, 32, 64]},
+        "Bingham plane Poiseuille flow against the exact solution",
+    ),
+    "cavity-bingham": (
+        rheology.cavity_bingham,
+        {"bn": [0.0, 2.0, 5.0, 20.0, 50.0], "n": 32},
+        "Bingham lid-driven cavity at Re = 0: vortex and plug against Bn",
+    ),
+    "cessation": (
+        rheology.cessation,
+        {"geometry": "couette", "tau_y": 0.5, "dt": [4e-3, 2e-3, 1e-3], "n": 32},
+        "Bingham flow left without forcing: finite stopping time against the bound",
+    ),
     "bagnold": (rheology.bagnold, {"n": 64}, "mu(I) layer on an incline against the exact Bagnold profile"),
-    "sliding-block": (rheology.sliding_block, {"slope": 30.0, "stop_slope": 10.0, "n": 32},
-                      "D-P block on a Coulomb base: acceleration, and stopping below the friction angle"),
-    "heap-at-rest": (rheology.heap_at_rest, {"slope": 20.0, "n": 32, "regularised": False},
-                     "granular layer inclined below its friction angle stays at rest"),
-    "picard-ratio": (rheology.picard_ratio, {"theta": [0.1, 0.25, 0.5, 0.75], "n": 32},
-                     "geometric convergence of the Picard iteration against 1 - theta"),
-    "peer-dry-column": (peer.peer_dry_column, {"n": [32, 64], "t_end": 3.0},
-                        "dry column, free-slip back wall, against Basilisk (n: cells per H_c; docs/validation.md)"),
+    "sliding-block": (
+        rheology.sliding_block,
+        {"slope": 30.0, "stop_slope": 10.0, "n": 32},
+        "D-P block on a Coulomb base: acceleration, and stopping below the friction angle",
+    ),
+    "heap-at-rest": (
+        rheology.heap_at_rest,
+        {"slope": 20.0, "n": 32, "regularised": False},
+        "granular layer inclined below its friction angle stays at rest",
+    ),
+    "picard-ratio": (
+        rheology.picard_ratio,
+        {"theta": [0.1, 0.25, 0.5, 0.75], "n": 32},
+        "geometric convergence of the Picard iteration against 1 - theta",
+    ),
+    "peer-dry-column": (
+        peer.peer_dry_column,
+        {"n": [32, 64], "t_end": 3.0},
+        "dry column, free-slip back wall, against Basilisk (n: cells per H_c; docs/validation.md)",
+    ),
 }
 
 
@@ -86,6 +126,12 @@ def run_case(name: str, threads: int = 1, **params) -> dict:
         full[k] = v
     t0 = time.perf_counter()
     metrics, reference, passed = func(threads=threads, **full)
-    return {"case": name, "kind": "cross-check" if name in CROSS_CHECKS else "validation",
-            "params": full | {"threads": threads}, "metrics": metrics, "reference": reference,
-            "passed": None if passed is None else bool(passed), "wall_s": time.perf_counter() - t0}
+    return {
+        "case": name,
+        "kind": "cross-check" if name in CROSS_CHECKS else "validation",
+        "params": full | {"threads": threads},
+        "metrics": metrics,
+        "reference": reference,
+        "passed": None if passed is None else bool(passed),
+        "wall_s": time.perf_counter() - t0,
+    }

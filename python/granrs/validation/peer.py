@@ -64,12 +64,25 @@ def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0):
     from ..cases.column import ColumnCase
 
     if not isinstance(cells_per_hc, int) or isinstance(cells_per_hc, bool) or not 4 <= cells_per_hc <= 512:
-        raise ParameterError(f"invalid parameter `n` = {cells_per_hc!r}: allowed an integer number of cells per H_c "
-                             "in [4, 512]")
-    return ColumnCase(aspect_ratio=HEIGHT / WIDTH, width=WIDTH, fluidised=False, ny=2 * cells_per_hc,
-                      length=LENGTH, height=DOMAIN_HEIGHT, back_wall="free-slip", friction_angle=27.0,
-                      wall_friction_angle=15.0, granular_viscosity=0.1, solid_fraction=0.58, grain_density=2500.0,
-                      t_end=t_end, threads=threads)
+        raise ParameterError(
+            f"invalid parameter `n` = {cells_per_hc!r}: allowed an integer number of cells per H_c in [4, 512]"
+        )
+    return ColumnCase(
+        aspect_ratio=HEIGHT / WIDTH,
+        width=WIDTH,
+        fluidised=False,
+        ny=2 * cells_per_hc,
+        length=LENGTH,
+        height=DOMAIN_HEIGHT,
+        back_wall="free-slip",
+        friction_angle=27.0,
+        wall_friction_angle=15.0,
+        granular_viscosity=0.1,
+        solid_fraction=0.58,
+        grain_density=2500.0,
+        t_end=t_end,
+        threads=threads,
+    )
 
 
 def load_reference(cells_per_hc: int) -> Optional[dict]:
@@ -81,8 +94,7 @@ def load_reference(cells_per_hc: int) -> Optional[dict]:
         return None
     d = np.genfromtxt(dep, delimiter=",", names=True)
     f = read_csv_columns(fr)
-    return {"x": d["x_from_gate_m"], "h": d["h_m"], "dx": HEIGHT / cells_per_hc,
-            "fronts": f}
+    return {"x": d["x_from_gate_m"], "h": d["h_m"], "dx": HEIGHT / cells_per_hc, "fronts": f}
 
 
 def read_csv_columns(path: Path) -> dict:
@@ -102,15 +114,18 @@ def read_run(folder: Path) -> dict:
     p = np.genfromtxt(folder / "profiles.csv", delimiter=",", skip_header=1)
     f = read_csv_columns(folder / "front.csv")
     summary = json.loads((folder / "summary.json").read_text())
-    return {"x": p[:, 0], "h": p[:, header.index("hvol_final")], "dx": summary["h_m"],
-            "fronts": f, "summary": summary}
+    return {"x": p[:, 0], "h": p[:, header.index("hvol_final")], "dx": summary["h_m"], "fronts": f, "summary": summary}
 
 
 def _profile_observables(x: np.ndarray, h: np.ndarray, dx: float) -> dict:
     x0 = float(x[0] - dx / 2)  # the back wall, from the gate
-    out = {"centre_of_mass_m": obs.centre_of_mass(h, dx, x0), "h_back_wall_m": float(h[0]),
-           "h_gate_m": obs.height_at(h, dx, 0.0, x0), "area_m2": float(np.sum(h) * dx),
-           "front_h_half_cell_m": obs.thickness_front(h, dx, dx / 2, x0)}
+    out = {
+        "centre_of_mass_m": obs.centre_of_mass(h, dx, x0),
+        "h_back_wall_m": float(h[0]),
+        "h_gate_m": obs.height_at(h, dx, 0.0, x0),
+        "area_m2": float(np.sum(h) * dx),
+        "front_h_half_cell_m": obs.thickness_front(h, dx, dx / 2, x0),
+    }
     for tau in FRONT_THICKNESSES_M:
         out[f"front_h{1e3 * tau:g}mm_m"] = obs.thickness_front(h, dx, tau, x0)
     for q in obs.DEPOSIT_QUANTILES:
@@ -145,15 +160,19 @@ def compare(run: dict, ref: dict, finer: bool) -> dict:
     rel = np.abs(hg[bulk] - hr[bulk]) / hr[bulk]
     worst = int(np.argmax(rel))
     og, orf = _profile_observables(xr, hg, ref["dx"]), _profile_observables(xr, hr, ref["dx"])
-    m: dict[str, Any] = {"bulk_end_m": BULK_END_M,
-         "bulk_max_rel_diff": float(rel.max()), "bulk_max_rel_diff_at_m": float(xr[bulk][worst]),
-         "bulk_l1_rel_diff": float(np.sum(np.abs(hg[bulk] - hr[bulk])) / np.sum(hr[bulk])),
-         "tail_l1_rel_diff": float(np.sum(np.abs(hg[~bulk] - hr[~bulk])) / np.sum(hr[~bulk])),
-         "tail_area_granrs_m2": float(np.sum(hg[~bulk]) * ref["dx"]),
-         "tail_area_basilisk_m2": float(np.sum(hr[~bulk]) * ref["dx"]),
-         "granrs": og, "basilisk": orf,
-         "rel_diff": {k: _rel(og[k], orf[k]) for k in og},
-         "abs_diff_m": {k: og[k] - orf[k] for k in og}}
+    m: dict[str, Any] = {
+        "bulk_end_m": BULK_END_M,
+        "bulk_max_rel_diff": float(rel.max()),
+        "bulk_max_rel_diff_at_m": float(xr[bulk][worst]),
+        "bulk_l1_rel_diff": float(np.sum(np.abs(hg[bulk] - hr[bulk])) / np.sum(hr[bulk])),
+        "tail_l1_rel_diff": float(np.sum(np.abs(hg[~bulk] - hr[~bulk])) / np.sum(hr[~bulk])),
+        "tail_area_granrs_m2": float(np.sum(hg[~bulk]) * ref["dx"]),
+        "tail_area_basilisk_m2": float(np.sum(hr[~bulk]) * ref["dx"]),
+        "granrs": og,
+        "basilisk": orf,
+        "rel_diff": {k: _rel(og[k], orf[k]) for k in og},
+        "abs_diff_m": {k: og[k] - orf[k] for k in og},
+    }
     # the tail's film: its thickness at 1 m, in mm and in cells (a film of the same thickness in mm
     # at both resolutions is a property of the law; one of a fixed number of cells, of the numerics)
     for xx in (0.5, 1.0, 1.5):
@@ -163,8 +182,11 @@ def compare(run: dict, ref: dict, finer: bool) -> dict:
             m["film"][f"{name}_h_at_{xx:g}m_cells"] = v / ref["dx"]
     # fronts against time, at the reference's times within both records
     ft, fr = run["fronts"], ref["fronts"]
-    pairs = (("front_h_half_cell_m", "front_h0.5cell_m"), ("front_h_2cm_m", "front_h20mm_m"),
-             ("front_first_row_m", "front_m"))
+    pairs = (
+        ("front_h_half_cell_m", "front_h0.5cell_m"),
+        ("front_h_2cm_m", "front_h20mm_m"),
+        ("front_first_row_m", "front_m"),
+    )
     t = fr["t_s"][fr["t_s"] <= ft["t_s"][-1] + 1e-9]
     m["front_vs_time"] = {}
     for rk, gk in pairs:
@@ -172,17 +194,22 @@ def compare(run: dict, ref: dict, finer: bool) -> dict:
             continue
         d = np.interp(t, ft["t_s"], np.nan_to_num(ft[gk])) - fr[rk][: t.size]
         apart = np.nonzero(np.abs(d) > 0.05)[0]
-        m["front_vs_time"][rk] = {"max_abs_diff_m": float(np.max(np.abs(d))) if d.size else math.nan,
-                                  "final_diff_m": float(d[-1]) if d.size else math.nan,
-                                  "first_apart_5cm_s": float(t[apart[0]]) if apart.size else None}
+        m["front_vs_time"][rk] = {
+            "max_abs_diff_m": float(np.max(np.abs(d))) if d.size else math.nan,
+            "final_diff_m": float(d[-1]) if d.size else math.nan,
+            "first_apart_5cm_s": float(t[apart[0]]) if apart.size else None,
+        }
     failures = []
     com = abs(m["rel_diff"]["centre_of_mass_m"])
     if not com <= CENTRE_OF_MASS_TOLERANCE:
-        failures.append(f"centre of mass {og['centre_of_mass_m']:.4f} m vs {orf['centre_of_mass_m']:.4f} m "
-                        f"({com:.1%} > {CENTRE_OF_MASS_TOLERANCE:.0%})")
+        failures.append(
+            f"centre of mass {og['centre_of_mass_m']:.4f} m vs {orf['centre_of_mass_m']:.4f} m "
+            f"({com:.1%} > {CENTRE_OF_MASS_TOLERANCE:.0%})"
+        )
     if finer and not m["bulk_max_rel_diff"] <= BULK_TOLERANCE:
-        failures.append(f"bulk {m['bulk_max_rel_diff']:.1%} > {BULK_TOLERANCE:.0%} at x = "
-                        f"{m['bulk_max_rel_diff_at_m']:.3f} m")
+        failures.append(
+            f"bulk {m['bulk_max_rel_diff']:.1%} > {BULK_TOLERANCE:.0%} at x = {m['bulk_max_rel_diff_at_m']:.3f} m"
+        )
     m["failures"] = failures
     m["passed"] = not failures
     return _finite(m)
@@ -224,9 +251,16 @@ def peer_dry_column(n=REFERENCE_RESOLUTIONS, threads: int = 1, t_end: float = 3.
         for k in ns:
             run = run_or_load(k, base, threads, t_end)
             s = run["summary"]
-            entry = {"stop_reason": s["stop_reason"], "t_end_s": s["t_end_s"], "wall_s": s["wall_s"],
-                     "nx": s["nx"], "ny": s["ny"], "mass_rel_error": s["mass_rel_error"],
-                     "runout_m": s["runout_m"], "observables": s["observables"]}
+            entry = {
+                "stop_reason": s["stop_reason"],
+                "t_end_s": s["t_end_s"],
+                "wall_s": s["wall_s"],
+                "nx": s["nx"],
+                "ny": s["ny"],
+                "mass_rel_error": s["mass_rel_error"],
+                "runout_m": s["runout_m"],
+                "observables": s["observables"],
+            }
             ref = load_reference(k)
             if ref is None:
                 entry["passed"] = None
@@ -238,13 +272,15 @@ def peer_dry_column(n=REFERENCE_RESOLUTIONS, threads: int = 1, t_end: float = 3.
         if tmp is not None:
             tmp.cleanup()
     passed = None if not verdicts else all(verdicts)
-    reference = {"solver": "Basilisk (VOF, regularised Drucker-Prager and Coulomb base, eps = 1e-3), "
-                           "data/basilisk_dry_column/README.md",
-                 "resolutions_cells_per_hc": list(REFERENCE_RESOLUTIONS),
-                 "acceptance": f"bulk (back wall to {BULK_END_M} m past the gate) within {BULK_TOLERANCE:.0%} pointwise "
-                               f"at the finest resolution with data; centre of mass within "
-                               f"{CENTRE_OF_MASS_TOLERANCE:.0%} at every resolution with data",
-                 "profile": "volume per column of cells in both codes"}
+    reference = {
+        "solver": "Basilisk (VOF, regularised Drucker-Prager and Coulomb base, eps = 1e-3), "
+        "data/basilisk_dry_column/README.md",
+        "resolutions_cells_per_hc": list(REFERENCE_RESOLUTIONS),
+        "acceptance": f"bulk (back wall to {BULK_END_M} m past the gate) within {BULK_TOLERANCE:.0%} pointwise "
+        f"at the finest resolution with data; centre of mass within "
+        f"{CENTRE_OF_MASS_TOLERANCE:.0%} at every resolution with data",
+        "profile": "volume per column of cells in both codes",
+    }
     return metrics, reference, passed
 
 
@@ -273,8 +309,11 @@ def plot_comparison(runs: dict, png: Path) -> None:
             b.plot(r["t_s"], r["front_h_half_cell_m"], f"C{c}^", ms=2.5, mfc="none", label=f"Basilisk {k}: h > Δ/2")
     a.axvline(0.0, color="grey", lw=0.8)
     a.axvline(BULK_END_M, color="k", ls=":", lw=0.8, label=f"end of the bulk ({BULK_END_M} m)")
-    a.set(xlabel="x − L_c (m), gate at 0", ylabel="deposit h (m), volume per column",
-          title="Dry column, free-slip back wall: granrs against Basilisk")
+    a.set(
+        xlabel="x − L_c (m), gate at 0",
+        ylabel="deposit h (m), volume per column",
+        title="Dry column, free-slip back wall: granrs against Basilisk",
+    )
     a.grid(alpha=0.3)
     a.legend(fontsize=7)
     b.set(xlabel="t (s)", ylabel="front from the gate (m)")
@@ -300,8 +339,10 @@ def main(argv=None) -> int:
     metrics, reference, passed = peer_dry_column(args.n, threads=args.threads, out=args.out)
     record = {"case": "peer-dry-column", "metrics": metrics, "reference": reference, "passed": passed}
     Path(args.out, "record.json").write_text(json.dumps(record, indent=2) + "\n")
-    plot_comparison({k: read_run(Path(args.out) / f"n{k}") for k in args.n},
-                    Path(args.png) if args.png else Path(args.out) / "peer_dry_column.png")
+    plot_comparison(
+        {k: read_run(Path(args.out) / f"n{k}") for k in args.n},
+        Path(args.png) if args.png else Path(args.out) / "peer_dry_column.png",
+    )
     print(json.dumps(record, indent=2))
     return 0 if passed else 1
 

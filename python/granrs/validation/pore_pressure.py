@@ -32,12 +32,19 @@ def exact_flux(y: np.ndarray, t: float, terms: int = 200) -> np.ndarray:
     p = G * (y - H)
     for k in range(terms):
         lam = (2 * k + 1) * math.pi / (2 * H)
-        p = p + 2 * G / (H * lam ** 2) * np.cos(lam * y) * math.exp(-KAPPA * lam ** 2 * t)
+        p = p + 2 * G / (H * lam**2) * np.cos(lam * y) * math.exp(-KAPPA * lam**2 * t)
     return p
 
 
-def pore_diffusion_error(n: int, dt_factor: float = 10.0, formulation: str = "granular-only", threads: int = 1,
-                         t_end: float = 0.064, time_scheme: str = "implicit", seed: float = 0.0):
+def pore_diffusion_error(
+    n: int,
+    dt_factor: float = 10.0,
+    formulation: str = "granular-only",
+    threads: int = 1,
+    t_end: float = 0.064,
+    time_scheme: str = "implicit",
+    seed: float = 0.0,
+):
     """Relative L2 error of p_f in the layer at κ t/H² = 0.1, with δt = dt_factor × h²/(4κ) (the
     explicit limit; rounded so that a whole number of steps lands on t_end). The interface y = H
     is not aligned with the grid (H/h = 0.8 n). ``time_scheme``: 'implicit' (BDF2) or 'explicit'
@@ -45,13 +52,21 @@ def pore_diffusion_error(n: int, dt_factor: float = 10.0, formulation: str = "gr
     (−1)^{i+j} added to the initial p_f = 0 in the layer; the layer is x-invariant, so without
     it the x-modes are never excited and the explicit scheme sees only the 1D limit h²/(2κ)."""
     grid = Grid(4, n, 4.0 / n, 1.0)
-    dt = dt_factor * grid.h ** 2 / (4 * KAPPA)
+    dt = dt_factor * grid.h**2 / (4 * KAPPA)
     steps = max(1, round(t_end / dt))
-    pore = PorePressure(diffusivity=KAPPA, formulation=formulation, basal_gradient=G, kappa_air=1e8,
-                        time_scheme=time_scheme)
-    model = Model(grid, Material(1450.0, 0.1), light=AIR,
-                  bc=BoundaryConditions(left=FreeSlip(), right=FreeSlip(), bottom=FreeSlip(), top=Outflow()),
-                  numerics=Numerics(dt=t_end / steps, transport_interface=False), threads=threads, pore_pressure=pore)
+    pore = PorePressure(
+        diffusivity=KAPPA, formulation=formulation, basal_gradient=G, kappa_air=1e8, time_scheme=time_scheme
+    )
+    model = Model(
+        grid,
+        Material(1450.0, 0.1),
+        light=AIR,
+        bc=BoundaryConditions(left=FreeSlip(), right=FreeSlip(), bottom=FreeSlip(), top=Outflow()),
+        numerics=Numerics(dt=t_end / steps, transport_interface=False),
+        threads=threads,
+        pore_pressure=pore,
+    )
+
     def pf0(x, y):
         board = 1.0 - 2.0 * ((np.floor(x / grid.dx) + np.floor(y / grid.dy)) % 2)
         return np.where(y < H, seed * board, 0.0)
@@ -62,7 +77,7 @@ def pore_diffusion_error(n: int, dt_factor: float = 10.0, formulation: str = "gr
     inside = y < H
     p = model.pf.mean(axis=1)[inside]
     exact = exact_flux(y[inside], model.time)
-    return float(np.sqrt(np.sum((p - exact) ** 2) / np.sum(exact ** 2))), float(np.max(np.abs(model.u))), model
+    return float(np.sqrt(np.sum((p - exact) ** 2) / np.sum(exact**2))), float(np.max(np.abs(model.u))), model
 
 
 def pore_diffusion(n, dt_factor: float = 10.0, formulation: str = "granular-only", threads: int = 1):
@@ -84,10 +99,12 @@ def pore_diffusion(n, dt_factor: float = 10.0, formulation: str = "granular-only
     if 64 in ns:
         e64 = errs[ns.index(64)]
         passed = (passed is not False) and e64 <= PORE_DIFFUSION_L2_AT_64
-    reference = {"solution": "1D series, flux at the base, p_f = 0 on the interface",
-                 "acceptance": "l2_rel_error <= 0.5 % at n = 64; observed_order (least-squares slope) >= 1.8 "
-                               "(two or more n); one n other than 64: passed null",
-                 "dt": f"{dt_factor} x h^2/(4 kappa)"}
+    reference = {
+        "solution": "1D series, flux at the base, p_f = 0 on the interface",
+        "acceptance": "l2_rel_error <= 0.5 % at n = 64; observed_order (least-squares slope) >= 1.8 "
+        "(two or more n); one n other than 64: passed null",
+        "dt": f"{dt_factor} x h^2/(4 kappa)",
+    }
     return metrics, reference, passed
 
 
@@ -102,11 +119,24 @@ def _collapse_pf(formulation: str, ny: int, t_end: float, threads: int, kappa_ai
     rho, g, lc, hc, beta = 1450.0, 9.81, 0.2, 0.4, 0.9
     grid = Grid(int(round(ny * 1.0 / 0.45 / 2)) * 2, ny, 1.0, 0.45)
     grid = Grid(grid.nx, ny, grid.nx * 0.45 / ny, 0.45)
-    pore = PorePressure(diffusivity=0.035, formulation=formulation, kappa_air=kappa_air,
-                        basal_gradient=-beta * rho * g, basal_x_min=0.0, basal_x_max=lc)
-    model = Model(grid, Material(rho, 0.1), light=AIR, gravity=(0.0, -g),
-                  bc=BoundaryConditions(left=FreeSlip(), right=FreeSlip(), bottom=FreeSlip(), top=Outflow()),
-                  numerics=Numerics(cfl=0.4), threads=threads, pore_pressure=pore)
+    pore = PorePressure(
+        diffusivity=0.035,
+        formulation=formulation,
+        kappa_air=kappa_air,
+        basal_gradient=-beta * rho * g,
+        basal_x_min=0.0,
+        basal_x_max=lc,
+    )
+    model = Model(
+        grid,
+        Material(rho, 0.1),
+        light=AIR,
+        gravity=(0.0, -g),
+        bc=BoundaryConditions(left=FreeSlip(), right=FreeSlip(), bottom=FreeSlip(), top=Outflow()),
+        numerics=Numerics(cfl=0.4),
+        threads=threads,
+        pore_pressure=pore,
+    )
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
     model.set_initial(pf=lambda x, y: np.where((x < lc) & (y < hc), beta * rho * g * (hc - y), 0.0))
     t0 = _t.perf_counter()
@@ -119,23 +149,39 @@ def pore_formulations(ny: int = 32, t_end: float = 0.15, kappa_air: float = 1e16
     """Granular-only solve against the κ_∞ formulations on a collapsing (moving-interface)
     fluidised column: relative L2 difference of p_f over the granular phase at t_end, and timings."""
     a, wa, la = _collapse_pf("granular-only", ny, t_end, threads, kappa_air)
-    metrics = {"steps": a.step_count, "wall_s_granular-only": wa,
-               "pore_iterations_median_granular-only": float(np.median(la["pore_iterations"]))}
+    metrics = {
+        "steps": a.step_count,
+        "wall_s_granular-only": wa,
+        "pore_iterations_median_granular-only": float(np.median(la["pore_iterations"])),
+    }
     for form in ("kappa-infinity", "kappa-infinity-smoothed"):
         b, wb, lb = _collapse_pf(form, ny, t_end, threads, kappa_air)
         inside = (a.phi > 0) & (b.phi > 0)
-        metrics[f"pf_rel_l2_difference_{form}"] = float(np.sqrt(np.sum((a.pf - b.pf)[inside] ** 2) / np.sum(a.pf[inside] ** 2)))
+        metrics[f"pf_rel_l2_difference_{form}"] = float(
+            np.sqrt(np.sum((a.pf - b.pf)[inside] ** 2) / np.sum(a.pf[inside] ** 2))
+        )
         metrics[f"wall_s_{form}"] = wb
         metrics[f"pore_iterations_median_{form}"] = float(np.median(lb["pore_iterations"]))
     diff = metrics["pf_rel_l2_difference_kappa-infinity"]
-    reference = {"kind": "cross-check: granrs against itself, no external reference",
-                 "acceptance": "granular-only and kappa-infinity (sharp) agree within 1 % (relative L2 of p_f over the "
-                               "granular phase); the smoothed form differs by O(eps) and is reported", "kappa_air": kappa_air}
+    reference = {
+        "kind": "cross-check: granrs against itself, no external reference",
+        "acceptance": "granular-only and kappa-infinity (sharp) agree within 1 % (relative L2 of p_f over the "
+        "granular phase); the smoothed form differs by O(eps) and is reported",
+        "kappa_air": kappa_air,
+    }
     return metrics, reference, diff <= PORE_FORMULATIONS_AGREEMENT
 
 
-def fluidised_layer_speed(beta: float, ny: int = 32, slope_deg: float = 20.0, t_end: float = 0.2, threads: int = 1,
-                          nx: int = 2, interface_yield: str = "density-support", balance: bool = True):
+def fluidised_layer_speed(
+    beta: float,
+    ny: int = 32,
+    slope_deg: float = 20.0,
+    t_end: float = 0.2,
+    threads: int = 1,
+    nx: int = 2,
+    interface_yield: str = "density-support",
+    balance: bool = True,
+):
     """An x-invariant granular layer (thickness 0.1 m, φρ_s = 1450, D-P with α = 27°, η_s = 0.1)
     on a rough base inclined at ``slope_deg`` < α under air, sides fully developed. β = 0: the
     yield stress holds the layer; β near 1: the pore pressure (kept by a basal air flux) carries
@@ -165,15 +211,30 @@ def fluidised_layer_speed(beta: float, ny: int = 32, slope_deg: float = 20.0, t_
     pore = None
     if beta > 0:
         pore = PorePressure(diffusivity=0.035, basal_gradient=-beta * rho * g * math.cos(th))
-    model = Model(grid, Material(rho, 0.1), light=AIR, gravity=(gx, gy),
-                  bc=BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=NoSlip(), top=Outflow()),
-                  numerics=Numerics(cfl=0.4, max_dt=2e-3, picard_tol=1e-6, theta=0.8, picard_max_iterations=500,
-                                     ambient_hydrostatic=True, interface_yield=interface_yield),
-                  threads=threads, rheology=DruckerPrager(friction_angle=27.0), pore_pressure=pore)
+    model = Model(
+        grid,
+        Material(rho, 0.1),
+        light=AIR,
+        gravity=(gx, gy),
+        bc=BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=NoSlip(), top=Outflow()),
+        numerics=Numerics(
+            cfl=0.4,
+            max_dt=2e-3,
+            picard_tol=1e-6,
+            theta=0.8,
+            picard_max_iterations=500,
+            ambient_hydrostatic=True,
+            interface_yield=interface_yield,
+        ),
+        threads=threads,
+        rheology=DruckerPrager(friction_angle=27.0),
+        pore_pressure=pore,
+    )
     model.set_initial(phi=lambda x, y: hl - y, balance_pressure=False)
     if pore is not None:
-        model.set_initial(pf=lambda x, y: np.where(y < hl, beta * rho * g * math.cos(th) * (hl - y), 0.0),
-                          balance_pressure=False)
+        model.set_initial(
+            pf=lambda x, y: np.where(y < hl, beta * rho * g * math.cos(th) * (hl - y), 0.0), balance_pressure=False
+        )
     model.set_initial(balance_pressure=True)
     report = model.balance_plastic_stress() if balance else None
     log = model.advance(t_end=t_end)
@@ -188,15 +249,25 @@ def fluidised_layer(ny: int = 32, slope_deg: float = 20.0, t_end: float = 1.0, t
     wet, _, _ = fluidised_layer_speed(0.95, ny, slope_deg, min(t_end, 0.2), threads)
     paper, _, rep_paper = fluidised_layer_speed(0.0, ny, slope_deg, t_end, threads, interface_yield="paper")
     unbalanced, _, _ = fluidised_layer_speed(0.0, ny, slope_deg, min(t_end, 0.2), threads, balance=False)
-    metrics = {"max_speed_beta_0": dry, "max_speed_beta_0.95": wet, "slope_deg": slope_deg,
-               "friction_angle_deg": 27.0, "rest_ratio": rep["max_ratio"], "rest_ratio_bound": math.tan(math.radians(slope_deg)) / math.tan(math.radians(27.0)),
-               "max_speed_beta_0_paper_band": paper, "rest_ratio_paper_band": rep_paper["max_ratio"],
-               "clamped_nodes_paper_band": rep_paper["clamped"], "max_speed_beta_0_from_zero_stress": unbalanced}
-    reference = {"source": "continuum: below its friction angle a dry layer rests; with its weight carried by the pore "
-                           "pressure its yield stress vanishes and it flows",
-                 "acceptance": f"at rest without pore pressure (max_speed < {LAYER_REST_SPEED:g} m/s over t_end), flowing "
-                               f"with it (> {LAYER_FLOW_SPEED:g} m/s within 0.2 s); rest_ratio is tan(slope)/tan(27°) up to "
-                               "the discretisation",
-                 "note": "interface_yield 'density-support' and the balanced initial Σ; the paper's band and the start "
-                         "from Σ = 0 are reported beside (docs/validation.md)"}
+    metrics = {
+        "max_speed_beta_0": dry,
+        "max_speed_beta_0.95": wet,
+        "slope_deg": slope_deg,
+        "friction_angle_deg": 27.0,
+        "rest_ratio": rep["max_ratio"],
+        "rest_ratio_bound": math.tan(math.radians(slope_deg)) / math.tan(math.radians(27.0)),
+        "max_speed_beta_0_paper_band": paper,
+        "rest_ratio_paper_band": rep_paper["max_ratio"],
+        "clamped_nodes_paper_band": rep_paper["clamped"],
+        "max_speed_beta_0_from_zero_stress": unbalanced,
+    }
+    reference = {
+        "source": "continuum: below its friction angle a dry layer rests; with its weight carried by the pore "
+        "pressure its yield stress vanishes and it flows",
+        "acceptance": f"at rest without pore pressure (max_speed < {LAYER_REST_SPEED:g} m/s over t_end), flowing "
+        f"with it (> {LAYER_FLOW_SPEED:g} m/s within 0.2 s); rest_ratio is tan(slope)/tan(27°) up to "
+        "the discretisation",
+        "note": "interface_yield 'density-support' and the balanced initial Σ; the paper's band and the start "
+        "from Σ = 0 are reported beside (docs/validation.md)",
+    }
     return metrics, reference, dry < LAYER_REST_SPEED and wet > LAYER_FLOW_SPEED

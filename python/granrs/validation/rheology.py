@@ -43,16 +43,31 @@ def poiseuille_exact(eta: np.ndarray, tau_y: float, G: float = 1.0, mu: float = 
     return np.where(eta <= e0, G / (2 * mu) * (h - e0) ** 2, G / (2 * mu) * ((h * h - eta * eta) - 2 * e0 * (h - eta)))
 
 
-def run_poiseuille(n: int, tau_y: float, threads: int = 1, theta: float = 0.5, plastic: str = "projection",
-                   regularisation=None, max_steps: int = 400):
+def run_poiseuille(
+    n: int,
+    tau_y: float,
+    threads: int = 1,
+    theta: float = 0.5,
+    plastic: str = "projection",
+    regularisation=None,
+    max_steps: int = 400,
+):
     """Channel 0 < y < 2 (half-width 1), body force G = 1 along x, μ = ρ = 1, no-slip walls, outflow
     sides (p = 0), 4 columns of square cells; δt = 0.5 until max|Δu| < 1e-10 per step."""
     dy = 2.0 / n
     grid = Grid(4, n, 4 * dy, 2.0)
     bc = BoundaryConditions(left=Outflow(), right=Outflow(), bottom=NoSlip(), top=NoSlip())
-    m = Model(grid, Material(1.0, 1.0), bc=bc, gravity=(1.0, 0.0), rheology=Bingham(tau_y), threads=threads,
-              numerics=Numerics(dt=0.5, cfl_abort=100.0, theta=theta, picard_tol=1e-11, plastic=plastic,
-                                regularisation=regularisation))
+    m = Model(
+        grid,
+        Material(1.0, 1.0),
+        bc=bc,
+        gravity=(1.0, 0.0),
+        rheology=Bingham(tau_y),
+        threads=threads,
+        numerics=Numerics(
+            dt=0.5, cfl_abort=100.0, theta=theta, picard_tol=1e-11, plastic=plastic, regularisation=regularisation
+        ),
+    )
     change = math.inf
     for _ in range(max_steps):
         before = m.u.copy()
@@ -73,7 +88,7 @@ def poiseuille_bingham(tau_y, n, threads: int = 1):
         y = (np.arange(k) + 0.5) * dy
         u = m.u[:, 2]
         ex = poiseuille_exact(y - 1.0, tau_y)
-        l2 = float(np.sqrt(np.sum((u - ex) ** 2) / np.sum(ex ** 2)))
+        l2 = float(np.sqrt(np.sum((u - ex) ** 2) / np.sum(ex**2)))
         # the plug: nodes where |Σ_xy| < 1; Σ_xy is linear there (slope G/τ_y), its zero-crossing
         # width is where |Σ| reaches 1
         sxy = m.sigma_xy[:, 2]
@@ -81,34 +96,56 @@ def poiseuille_bingham(tau_y, n, threads: int = 1):
         inside = np.abs(sxy) < 1 - 1e-9
         slope = np.polyfit(yn[inside], sxy[inside], 1)[0] if inside.sum() >= 2 else math.nan
         plug_cells = np.abs(y - 1.0) < tau_y
-        per_n.append({
-            "n": k, "steps": m.step_count, "steady_change": change,
-            "plug_velocity": float(np.max(u)), "plug_half_width": float(1.0 / abs(slope)),
-            "l2_rel_error": l2,
-            "plug_trial_norm_max": float(np.max(m.trial_norm[plug_cells, 2])) if plug_cells.any() else math.nan,
-            "plug_velocity_spread": float(np.ptp(u[plug_cells])) if plug_cells.any() else math.nan,
-        })
+        per_n.append(
+            {
+                "n": k,
+                "steps": m.step_count,
+                "steady_change": change,
+                "plug_velocity": float(np.max(u)),
+                "plug_half_width": float(1.0 / abs(slope)),
+                "l2_rel_error": l2,
+                "plug_trial_norm_max": float(np.max(m.trial_norm[plug_cells, 2])) if plug_cells.any() else math.nan,
+                "plug_velocity_spread": float(np.ptp(u[plug_cells])) if plug_cells.any() else math.nan,
+            }
+        )
     last = per_n[-1]
-    metrics = {k: last[k] for k in ("plug_velocity", "plug_half_width", "l2_rel_error", "plug_trial_norm_max",
-                                    "plug_velocity_spread")}
+    metrics = {
+        k: last[k]
+        for k in ("plug_velocity", "plug_half_width", "l2_rel_error", "plug_trial_norm_max", "plug_velocity_spread")
+    }
     metrics["n"] = ns
     metrics["per_n"] = per_n
-    u_p = float(poiseuille_exact(np.array(0.0), tau_y))   # the plug velocity G/(2μ)(h − η₀)²
-    passed = abs(last["plug_velocity"] - u_p) <= 1e-6 and last["plug_trial_norm_max"] < 1 and last["l2_rel_error"] <= 0.01
+    u_p = float(poiseuille_exact(np.array(0.0), tau_y))  # the plug velocity G/(2μ)(h − η₀)²
+    passed = (
+        abs(last["plug_velocity"] - u_p) <= 1e-6 and last["plug_trial_norm_max"] < 1 and last["l2_rel_error"] <= 0.01
+    )
     if len(ns) > 1:
         metrics["observed_order"] = _orders(ns, [p["l2_rel_error"] for p in per_n])
         passed = passed and min(metrics["observed_order"]) >= 1.8
-    reference = {"plug_velocity": u_p, "plug_half_width": tau_y, "source": "exact (docs/reference-data.md, \"Bingham plane Poiseuille flow\")",
-                 "acceptance": "plug velocity within 1e-6, |Σ + rD| < 1 in the plug (rigid), l2 <= 1 % at the finest n, "
-                               "order >= 1.8 (second order)"}
+    reference = {
+        "plug_velocity": u_p,
+        "plug_half_width": tau_y,
+        "source": 'exact (docs/reference-data.md, "Bingham plane Poiseuille flow")',
+        "acceptance": "plug velocity within 1e-6, |Σ + rD| < 1 in the plug (rigid), l2 <= 1 % at the finest n, "
+        "order >= 1.8 (second order)",
+    }
     return metrics, reference, passed
 
 
 # ---------------------------------------------------------------------------------------------
 # Lid-driven cavity of a Bingham fluid (Re = 0)
 # ---------------------------------------------------------------------------------------------
-def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_max: float = 40.0, theta: float = 0.05,
-                       steady_tol: float = 1e-5, regularised: float | None = None, anderson_depth: int = 10):
+def run_cavity_bingham(
+    bn: float,
+    n: int,
+    threads: int = 1,
+    dt: float = 0.05,
+    t_max: float = 40.0,
+    theta: float = 0.05,
+    steady_tol: float = 1e-5,
+    regularised: float | None = None,
+    anderson_depth: int = 10,
+):
     """Unit cavity, lid speed 1, η = ρ = 1, Stokes flow (no convection), τ_y = Bn; runs until
     max|Δu| per unit time < steady_tol or t_max.
 
@@ -122,11 +159,29 @@ def run_cavity_bingham(bn: float, n: int, threads: int = 1, dt: float = 0.05, t_
     independent check of the same discretisation."""
     grid = Grid(n, n, 1.0, 1.0)
     rheo = Bingham(bn) if bn > 0 else Newtonian()
-    kw: dict[str, Any] = dict(plastic="papanastasiou", regularisation=float(regularised)) if regularised and bn > 0 else {}
-    m = Model(grid, Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)), rheology=rheo, threads=threads,
-              numerics=Numerics(dt=dt, cfl_abort=100.0, convection=False, theta=theta, picard_tol=1e-8,
-                                picard_max_iterations=5000, pressure_update="rotational", anderson_depth=anderson_depth,
-                                viscous_max_iterations=100000, picard_solve_max_iterations=100000, **kw))
+    kw: dict[str, Any] = (
+        dict(plastic="papanastasiou", regularisation=float(regularised)) if regularised and bn > 0 else {}
+    )
+    m = Model(
+        grid,
+        Material(1.0, 1.0),
+        bc=BoundaryConditions(top=Velocity(tangential=1.0)),
+        rheology=rheo,
+        threads=threads,
+        numerics=Numerics(
+            dt=dt,
+            cfl_abort=100.0,
+            convection=False,
+            theta=theta,
+            picard_tol=1e-8,
+            picard_max_iterations=5000,
+            pressure_update="rotational",
+            anderson_depth=anderson_depth,
+            viscous_max_iterations=100000,
+            picard_solve_max_iterations=100000,
+            **kw,
+        ),
+    )
     change = math.inf
     while m.time < t_max - 1e-12:
         before = m.u.copy()
@@ -201,15 +256,29 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0, regularised_che
         val, x, y = _refine_min(psi, m.grid.dx, m.grid.dy)
         unyielded = float(np.mean(m.trial_norm <= 1.0)) if b > 0 else 0.0
         umin, ymin, y0 = centreline_u(m)
-        row = {"bn": b, "psi_max_abs": abs(val), "vortex_x": x, "vortex_y": y, "unyielded_fraction": unyielded,
-               "centreline_u_min": umin, "centreline_u_min_y": ymin, "centreline_u_zero_y": y0,
-               "steady_change_per_unit_time": change, "t_final": m.time}
+        row = {
+            "bn": b,
+            "psi_max_abs": abs(val),
+            "vortex_x": x,
+            "vortex_y": y,
+            "unyielded_fraction": unyielded,
+            "centreline_u_min": umin,
+            "centreline_u_min_y": ymin,
+            "centreline_u_zero_y": y0,
+            "steady_change_per_unit_time": change,
+            "t_final": m.time,
+        }
         if b > 0 and regularised_check:
             mr, change_r = run_cavity_bingham(b, n, threads, t_max=t_max, regularised=CAVITY_REGULARISATION)
             umin_r, _, y0_r = centreline_u(mr)
-            row.update({"regularised_psi_max_abs": abs(_refine_min(mr.streamfunction(), mr.grid.dx, mr.grid.dy)[0]),
-                        "regularised_centreline_u_min": umin_r, "regularised_centreline_u_zero_y": y0_r,
-                        "regularised_steady_change": change_r})
+            row.update(
+                {
+                    "regularised_psi_max_abs": abs(_refine_min(mr.streamfunction(), mr.grid.dx, mr.grid.dy)[0]),
+                    "regularised_centreline_u_min": umin_r,
+                    "regularised_centreline_u_zero_y": y0_r,
+                    "regularised_steady_change": change_r,
+                }
+            )
             row["projection_vs_regularised_psi"] = abs(row["psi_max_abs"] / row["regularised_psi_max_abs"] - 1)
             row["projection_vs_regularised_u_min"] = abs(umin / umin_r - 1)
         if b in BLEYER2015_CENTRELINE:
@@ -221,25 +290,32 @@ def cavity_bingham(bn, n, threads: int = 1, t_max: float = 40.0, regularised_che
     metrics = {"n": n, "rows": rows}
     psis = [r["psi_max_abs"] for r in rows]
     ys = [r["vortex_y"] for r in rows]
-    monotone = all(psis[i + 1] < psis[i] for i in range(len(psis) - 1)) and all(ys[i + 1] > ys[i] for i in range(len(ys) - 1))
+    monotone = all(psis[i + 1] < psis[i] for i in range(len(psis) - 1)) and all(
+        ys[i + 1] > ys[i] for i in range(len(ys) - 1)
+    )
     metrics["psi_decreases_and_vortex_rises"] = monotone
     passed: Optional[bool] = monotone
-    reference = {"stokes_psi_max_abs": STOKES_CAVITY_PSI_MAX, "stokes_vortex_y": 0.765,
-                 "stokes_centreline_u_min": STOKES_CAVITY_U_MIN,
-                 "source": "Stokes cavity, Bn = 0 (docs/reference-data.md, \"Lid-driven cavity\"); centreline min u of the Stokes cavity: "
-                           "Richardson limit of an independent biharmonic solution (stokes_cavity_biharmonic, n = 32, 64)",
-                 "published_bingham": "Bleyer et al. 2015 (CMAME 283) centreline velocity, Bi = 0, 2, 5, 20: "
-                                      "min u/U and the height of u = 0 (BLEYER2015_CENTRELINE)",
-                 "acceptance": "|ψ| decreases and the vortex centre rises with Bn; Bn = 0: |ψ|max within 1 % of 0.1000; "
-                               "below n = 64 without Bn = 0 no reference is gated (passed null); at n >= 64 the height of u = 0 within 2 % of Bleyer et al. 2015 and the projection "
-                               "within 5 % of the regularised solution (|ψ|max); the centreline min u against "
-                               "Bleyer et al. is reported, not gated (docs/validation.md: their Newtonian profile is "
-                               "3.4 % below the converged Stokes value)"}
+    reference = {
+        "stokes_psi_max_abs": STOKES_CAVITY_PSI_MAX,
+        "stokes_vortex_y": 0.765,
+        "stokes_centreline_u_min": STOKES_CAVITY_U_MIN,
+        "source": 'Stokes cavity, Bn = 0 (docs/reference-data.md, "Lid-driven cavity"); centreline min u of the Stokes cavity: '
+        "Richardson limit of an independent biharmonic solution (stokes_cavity_biharmonic, n = 32, 64)",
+        "published_bingham": "Bleyer et al. 2015 (CMAME 283) centreline velocity, Bi = 0, 2, 5, 20: "
+        "min u/U and the height of u = 0 (BLEYER2015_CENTRELINE)",
+        "acceptance": "|ψ| decreases and the vortex centre rises with Bn; Bn = 0: |ψ|max within 1 % of 0.1000; "
+        "below n = 64 without Bn = 0 no reference is gated (passed null); at n >= 64 the height of u = 0 within 2 % of Bleyer et al. 2015 and the projection "
+        "within 5 % of the regularised solution (|ψ|max); the centreline min u against "
+        "Bleyer et al. is reported, not gated (docs/validation.md: their Newtonian profile is "
+        "3.4 % below the converged Stokes value)",
+    }
     # the worst row of each comparison; (limit at n >= 64) or None where it is only reported
-    for name, key, limit in (("bleyer2015_max_rel_diff_u_zero_y", "u_zero_y_rel_diff", 0.02),
-                             ("bleyer2015_max_rel_diff_u_min", "u_min_rel_diff", None),
-                             ("projection_vs_regularised_psi_max", "projection_vs_regularised_psi", 0.05),
-                             ("projection_vs_regularised_u_min_max", "projection_vs_regularised_u_min", None)):
+    for name, key, limit in (
+        ("bleyer2015_max_rel_diff_u_zero_y", "u_zero_y_rel_diff", 0.02),
+        ("bleyer2015_max_rel_diff_u_min", "u_min_rel_diff", None),
+        ("projection_vs_regularised_psi_max", "projection_vs_regularised_psi", 0.05),
+        ("projection_vs_regularised_u_min_max", "projection_vs_regularised_u_min", None),
+    ):
         values = [r[key] for r in rows if key in r]
         if values:
             metrics[name] = max(values)
@@ -269,14 +345,27 @@ def stokes_cavity_biharmonic(n: int) -> tuple[float, float]:
     h, N = 1.0 / n, n - 1
     A = np.zeros((N * N, N * N))
     b = np.zeros(N * N)
-    stencil = {(0, 0): 20.0, (1, 0): -8.0, (-1, 0): -8.0, (0, 1): -8.0, (0, -1): -8.0, (1, 1): 2.0, (1, -1): 2.0,
-               (-1, 1): 2.0, (-1, -1): 2.0, (2, 0): 1.0, (-2, 0): 1.0, (0, 2): 1.0, (0, -2): 1.0}
+    stencil = {
+        (0, 0): 20.0,
+        (1, 0): -8.0,
+        (-1, 0): -8.0,
+        (0, 1): -8.0,
+        (0, -1): -8.0,
+        (1, 1): 2.0,
+        (1, -1): 2.0,
+        (-1, 1): 2.0,
+        (-1, -1): 2.0,
+        (2, 0): 1.0,
+        (-2, 0): 1.0,
+        (0, 2): 1.0,
+        (0, -2): 1.0,
+    }
     for j in range(1, n):
         for i in range(1, n):
             row = (j - 1) * N + (i - 1)
             for (di, dj), c in stencil.items():
                 ii, jj = i + di, j + dj
-                if jj == n + 1:      # above the lid: ψ(n + 1) = ψ(n − 1) + 2h·1
+                if jj == n + 1:  # above the lid: ψ(n + 1) = ψ(n − 1) + 2h·1
                     b[row] -= c * 2.0 * h
                     jj = n - 1
                 elif jj == -1:
@@ -311,15 +400,37 @@ def cessation_bound(u0_l2: float, tau_y: float, rho: float = 1.0, mu: float = 1.
     return rho / (mu * lam) * math.log(1 + mu * lam * u0_l2 / (tau_y * beta))
 
 
-def run_cessation(geometry: str, tau_y: float, dt: float, n: int = 32, threads: int = 1, plastic: str = "projection",
-                  regularisation=None, theta: float = 0.0, t_max: float = 0.3):
+def run_cessation(
+    geometry: str,
+    tau_y: float,
+    dt: float,
+    n: int = 32,
+    threads: int = 1,
+    plastic: str = "projection",
+    regularisation=None,
+    theta: float = 0.0,
+    t_max: float = 0.3,
+):
     """Gap 0 < y < 1 between fixed no-slip walls, η = ρ = 1, no forcing, outflow sides (p = 0).
     Initial velocity: Couette u = y (the top wall stops at t = 0) or Poiseuille u = 4y(1 − y)."""
     grid = Grid(4, n, 4.0 / n, 1.0)
     bc = BoundaryConditions(left=Outflow(), right=Outflow(), bottom=NoSlip(), top=NoSlip())
-    m = Model(grid, Material(1.0, 1.0), bc=bc, rheology=Bingham(tau_y), threads=threads,
-              numerics=Numerics(dt=dt, cfl_abort=100.0, theta=theta, picard_tol=1e-10, picard_max_iterations=50000,
-                                plastic=plastic, regularisation=regularisation))
+    m = Model(
+        grid,
+        Material(1.0, 1.0),
+        bc=bc,
+        rheology=Bingham(tau_y),
+        threads=threads,
+        numerics=Numerics(
+            dt=dt,
+            cfl_abort=100.0,
+            theta=theta,
+            picard_tol=1e-10,
+            picard_max_iterations=50000,
+            plastic=plastic,
+            regularisation=regularisation,
+        ),
+    )
     u0 = (lambda x, y: y) if geometry == "couette" else (lambda x, y: 4 * y * (1 - y))
     m.set_initial(u=u0, balance_pressure=False)
     s0 = float(np.max(np.abs(m.u)))
@@ -334,6 +445,7 @@ def run_cessation(geometry: str, tau_y: float, dt: float, n: int = 32, threads: 
 def cessation(geometry, tau_y, dt, n, threads: int = 1, regularisation: float = 100.0):
     if geometry not in ("couette", "poiseuille"):
         from .._granrs import ParameterError
+
         raise ParameterError(f"invalid parameter `geometry` = {geometry!r}: allowed 'couette' or 'poiseuille'")
     tau_y = float(tau_y)
     dts = [float(d) for d in (dt if isinstance(dt, (list, tuple)) else [dt])]
@@ -347,19 +459,25 @@ def cessation(geometry, tau_y, dt, n, threads: int = 1, regularisation: float = 
         stops.append(stop)
         iters.append(int(np.max(log["picard_iterations"])))
     # the regularised law, and the bi-projection with θ = 0.5 (compliant plug), at the finest step
-    t, s, reg_stop, _ = run_cessation(geometry, tau_y, dts[-1], n, threads, plastic="papanastasiou",
-                                      regularisation=regularisation, t_max=t_max)
+    t, s, reg_stop, _ = run_cessation(
+        geometry, tau_y, dts[-1], n, threads, plastic="papanastasiou", regularisation=regularisation, t_max=t_max
+    )
     late = (s > 1e-14) & (t > (stops[-1] or bound))
     rate = float(-np.polyfit(t[late], np.log(s[late]), 1)[0]) if late.sum() > 3 else math.nan
     at_stop = float(np.interp(stops[-1], t, s)) if stops[-1] is not None else math.nan
     t5, s5, stop5, _ = run_cessation(geometry, tau_y, dts[-1], n, threads, theta=0.5, t_max=t_max)
     metrics = {
-        "dt": dts, "stop_time": stops if len(stops) > 1 else stops[0], "bound": bound,
+        "dt": dts,
+        "stop_time": stops if len(stops) > 1 else stops[0],
+        "bound": bound,
         "picard_iterations_max": iters,
-        "regularised_m": regularisation, "regularised_speed_at_stop_time": at_stop,
-        "regularised_decay_rate": rate, "regularised_decay_rate_expected": math.pi ** 2 * (1 + tau_y * regularisation / 2),
+        "regularised_m": regularisation,
+        "regularised_speed_at_stop_time": at_stop,
+        "regularised_decay_rate": rate,
+        "regularised_decay_rate_expected": math.pi**2 * (1 + tau_y * regularisation / 2),
         "regularised_time_to_1e-9": reg_stop,
-        "theta_0.5_speed_at_end": float(s5[-1]), "theta_0.5_stop_time": stop5,
+        "theta_0.5_speed_at_end": float(s5[-1]),
+        "theta_0.5_stop_time": stop5,
     }
     ok = all(st is not None and st < bound for st in stops)
     if len(stops) > 1 and ok:
@@ -367,9 +485,12 @@ def cessation(geometry, tau_y, dt, n, threads: int = 1, regularisation: float = 
         metrics["stop_time_differences"] = diffs
         ok = ok and all(diffs[i + 1] < diffs[i] or diffs[i + 1] <= dts[i + 2] for i in range(len(diffs) - 1))
     ok = ok and at_stop > 1e-6
-    reference = {"bound": bound, "source": "Glowinski 1984; Huilgol, Mena & Piau 2002 (docs/reference-data.md, \"Cessation of a Bingham flow\")",
-                 "acceptance": "stops (max speed < 1e-9 of its initial value) before the bound for every δt, the stop "
-                               "time converges as δt halves; the regularised law is still moving (> 1e-6) at that time"}
+    reference = {
+        "bound": bound,
+        "source": 'Glowinski 1984; Huilgol, Mena & Piau 2002 (docs/reference-data.md, "Cessation of a Bingham flow")',
+        "acceptance": "stops (max speed < 1e-9 of its initial value) before the bound for every δt, the stop "
+        "time converges as δt halves; the regularised law is still moving (> 1e-6) at that time",
+    }
     return metrics, reference, ok
 
 
@@ -383,7 +504,9 @@ def bagnold_exact(z: np.ndarray, p=BAGNOLD) -> np.ndarray:
     t = math.tan(p["slope"])
     i_theta = p["i0"] * (t - p["mu_s"]) / (p["mu_2"] - t)
     h = p["h"]
-    return (2 / 3) * (i_theta / p["grain_diameter"]) * math.sqrt(p["g"] * math.cos(p["slope"])) * (h ** 1.5 - (h - z) ** 1.5)
+    return (
+        (2 / 3) * (i_theta / p["grain_diameter"]) * math.sqrt(p["g"] * math.cos(p["slope"])) * (h**1.5 - (h - z) ** 1.5)
+    )
 
 
 def run_bagnold(n: int, threads: int = 1, t_max: float = 800.0, dt: float = 0.2):
@@ -395,10 +518,23 @@ def run_bagnold(n: int, threads: int = 1, t_max: float = 800.0, dt: float = 0.2)
     grid = Grid(4, n, 4 * 8 * h / n, h)
     bc = BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=NoSlip(), top=Outflow())
     s = p["slope"]
-    m = Model(grid, Material(1.0, 1e-5), bc=bc, gravity=(p["g"] * math.sin(s), -p["g"] * math.cos(s)), threads=threads,
-              rheology=MuI(mu_s=p["mu_s"], mu_2=p["mu_2"], i0=p["i0"], grain_diameter=p["grain_diameter"], grain_density=1.0),
-              numerics=Numerics(dt=dt, cfl_abort=100.0, convection=False, theta=0.5, picard_tol=1e-10,
-                                pressure_rtol=1e-12, pressure_max_iterations=20000))
+    m = Model(
+        grid,
+        Material(1.0, 1e-5),
+        bc=bc,
+        gravity=(p["g"] * math.sin(s), -p["g"] * math.cos(s)),
+        threads=threads,
+        rheology=MuI(mu_s=p["mu_s"], mu_2=p["mu_2"], i0=p["i0"], grain_diameter=p["grain_diameter"], grain_density=1.0),
+        numerics=Numerics(
+            dt=dt,
+            cfl_abort=100.0,
+            convection=False,
+            theta=0.5,
+            picard_tol=1e-10,
+            pressure_rtol=1e-12,
+            pressure_max_iterations=20000,
+        ),
+    )
     m.set_initial(u=0.0)
     change = math.inf
     while m.time < t_max - 1e-9:
@@ -424,20 +560,39 @@ def bagnold(n, threads: int = 1):
     b = (u[-2] - u[-1]) / (z2 - z1)
     u_surface = float(u[-1] - b * z1)
     exact_surface = float(bagnold_exact(np.array([h]))[0])
-    metrics = {"n": n, "u_surface": u_surface, "u_top_cell": float(u[-1]), "u_top_cell_exact": float(ex[-1]),
-               "l2_rel_error": float(np.sqrt(np.sum((u - ex) ** 2) / np.sum(ex ** 2))),
-               "steady_change_per_unit_time": change, "t_final": m.time}
+    metrics = {
+        "n": n,
+        "u_surface": u_surface,
+        "u_top_cell": float(u[-1]),
+        "u_top_cell_exact": float(ex[-1]),
+        "l2_rel_error": float(np.sqrt(np.sum((u - ex) ** 2) / np.sum(ex**2))),
+        "steady_change_per_unit_time": change,
+        "t_final": m.time,
+    }
     metrics["u_surface_rel_error"] = abs(u_surface - exact_surface) / exact_surface
-    reference = {"u_surface": exact_surface, "check_value": 2.0665, "source": "exact Bagnold profile (docs/reference-data.md, \"Bagnold profile\")",
-                 "acceptance": "l2 <= 2 % and u_surface within 2 %"}
+    reference = {
+        "u_surface": exact_surface,
+        "check_value": 2.0665,
+        "source": 'exact Bagnold profile (docs/reference-data.md, "Bagnold profile")',
+        "acceptance": "l2 <= 2 % and u_surface within 2 %",
+    }
     return metrics, reference, metrics["l2_rel_error"] <= 0.02 and metrics["u_surface_rel_error"] <= 0.02
 
 
 # ---------------------------------------------------------------------------------------------
 # Sliding block on a Coulomb base
 # ---------------------------------------------------------------------------------------------
-def run_block(slope: float, n: int = 32, dt: float = 1e-3, t_end: float = 0.2, u0: float = 0.0, theta: float = 0.5,
-              friction_angle: float = 27.0, wall_friction_angle: float = 15.0, threads: int = 1):
+def run_block(
+    slope: float,
+    n: int = 32,
+    dt: float = 1e-3,
+    t_end: float = 0.2,
+    u0: float = 0.0,
+    theta: float = 0.5,
+    friction_angle: float = 27.0,
+    wall_friction_angle: float = 15.0,
+    threads: int = 1,
+):
     """A full-width D-P layer (thickness H = 0.1 m, ρ = 1450, η = 0.1, α = 27°) under air on a
     Coulomb base (α_b = 15°), gravity tilted by `slope` degrees, fully developed sides, outflow top,
     frozen flat interface (x-invariant: it does not move). Returns the time series of the mean
@@ -447,13 +602,30 @@ def run_block(slope: float, n: int = 32, dt: float = 1e-3, t_end: float = 0.2, u
     ly = 1.5 * H
     ny = int(round(ly / dy))
     grid = Grid(4, ny, 4 * 8 * dy, ly)
-    bc = BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=Coulomb(friction_angle=wall_friction_angle),
-                            top=Outflow())
+    bc = BoundaryConditions(
+        left=FullyDeveloped(), right=FullyDeveloped(), bottom=Coulomb(friction_angle=wall_friction_angle), top=Outflow()
+    )
     s = math.radians(slope)
-    m = Model(grid, Material(1450.0, 0.1), light=Material(1.0, 2e-5), bc=bc, gravity=(9.81 * math.sin(s), -9.81 * math.cos(s)),
-              rheology=DruckerPrager(friction_angle), threads=threads,
-              numerics=Numerics(dt=dt, cfl_abort=100.0, theta=theta, picard_tol=1e-9, transport_interface=False, convection=False,
-                                pressure_rtol=1e-12, pressure_max_iterations=50000, picard_max_iterations=5000))
+    m = Model(
+        grid,
+        Material(1450.0, 0.1),
+        light=Material(1.0, 2e-5),
+        bc=bc,
+        gravity=(9.81 * math.sin(s), -9.81 * math.cos(s)),
+        rheology=DruckerPrager(friction_angle),
+        threads=threads,
+        numerics=Numerics(
+            dt=dt,
+            cfl_abort=100.0,
+            theta=theta,
+            picard_tol=1e-9,
+            transport_interface=False,
+            convection=False,
+            pressure_rtol=1e-12,
+            pressure_max_iterations=50000,
+            picard_max_iterations=5000,
+        ),
+    )
     eps = 1.5 * dy
     m.set_initial(phi=lambda x, y: H - y)
     yc = (np.arange(ny) + 0.5) * dy
@@ -497,23 +669,32 @@ def sliding_block(slope, stop_slope, n, threads: int = 1, wall_friction_angle: f
     # 3.0 mm after its stop at δt = 1 ms (2.1 % of its slide) and moves 0.8 mm at 0.5 ms (0.6 %)
     t2, U2, _ = run_block(stop_slope, n, dt=5e-4, u0=u0, t_end=min(t_stop_ex + 0.4, 2.0), threads=threads)
     X = np.concatenate([[0.0], np.cumsum(0.5 * (U2[1:] + U2[:-1]) * np.diff(t2))])
-    slide = u0 ** 2 / (2 * -d_ex) if d_ex < 0 else math.inf
+    slide = u0**2 / (2 * -d_ex) if d_ex < 0 else math.inf
     after = t2 >= t_stop_ex + 0.1
     dec = float(np.polyfit(t2[t2 < 0.8 * t_stop_ex], U2[t2 < 0.8 * t_stop_ex], 1)[0])
-    metrics.update({
-        "stop_slope": stop_slope, "deceleration": dec, "deceleration_expected": d_ex,
-        "slide_distance_at_stop": float(np.interp(t_stop_ex, t2, X)), "slide_distance_expected": slide,
-        "displacement_after_stop_range": float(np.ptp(X[after])) if after.any() else math.nan,
-        "ringing_speed_after_stop": float(np.max(np.abs(U2[after]))) if after.any() else math.nan,
-    })
+    metrics.update(
+        {
+            "stop_slope": stop_slope,
+            "deceleration": dec,
+            "deceleration_expected": d_ex,
+            "slide_distance_at_stop": float(np.interp(t_stop_ex, t2, X)),
+            "slide_distance_expected": slide,
+            "displacement_after_stop_range": float(np.ptp(X[after])) if after.any() else math.nan,
+            "ringing_speed_after_stop": float(np.max(np.abs(U2[after]))) if after.any() else math.nan,
+        }
+    )
     stopped = d_ex < 0 and after.any() and metrics["displacement_after_stop_range"] < 0.02 * slide
     metrics["stopped"] = bool(stopped)
     passed = passed and stopped and abs(dec / d_ex - 1) <= 0.02
-    reference = {"acceleration": a_ex, "formula": "g (sin θ − tan α_b cos θ)", "deceleration": d_ex,
-                 "stop_time": t_stop_ex,
-                 "acceptance": "acceleration within 2 %; below α_b the deceleration within 2 % and, after the stop, the "
-                               "block moves less than 2 % of its sliding distance (θ = 0.5 leaves an elastic ringing of "
-                               "amplitude ∝ δt, reported; the stop is run at δt = 0.5 ms)"}
+    reference = {
+        "acceleration": a_ex,
+        "formula": "g (sin θ − tan α_b cos θ)",
+        "deceleration": d_ex,
+        "stop_time": t_stop_ex,
+        "acceptance": "acceleration within 2 %; below α_b the deceleration within 2 % and, after the stop, the "
+        "block moves less than 2 % of its sliding distance (θ = 0.5 leaves an elastic ringing of "
+        "amplitude ∝ δt, reported; the stop is run at δt = 0.5 ms)",
+    }
     return metrics, reference, passed
 
 
@@ -538,14 +719,25 @@ def creep_verdict(log: dict, rest_speed: float = REST_SPEED) -> dict:
         message = f"at rest: max speed {speed:.3e} m/s after {t:.3g} s, below the rest criterion {rest_speed:.0e} m/s"
     else:
         verdict = "creeps"
-        message = (f"creeps: max speed {speed:.3e} m/s after {t:.3g} s exceeds the rest criterion {rest_speed:.0e} m/s "
-                   f"({speed / rest_speed:.3g} x) although the heap is below its friction angle and should rest")
+        message = (
+            f"creeps: max speed {speed:.3e} m/s after {t:.3g} s exceeds the rest criterion {rest_speed:.0e} m/s "
+            f"({speed / rest_speed:.3g} x) although the heap is below its friction angle and should rest"
+        )
     return {"creep_speed": speed, "rest_speed": rest_speed, "t": t, "verdict": verdict, "message": message}
 
 
-def run_heap(slope: float = 20.0, n: int = 32, dt: float = 0.05, t_end: float = 1.0, plastic: str = "projection",
-             regularisation=None, viscosity: float = 10.0, threads: int = 1, theta: float = 0.0,
-             picard_max_iterations: int = 20000):
+def run_heap(
+    slope: float = 20.0,
+    n: int = 32,
+    dt: float = 0.05,
+    t_end: float = 1.0,
+    plastic: str = "projection",
+    regularisation=None,
+    viscosity: float = 10.0,
+    threads: int = 1,
+    theta: float = 0.0,
+    picard_max_iterations: int = 20000,
+):
     """An x-invariant D-P layer (H = 0.1 m, ρ = 1450, α = 27°) whose free surface is inclined at
     `slope` degrees to the horizontal (gravity tilted; fully developed sides, no-slip base, outflow
     top), from rest with the hydrostatic pressure; θ = 0 by default (exact bi-projection fixed
@@ -554,11 +746,27 @@ def run_heap(slope: float = 20.0, n: int = 32, dt: float = 0.05, t_end: float = 
     grid = Grid(4, n, 4 * H / n, H)
     bc = BoundaryConditions(left=FullyDeveloped(), right=FullyDeveloped(), bottom=NoSlip(), top=Outflow())
     b = math.radians(slope)
-    m = Model(grid, Material(1450.0, viscosity), bc=bc, gravity=(9.81 * math.sin(b), -9.81 * math.cos(b)),
-              rheology=DruckerPrager(27.0), threads=threads,
-              numerics=Numerics(dt=dt, cfl_abort=100.0, theta=theta, picard_tol=1e-9, plastic=plastic, regularisation=regularisation,
-                                convection=False, pressure_rtol=1e-12, pressure_max_iterations=100000,
-                                picard_max_iterations=picard_max_iterations, viscous_rtol=1e-10))
+    m = Model(
+        grid,
+        Material(1450.0, viscosity),
+        bc=bc,
+        gravity=(9.81 * math.sin(b), -9.81 * math.cos(b)),
+        rheology=DruckerPrager(27.0),
+        threads=threads,
+        numerics=Numerics(
+            dt=dt,
+            cfl_abort=100.0,
+            theta=theta,
+            picard_tol=1e-9,
+            plastic=plastic,
+            regularisation=regularisation,
+            convection=False,
+            pressure_rtol=1e-12,
+            pressure_max_iterations=100000,
+            picard_max_iterations=picard_max_iterations,
+            viscous_rtol=1e-10,
+        ),
+    )
     m.set_initial(u=0.0)
     log = m.advance(t_end=t_end)
     return m, log
@@ -568,9 +776,14 @@ def heap_at_rest(slope, n, regularised, threads: int = 1, regularisation: float 
     slope, n = float(slope), int(n)
     m, log = run_heap(slope, n, threads=threads)
     creep = creep_verdict(log, REST_SPEED)
-    metrics = {"max_speed": creep["creep_speed"], "max_speed_over_run": float(np.max(log["max_speed"])),
-               "picard_iterations_first_step": int(log["picard_iterations"][0]),
-               "rest_speed": REST_SPEED, "verdict": creep["verdict"], "message": creep["message"]}
+    metrics = {
+        "max_speed": creep["creep_speed"],
+        "max_speed_over_run": float(np.max(log["max_speed"])),
+        "picard_iterations_first_step": int(log["picard_iterations"][0]),
+        "rest_speed": REST_SPEED,
+        "verdict": creep["verdict"],
+        "message": creep["message"],
+    }
     passed = creep["verdict"] == "at rest"
     if regularised:
         m2, log2 = run_heap(slope, n, plastic="papanastasiou", regularisation=regularisation, threads=threads)
@@ -581,12 +794,15 @@ def heap_at_rest(slope, n, regularised, threads: int = 1, regularisation: float 
         metrics["regularised_message"] = creep2["message"]
         # the regularised law cannot hold a rigid heap: its creep is the expected, reported result
         passed = passed and creep2["verdict"] == "creeps" and creep2["creep_speed"] > 1e-6
-    reference = {"max_speed": 0.0, "rest_speed": REST_SPEED,
-                 "acceptance": "max_speed < 1e-8 m/s after 1 s with the projection (tan 20° < tan 27°): verdict 'at rest'; "
-                               "with --regularised the Papanastasiou law creeps (> 1e-6 m/s): regularised_verdict 'creeps', "
-                               "reported",
-                 "note": "plastic viscosity 10 Pa s (not the paper's 0.1): the rest state does not depend on it, and it "
-                         "makes Uzawa (θ = 0) converge in ~200 iterations instead of ~13 000"}
+    reference = {
+        "max_speed": 0.0,
+        "rest_speed": REST_SPEED,
+        "acceptance": "max_speed < 1e-8 m/s after 1 s with the projection (tan 20° < tan 27°): verdict 'at rest'; "
+        "with --regularised the Papanastasiou law creeps (> 1e-6 m/s): regularised_verdict 'creeps', "
+        "reported",
+        "note": "plastic viscosity 10 Pa s (not the paper's 0.1): the rest state does not depend on it, and it "
+        "makes Uzawa (θ = 0) converge in ~200 iterations instead of ~13 000",
+    }
     return metrics, reference, passed
 
 
@@ -600,7 +816,7 @@ def fit_ratio(history, floor: float = 1e-11) -> float:
     idx = np.nonzero((h > floor) & (np.arange(len(h)) >= 3))[0]
     if len(idx) < 4:
         return math.nan
-    idx = idx[len(idx) // 2:]
+    idx = idx[len(idx) // 2 :]
     return float(np.exp(np.polyfit(idx, np.log(h[idx]), 1)[0]))
 
 
@@ -616,15 +832,24 @@ def picard_ratio(theta, n, threads: int = 1):
     thetas = [float(t) for t in (theta if isinstance(theta, (list, tuple)) else [theta])]
     rows = []
     for th in thetas:
-        m = Model(Grid(int(n), int(n), 1.0, 1.0), Material(1.0, 1.0), bc=BoundaryConditions(top=Velocity(tangential=1.0)),
-                  rheology=Bingham(5.0), threads=threads,
-                  numerics=Numerics(dt=0.05, cfl_abort=100.0, convection=False, theta=th, picard_tol=1e-11,
-                                    picard_max_iterations=5000))
+        m = Model(
+            Grid(int(n), int(n), 1.0, 1.0),
+            Material(1.0, 1.0),
+            bc=BoundaryConditions(top=Velocity(tangential=1.0)),
+            rheology=Bingham(5.0),
+            threads=threads,
+            numerics=Numerics(
+                dt=0.05, cfl_abort=100.0, convection=False, theta=th, picard_tol=1e-11, picard_max_iterations=5000
+            ),
+        )
         m.advance(max_steps=3)
         h = m.picard_history()
         rows.append({"theta": th, "ratio": fit_ratio(h), "expected": picard_expected_ratio(th), "iterations": len(h)})
     metrics = {"rows": rows}
-    passed = all(abs(r["ratio"] - r["expected"]) <= 0.1 for r in rows)   # 0.1: the fit over a finite window
-    reference = {"ratio": "1 − θ", "source": "Aravena et al. §3.1; Chalayer, Chupin & Dubois 2018",
-                 "acceptance": "fitted ratio within 0.1 of 1 − θ"}
+    passed = all(abs(r["ratio"] - r["expected"]) <= 0.1 for r in rows)  # 0.1: the fit over a finite window
+    reference = {
+        "ratio": "1 − θ",
+        "source": "Aravena et al. §3.1; Chalayer, Chupin & Dubois 2018",
+        "acceptance": "fitted ratio within 0.1 of 1 − θ",
+    }
     return metrics, reference, passed

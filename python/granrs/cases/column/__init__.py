@@ -43,9 +43,8 @@ outputs), ``measures`` (front, deposit quantile, surface profile, basal pore-pre
 and ``depth_averaged`` (the depth-averaged variant).
 """
 
-from .build import _rheology_kwargs as _rheology_kwargs
-from .build import build_model, side_walls
-from .case import G, MODELS, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
+from .build import _rheology_kwargs as _rheology_kwargs, build_model, side_walls
+from .case import MODELS, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .depth_averaged import build_depth_averaged, depth_averaged_front_depth, run_column_depth_averaged
 from .measures import (
     DEPOSIT_QUANTILE,
@@ -78,10 +77,34 @@ from .summaries import (
 )
 
 __all__ = [
-    "DEPOSIT_QUANTILE", "ENERGY_COLUMNS", "FLUSH_RECORDS", "FRONT_NAMES", "G", "MODELS",
-    "PAPER_RUNOUT_EXP", "PAPER_RUNOUT_SIM", "ColumnCase", "arrest_summary",
-    "basal_pore_pressure_ratio", "build_depth_averaged", "build_model", "deposit_quantile",
-    "depth_averaged_front_depth", "energy_summary", "farthest_material", "fluidisation_summary", "front_columns",
-    "front_position", "plot_energy", "plot_fluidisation", "plot_front", "plot_profiles", "run_column",
-    "run_column_depth_averaged", "side_walls", "surface_profile", "write_energy", "write_outputs",
+    "DEPOSIT_QUANTILE",
+    "ENERGY_COLUMNS",
+    "FLUSH_RECORDS",
+    "FRONT_NAMES",
+    "G",
+    "MODELS",
+    "PAPER_RUNOUT_EXP",
+    "PAPER_RUNOUT_SIM",
+    "ColumnCase",
+    "arrest_summary",
+    "basal_pore_pressure_ratio",
+    "build_depth_averaged",
+    "build_model",
+    "deposit_quantile",
+    "depth_averaged_front_depth",
+    "energy_summary",
+    "farthest_material",
+    "fluidisation_summary",
+    "front_columns",
+    "front_position",
+    "plot_energy",
+    "plot_fluidisation",
+    "plot_front",
+    "plot_profiles",
+    "run_column",
+    "run_column_depth_averaged",
+    "side_walls",
+    "surface_profile",
+    "write_energy",
+    "write_outputs",
 ]

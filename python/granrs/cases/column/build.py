@@ -13,7 +13,7 @@ from ...boundary import BoundaryConditions, Coulomb, FreeSlip
 from ...materials import AIR, Material
 from ...model import Model, Numerics, PorePressure, SideWalls
 from ...shapes import Rectangle
-from .case import COLUMN_NUMERICS, OPTION_FIELD_KEYS, G, ColumnCase
+from .case import COLUMN_NUMERICS, OPTION_FIELD_KEYS, ColumnCase, G
 
 
 def side_walls(case: ColumnCase) -> Optional[SideWalls]:
@@ -34,22 +34,38 @@ def build_model(case: ColumnCase) -> Model:
     pore = None
     if case.fluidised and case.pore_pressure_ratio > 0:
         sign = 1.0 if case.air_supply == "literal" else -1.0
-        pore = PorePressure(diffusivity=case.diffusivity, basal_gradient=sign * case.pore_pressure_ratio * rho * G,
-                            formulation=case.pore_formulation, kappa_air=case.kappa_air,
-                            basal_x_min=0.0, basal_x_max=lc)
-    model = Model(grid, Material(rho, case.granular_viscosity), light=AIR, gravity=(0.0, -G),
-                  bc=BoundaryConditions(left=FreeSlip() if case.back_wall == "free-slip" else Coulomb(case.wall_friction_angle),
-                                        right=FreeSlip(),
-                                        bottom=Coulomb(case.wall_friction_angle), top=FreeSlip()),
-                  numerics=column_numerics(case), threads=case.threads, pore_pressure=pore,
-                  air="free-surface" if case.model == "granular" else "resolved",
-                  side_walls=side_walls(case),
-                  **_rheology_kwargs(case))
+        pore = PorePressure(
+            diffusivity=case.diffusivity,
+            basal_gradient=sign * case.pore_pressure_ratio * rho * G,
+            formulation=case.pore_formulation,
+            kappa_air=case.kappa_air,
+            basal_x_min=0.0,
+            basal_x_max=lc,
+        )
+    model = Model(
+        grid,
+        Material(rho, case.granular_viscosity),
+        light=AIR,
+        gravity=(0.0, -G),
+        bc=BoundaryConditions(
+            left=FreeSlip() if case.back_wall == "free-slip" else Coulomb(case.wall_friction_angle),
+            right=FreeSlip(),
+            bottom=Coulomb(case.wall_friction_angle),
+            top=FreeSlip(),
+        ),
+        numerics=column_numerics(case),
+        threads=case.threads,
+        pore_pressure=pore,
+        air="free-surface" if case.model == "granular" else "resolved",
+        side_walls=side_walls(case),
+        **_rheology_kwargs(case),
+    )
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
     if pore is not None:
         beta = case.pore_pressure_ratio
-        model.set_initial(pf=lambda x, y: np.where((x < lc) & (y < hc), beta * rho * G * (hc - y), 0.0),
-                          balance_pressure=False)
+        model.set_initial(
+            pf=lambda x, y: np.where((x < lc) & (y < hc), beta * rho * G * (hc - y), 0.0), balance_pressure=False
+        )
     model.set_initial(balance_pressure=True)
     return model
 
@@ -71,5 +87,8 @@ def _rheology_kwargs(case: ColumnCase) -> dict:
     if case.rheology == "drucker-prager":
         return {"rheology": DruckerPrager(friction_angle=case.friction_angle)}
     mu_s = math.tan(math.radians(case.friction_angle))
-    return {"rheology": MuI(mu_s=mu_s, mu_2=mu_s + 0.26, i0=0.279, grain_diameter=case.grain_diameter,
-                            grain_density=case.grain_density)}
+    return {
+        "rheology": MuI(
+            mu_s=mu_s, mu_2=mu_s + 0.26, i0=0.279, grain_diameter=case.grain_diameter, grain_density=case.grain_density
+        )
+    }

@@ -7,9 +7,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional, Union
 
+from ... import options
 from ..._granrs import ParameterError
 from ...grid import Grid
-from ... import options
 from ...model import check_side_walls, estimate_memory, memory_check
 
 G = 9.81
@@ -18,22 +18,38 @@ PAPER_RUNOUT_EXP = 1.8443
 MODELS = ("two-phase", "granular", "depth-averaged")
 
 #: The ranges of the scene's numbers (the run-file keys and ``granrs keys`` read them here).
-SCENE_RANGES = {"aspect_ratio": (0.1, 20.0), "width": (1e-3, 10.0), "pore_pressure_ratio": (0.0, 1.0),
-                "t_end": (1e-6, 1e4), "granular_viscosity": (1e-8, 1e6), "solid_fraction": (0.01, 0.74),
-                "ny": (8, 4096)}
+SCENE_RANGES = {
+    "aspect_ratio": (0.1, 20.0),
+    "width": (1e-3, 10.0),
+    "pore_pressure_ratio": (0.0, 1.0),
+    "t_end": (1e-6, 1e4),
+    "granular_viscosity": (1e-8, 1e6),
+    "solid_fraction": (0.01, 0.74),
+    "ny": (8, 4096),
+}
 #: The scene's choices: the air supply through the reservoir's base and the back wall.
 SCENE_CHOICES = {"air_supply": ("injection", "literal"), "back_wall": ("coulomb", "free-slip")}
 #: The case's fields that are options of the Rust schema, as (key, room): their ranges, units and
 #: choices are the schema's (checked in Rust); their defaults are the column's own (below).
 OPTION_FIELDS = {
-    "friction_angle": ("friction_angle", "drucker-prager"), "wall_friction_angle": ("friction_angle", "coulomb"),
-    "diffusivity": ("diffusivity", "pore_pressure"), "pore_formulation": ("formulation", "pore_pressure"),
-    "kappa_air": ("kappa_air", "pore_pressure"), "cfl": ("cfl", None), "threads": ("threads", None),
-    "picard_tol": ("picard_tol", None), "theta": ("theta", None), "r_neighbourhood": ("r_neighbourhood", None),
-    "sigma_location": ("sigma_location", None), "interface_yield": ("interface_yield", None),
-    "wall_normal_stress": ("wall_normal_stress", None), "yield_pressure": ("yield_pressure", None),
-    "proximal_restarts": ("proximal_restarts", None), "active_region": ("active_region", None),
-    "active_region_sides": ("active_region_sides", None), "step_retries": ("step_retries", None),
+    "friction_angle": ("friction_angle", "drucker-prager"),
+    "wall_friction_angle": ("friction_angle", "coulomb"),
+    "diffusivity": ("diffusivity", "pore_pressure"),
+    "pore_formulation": ("formulation", "pore_pressure"),
+    "kappa_air": ("kappa_air", "pore_pressure"),
+    "cfl": ("cfl", None),
+    "threads": ("threads", None),
+    "picard_tol": ("picard_tol", None),
+    "theta": ("theta", None),
+    "r_neighbourhood": ("r_neighbourhood", None),
+    "sigma_location": ("sigma_location", None),
+    "interface_yield": ("interface_yield", None),
+    "wall_normal_stress": ("wall_normal_stress", None),
+    "yield_pressure": ("yield_pressure", None),
+    "proximal_restarts": ("proximal_restarts", None),
+    "active_region": ("active_region", None),
+    "active_region_sides": ("active_region_sides", None),
+    "step_retries": ("step_retries", None),
     "mass_correction": ("mass_correction", None),
 }
 #: The schema keys of the flat options among OPTION_FIELDS, with their field names.
@@ -157,48 +173,78 @@ class ColumnCase:
             v = getattr(self, name)
             if not (name == "active_region" and v is None):
                 options.spec(key, room).check(v, name)
-        for name, v, lo, what in (("length", self.length, self.width, "the gate at x = width"),
-                                  ("height", self.height, self.column_height, "the column height aspect_ratio × width")):
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-                                  or not lo < v <= 1000.0):
-                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed None (the default) or a number of metres "
-                                     f"in ({lo:g}, 1000] (beyond {what} = {lo:g} m)")
+        for name, v, lo, what in (
+            ("length", self.length, self.width, "the gate at x = width"),
+            ("height", self.height, self.column_height, "the column height aspect_ratio × width"),
+        ):
+            if v is not None and (
+                isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo < v <= 1000.0
+            ):
+                raise ParameterError(
+                    f"invalid parameter `{name}` = {v!r}: allowed None (the default) or a number of metres "
+                    f"in ({lo:g}, 1000] (beyond {what} = {lo:g} m)"
+                )
         if self.channel_width is not None:
             angle = self.wall_friction_angle if self.side_wall_friction_angle is None else self.side_wall_friction_angle
             check_side_walls(self.channel_width, angle, "channel_width", "side_wall_friction_angle")
         elif self.side_wall_friction_angle is not None:
-            raise ParameterError(f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
-                                 "allowed only with a channel_width")
+            raise ParameterError(
+                f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
+                "allowed only with a channel_width"
+            )
         if not isinstance(self.numerics, dict):
-            raise ParameterError(f"invalid parameter `numerics` = {self.numerics!r}: allowed a dict of option keys "
-                                 "(granrs.options.FLAT) to values")
+            raise ParameterError(
+                f"invalid parameter `numerics` = {self.numerics!r}: allowed a dict of option keys "
+                "(granrs.options.FLAT) to values"
+            )
         for key, v in self.numerics.items():
             if key in OPTION_FIELD_KEYS:
-                raise ParameterError(f"invalid parameter `numerics.{key}`: allowed as the case's field "
-                                     f"`{OPTION_FIELD_KEYS[key]}`, not in numerics")
+                raise ParameterError(
+                    f"invalid parameter `numerics.{key}`: allowed as the case's field "
+                    f"`{OPTION_FIELD_KEYS[key]}`, not in numerics"
+                )
             options.spec(key).check(v, f"numerics.{key}")
         for name, choices in SCENE_CHOICES.items():
             if getattr(self, name) not in choices:
-                raise ParameterError(f"invalid parameter `{name}` = {getattr(self, name)!r}: allowed "
-                                     + ", ".join(repr(c) for c in choices))
+                raise ParameterError(
+                    f"invalid parameter `{name}` = {getattr(self, name)!r}: allowed "
+                    + ", ".join(repr(c) for c in choices)
+                )
         if self.model not in MODELS:
-            raise ParameterError(f"invalid parameter `model` = {self.model!r}: allowed 'two-phase', 'granular' or "
-                                 "'depth-averaged' (no automatic choice: docs/howto/choosing-a-model.md)")
-        if self.earth_pressure != "savage-hutter" and (not isinstance(self.earth_pressure, (int, float))
-                                                        or isinstance(self.earth_pressure, bool)
-                                                        or not 0.01 <= self.earth_pressure <= 100.0):
-            raise ParameterError(f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
-                                 "or a number in [0.01, 100]")
+            raise ParameterError(
+                f"invalid parameter `model` = {self.model!r}: allowed 'two-phase', 'granular' or "
+                "'depth-averaged' (no automatic choice: docs/howto/choosing-a-model.md)"
+            )
+        if self.earth_pressure != "savage-hutter" and (
+            not isinstance(self.earth_pressure, (int, float))
+            or isinstance(self.earth_pressure, bool)
+            or not 0.01 <= self.earth_pressure <= 100.0
+        ):
+            raise ParameterError(
+                f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
+                "or a number in [0.01, 100]"
+            )
         if not isinstance(self.da_resolution, int) or not 4 <= self.da_resolution <= 4096:
-            raise ParameterError(f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]")
+            raise ParameterError(
+                f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]"
+            )
         if self.rheology not in ("drucker-prager", "mu-i"):
-            raise ParameterError(f"invalid parameter `rheology` = {self.rheology!r}: allowed 'drucker-prager' or 'mu-i'")
+            raise ParameterError(
+                f"invalid parameter `rheology` = {self.rheology!r}: allowed 'drucker-prager' or 'mu-i'"
+            )
         if self.model != "depth-averaged":  # memory before any work (granrs.model.estimate_memory)
             grid = self.grid()
-            memory_check(grid, estimate_memory(grid, pore_pressure=bool(self.fluidised and self.pore_pressure_ratio > 0),
-                                               air="free-surface" if self.model == "granular" else "resolved",
-                                               side_walls=self.channel_width is not None, step_retries=self.step_retries),
-                         f"the column's {self.model} model")
+            memory_check(
+                grid,
+                estimate_memory(
+                    grid,
+                    pore_pressure=bool(self.fluidised and self.pore_pressure_ratio > 0),
+                    air="free-surface" if self.model == "granular" else "resolved",
+                    side_walls=self.channel_width is not None,
+                    step_retries=self.step_retries,
+                ),
+                f"the column's {self.model} model",
+            )
 
     @property
     def column_height(self) -> float:

@@ -44,16 +44,30 @@ def build_depth_averaged(case: ColumnCase):
     fluidised = bool(case.fluidised and case.pore_pressure_ratio > 0)
     pore = DepthAveragedPore(case.diffusivity, case.pore_pressure_ratio, lc) if fluidised else None
     sh = case.earth_pressure == "savage-hutter"
-    m = DepthAveragedModel(cells, length, gravity=G, earth_pressure=1.0 if sh else float(case.earth_pressure),
-                           basal_friction_angle=case.wall_friction_angle, cfl=0.4, dry_depth=1e-6 * hc, pore=pore,
-                           internal_friction_angle=case.friction_angle if sh else None)
+    m = DepthAveragedModel(
+        cells,
+        length,
+        gravity=G,
+        earth_pressure=1.0 if sh else float(case.earth_pressure),
+        basal_friction_angle=case.wall_friction_angle,
+        cfl=0.4,
+        dry_depth=1e-6 * hc,
+        pore=pore,
+        internal_friction_angle=case.friction_angle if sh else None,
+    )
     inside = m.x < lc
     m.set_state(h=np.where(inside, hc, 0.0), beta=np.where(inside, case.pore_pressure_ratio if fluidised else 0.0, 0.0))
     return m
 
 
-def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
-                              extra_summary: Optional[dict] = None, reason: str = "requested") -> dict:
+def run_column_depth_averaged(
+    case: ColumnCase,
+    out: Path,
+    progress: bool = True,
+    compare_with: Optional[Path] = None,
+    extra_summary: Optional[dict] = None,
+    reason: str = "requested",
+) -> dict:
     """The column with the depth-averaged model: same records, rest criterion, outputs and plots
     as :func:`run_column` (front read at :func:`depth_averaged_front_depth`)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -74,8 +88,10 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
             t = m.time
             xf = m.front(threshold)
             if xf > m.length - 3 * m.dx or float(np.sum(m.h[-3:])) * m.dx > 0.01 * mass0:
-                raise SimulationError(f"the granular material reached the far end of the domain (x = {xf:.3f} m of "
-                                      f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)")
+                raise SimulationError(
+                    f"the granular material reached the far end of the domain (x = {xf:.3f} m of "
+                    f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)"
+                )
             speed = m.max_speed()
             rec["t"].append(t)
             rec["front"].append(xf - lc)
@@ -107,16 +123,30 @@ def run_column_depth_averaged(case: ColumnCase, out: Path, progress: bool = True
     front = np.array(rec["front"])
     area = np.array(rec["area"])
     summary: dict[str, Any] = {
-        "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
-        "runout_thin_m": m.front(1e-3 * hc) - lc, "farthest_material_m": m.front(1e-6 * hc) - lc,
+        "runout_m": float(front[-1]) if front.size else 0.0,
+        "max_front_m": float(front.max()) if front.size else 0.0,
+        "runout_thin_m": m.front(1e-3 * hc) - lc,
+        "farthest_material_m": m.front(1e-6 * hc) - lc,
         "runout_q99_m": deposit_quantile(profiles["final"], m.dx, lc),
-        "front_depth_m": threshold, "t_end_s": m.time, "steps": m.step_count,
-        "nx": m.cells, "ny": case.ny, "cells": m.cells, "h_m": m.dx, "wall_s": wall,
+        "front_depth_m": threshold,
+        "t_end_s": m.time,
+        "steps": m.step_count,
+        "nx": m.cells,
+        "ny": case.ny,
+        "cells": m.cells,
+        "h_m": m.dx,
+        "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - mass0)) / mass0) if area.size else 0.0,
-        "fluidised": m.pore is not None, "rheology": "Coulomb basal friction (depth-averaged)",
-        "threads": 1, "version": __version__, "stop_reason": stop_reason,
-        "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
-        "model": "depth-averaged", "model_reason": reason, "case": asdict(case),
+        "fluidised": m.pore is not None,
+        "rheology": "Coulomb basal friction (depth-averaged)",
+        "threads": 1,
+        "version": __version__,
+        "stop_reason": stop_reason,
+        "paper_runout_simulation_m": PAPER_RUNOUT_SIM,
+        "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
+        "model": "depth-averaged",
+        "model_reason": reason,
+        "case": asdict(case),
     }
     summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest_since))
     summary["observables"] = _observables_summary(rec, profiles["final"], m.dx, threshold * 2, lc)

@@ -47,8 +47,9 @@ def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.nd
     outputs.write_json("summary.json", summary)
     outputs.write_columns("front.csv", front_columns(rec))
     keys = list(profiles)
-    cols = {"x_from_gate_m": xs} | {(("h_final" if k == "final" else k) if isinstance(k, str) else f"h_{k}"): profiles[k]
-                                    for k in keys}
+    cols = {"x_from_gate_m": xs} | {
+        (("h_final" if k == "final" else k) if isinstance(k, str) else f"h_{k}"): profiles[k] for k in keys
+    }
     outputs.write_columns("profiles.csv", cols)
 
 
@@ -57,6 +58,11 @@ def _progress(outputs, summary: dict, rec: dict, hist: dict, t: float, steps: in
     ``stop_reason`` says the run had not finished when it was written."""
     outputs.write_columns("front.csv", front_columns(rec))
     outputs.write_history(hist)
-    outputs.write_json("summary.json", summary | {
-        "stop_reason": f"incomplete: written during the run at t = {t:.6g} s (step {steps}); a run that ends writes "
-                       "its final stop_reason here, so this one was killed or its disk filled"})
+    outputs.write_json(
+        "summary.json",
+        summary
+        | {
+            "stop_reason": f"incomplete: written during the run at t = {t:.6g} s (step {steps}); a run that ends writes "
+            "its final stop_reason here, so this one was killed or its disk filled"
+        },
+    )

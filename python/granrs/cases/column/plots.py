@@ -27,8 +27,14 @@ def plot_energy(out: Path) -> None:
     ax.plot(t, d["gravity_work_J_m"], "k", lw=2, label="work of gravity W_g")
     ax.plot(t, d["potential_drop_J_m"], "k:", lw=1, label="potential energy drop")
     ax.plot(t, d["plastic_work_J_m"], color="C0", label="plastic work ∫τΣ:D")
-    ax.plot(t, -d["plastic_negative_work_J_m"], color="C0", ls="--", lw=1,
-            label="its negative part (stress given back), sign flipped")
+    ax.plot(
+        t,
+        -d["plastic_negative_work_J_m"],
+        color="C0",
+        ls="--",
+        lw=1,
+        label="its negative part (stress given back), sign flipped",
+    )
     ax.plot(t, d["wall_work_J_m"], color="C1", label="Coulomb friction, base and back wall")
     if np.any(d["side_wall_work_J_m"] != 0):
         ax.plot(t, d["side_wall_work_J_m"], color="C5", label="friction of the channel's side walls")
@@ -48,6 +54,7 @@ def plot_fluidisation(out: Path) -> None:
     """fluidisation.png: the basal pore pressure over the weight against time, under the
     reservoir and in the channel (from front.csv)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -126,17 +133,33 @@ def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
         band = _front_band(path) if t.size > 1 else None
         if band is not None:
             lo, hi = band["fronts"][-1][1], band["fronts"][0][1]  # the thickest and the thinnest
-            ax.fill_between(band["t"], np.nan_to_num(lo), np.nan_to_num(hi), color=f"C{k}", alpha=0.15, lw=0,
-                            label=f"fronts at h = {band['fronts'][0][0][7:-2]} to {band['fronts'][-1][0][7:-2]} "
-                                  "(volume profile)")
+            ax.fill_between(
+                band["t"],
+                np.nan_to_num(lo),
+                np.nan_to_num(hi),
+                color=f"C{k}",
+                alpha=0.15,
+                lw=0,
+                label=f"fronts at h = {band['fronts'][0][0][7:-2]} to {band['fronts'][-1][0][7:-2]} (volume profile)",
+            )
             for name, xf in band["fronts"]:
                 ax.plot(band["t"], xf, f"C{k}", lw=0.6, alpha=0.8)
-                ax.annotate(name[7:-2], (band["t"][-1], xf[-1]), fontsize=6, color=f"C{k}",
-                            xytext=(2, 0), textcoords="offset points", va="center")
+                ax.annotate(
+                    name[7:-2],
+                    (band["t"][-1], xf[-1]),
+                    fontsize=6,
+                    color=f"C{k}",
+                    xytext=(2, 0),
+                    textcoords="offset points",
+                    va="center",
+                )
     ax.axhline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label=f"paper, simulation: {PAPER_RUNOUT_SIM} m")
     ax.axhline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label=f"paper, experiment: {PAPER_RUNOUT_EXP} m")
-    ax.set(xlabel="t (s)", ylabel="front position from the gate (m)",
-           title="Column collapse: front (bold: lowest row of cells) and thickness fronts")
+    ax.set(
+        xlabel="t (s)",
+        ylabel="front position from the gate (m)",
+        title="Column collapse: front (bold: lowest row of cells) and thickness fronts",
+    )
     ax.title.set_fontsize(10)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
@@ -160,18 +183,27 @@ def plot_profiles(out: Path) -> None:
     cmap = plt.get_cmap("viridis")
     for n, (k, name) in enumerate(cols):
         label = "final deposit" if name == "h_final" else f"t = {float(name[2:]):g} s"
-        style: dict[str, Any] = (dict(color="k", lw=2) if name == "h_final"
-                                 else dict(color=cmap(n / max(1, len(cols) - 1)), lw=1))
+        style: dict[str, Any] = (
+            dict(color="k", lw=2) if name == "h_final" else dict(color=cmap(n / max(1, len(cols) - 1)), lw=1)
+        )
         ax.plot(data[:, 0], data[:, k], label=label, **style)
     if "hvol_final" in header and meta.get("model") != "depth-averaged":
-        ax.plot(data[:, 0], data[:, header.index("hvol_final")], color="C3", ls="--", lw=1.2,
-                label="final, volume per column")
+        ax.plot(
+            data[:, 0],
+            data[:, header.index("hvol_final")],
+            color="C3",
+            ls="--",
+            lw=1.2,
+            label="final, volume per column",
+        )
     ax.axvline(0.0, color="grey", lw=0.8)
     ax.axvline(PAPER_RUNOUT_SIM, color="k", ls="--", lw=1, label="paper run-out (simulation)")
     ax.axvline(PAPER_RUNOUT_EXP, color="k", ls=":", lw=1.5, label="paper run-out (experiment)")
-    ax.set(xlabel="x − L_c (m), gate at 0", ylabel="h (m): surface height; dashed: volume per column",
-           title=_label(meta) + " column: surface profiles\n"
-                 "(paper: thickest near the gate, gentle decrease downstream)")
+    ax.set(
+        xlabel="x − L_c (m), gate at 0",
+        ylabel="h (m): surface height; dashed: volume per column",
+        title=_label(meta) + " column: surface profiles\n(paper: thickest near the gate, gentle decrease downstream)",
+    )
     ax.title.set_fontsize(9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=2)

@@ -16,7 +16,7 @@ from ..._granrs import ParameterError, SimulationError, SolverError
 from ...io.outputs import OutputError, RunOutputs
 from ...simulation import Callback, Simulation
 from .build import build_model, side_walls
-from .case import G, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase
+from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .depth_averaged import run_column_depth_averaged
 from .measures import basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position, surface_profile
 from .outputs import _progress, write_energy, write_outputs
@@ -27,9 +27,16 @@ from .summaries import _observables_summary, _record_observables, arrest_summary
 FLUSH_RECORDS = 10
 
 
-def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with: Optional[Path] = None,
-               callbacks: Optional[list] = None, extra_summary: Optional[dict] = None, prepare=None,
-               outputs: Optional[RunOutputs] = None) -> dict:
+def run_column(
+    case: ColumnCase,
+    out: Path,
+    progress: bool = True,
+    compare_with: Optional[Path] = None,
+    callbacks: Optional[list] = None,
+    extra_summary: Optional[dict] = None,
+    prepare=None,
+    outputs: Optional[RunOutputs] = None,
+) -> dict:
     """Runs the case, writes summary.json, front.csv, profiles.csv, front.png and profiles.png into ``out``.
 
     ``callbacks``: more ``Callback``s for the Simulation (field output, checkpoints);
@@ -43,13 +50,18 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     model_name, model_reason = case.model, "requested"
     if model_name == "depth-averaged":
         if callbacks or prepare is not None:
-            raise ParameterError("invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
-                                 "restart: allowed only with the 2D models ('two-phase', 'granular')")
+            raise ParameterError(
+                "invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
+                "restart: allowed only with the 2D models ('two-phase', 'granular')"
+            )
         if case.channel_width is not None:
-            raise ParameterError("invalid parameter `channel_width` with the depth-averaged model: allowed only with the "
-                                 "2D models ('two-phase', 'granular')")
-        return run_column_depth_averaged(case, out, progress=progress, compare_with=compare_with,
-                                         extra_summary=extra_summary, reason=model_reason)
+            raise ParameterError(
+                "invalid parameter `channel_width` with the depth-averaged model: allowed only with the "
+                "2D models ('two-phase', 'granular')"
+            )
+        return run_column_depth_averaged(
+            case, out, progress=progress, compare_with=compare_with, extra_summary=extra_summary, reason=model_reason
+        )
     out.mkdir(parents=True, exist_ok=True)
     model = build_model(case)
     if prepare is not None:
@@ -82,8 +94,10 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         # three columns of cells (single-cell specks of thin films sliding ahead do not count)
         far_area = float(np.count_nonzero(model.phi[:, -3:] > 0)) * grid.dx * grid.dy
         if xf > grid.lx - 3 * grid.dx or far_area > 0.01 * area0:
-            raise SimulationError(f"the granular material reached the far end of the domain (x = {xfar:.3f} m of "
-                                  f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)")
+            raise SimulationError(
+                f"the granular material reached the far end of the domain (x = {xfar:.3f} m of "
+                f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)"
+            )
         speed = granular_speed()
         rec["t"].append(t)
         rec["front"].append(xf - lc)
@@ -105,12 +119,31 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
             state["rest_since"] = None
         if len(rec["t"]) % FLUSH_RECORDS == 0:
             front = rec["front"]
-            _progress(outputs, {"runout_m": front[-1], "max_front_m": max(front), "t_end_s": t, "steps": model.step_count,
-                                "nx": grid.nx, "ny": grid.ny, "model": model_name, "case": asdict(case)}
-                      | (extra_summary or {}), rec, sim.history_arrays(), t, model.step_count)
+            _progress(
+                outputs,
+                {
+                    "runout_m": front[-1],
+                    "max_front_m": max(front),
+                    "t_end_s": t,
+                    "steps": model.step_count,
+                    "nx": grid.nx,
+                    "ny": grid.ny,
+                    "model": model_name,
+                    "case": asdict(case),
+                }
+                | (extra_summary or {}),
+                rec,
+                sim.history_arrays(),
+                t,
+                model.step_count,
+            )
 
-    sim = Simulation(model, stop_time=case.t_end, callbacks=[Callback(observe, every_time=0.01)] + list(callbacks or []),
-                     progress=progress)
+    sim = Simulation(
+        model,
+        stop_time=case.t_end,
+        callbacks=[Callback(observe, every_time=0.01)] + list(callbacks or []),
+        progress=progress,
+    )
     t0 = time.perf_counter()
     error = failure = None
     try:
@@ -126,29 +159,47 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
     area = np.array(rec["area"])
     walls = side_walls(case)
     summary: dict[str, Any] = {
-        "runout_m": float(front[-1]) if front.size else 0.0, "max_front_m": float(front.max()) if front.size else 0.0,
+        "runout_m": float(front[-1]) if front.size else 0.0,
+        "max_front_m": float(front.max()) if front.size else 0.0,
         "runout_q99_m": deposit_quantile(profiles["final"], grid.dx, lc),
-        "farthest_material_m": farthest_material(model.phi, grid.dx) - lc, "t_end_s": model.time, "steps": model.step_count,
-        "nx": grid.nx, "ny": grid.ny, "cells": grid.cells, "h_m": grid.dy, "wall_s": wall,
+        "farthest_material_m": farthest_material(model.phi, grid.dx) - lc,
+        "t_end_s": model.time,
+        "steps": model.step_count,
+        "nx": grid.nx,
+        "ny": grid.ny,
+        "cells": grid.cells,
+        "h_m": grid.dy,
+        "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
-        "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0), "rheology": case.rheology,
-        "interface_yield": case.interface_yield, "wall_normal_stress": case.wall_normal_stress,
-        "yield_pressure": case.yield_pressure, "sigma_location": case.sigma_location,
-        "channel_width_m": case.channel_width, "side_wall_friction_angle": None if walls is None else walls.friction_angle,
+        "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0),
+        "rheology": case.rheology,
+        "interface_yield": case.interface_yield,
+        "wall_normal_stress": case.wall_normal_stress,
+        "yield_pressure": case.yield_pressure,
+        "sigma_location": case.sigma_location,
+        "channel_width_m": case.channel_width,
+        "side_wall_friction_angle": None if walls is None else walls.friction_angle,
         "r_neighbourhood": case.r_neighbourhood,
         "active_region": case.active_region,
-        "active_region_sides": case.active_region_sides, "threads": case.threads, "version": __version__,
-        "stop_reason": sim.stop_reason if error is None else ("interrupted: KeyboardInterrupt"
-                                                              if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
+        "active_region_sides": case.active_region_sides,
+        "threads": case.threads,
+        "version": __version__,
+        "stop_reason": sim.stop_reason
+        if error is None
+        else ("interrupted: KeyboardInterrupt" if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,
         "pressure_iterations_max": int(np.max(hist["pressure_iterations"])) if "time" in hist else 0,
         "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
         "dt_median_s": float(np.median(hist["dt"])) if "time" in hist else 0.0,
-        "paper_runout_simulation_m": PAPER_RUNOUT_SIM, "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
-        "model": model_name, "model_reason": model_reason,
+        "paper_runout_simulation_m": PAPER_RUNOUT_SIM,
+        "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
+        "model": model_name,
+        "model_reason": model_reason,
         "case": asdict(case),
     }
-    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], state["rest_since"]))
+    summary.update(
+        arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], state["rest_since"])
+    )
     for key in ("picard_iterations",):
         if key in hist:
             summary[key + "_median"] = float(np.median(hist[key]))
@@ -173,8 +224,10 @@ def run_column(case: ColumnCase, out: Path, progress: bool = True, compare_with:
         plot_front(out, compare_with)
         plot_profiles(out)
     except OSError as err:  # a full disk: the files written before stay complete
-        raise OutputError(f"cannot write the outputs in {out} ({err.strerror or err}); the files written before are kept"
-                          + (f"; the run had stopped with: {error}" if error else "")) from None
+        raise OutputError(
+            f"cannot write the outputs in {out} ({err.strerror or err}); the files written before are kept"
+            + (f"; the run had stopped with: {error}" if error else "")
+        ) from None
     if isinstance(failure, KeyboardInterrupt):
         raise failure
     if error is not None:

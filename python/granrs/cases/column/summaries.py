@@ -18,23 +18,47 @@ def arrest_summary(t, front, speed, stop_reason: str, rest_since: Optional[float
     front minus the last one, ≥ 0) and ``final_granular_speed_m_s``."""
     front = np.asarray(front, dtype=float)
     if front.size == 0:
-        return {"arrest_time_s": None, "max_front_time_s": None, "front_retreat_m": 0.0, "final_granular_speed_m_s": None}
+        return {
+            "arrest_time_s": None,
+            "max_front_time_s": None,
+            "front_retreat_m": 0.0,
+            "final_granular_speed_m_s": None,
+        }
     k = int(np.argmax(front))
-    return {"arrest_time_s": float(rest_since) if stop_reason == "rest" and rest_since is not None else None,
-            "max_front_time_s": float(t[k]), "front_retreat_m": float(front[k] - front[-1]),
-            "final_granular_speed_m_s": float(speed[-1])}
+    return {
+        "arrest_time_s": float(rest_since) if stop_reason == "rest" and rest_since is not None else None,
+        "max_front_time_s": float(t[k]),
+        "front_retreat_m": float(front[k] - front[-1]),
+        "final_granular_speed_m_s": float(speed[-1]),
+    }
 
 
-ENERGY_COLUMNS = ("kinetic", "potential_drop", "gravity_work", "plastic_work", "plastic_negative_work", "viscous_work",
-                  "wall_work", "side_wall_work", "residual")
+ENERGY_COLUMNS = (
+    "kinetic",
+    "potential_drop",
+    "gravity_work",
+    "plastic_work",
+    "plastic_negative_work",
+    "viscous_work",
+    "wall_work",
+    "side_wall_work",
+    "residual",
+)
 
 
 def _energy_row(b: dict) -> dict:
     """One row of energy.csv from ``Model.energy_budget()`` (J per metre of width)."""
-    return {"kinetic": b["kinetic"], "potential_drop": b["potential_initial"] - b["potential"],
-            "gravity_work": b["gravity_work"], "plastic_work": b["plastic_work"],
-            "plastic_negative_work": b["plastic_negative_work"], "viscous_work": b["viscous_work"],
-            "wall_work": sum(b["wall_work"].values()), "side_wall_work": b["side_wall_work"], "residual": b["residual"]}
+    return {
+        "kinetic": b["kinetic"],
+        "potential_drop": b["potential_initial"] - b["potential"],
+        "gravity_work": b["gravity_work"],
+        "plastic_work": b["plastic_work"],
+        "plastic_negative_work": b["plastic_negative_work"],
+        "viscous_work": b["viscous_work"],
+        "wall_work": sum(b["wall_work"].values()),
+        "side_wall_work": b["side_wall_work"],
+        "residual": b["residual"],
+    }
 
 
 def energy_summary(b: dict) -> dict:
@@ -47,10 +71,17 @@ def energy_summary(b: dict) -> dict:
     wg = row["gravity_work"]
     if not wg > 0:
         return {"gravity_work_J_per_m": wg}
-    return {"gravity_work_J_per_m": wg, "potential_drop_J_per_m": row["potential_drop"],
-            "kinetic": row["kinetic"] / wg, "plastic": row["plastic_work"] / wg, "wall": row["wall_work"] / wg,
-            "side_walls": row["side_wall_work"] / wg, "viscous": row["viscous_work"] / wg, "numerical": -row["residual"] / wg,
-            "plastic_negative": row["plastic_negative_work"] / wg}
+    return {
+        "gravity_work_J_per_m": wg,
+        "potential_drop_J_per_m": row["potential_drop"],
+        "kinetic": row["kinetic"] / wg,
+        "plastic": row["plastic_work"] / wg,
+        "wall": row["wall_work"] / wg,
+        "side_walls": row["side_wall_work"] / wg,
+        "viscous": row["viscous_work"] / wg,
+        "numerical": -row["residual"] / wg,
+        "plastic_negative": row["plastic_negative_work"] / wg,
+    }
 
 
 def fluidisation_summary(t: list, reservoir: list, channel: list, threshold: float = 0.1) -> dict:
@@ -60,9 +91,14 @@ def fluidisation_summary(t: list, reservoir: list, channel: list, threshold: flo
     reservoir slides as a dry material), and both ratios at the end."""
     ch = np.nan_to_num(np.asarray(channel, dtype=float), nan=0.0)
     above = np.nonzero(ch >= threshold)[0]
-    return {"reservoir_max": float(np.nanmax(reservoir)), "reservoir_final": float(reservoir[-1]),
-            "channel_max": float(ch.max()), "channel_final": float(ch[-1]), "threshold": threshold,
-            "channel_fluidised_until_s": float(t[above[-1]]) if above.size else 0.0}
+    return {
+        "reservoir_max": float(np.nanmax(reservoir)),
+        "reservoir_final": float(reservoir[-1]),
+        "channel_max": float(ch.max()),
+        "channel_final": float(ch[-1]),
+        "threshold": threshold,
+        "channel_fluidised_until_s": float(t[above[-1]]) if above.size else 0.0,
+    }
 
 
 def _record_observables(rec: dict, h: np.ndarray, dx: float, cell: float, x_gate: float) -> None:
