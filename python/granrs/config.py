@@ -252,7 +252,7 @@ KEYS: tuple[Key, ...] = (
         "cells",
         _AR.doc.replace("(None: the whole domain)", "(0: the whole domain)"),
         0,
-        int(_AR.hi),
+        int(_AR.hi),  # type: ignore[arg-type]  # the schema bounds the band (tests/test_options.py)
         option=_AR,
     ),
     _column_option("numerics", "active_region_sides"),
@@ -301,9 +301,11 @@ def _check_value(key: Key, value):
         if isinstance(value, bool) or not ok_type:
             raise _bad(key, value)
         number = float(value) if key.kind == "float" else value
-        too_high = number >= key.hi if key.hi_open else number > key.hi
-        too_low = number <= key.lo if key.lo_open else number < key.lo
-        infinite_ok = math.isinf(number) and (number > 0 and key.hi == math.inf or number < 0 and key.lo == -math.inf)
+        lo = -math.inf if key.lo is None else key.lo
+        hi = math.inf if key.hi is None else key.hi
+        too_high = number >= hi if key.hi_open else number > hi
+        too_low = number <= lo if key.lo_open else number < lo
+        infinite_ok = math.isinf(number) and (number > 0 and hi == math.inf or number < 0 and lo == -math.inf)
         if math.isnan(number) or (not math.isfinite(number) and not infinite_ok) or too_low or too_high:
             raise _bad(key, value)
         return number
