@@ -77,12 +77,12 @@ fn out_of_range_is_refused_with_name_and_range() {
         let bad = outside(s).unwrap();
         let mut map = OptionMap::new();
         map.insert(s.key.to_string(), bad.clone());
-        let err = ModelConfig::from_options(base().grid.clone(), base().bc.clone(), base().dense, &map).expect_err(s.key).to_string();
+        let err = ModelConfig::from_options(base().grid.clone(), base().bc, base().dense, &map).expect_err(s.key).to_string();
         assert!(err.contains(&format!("`{}`", s.key)) && err.contains(&s.allowed()), "{}: {err}", s.key);
     }
     let mut map = OptionMap::new();
     map.insert("no_such_option".into(), Value::Int(1));
-    let err = ModelConfig::from_options(base().grid.clone(), base().bc.clone(), base().dense, &map).unwrap_err().to_string();
+    let err = ModelConfig::from_options(base().grid.clone(), base().bc, base().dense, &map).unwrap_err().to_string();
     assert!(err.contains("no_such_option") && err.contains("theta"), "{err}");
 }
 
@@ -109,7 +109,7 @@ fn another(s: &OptionSpec) -> Value {
 #[test]
 fn round_trip_through_the_map() {
     let cfg = base();
-    let again = ModelConfig::from_options(cfg.grid.clone(), cfg.bc.clone(), cfg.dense, &cfg.to_options()).unwrap();
+    let again = ModelConfig::from_options(cfg.grid.clone(), cfg.bc, cfg.dense, &cfg.to_options()).unwrap();
     assert_eq!(again.to_options(), cfg.to_options());
     // every option away from its default at once (less the pairs that exclude each other)
     for s in ModelConfig::schema() {
@@ -122,12 +122,12 @@ fn round_trip_through_the_map() {
         if s.key == "plastic" {
             map.insert("regularisation".into(), Value::Float(10.0));
         }
-        let got = ModelConfig::from_options(cfg.grid.clone(), cfg.bc.clone(), cfg.dense, &map).unwrap_or_else(|e| panic!("{}: {e}", s.key));
+        let got = ModelConfig::from_options(cfg.grid.clone(), cfg.bc, cfg.dense, &map).unwrap_or_else(|e| panic!("{}: {e}", s.key));
         let out = got.to_options();
         let want = s.check(&v).unwrap();
         let expected = if s.key == "regularisation" { Value::None } else { want };
         assert_eq!(out.get(s.key), Some(&expected), "`{}`", s.key);
-        assert_eq!(ModelConfig::from_options(cfg.grid.clone(), cfg.bc.clone(), cfg.dense, &out).unwrap().to_options(), out, "`{}`", s.key);
+        assert_eq!(ModelConfig::from_options(cfg.grid.clone(), cfg.bc, cfg.dense, &out).unwrap().to_options(), out, "`{}`", s.key);
     }
 }
 
