@@ -529,6 +529,29 @@ def _rows(out: Path) -> int:
         return 0
 
 
+def test_an_interrupt_inside_a_record_keeps_whole_records(tmp_path, monkeypatch):
+    # A Ctrl-C that lands between the appends of one record (after the front, before the basal
+    # pore-pressure ratios) must still leave front.csv with every column and fluidisation.png.
+    from granrs.cases.column import run as column_run
+
+    real, calls = column_run.basal_pore_pressure_ratio, [0]
+
+    def interrupting(*args):
+        calls[0] += 1
+        if calls[0] == 7:  # the 4th record's reservoir ratio done, its channel ratio not
+            raise KeyboardInterrupt
+        return real(*args)
+
+    monkeypatch.setattr(column_run, "basal_pore_pressure_ratio", interrupting)
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        column_run.run_column(ColumnCase(ny=16, t_end=1.0), out)
+    front = np.genfromtxt(out / "front.csv", delimiter=",", names=True)
+    assert "pf_ratio_reservoir" in front.dtype.names and "pf_ratio_channel" in front.dtype.names
+    assert len(front) == 3  # the three whole records before the interrupted one
+    assert (out / "fluidisation.png").stat().st_size > 0
+
+
 def test_ctrl_c_prints_one_line_exits_130_and_keeps_the_last_steps(tmp_path):
     path = run_file(tmp_path, numerics={"t_end": 5.0})
     out = tmp_path / "out"

@@ -27,6 +27,15 @@ from .summaries import _observables_summary, _record_observables, arrest_summary
 FLUSH_RECORDS = 10
 
 
+def whole_records(rec: dict[str, list]) -> None:
+    """Cuts every record list of ``rec`` to the shortest one's length, in place. A Ctrl-C can land
+    inside the observer, between the appends of one record; front.csv then holds whole records
+    only (its columns are the lists of the records' length)."""
+    n = min((len(v) for v in rec.values()), default=0)
+    for v in rec.values():
+        del v[n:]
+
+
 def run_column(
     case: ColumnCase,
     out: Path,
@@ -152,6 +161,7 @@ def run_column(
         failure = err
         error = str(err) if not isinstance(err, KeyboardInterrupt) else "KeyboardInterrupt"
     wall = time.perf_counter() - t0
+    whole_records(rec)
     profiles["final"] = surface_profile(model.phi, grid.dy)
     profiles["hvol_final"] = obs.volume_profile(model.phi, grid.dy)
     hist = sim.history_arrays()
