@@ -21,6 +21,8 @@ import statistics
 import time
 from pathlib import Path
 
+from column_bench import warm_column_model
+
 STAGES = ("choose_dt", "interface", "properties", "pore_pressure", "rheology", "predictor_setup", "predictor_solves",
           "projections", "pressure_projection", "diagnostics")
 
@@ -41,16 +43,8 @@ def main() -> None:
 
     import numpy as np
 
-    import granrs
-    from granrs.cases.column import ColumnCase, build_model
 
-    if granrs.build_info()["profile"] != "release":
-        raise SystemExit("benchmarks need a release build (make install builds one)")
-    kw = dict(ny=args.ny, threads=args.threads, model=args.model, fluidised=not args.dry)
-    if args.active_region is not None:
-        kw.update(active_region=args.active_region, active_region_sides=args.sides)
-    m = build_model(ColumnCase(**kw))
-    m.advance(max_steps=args.warmup)
+    m = warm_column_model(args)
     sums = dict.fromkeys(STAGES, 0.0)
     walls, obs = [], []
     iters = {"picard_iterations": [], "pressure_iterations": [], "viscous_iterations": []}
@@ -82,7 +76,7 @@ def main() -> None:
     print(f"column ny = {args.ny} ({m.grid.nx} x {m.grid.ny} = {cells} cells), {args.model}, "
           f"{'dry' if args.dry else 'fluidised'}, {args.threads} thread(s), steps {args.warmup + 1}-{args.warmup + n}, "
           f"t = {m.time:.4f} s; medians per step: " + ", ".join(f"{k} {statistics.median(v):g}" for k, v in iters.items() if v))
-    print(f"| stage | ms per step | share |")
+    print("| stage | ms per step | share |")
     print("|---|---|---|")
     for k, v in rows.items():
         print(f"| {k} | {v * 1e3:.2f} | {100 * v / step:.1f} % |")

@@ -36,20 +36,15 @@ import sys
 import time
 from pathlib import Path
 
+from column_bench import warm_column_model
+
 
 def worker(args: argparse.Namespace) -> None:
     import numpy as np
 
     import granrs
-    from granrs.cases.column import ColumnCase, build_model
 
-    if granrs.build_info()["profile"] != "release":
-        raise SystemExit("benchmarks need a release build (make install builds one)")
-    kw = dict(ny=args.ny, threads=args.threads, model=args.model, fluidised=not args.dry)
-    if args.active_region is not None:
-        kw.update(active_region=args.active_region, active_region_sides=args.sides)
-    m = build_model(ColumnCase(**kw))
-    m.advance(max_steps=args.warmup)
+    m = warm_column_model(args)
     t0, c0 = time.perf_counter(), time.process_time()
     log = m.advance(max_steps=args.steps)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0

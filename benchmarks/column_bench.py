@@ -1,0 +1,25 @@
+"""The column model the step benchmarks time (stage_profile.py, step_cost.py): built from their
+common command-line arguments and advanced past its first steps.
+
+granrs is imported inside the function, so that step_cost.py's worker times the build its
+environment names (its ``--base``)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def warm_column_model(args: argparse.Namespace):
+    """The column's Rust model of ``args`` (ny, threads, model, dry, active_region, sides),
+    advanced by ``args.warmup`` steps. Refuses a debug build."""
+    import granrs
+    from granrs.cases.column import ColumnCase, build_model
+
+    if granrs.build_info()["profile"] != "release":
+        raise SystemExit("benchmarks need a release build (make install builds one)")
+    kw = dict(ny=args.ny, threads=args.threads, model=args.model, fluidised=not args.dry)
+    if args.active_region is not None:
+        kw.update(active_region=args.active_region, active_region_sides=args.sides)
+    m = build_model(ColumnCase(**kw))
+    m.advance(max_steps=args.warmup)
+    return m
