@@ -378,17 +378,19 @@ struct WenoRow<'a> {
     sy: f64,
 }
 
-/// The upwind WENO5 derivative of a seven-value window by the sign of `a` (0 when a = 0): both
-/// one-sided values are computed and one is selected, so that the loop has no branch and
-/// vectorises; the selected value is the one the branch would compute.
+/// The upwind WENO5 derivative of a seven-value window by the sign of `a` (0 when a = 0 or NaN):
+/// the five undivided differences of the upwind stencil are selected by the sign of `a` and
+/// combined once, and the result is selected, so that the loop has no branch and vectorises;
+/// the selected value is the one the branch over [`weno5_minus`](super::weno5::weno5_minus) and
+/// [`weno5_plus`](super::weno5::weno5_plus) would compute.
 #[inline(always)]
 fn upwind_select(w: &[f64; 7], a: f64) -> f64 {
-    use super::weno5::{weno5_minus, weno5_plus};
-    let (m, p) = (weno5_minus(w), weno5_plus(w));
-    if a > 0.0 {
-        m
-    } else if a < 0.0 {
-        p
+    let d: [f64; 6] = std::array::from_fn(|m| w[m + 1] - w[m]);
+    let minus = a > 0.0;
+    let pick = |m: usize, p: usize| if minus { d[m] } else { d[p] };
+    let r = super::weno5::weno5(pick(0, 5), pick(1, 4), pick(2, 3), pick(3, 2), pick(4, 1));
+    if minus || a < 0.0 {
+        r
     } else {
         0.0
     }
@@ -574,7 +576,7 @@ mod tests {
         assert_eq!(a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), b.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
     }
 
-    /// `convection_weno5` (row slices, both one-sided values and a select, AVX2 where the CPU has
+    /// `convection_weno5` (row slices, the upwind stencil selected by the sign, AVX2 where the CPU has
     /// it) gives the bits of the branching sweep over seven-value windows, serially and on two
     /// threads, with velocities of both signs and exact zeros.
     #[test]
