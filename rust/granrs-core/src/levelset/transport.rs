@@ -404,6 +404,9 @@ mod tests {
         }
     }
 
+    /// A copy of a stage's row kernel.
+    type RowKernel = fn(&StageRow<'_>, RowBase<'_>, &mut [f64]);
+
     /// The AVX2 and the baseline copies of a stage's row agree bit for bit, for both weights and
     /// the three kinds of base term.
     #[test]
@@ -425,8 +428,7 @@ mod tests {
             coef: StageCoef { a: 0.75, b: 0.25, dt: 0.01, inv_dx: 1.0 / grid.dx, inv_dy: 1.0 / grid.dy },
         };
         for mode in [RowBase::None, RowBase::InPlace, RowBase::Other(&bs[k..k + nx])] {
-            let kernels: [(fn(&StageRow<'_>, RowBase<'_>, &mut [f64]), fn(&StageRow<'_>, RowBase<'_>, &mut [f64])); 2] =
-                [(stage_row_js, stage_row_js_base), (stage_row_mapped, stage_row_mapped_base)];
+            let kernels: [(RowKernel, RowKernel); 2] = [(stage_row_js, stage_row_js_base), (stage_row_mapped, stage_row_mapped_base)];
             for (dispatched, baseline) in kernels {
                 let (mut a, mut b) = (bs[k..k + nx].to_vec(), bs[k..k + nx].to_vec());
                 dispatched(&rows, mode, &mut a);
