@@ -49,12 +49,14 @@ def test_material_and_numerics_errors_name_the_parameter():
         cavity(numerics=Numerics(proximal_restarts=-1))
     from granrs.cases.column import ColumnCase
 
+    from granrs import PorePressure, Variants
+
     with pytest.raises(ParameterError, match="`interface_yield`"):
-        ColumnCase(interface_yield="sharp").validate()
+        ColumnCase(variants=Variants(interface_yield="sharp")).validate()
     with pytest.raises(ParameterError, match=r"`kappa_air` = 0.5: allowed a number in \[1, 1e16\]"):
-        ColumnCase(kappa_air=0.5).validate()
+        ColumnCase(pore_pressure=PorePressure(0.035, kappa_air=0.5)).validate()
     with pytest.raises(ParameterError, match="`yield_pressure`"):
-        ColumnCase(yield_pressure="gauge").validate()
+        ColumnCase(variants=Variants(yield_pressure="gauge")).validate()
 
 
 def test_impossible_boundary_combination_is_rejected():

@@ -207,10 +207,10 @@ def _count(paths, pattern):
 
 
 def test_the_friction_angle_is_declared_once():
-    # run-file key materials.friction_angle → ColumnCase.friction_angle → DruckerPrager → Rust
+    # run-file key rheology.friction_angle → ColumnCase.friction_angle → DruckerPrager → Rust
     # RheologyLaw::DruckerPrager: the default 27 and the range (0, 90) are written only in the
     # Rust table DRUCKER_PRAGER_OPTIONS
-    key = config.key("materials.friction_angle")
+    key = config.key("rheology.friction_angle")
     spec = options.spec("friction_angle", "drucker-prager")
     assert (key.default, key.lo, key.hi, key.lo_open, key.hi_open) == (spec.default, 0.0, 90.0, True, True)
     assert ColumnCase().friction_angle == spec.default == granrs.DruckerPrager().friction_angle

@@ -158,6 +158,24 @@ Variants: Any = _options_class(
     "granrs",
 )
 
+def merge(numerics, objects: dict) -> dict:
+    """The flat options by key: those of ``numerics`` (a ``Numerics``), then those of each object
+    of ``objects`` (name → a room's object: ``TimeStepping``, ``BiProjection``, ...), which hold
+    their own options. An option that ``numerics`` sets away from its default and an object sets
+    to another value is a ParameterError naming both: each option is set in one place."""
+    opts = numerics.options()
+    for name, obj in objects.items():
+        for field, s in obj.FIELDS.items():
+            v, flat = getattr(obj, field), opts[s.key]
+            if flat != s.default and v != flat:
+                raise ParameterError(
+                    f"invalid parameter `numerics.{s.key}` = {flat!r}: also set by `{name}.{field}` = {v!r}; "
+                    f"allowed in one place, `{name}.{field}`"
+                )
+            opts[s.key] = v
+    return opts
+
+
 #: Keys of the flat options that are arguments of ``Model`` itself rather than numerics.
 MODEL_ARGUMENTS = ("threads", "air")
 

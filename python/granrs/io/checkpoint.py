@@ -118,7 +118,7 @@ def load_checkpoint(path) -> Checkpoint:
 
 #: Keys that may differ between a checkpoint's configuration and its restart's without
 #: ``allow_changes`` (they change neither the state nor the equations).
-RESTART_FREE_KEYS = ("numerics.t_end", "numerics.threads")
+RESTART_FREE_KEYS = ("time.t_end", "numerics.threads")
 
 
 def configuration_changes(ck: Checkpoint, cfg: dict) -> list[str]:
