@@ -47,9 +47,8 @@ def test_material_and_numerics_errors_name_the_parameter():
         cavity(numerics=Numerics(yield_pressure="gauge"))
     with pytest.raises(ParameterError, match=r"`proximal_restarts` = -1: allowed an integer in \[0, 1000000\]"):
         cavity(numerics=Numerics(proximal_restarts=-1))
-    from granrs.cases.column import ColumnCase
-
     from granrs import PorePressure, Variants
+    from granrs.cases.column import ColumnCase
 
     with pytest.raises(ParameterError, match="`interface_yield`"):
         ColumnCase(variants=Variants(interface_yield="sharp")).validate()

@@ -418,13 +418,13 @@ def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path)
     the δt trend measured between 1e-4 and 1e-5 s (2.0 %: 2.154 ± 0.022 m, 8 members, against 2.197 m);
     with the option r_neighbourhood = 2 the adaptive run-out is 26 % short of
     its own δt = 1e-4 s run (1.52 against 2.05 m). About 2 min on one core."""
+
     def case(w, **time):
         return ColumnCase(ny=16, variants=Variants(r_neighbourhood=w), time=TimeStepping(**time))
 
     adaptive = {w: run_column(case(w), tmp_path / f"a{w}", progress=False) for w in (0, 2)}
     out = {
-        w: adaptive[w]["runout_m"] / run_column(case(w, dt=1e-4), tmp_path / f"f{w}", progress=False)["runout_m"]
-        - 1.0
+        w: adaptive[w]["runout_m"] / run_column(case(w, dt=1e-4), tmp_path / f"f{w}", progress=False)["runout_m"] - 1.0
         for w in (0, 2)
     }
     # w = 0: −2.0 % measured (8-member adaptive mean −2.0 ± 1.0 %); 4 % leaves room for its

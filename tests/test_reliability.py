@@ -168,7 +168,7 @@ RUN_FILE_BAD = [
     ('[grid]\nny = "16"\n', "`grid.ny` = '16': allowed an integer in [8, 4096]"),
     ("[grid]\nny = 16.0\n", "`grid.ny` = 16.0: allowed an integer in [8, 4096]"),
     ("[time]\ncfl = nan\n", "`time.cfl` = nan: allowed a number in [1e-6, 2]"),
-    ("[numerics]\nt_end = inf\n", "`time.t_end` = inf: allowed a number in [1e-06, 10000] (s)"),
+    ("[time]\nt_end = inf\n", "`time.t_end` = inf: allowed a number in [1e-06, 10000] (s)"),
     ("[bi_projection]\ntheta = 1.0\n", "`bi_projection.theta` = 1.0: allowed a number in [0, 1)"),
     ("[numerics]\nthreads = 0\n", "`numerics.threads` = 0: allowed an integer in [1, 1024]"),
     ("[time]\nstep_retries = 21\n", "`time.step_retries` = 21: allowed an integer in [0, 20]"),
@@ -354,7 +354,10 @@ PYTHON_BAD = [
     ),
     (lambda: ColumnCase(ny=True).validate(), "`ny` = True: allowed an integer in [8, 4096]"),
     (lambda: ColumnCase(threads=0).validate(), "`threads` = 0: allowed an integer in [1, 1024]"),
-    (lambda: ColumnCase(active_region=ActiveRegion(1)).validate(), "`band` = 1: allowed None or an integer in [2, 100000]"),
+    (
+        lambda: ColumnCase(active_region=ActiveRegion(1)).validate(),
+        "`band` = 1: allowed None or an integer in [2, 100000]",
+    ),
     (lambda: ckpt.load_checkpoint("/nonexistent/ck.npz"), "`/nonexistent/ck.npz`: cannot be read"),
 ]
 
@@ -618,11 +621,7 @@ def test_a_restart_with_another_configuration_is_refused_naming_the_keys(tmp_pat
         "--set",
         'rheology.law="mu-i"',
     )
-    assert (
-        rc == 2
-        and "rheology.viscosity: 0.1 -> 0.5" in err
-        and "rheology.law: 'drucker-prager' -> 'mu-i'" in err
-    )
+    assert rc == 2 and "rheology.viscosity: 0.1 -> 0.5" in err and "rheology.law: 'drucker-prager' -> 'mu-i'" in err
     assert "--allow-changes" in err and snapshot(out) == before
     rc, err = cli(
         capsys, "run", str(path), "--quiet", "--restart", ck, "--set", "grid.ny=16", "--set", "time.t_end=0.06"

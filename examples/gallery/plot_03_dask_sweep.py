@@ -26,9 +26,7 @@ if __name__ == "__main__":  # Dask's worker processes re-import the main module
         for d in (Path.cwd(), *Path.cwd().parents)
         if (d / "examples" / "paper_fluidised.toml").exists()
     )
-    cfg = load_config(
-        run_file, ["grid.ny=16", "time.t_end=0.5", "output.fields_every_s=0", "output.animation=false"]
-    )
+    cfg = load_config(run_file, ["grid.ny=16", "time.t_end=0.5", "output.fields_every_s=0", "output.animation=false"])
     out = Path(tempfile.mkdtemp()) / "sweep"
     result = run_sweep(cfg, ["pore_pressure.diffusivity=0.01,0.1", "time.cfl=0.25,0.5"], workers=2, out=out)
     for row in result.table:

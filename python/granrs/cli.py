@@ -13,11 +13,11 @@ from . import __version__, build_info
 from ._granrs import ParameterError, SimulationError, SolverError
 
 
-def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False):
-    """An argparse type: an int or a finite float in [lo, hi] ((lo, hi] with ``lo_open``); the
-    error names the flag and its range."""
+def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False):
+    """An argparse type: an int or a finite float in [lo, hi] (an end excluded with ``lo_open``,
+    ``hi_open``); the error names the flag and its range."""
     what = "an integer" if kind == "int" else "a number"
-    rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+    rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
 
     def parse(text: str):
         try:
@@ -26,7 +26,12 @@ def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False):
             raise argparse.ArgumentTypeError(
                 f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}"
             ) from None
-        if kind == "float" and not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
+        if (
+            kind == "float"
+            and not math.isfinite(v)
+            or (v <= lo if lo_open else v < lo)
+            or (v >= hi if hi_open else v > hi)
+        ):
             raise argparse.ArgumentTypeError(f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}")
         return v
 
@@ -38,7 +43,8 @@ def _key_type(flag: str, dotted: str):
     from .config import key
 
     k = key(dotted)
-    return _number(flag, k.kind, -math.inf if k.lo is None else k.lo, math.inf if k.hi is None else k.hi, k.lo_open)
+    lo, hi = -math.inf if k.lo is None else k.lo, math.inf if k.hi is None else k.hi
+    return _number(flag, k.kind, lo, hi, k.lo_open, k.hi_open)
 
 
 def _choices(dotted: str) -> tuple:
@@ -429,9 +435,7 @@ def main(argv=None) -> int:
         type=_key_type("--ny", "grid.ny"),
         help="cells over the domain height (column; 32; 256 is the paper's grid)",
     )
-    r.add_argument(
-        "--t-end", dest="t_end", type=_key_type("--t-end", "time.t_end"), help="end time in s (column; 3)"
-    )
+    r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "time.t_end"), help="end time in s (column; 3)")
     r.add_argument(
         "--rheology", choices=_choices("rheology.law"), help="column: drucker-prager (default) or mu-i (rheology.law)"
     )

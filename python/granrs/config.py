@@ -18,7 +18,6 @@ A resolved configuration is a plain ``dict[section, dict[key, value]]`` holding 
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import sys
@@ -229,7 +228,15 @@ KEYS: tuple[Key, ...] = (
         "φ, solid volume fraction of the column",
         *_R["solid_fraction"],
     ),
-    Key("materials", "grain_density", "float", _C.grain_density, "kg m-3", "ρ_s, density of the grains", *_R["grain_density"]),
+    Key(
+        "materials",
+        "grain_density",
+        "float",
+        _C.grain_density,
+        "kg m-3",
+        "ρ_s, density of the grains",
+        *_R["grain_density"],
+    ),
     Key(
         "materials",
         "grain_diameter",
@@ -248,7 +255,9 @@ KEYS: tuple[Key, ...] = (
         "granular rheology: the paper's Drucker–Prager, or μ(I) with μ_s = tan(friction_angle) (jop_mu_i)",
         choices=("drucker-prager", "mu-i"),
     ),
-    _from_schema("rheology", "friction_angle", options.spec("friction_angle", "drucker-prager"), _C.rheology.friction_angle),
+    _from_schema(
+        "rheology", "friction_angle", options.spec("friction_angle", "drucker-prager"), _C.rheology.friction_angle
+    ),
     Key(
         "rheology",
         "viscosity",
@@ -261,8 +270,16 @@ KEYS: tuple[Key, ...] = (
         lo_open=True,
     ),
     *_object_keys("bi_projection", _C.rheology.projection),
-    _from_schema("base", "friction_angle", _BASE, _C.base.friction_angle, doc="α_b, friction angle of the base and of a Coulomb back wall"),
-    *_room_keys("pore_pressure", "pore_pressure", _C.pore_pressure, exclude=("basal_gradient", "basal_x_min", "basal_x_max")),
+    _from_schema(
+        "base",
+        "friction_angle",
+        _BASE,
+        _C.base.friction_angle,
+        doc="α_b, friction angle of the base and of a Coulomb back wall",
+    ),
+    *_room_keys(
+        "pore_pressure", "pore_pressure", _C.pore_pressure, exclude=("basal_gradient", "basal_x_min", "basal_x_max")
+    ),
     *_room_keys(
         "side_walls",
         "side_walls",
@@ -274,7 +291,15 @@ KEYS: tuple[Key, ...] = (
         },
     ),
     *_object_keys("active_region", ActiveRegion()),
-    Key("time", "t_end", "float", _C.t_end, "s", "end of the simulated time (the run stops earlier at rest)", *_R["t_end"]),
+    Key(
+        "time",
+        "t_end",
+        "float",
+        _C.t_end,
+        "s",
+        "end of the simulated time (the run stops earlier at rest)",
+        *_R["t_end"],
+    ),
     *_object_keys("time", _C.time),
     _from_schema("numerics", "threads", options.spec("threads"), _C.threads),
     *(k for k in _NUMERICS if k.section == "numerics"),
@@ -372,12 +397,17 @@ def resolve(raw: dict) -> Config:
     cfg: Config = {s: {} for s in SECTIONS}
     for key in KEYS:
         table = raw.get(key.section, {})
-        if key.name in table:
+        if key.name in table and not (key.optional and table[key.name] is None):
             cfg[key.section][key.name] = _check_value(key, table[key.name])
         else:
             cfg[key.section][key.name] = list(key.default) if isinstance(key.default, list) else key.default
-    _derive_and_cross_check(cfg, given={(s, k) for s, t in raw.items() if isinstance(t, dict) for k in t})
+    given = {(s, k) for s, t in raw.items() if isinstance(t, dict) for k, v in t.items() if v is not None}
+    _derive_and_cross_check(cfg, given=given)
     return cfg
+
+
+#: The sections of an object that is off (None) while their main key is absent.
+_MAIN_KEY = {"active_region": "band", "side_walls": "width"}
 
 
 def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -> None:
@@ -393,12 +423,17 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
             f"invalid parameter `grid.length` = {grid['length']!r}: allowed a length (m) greater than "
             f"case.width = {case['width']!r} m (the gate)"
         )
-    for section, needs, what in (
-        ("active_region", "band", "the window's band of air cells (absent: the whole domain)"),
-        ("side_walls", "width", "the channel width (absent: no side walls)"),
+    for section, what in (
+        ("active_region", "the window's band of air cells (absent: the whole domain)"),
+        ("side_walls", "the channel width (absent: no side walls)"),
     ):
+        needs = _MAIN_KEY[section]
         if cfg[section][needs] is None:
-            extra = sorted(k for s_, k in given if s_ == section and k != needs)
+            extra = sorted(
+                k
+                for s_, k in given
+                if s_ == section and k != needs and cfg[section][k] != _BY_NAME[f"{section}.{k}"].default
+            )
             if extra:
                 raise ParameterError(
                     f"invalid parameter `{section}.{extra[0]}`: allowed only with `{section}.{needs}`, {what}"
@@ -504,6 +539,9 @@ def dumps(cfg: Config, header: Iterable[str] = ()) -> str:
     lines go first as comments."""
     lines = [f"# {h}" for h in header]
     for section in SECTIONS:
+        main = _MAIN_KEY.get(section)
+        if main is not None and (section not in cfg or cfg[section].get(main) is None):
+            continue  # an object that is off: its section absent
         lines += ["", f"[{section}]"] if lines else [f"[{section}]"]
         for k in (k for k in KEYS if k.section == section):
             if section not in cfg or k.name not in cfg[section] or cfg[section][k.name] is None:

@@ -158,6 +158,7 @@ Variants: Any = _options_class(
     "granrs",
 )
 
+
 def merge(numerics, objects: dict) -> dict:
     """The flat options by key: those of ``numerics`` (a ``Numerics``), then those of each object
     of ``objects`` (name → a room's object: ``TimeStepping``, ``BiProjection``, ...), which hold

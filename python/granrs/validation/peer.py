@@ -35,7 +35,6 @@ definitions do not converge (docs/validation.md, "Cross-code check: Basilisk").
 from __future__ import annotations
 
 import dataclasses
-
 import json
 import math
 import tempfile
