@@ -51,7 +51,7 @@ def run_file(tmp_path, name="run.toml", **sections) -> Path:
     """A small run file (ny = 8, t_end = 0.04 s) with the given extra tables."""
     tables = {
         "grid": {"ny": 8},
-        "numerics": {"t_end": 0.04},
+        "time": {"t_end": 0.04},
         "output": {"dir": str(tmp_path / "out"), "fields_every_s": 0.02, "animation": False},
     }
     for section, table in sections.items():

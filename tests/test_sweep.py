@@ -22,7 +22,7 @@ def base(out) -> dict:
     return resolve(
         {
             "grid": {"ny": 16},
-            "numerics": {"t_end": 0.05, "threads": 1},
+            "time": {"t_end": 0.05}, "numerics": {"threads": 1},
             "output": {"dir": str(out), "fields_every_s": 0.0, "animation": False},
         }
     )

@@ -136,7 +136,6 @@ _COLUMN_KEYS = {
     "width": "case.width",
     "fluidised": "case.fluidised",
     "pore_pressure_ratio": "case.pore_pressure_ratio",
-    "model": "case.model",
     "ny": "grid.ny",
     "t_end": "time.t_end",
     "cfl": "time.cfl",
@@ -273,10 +272,11 @@ def _run(args, parser) -> int:
         raw: dict = {}
         for name, dotted in _COLUMN_KEYS.items():
             value = getattr(args, name)
-            if value is not None and not (name == "model" and value == parser.get_default("model")):
+            if value is not None:
                 set_value(raw, dotted, value)
         case = column_case(resolve(raw))
         case.length = args.length  # None: the column's own domain (ColumnCase.domain)
+        case.model = args.model  # checked by the case: its error says there is no automatic choice
         case.validate()
         if case.model in ("two-phase", "granular"):
             lx = case.domain()[0]
@@ -448,7 +448,7 @@ def main(argv=None) -> int:
     r.add_argument(
         "--model",
         default="two-phase",
-        choices=_choices("case.model"),
+        metavar="|".join(_choices("case.model")),
         help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
         "surface at p = 0) or the depth-averaged one (docs/howto/choosing-a-model.md)",
     )

@@ -272,6 +272,38 @@ class ColumnCase:
             objs["active_region"] = self.active_region
         return objs
 
+    def with_options(self, **changes) -> ColumnCase:
+        """A copy of the case with model options changed by their schema keys
+        (``granrs.options.FLAT``: ``theta``, ``picard_tol``, ``dt``, ``proximal_restarts``, ...),
+        each in the object that holds it: the rheology's bi-projection, the clock, the active
+        region, the variants or the numerics (``threads``: the case's own). ParameterError for
+        a key that is not an option, or an option of an active region the case does not have."""
+        case = dataclasses.replace(self)
+        for key, value in changes.items():
+            s = options.spec(key)
+            if key == "threads":
+                case.threads = value
+                continue
+            holders = {
+                "time": ("time", case.time),
+                "bi_projection": ("rheology.projection", case.rheology.projection or BiProjection()),
+                "active_region": ("active_region", case.active_region),
+            }
+            name, obj = holders.get(s.room) or (
+                ("variants", case.variants) if s.group == "variant" else ("numerics", case.numerics)
+            )
+            if obj is None:
+                raise ParameterError(
+                    f"invalid parameter `{key}` = {value!r}: allowed only with an active_region=ActiveRegion(band)"
+                )
+            field_name = next(n for n, f in obj.FIELDS.items() if f.key == key)
+            obj = dataclasses.replace(obj, **{field_name: value})
+            if name == "rheology.projection":
+                case.rheology = dataclasses.replace(case.rheology, projection=obj)
+            else:
+                setattr(case, name, obj)
+        return case
+
     @property
     def column_height(self) -> float:
         return self.aspect_ratio * self.width
