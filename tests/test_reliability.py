@@ -260,6 +260,9 @@ if given is not None:
             and (value < key.hi if key.hi_open else value <= key.hi)
         )
         raw = {key.section: {key.name: value}}
+        main = {"side_walls": ("width", 0.1), "active_region": ("band", 8)}.get(key.section)
+        if main is not None and key.name != main[0]:
+            raw[key.section][main[0]] = main[1]  # the object's own key: it is off while absent
         if key.full == "grid.length":
             raw["case"] = {"width": 0.001}  # below the key's range: any length in range is beyond the gate
         try:
@@ -422,7 +425,7 @@ def test_a_disk_that_fills_during_the_run_stops_it_with_the_earlier_files_comple
     # 1.6 MiB: the probe and the first snapshots fit, the .vti files of a ny = 8 run (about 40 kB
     # each, fields every 2 ms) fill it within 0.2 s
     fs = small_fs(1600 << 10)
-    path = run_file(tmp_path, numerics={"t_end": 0.5}, output={"dir": str(fs / "run"), "fields_every_s": 0.002})
+    path = run_file(tmp_path, time={"t_end": 0.5}, output={"dir": str(fs / "run"), "fields_every_s": 0.002})
     rc, err = cli(capsys, "run", str(path), "--quiet")
     assert rc == 1 and "OutputError: cannot write" in err and "No space left on device" in err, err
     assert "files written before are kept" in err
@@ -447,7 +450,7 @@ def test_a_failing_writer_keeps_the_previous_complete_file(tmp_path, monkeypatch
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         return real(src, dst)
 
-    cfg = load_config(run_file(tmp_path, numerics={"t_end": 0.3}))
+    cfg = load_config(run_file(tmp_path, time={"t_end": 0.3}))
     monkeypatch.setattr(outputs.os, "replace", replace)
     with pytest.raises(OutputError, match="cannot write .*No space left on device.*files written before are kept"):
         run_config(cfg, progress=False)
@@ -498,7 +501,7 @@ def test_the_summary_is_written_during_the_run_with_a_truthful_stop_reason(tmp_p
         if sim.model.time > 0.15 and not seen:
             seen.append(json.loads((tmp_path / "out" / "summary.json").read_text()))
 
-    cfg = load_config(run_file(tmp_path, numerics={"t_end": 0.2}))
+    cfg = load_config(run_file(tmp_path, time={"t_end": 0.2}))
     summary = run_config(cfg, progress=False, extra_callbacks=[Callback(look, every_time=0.01)])
     # records every 0.01 s, written every 10th: the first at t = 0.09 s
     assert seen and seen[0]["stop_reason"].startswith("incomplete: written during the run at t = 0.09 s (step")
@@ -556,7 +559,7 @@ def test_an_interrupt_inside_a_record_keeps_whole_records(tmp_path, monkeypatch)
 
 
 def test_ctrl_c_prints_one_line_exits_130_and_keeps_the_last_steps(tmp_path):
-    path = run_file(tmp_path, numerics={"t_end": 5.0})
+    path = run_file(tmp_path, time={"t_end": 5.0})
     out = tmp_path / "out"
     proc = _start(tmp_path, "run", path, "--quiet")
     _wait_for(lambda: _rows(out) >= 10)
@@ -573,7 +576,7 @@ def test_ctrl_c_prints_one_line_exits_130_and_keeps_the_last_steps(tmp_path):
 
 
 def test_kill_9_then_restart_appends_to_the_same_run(tmp_path, capsys):
-    path = run_file(tmp_path, numerics={"t_end": 0.3}, output={"checkpoint_every_s": 0.05})
+    path = run_file(tmp_path, time={"t_end": 0.3}, output={"checkpoint_every_s": 0.05})
     out = tmp_path / "out"
     proc = _start(tmp_path, "run", path, "--quiet")
     _wait_for(lambda: (out / "checkpoint.npz").exists() and _rows(out) >= 10)

@@ -22,7 +22,8 @@ def base(out) -> dict:
     return resolve(
         {
             "grid": {"ny": 16},
-            "time": {"t_end": 0.05}, "numerics": {"threads": 1},
+            "time": {"t_end": 0.05},
+            "numerics": {"threads": 1},
             "output": {"dir": str(out), "fields_every_s": 0.0, "animation": False},
         }
     )

@@ -606,7 +606,7 @@ def column_case(cfg: Config) -> ColumnCase:
     walls = cfg["side_walls"]
     if walls["width"] is not None:
         angle = walls["friction_angle"] if walls["friction_angle"] is not None else case.base.friction_angle
-        case.side_walls = SideWalls(walls["width"], angle)
+        case.side_walls = SideWalls(walls["width"], 0.0 if angle is None else angle)  # a frictionless base: 0
     if cfg["active_region"]["band"] is not None:
         case.active_region = ActiveRegion(**cfg["active_region"])
     return case
