@@ -46,8 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_column
 from granrs import ActiveRegion, SideWalls
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_column
 from granrs.model import ACTIVE_REGION_SIDES
 
 #: Fronts of the members are said to have diverged once their range exceeds this fraction of

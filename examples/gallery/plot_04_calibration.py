@@ -13,13 +13,12 @@ the paper's. ``examples/calibrate_runout.py`` does the same over κ_f × η_s on
 """
 
 # %%
+import dataclasses
 import tempfile
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
-
-import dataclasses
 
 from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, column_pore_pressure, run_column
 
