@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs import PorePressure, TimeStepping
+from granrs import ActiveRegion, PorePressure, TimeStepping
 from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, jop_mu_i, run_column
 
 # variant name → ColumnCase keyword arguments (the baseline first: the finest of its runs is the
@@ -50,8 +50,8 @@ VARIANTS = {
     # the granular-only rung: no air, a free surface at p = 0 (docs/models.md)
     "granular (no air)": {"model": "granular"},
     # the active region (docs/models.md): the work restricted to the grains and a band of 8 cells
-    "D-P, active region 8": {"active_region": 8},
-    "granular, active region 8": {"model": "granular", "active_region": 8},
+    "D-P, active region 8": {"active_region": ActiveRegion(8)},
+    "granular, active region 8": {"model": "granular", "active_region": ActiveRegion(8)},
 }
 BASELINE = "D-P (default)"
 
