@@ -17,8 +17,10 @@ object             the options it holds (its room in the schema)
 =================  ============================================================================
 
 A new option declared in Rust appears in ``Numerics``, in its room's object, in the run files'
-[numerics] or [variants] section, in ``granrs keys`` and in the docs' key reference, with
-nothing written for it here.
+section of that object ([time], [bi_projection], [active_region]) or else [numerics] or
+[variants], in ``granrs keys`` and in the docs' key reference, with nothing written for it here
+(tests/test_options.py shows it). An option set both in ``Numerics`` and in the object that
+holds it is refused (:func:`merge`).
 """
 
 from __future__ import annotations

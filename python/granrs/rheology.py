@@ -3,16 +3,17 @@
 The deviatoric stress is T = 2η D(u) + τ Σ with Σ = P(Σ + r D(u)) (Aravena et al. eq. 5–7):
 
 ==================  ==========================  ==========================================
-law                 yield stress τ              viscosity of the dense phase
+law                 yield stress τ              viscosity of the dense phase (η)
 ==================  ==========================  ==========================================
-``Newtonian()``     0                           ``dense.viscosity``
-``Bingham(τ_y)``    ``yield_stress``            ``dense.viscosity``
-``DruckerPrager``   tan(``friction_angle``) p⁺  ``dense.viscosity`` (the paper's D-P model)
-``MuI``             ``mu_s`` p⁺                 ``dense.viscosity`` + (μ₂ − μ_s) p⁺ / (2|D| + (I₀/d)√(p⁺/ρ_s))
+``Newtonian()``     0                           η
+``Bingham(τ_y)``    ``yield_stress``            η
+``DruckerPrager``   tan(``friction_angle``) p⁺  η (the paper's D-P model, η_s)
+``MuI``             ``mu_s`` p⁺                 η + (μ₂ − μ_s) p⁺ / (2|D| + (I₀/d)√(p⁺/ρ_s))
 ==================  ==========================  ==========================================
 
-|D| = √(½ Σ D_ij²), so a simple shear u(y) has the shear stress η u' + τ sign(u'). p is the model
-pressure (fix its gauge with an ``Outflow`` side, as the paper's open top). Angles are in degrees.
+η is the law's ``viscosity`` where given (it must then be ``dense.viscosity``: one viscosity of the
+dense phase), else ``dense.viscosity``. |D| = √(½ Σ D_ij²), so a simple shear u(y) has the shear
+stress η u' + τ sign(u'). p is the model pressure (fix its gauge with an ``Outflow`` side, as the paper's open top). Angles are in degrees.
 How the yield stress is imposed is a numerical choice of the law's ``projection``, a
 ``granrs.BiProjection``: ``plastic="projection"`` (the bi-projection, default; ``theta``,
 ``tolerance``, ``max_iterations``, ...) or a regularisation (``"papanastasiou"``,
