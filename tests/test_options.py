@@ -359,3 +359,44 @@ def test_an_option_declared_in_rust_reaches_every_consumer():
     code = NEW_OPTION.format(ext=str(ROOT / "docs" / "_ext"))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
+
+
+def test_an_option_set_in_two_places_is_refused_naming_both():
+    grid, dense = granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0)
+    with pytest.raises(ParameterError, match=r"`numerics.cfl` = 0.3: also set by `time_stepping.cfl` = 0.5"):
+        granrs.Model(grid, dense, numerics=granrs.Numerics(cfl=0.3), time_stepping=granrs.TimeStepping())
+    # the same value in both places, or an object alone, is one setting
+    granrs.Model(grid, dense, numerics=granrs.Numerics(cfl=0.3), time_stepping=granrs.TimeStepping(cfl=0.3))
+    with pytest.raises(
+        ParameterError, match=r"`numerics.picard_tol` = 1e-06: also set by `rheology.projection.tolerance`"
+    ):
+        ColumnCase(numerics=granrs.Numerics(picard_tol=1e-6)).validate()
+    with pytest.raises(ParameterError, match="`rheology.viscosity` = 0.5: allowed None or the dense material's"):
+        granrs.Model(grid, dense, rheology=granrs.DruckerPrager(viscosity=0.5))
+
+
+def test_with_options_puts_each_option_into_the_object_that_holds_it():
+    case = ColumnCase().with_options(theta=0.6, picard_tol=1e-4, dt=1e-3, proximal_restarts=2, pressure_rtol=1e-9)
+    assert (case.rheology.projection.theta, case.rheology.projection.tolerance) == (0.6, 1e-4)
+    assert case.time.dt == 1e-3 and case.variants.proximal_restarts == 2 and case.numerics.pressure_rtol == 1e-9
+    assert ColumnCase().rheology.projection.theta == 0.8  # the original is unchanged
+    with pytest.raises(ParameterError, match="`active_region_sides`.*only with an active_region"):
+        ColumnCase().with_options(active_region_sides="open-right")
+    with pytest.raises(ParameterError, match="`no_such_option`: not an option"):
+        ColumnCase().with_options(no_such_option=1)
+    with pytest.raises(ParameterError, match=r"`theta` = 1.5: allowed a number in \[0, 1\)"):
+        ColumnCase().with_options(theta=1.5)
+
+
+def test_the_depth_averaged_binding_takes_one_configuration_object():
+    from granrs.depth_averaged import DepthAveragedModel
+
+    defaults = _granrs.RustDepthAveraged.defaults()
+    m = DepthAveragedModel(cells=8, length=1.0)
+    assert {k: m.config[k] for k in defaults} == defaults  # the Python defaults are the Rust core's
+    with pytest.raises(ParameterError, match="`config` = cell: allowed a key .* one of cells, length"):
+        _granrs.RustDepthAveraged({"cell": 8, "length": 1.0})
+    with pytest.raises(ParameterError, match="`cells`"):
+        _granrs.RustDepthAveraged({"length": 1.0})
+    with pytest.raises(ParameterError, match="`cfl`"):
+        _granrs.RustDepthAveraged({"cells": 8, "length": 1.0, "cfl": 0.9})

@@ -326,10 +326,15 @@ class ColumnCase:
 
     def summary(self) -> dict:
         """The case as plain data (summary.json's "case"): the scene's fields and each object's
-        fields, the rheology with its law's name."""
+        fields, the rheology with its law's name; a non-finite number as its string."""
+        def plain(v):  # JSON has no infinity: an unbounded option (time.max_dt) reads "inf"
+            if isinstance(v, dict):
+                return {k: plain(x) for k, x in v.items()}
+            return str(v) if isinstance(v, float) and not math.isfinite(v) else v
+
         d = dataclasses.asdict(self)
         d["rheology"] = {"law": self.rheology.spec()[0], **d["rheology"]}
-        return d
+        return plain(d)
 
     def domain(self) -> tuple[float, float]:
         """(length, height): height 1.125 H_c (the paper's 0.45 m), length L_c + 8.25 H_c (3.5 m
