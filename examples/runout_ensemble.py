@@ -151,7 +151,7 @@ def main() -> None:
         dest="channel_width",
         type=float,
         default=None,
-        help="the friction of side walls this far apart (m; ColumnCase.channel_width; not in the paper's model)",
+        help="the friction of side walls this far apart (m; SideWalls(W, the base's angle); not in the paper's model)",
     )
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default=None)
