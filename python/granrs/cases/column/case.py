@@ -327,6 +327,7 @@ class ColumnCase:
     def summary(self) -> dict:
         """The case as plain data (summary.json's "case"): the scene's fields and each object's
         fields, the rheology with its law's name; a non-finite number as its string."""
+
         def plain(v):  # JSON has no infinity: an unbounded option (time.max_dt) reads "inf"
             if isinstance(v, dict):
                 return {k: plain(x) for k, x in v.items()}
