@@ -13,13 +13,14 @@ def warm_column_model(args: argparse.Namespace):
     """The column's Rust model of ``args`` (ny, threads, model, dry, active_region, sides),
     advanced by ``args.warmup`` steps. Refuses a debug build."""
     import granrs
+    from granrs import ActiveRegion
     from granrs.cases.column import ColumnCase, build_model
 
     if granrs.build_info()["profile"] != "release":
         raise SystemExit("benchmarks need a release build (make install builds one)")
     kw = dict(ny=args.ny, threads=args.threads, model=args.model, fluidised=not args.dry)
     if args.active_region is not None:
-        kw.update(active_region=args.active_region, active_region_sides=args.sides)
+        kw.update(active_region=ActiveRegion(args.active_region, sides=args.sides))
     m = build_model(ColumnCase(**kw))
     m.advance(max_steps=args.warmup)
     return m

@@ -75,11 +75,13 @@ def window_cost(ny: int, length: float, model: str, band: int | None, steps: int
                 sides: str = "walls") -> dict:
     """Cost per step of the column's steps 11–30 on a channel of `length` m: with the active
     region the cost should follow the granular area (fixed here), not the domain."""
+    from granrs import ActiveRegion
     from granrs.cases.column import ColumnCase, build_model
 
     times = []
     for _ in range(repeats):
-        m = build_model(ColumnCase(ny=ny, length=length, model=model, active_region=band, active_region_sides=sides))
+        region = None if band is None else ActiveRegion(band, sides=sides)
+        m = build_model(ColumnCase(ny=ny, length=length, model=model, active_region=region))
         m.advance(max_steps=10)
         t0 = time.perf_counter()
         m.advance(max_steps=steps)

@@ -20,7 +20,7 @@ steps), ``no-mass-correction``, ``redistance-50`` (redistancing every 50 steps),
 column's ``interface_yield`` choices ``density-support`` and ``granular-side``, and
 ``theta-0.3`` and ``theta-0.1`` (θ in eq. 12 instead of the column's 0.8), and ``proximal-5``,
 ``proximal-20`` (that many proximal restarts of the anchor Σⁿ per step,
-``ColumnCase(proximal_restarts=N)``); ``proximal-20-anderson-5`` (the same with Anderson mixing
+``ColumnCase().with_options(proximal_restarts=N)``); ``proximal-20-anderson-5`` (the same with Anderson mixing
 of depth 5, ``Numerics(anderson_depth=5)``) and that one combined with no mass correction,
 redistancing every 50 steps or never, and ``density-support``; ``uzawa-anderson-10`` (θ = 0,
 whose fixed point is eq. 11 itself, with Anderson mixing of depth 10) and
@@ -42,14 +42,13 @@ from __future__ import annotations
 
 import argparse
 import csv
-import dataclasses
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from granrs.cases.column import ColumnCase, build as col, build_model, front_position, surface_profile
+from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, thickness_front, volume_profile
 
 VARIANTS = {
@@ -99,23 +98,10 @@ VARIANTS = {
 
 
 def build(case: ColumnCase, numerics: dict):
-    """build_model with the Numerics fields of ``numerics`` replaced (the ColumnCase fields of
-    ``numerics["case"]`` replaced in the case)."""
+    """build_model with the options of ``numerics`` (and of ``numerics["case"]``) changed by their
+    schema keys, each in the case's object that holds it (``ColumnCase.with_options``)."""
     numerics = dict(numerics)
-    case = dataclasses.replace(case, **numerics.pop("case", {}))
-    if not numerics:
-        return build_model(case)
-    original = col.Numerics
-
-    def patched(**kw):
-        kw.update(numerics)
-        return original(**kw)
-
-    col.Numerics = patched
-    try:
-        return build_model(case)
-    finally:
-        col.Numerics = original
+    return build_model(case.with_options(**numerics.pop("case", {}), **numerics))
 
 
 def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) -> dict:

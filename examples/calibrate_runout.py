@@ -33,12 +33,12 @@ def main() -> None:
 
     cfg = load_config(
         "examples/paper_fluidised.toml",
-        [f"grid.ny={args.ny}", f"numerics.t_end={args.t_end}", "output.fields_every_s=0", "output.animation=false"],
+        [f"grid.ny={args.ny}", f"time.t_end={args.t_end}", "output.fields_every_s=0", "output.animation=false"],
     )
     t0 = time.perf_counter()
     result = run_sweep(
         cfg,
-        [f"materials.diffusivity={args.kappa}", f"materials.granular_viscosity={args.eta}"],
+        [f"pore_pressure.diffusivity={args.kappa}", f"rheology.viscosity={args.eta}"],
         workers=args.workers,
         out=args.out,
     )
@@ -50,7 +50,7 @@ def main() -> None:
     print(f"{'kappa_f':>8} {'eta_s':>6} {'status':>7} {'t (s)':>6} {'run-out (m)':>11}  stop reason")
     for r in result.table:
         print(
-            f"{r['materials.diffusivity']:8.3g} {r['materials.granular_viscosity']:6.3g} {r['status']:>7} "
+            f"{r['pore_pressure.diffusivity']:8.3g} {r['rheology.viscosity']:6.3g} {r['status']:>7} "
             f"{r['t_end_s']:6.3f} {r['runout_m']:11.4f}  {r['stop_reason'][:70]}"
         )
     finished = [r for r in result.table if r["status"] == "ok"]
@@ -63,7 +63,7 @@ def main() -> None:
         best = min(finished, key=lambda r: abs(r["runout_m"] - PAPER_RUNOUT_EXP))
         print(
             f"\nclosest to the experiment ({PAPER_RUNOUT_EXP} m) among {len(finished)} finished members: "
-            f"kappa_f = {best['materials.diffusivity']:g} m2/s, eta_s = {best['materials.granular_viscosity']:g} Pa s, "
+            f"kappa_f = {best['pore_pressure.diffusivity']:g} m2/s, eta_s = {best['rheology.viscosity']:g} Pa s, "
             f"run-out {best['runout_m']:.4f} m (misfit {best['runout_m'] - PAPER_RUNOUT_EXP:+.4f} m) on a coarse "
             f"ny = {args.ny} grid; the best point of a {len(result.table)}-point grid, not an optimum."
         )

@@ -11,18 +11,19 @@ and one JSON line per run on stdout (run-out, largest front, wall time).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
 import granrs.cases.column as column
-import granrs.cases.column.build as build
+from granrs import CoulombWall
 
 VARIANTS = {
     "baseline": ({}, {}),
-    "theta05": ({"theta": 0.5}, {}),
-    "eta1": ({"granular_viscosity": 1.0}, {}),
+    "theta05": ({}, {"theta": 0.5}),
+    "eta1": ({"rheology": dataclasses.replace(column.column_rheology(), viscosity=1.0)}, {}),
     "eps1": ({}, {"interface_width": 1.0}),
-    "wall27": ({"wall_friction_angle": 27.0}, {}),
+    "wall27": ({"base": CoulombWall(27.0)}, {}),
 }
 
 
@@ -32,23 +33,12 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", help="variant names (default: all)")
     ap.add_argument("--out", default="out/variants")
     args = ap.parse_args()
-    original = build.Numerics
-    for name, (case_changes, numerics_changes) in VARIANTS.items():
+    for name, (case_changes, option_changes) in VARIANTS.items():
         if args.only and name not in args.only:
             continue
-
-        def numerics(**kw):
-            if args.dt > 0:
-                kw["dt"] = args.dt
-            kw.update(numerics_changes)  # noqa: B023 (called within this iteration)
-            return original(**kw)
-
-        build.Numerics = numerics  # build_model reads the name from its module
-        try:
-            case = column.ColumnCase(ny=32, fluidised=False, **case_changes)
-            s = column.run_column(case, Path(args.out) / name, progress=False)
-        finally:
-            build.Numerics = original
+        fixed = {"dt": args.dt} if args.dt > 0 else {}
+        case = column.ColumnCase(ny=32, fluidised=False, **case_changes).with_options(**fixed, **option_changes)
+        s = column.run_column(case, Path(args.out) / name, progress=False)
         print(
             json.dumps({"variant": name, **{k: s[k] for k in ("runout_m", "max_front_m", "wall_s", "steps")}}),
             flush=True,

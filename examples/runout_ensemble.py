@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from granrs import ActiveRegion, SideWalls
 from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_column
 from granrs.model import ACTIVE_REGION_SIDES
 
@@ -135,19 +136,22 @@ def main() -> None:
         "--active-region-sides",
         default="walls",
         choices=ACTIVE_REGION_SIDES,
-        help="the window's right and top sides (ColumnCase.active_region_sides)",
+        help="the window's right and top sides (ActiveRegion.sides)",
     )
     ap.add_argument("--dry", action="store_true")
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument(
-        "--theta", type=float, default=None, help="the Picard relaxation θ of eq. (12) (ColumnCase.theta; default 0.8)"
+        "--theta",
+        type=float,
+        default=None,
+        help="the Picard relaxation θ of eq. (12) (BiProjection.theta; the column's 0.8)",
     )
     ap.add_argument(
         "--channel-width",
         dest="channel_width",
         type=float,
         default=None,
-        help="the friction of side walls this far apart (m; ColumnCase.channel_width; not in the paper's model)",
+        help="the friction of side walls this far apart (m; SideWalls(W, the base's angle); not in the paper's model)",
     )
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", default=None)
@@ -170,20 +174,21 @@ def main() -> None:
     out = Path(args.out or f"out/ensemble-{tag}")
     out.mkdir(parents=True, exist_ok=True)
 
-    extra = {
-        k: v
-        for k, v in (("t_end", args.t_end), ("theta", args.theta), ("channel_width", args.channel_width))
-        if v is not None
-    }
     base = ColumnCase(
         ny=args.ny,
         fluidised=not args.dry,
         model=args.model,
-        active_region=args.active_region,
-        active_region_sides=args.active_region_sides,
+        active_region=None
+        if args.active_region is None
+        else ActiveRegion(args.active_region, sides=args.active_region_sides),
         threads=args.threads,
-        **extra,
     )
+    if args.t_end is not None:
+        base.t_end = args.t_end
+    if args.theta is not None:
+        base = base.with_options(theta=args.theta)
+    if args.channel_width is not None:
+        base.side_walls = SideWalls(args.channel_width, base.base.friction_angle)
     rows, curves = [], []
     for k in range(args.members):
         folder = out / f"member-{k}"

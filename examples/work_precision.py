@@ -33,15 +33,16 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, run_column
+from granrs import ActiveRegion, PorePressure, TimeStepping
+from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, jop_mu_i, run_column
 
 # variant name → ColumnCase keyword arguments (the baseline first: the finest of its runs is the
 # reference). Models and methods that granrs offers for this scene.
 VARIANTS = {
     "D-P (default)": {},
-    "mu(I)": {"rheology": "mu-i"},
-    "D-P, CFL 0.25": {"cfl": 0.25},
-    "D-P, p_f kappa-infinity": {"pore_formulation": "kappa-infinity"},
+    "mu(I)": {"rheology": jop_mu_i(27.0, grain_diameter=75e-6, grain_density=2500.0, viscosity=0.1)},
+    "D-P, CFL 0.25": {"time": TimeStepping(cfl=0.25)},
+    "D-P, p_f kappa-infinity": {"pore_pressure": PorePressure(0.035, kappa_air=1e8, formulation="kappa-infinity")},
     # the depth-averaged rung of the model ladder (docs/models.md); "ny" sets its cells per column
     # width in proportion (ColumnCase.da_resolution is left at its default: its run-out changes by
     # < 1 % with Δx/2)
@@ -49,8 +50,8 @@ VARIANTS = {
     # the granular-only rung: no air, a free surface at p = 0 (docs/models.md)
     "granular (no air)": {"model": "granular"},
     # the active region (docs/models.md): the work restricted to the grains and a band of 8 cells
-    "D-P, active region 8": {"active_region": 8},
-    "granular, active region 8": {"model": "granular", "active_region": 8},
+    "D-P, active region 8": {"active_region": ActiveRegion(8)},
+    "granular, active region 8": {"model": "granular", "active_region": ActiveRegion(8)},
 }
 BASELINE = "D-P (default)"
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from granrs import ParameterError, SimulationError
+from granrs import ActiveRegion, ParameterError, SideWalls, SimulationError, TimeStepping, Variants
 from granrs.cases.column import (
     PAPER_RUNOUT_SIM,
     ColumnCase,
@@ -180,7 +180,7 @@ def test_proximal_restarts_bring_the_column_to_rest(tmp_path, fluidised):
     columns come to rest under the documented criterion, measured at 1.92 s (fluidised) and
     1.93 s (dry), before the 2.5 s asked of them; the dry front then lies 2.2 mm behind its
     largest value, within one cell (28 mm). The defaults (no restarts) run to t_end."""
-    case = ColumnCase(ny=16, fluidised=fluidised, proximal_restarts=5)
+    case = ColumnCase(ny=16, fluidised=fluidised, variants=Variants(proximal_restarts=5))
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] < 2.5, (s["stop_reason"], s["arrest_time_s"])
     assert s["final_granular_speed_m_s"] < case.rest_speed
@@ -255,37 +255,38 @@ def test_far_end_is_an_error_with_outputs_kept(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "field,value",
+    "field,make",
     [
-        ("ny", 4),
-        ("aspect_ratio", -1.0),
-        ("pore_pressure_ratio", 1.5),
-        ("cfl", 0.0),
-        ("rheology", "bingham"),
-        ("r_neighbourhood", 5),
-        ("r_neighbourhood", -1),
-        ("sigma_location", "nodes"),
-        ("proximal_restarts", -1),
-        ("proximal_restarts", 2.0),
+        ("ny", lambda: ColumnCase(ny=4)),
+        ("aspect_ratio", lambda: ColumnCase(aspect_ratio=-1.0)),
+        ("pore_pressure_ratio", lambda: ColumnCase(pore_pressure_ratio=1.5)),
+        ("cfl", lambda: ColumnCase(time=TimeStepping(cfl=0.0))),
+        ("rheology", lambda: ColumnCase(rheology="bingham")),
+        ("r_neighbourhood", lambda: ColumnCase(variants=Variants(r_neighbourhood=5))),
+        ("r_neighbourhood", lambda: ColumnCase(variants=Variants(r_neighbourhood=-1))),
+        ("sigma_location", lambda: ColumnCase(variants=Variants(sigma_location="nodes"))),
+        ("proximal_restarts", lambda: ColumnCase(variants=Variants(proximal_restarts=-1))),
+        ("proximal_restarts", lambda: ColumnCase(variants=Variants(proximal_restarts=2.0))),
     ],
 )
-def test_bad_parameters_name_themselves(tmp_path, field, value):
+def test_bad_parameters_name_themselves(tmp_path, field, make):
+    # an object's bad option is refused when the object is made, a scene's when the case is run
     with pytest.raises(ParameterError, match=f"`{field}`"):
-        run_column(ColumnCase(**{field: value}), tmp_path, progress=False)
+        run_column(make(), tmp_path, progress=False)
 
 
 @pytest.mark.parametrize(
     "kwargs,name",
     [
-        (dict(channel_width=0.0), "channel_width"),
-        (dict(channel_width=0.1, side_wall_friction_angle=95.0), "side_wall_friction_angle"),
-        (dict(side_wall_friction_angle=15.0), "side_wall_friction_angle"),
-        (dict(channel_width=0.1, model="depth-averaged"), "channel_width"),
+        (lambda: dict(side_walls=SideWalls(0.0, 15.0)), "side_walls.width"),
+        (lambda: dict(side_walls=SideWalls(0.1, 95.0)), "side_walls.friction_angle"),
+        (lambda: dict(side_walls=(0.1, 15.0)), "side_walls"),
+        (lambda: dict(side_walls=SideWalls(0.1, 15.0), model="depth-averaged"), "side_walls"),
     ],
 )
 def test_bad_side_walls_name_themselves(tmp_path, kwargs, name):
     with pytest.raises(ParameterError, match=f"`{name}`"):
-        run_column(ColumnCase(**kwargs), tmp_path, progress=False)
+        run_column(ColumnCase(**kwargs()), tmp_path, progress=False)
 
 
 @pytest.mark.parametrize("fluidised", [True, False])
@@ -295,7 +296,7 @@ def test_side_wall_runouts_match_the_stored_reference(tmp_path, fluidised):
     3 std (members 1.792–1.832 m fluidised, std 0.014; 0.774–0.808 m dry, std 0.012), the front at
     t = 1.0 s, identical in every member, within 1 % (the ensemble script's divergence threshold)."""
     ref = _ensemble(32, fluidised, 0.1)
-    s = run_column(ColumnCase(ny=32, fluidised=fluidised, channel_width=0.1), tmp_path, progress=False)
+    s = run_column(ColumnCase(ny=32, fluidised=fluidised, side_walls=SideWalls(0.1, 15.0)), tmp_path, progress=False)
     assert abs(s["runout_m"] - ref["runout_mean_m"]) <= 3 * ref["runout_std_m"], (s["runout_m"], ref)
     assert abs(_front_at(tmp_path, 1.0) / ref["front_1s_mean_m"] - 1) < 0.01
 
@@ -306,7 +307,7 @@ def test_side_walls_shorten_the_column_and_take_their_share_of_gravitys_work(tmp
     (docs/validation.md, "The channel's side walls"), the run-out falls from 2.116 to 1.470 m
     (−31 %, against the ±1 % round-off scatter of this grid) and the walls take 0.28 of gravity's
     work, while the discretisation's share stays that of the 2D run (0.16 against 0.20)."""
-    walls = run_column(ColumnCase(ny=16, channel_width=0.1), tmp_path / "walls", progress=False)
+    walls = run_column(ColumnCase(ny=16, side_walls=SideWalls(0.1, 15.0)), tmp_path / "walls", progress=False)
     plain = run_column(ColumnCase(ny=16), tmp_path / "plain", progress=False)
     assert walls["channel_width_m"] == 0.1 and walls["side_wall_friction_angle"] == 15.0
     assert plain["channel_width_m"] is None and plain["energy"]["side_walls"] == 0.0
@@ -410,24 +411,20 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
 
 
 @pytest.mark.slow
-def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path, monkeypatch):
+def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path):
     """docs/validation.md, "The step size and the band under the surface": at ny = 16, with the
     plastic projection's r taken from each cell's own faces (r_neighbourhood = 0), the adaptive
     step (CFL 0.5, ~880 steps) runs out as far as a fixed δt = 1e-4 s (30 000 steps) to within
     the δt trend measured between 1e-4 and 1e-5 s (2.0 %: 2.154 ± 0.022 m, 8 members, against 2.197 m);
     with the option r_neighbourhood = 2 the adaptive run-out is 26 % short of
     its own δt = 1e-4 s run (1.52 against 2.05 m). About 2 min on one core."""
-    import functools
 
-    import granrs.cases.column.build as build
+    def case(w, **time):
+        return ColumnCase(ny=16, variants=Variants(r_neighbourhood=w), time=TimeStepping(**time))
 
-    adaptive = {w: run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"a{w}", progress=False) for w in (0, 2)}
-    # a fixed step: build_model reads Numerics from its module
-    monkeypatch.setattr(build, "Numerics", functools.partial(build.Numerics, dt=1e-4))
+    adaptive = {w: run_column(case(w), tmp_path / f"a{w}", progress=False) for w in (0, 2)}
     out = {
-        w: adaptive[w]["runout_m"]
-        / run_column(ColumnCase(ny=16, r_neighbourhood=w), tmp_path / f"f{w}", progress=False)["runout_m"]
-        - 1.0
+        w: adaptive[w]["runout_m"] / run_column(case(w, dt=1e-4), tmp_path / f"f{w}", progress=False)["runout_m"] - 1.0
         for w in (0, 2)
     }
     # w = 0: −2.0 % measured (8-member adaptive mean −2.0 ± 1.0 %); 4 % leaves room for its
@@ -447,7 +444,7 @@ def test_active_region_runs_the_column_on_a_window(tmp_path, sides):
 
     fronts = {}
     for band in (None, 8):
-        m = build_model(ColumnCase(ny=16, active_region=band, active_region_sides=sides))
+        m = build_model(ColumnCase(ny=16, active_region=None if band is None else ActiveRegion(band, sides=sides)))
         m._rust.advance(0.3, None)
         fronts[band] = front_position(m.phi, m.grid.dx)
         assert m.phi.shape == (16, 128)
@@ -471,19 +468,19 @@ def test_open_window_sides_are_refused_for_the_granular_only_model(tmp_path, sid
     refused by the Rust core, with the parameter named."""
     with pytest.raises(ParameterError, match="`active_region_sides`.*granular-only"):
         run_column(
-            ColumnCase(ny=16, model="granular", active_region=8, active_region_sides=sides), tmp_path, progress=False
+            ColumnCase(ny=16, model="granular", active_region=ActiveRegion(8, sides=sides)), tmp_path, progress=False
         )
 
 
 def test_active_region_sides_bad_value_names_itself(tmp_path):
-    with pytest.raises(ParameterError, match="`active_region_sides`.*'walls', 'open-right', 'open-right-top'"):
-        run_column(ColumnCase(ny=16, active_region=8, active_region_sides="outflow"), tmp_path, progress=False)
+    with pytest.raises(ParameterError, match="`sides`.*'walls', 'open-right', 'open-right-top'"):
+        run_column(ColumnCase(ny=16, active_region=ActiveRegion(8, sides="outflow")), tmp_path, progress=False)
 
 
 @pytest.mark.parametrize("value", [1, 2.5, True])
 def test_active_region_bad_band_names_itself(tmp_path, value):
-    with pytest.raises(ParameterError, match="`active_region`"):
-        run_column(ColumnCase(ny=16, active_region=value), tmp_path, progress=False)
+    with pytest.raises(ParameterError, match="`band`"):
+        run_column(ColumnCase(ny=16, active_region=ActiveRegion(value)), tmp_path, progress=False)
 
 
 def test_active_region_refused_for_a_single_phase_model():
@@ -495,7 +492,7 @@ def test_active_region_refused_for_a_single_phase_model():
 
 def test_wall_normal_stress_choice_names_itself(tmp_path):
     with pytest.raises(ParameterError, match="`wall_normal_stress`"):
-        run_column(ColumnCase(ny=16, wall_normal_stress="effective"), tmp_path, progress=False)
+        run_column(ColumnCase(ny=16, variants=Variants(wall_normal_stress="effective")), tmp_path, progress=False)
     from granrs import Grid, Material, Model, Numerics
 
     with pytest.raises(ParameterError, match="wall_normal_stress"):
@@ -596,7 +593,7 @@ def test_energy_budget_of_the_active_region_matches_the_whole_domain():
 
     budgets = {}
     for band, threads in ((None, 1), (8, 1), (None, 2)):
-        m = build_model(ColumnCase(ny=16, active_region=band, threads=threads))
+        m = build_model(ColumnCase(ny=16, active_region=None if band is None else ActiveRegion(band), threads=threads))
         m._rust.advance(0.3, None)
         budgets[(band, threads)] = m.energy_budget()
     whole, window, parallel = budgets[(None, 1)], budgets[(8, 1)], budgets[(None, 2)]

@@ -40,38 +40,38 @@ def test_round_trip_load_resolve_write_load(tmp_path, path):
 
 def test_defaults_are_the_papers_case_and_resolve_every_key():
     cfg = resolve({})
-    assert all(cfg[k.section][k.name] is not None for k in KEYS)
-    assert cfg["grid"]["length"] == 3.5 and cfg["materials"]["diffusivity"] == 0.035
+    assert all((cfg[k.section][k.name] is None) == k.optional for k in KEYS)  # absent: None
+    assert cfg["grid"]["length"] == 3.5 and cfg["pore_pressure"]["diffusivity"] == 0.035
     case = column_case(cfg)
     case.validate()
     assert case == ColumnCase(length=3.5) and case.grid().nx == ColumnCase().grid().nx
 
 
 def test_integers_are_accepted_for_float_keys_and_written_as_floats():
-    cfg = resolve({"case": {"width": 1}, "numerics": {"t_end": 2}})
+    cfg = resolve({"case": {"width": 1}, "time": {"t_end": 2}})
     assert cfg["case"]["width"] == 1.0 and isinstance(cfg["case"]["width"], float)
     assert "t_end = 2.0" in dumps(cfg)
 
 
 def test_sets_are_parsed_as_toml_scalars():
     raw = apply_sets(
-        {"numerics": {"cfl": 0.5}},
+        {"time": {"cfl": 0.5}},
         [
-            "numerics.cfl=0.3",
+            "time.cfl=0.3",
             "case.fluidised=false",
-            "case.rheology=mu-i",
+            "rheology.law=mu-i",
             'output.formats=["netcdf"]',
             'output.dir="out/x y"',
         ],
     )
     cfg = resolve(raw)
-    assert cfg["numerics"]["cfl"] == 0.3 and cfg["case"]["fluidised"] is False
-    assert cfg["case"]["rheology"] == "mu-i" and cfg["output"]["formats"] == ["netcdf"]
+    assert cfg["time"]["cfl"] == 0.3 and cfg["case"]["fluidised"] is False
+    assert cfg["rheology"]["law"] == "mu-i" and cfg["output"]["formats"] == ["netcdf"]
     assert cfg["output"]["dir"] == "out/x y"
     assert parse_scalar("1e-3") == 1e-3 and parse_scalar("7") == 7
 
 
-@pytest.mark.parametrize("bad", ["numerics.cfll=0.3", "nosection.cfl=1", "cfl=0.3", "numerics.cfl"])
+@pytest.mark.parametrize("bad", ["numerics.cfll=0.3", "nosection.cfl=1", "cfl=0.3", "time.cfl"])
 def test_bad_sets_are_rejected(bad):
     with pytest.raises(ParameterError, match="invalid parameter"):
         apply_sets({}, [bad])
@@ -80,30 +80,30 @@ def test_bad_sets_are_rejected(bad):
 MALFORMED = [
     ("[numerix]\ncfl = 0.5", "`numerix`", "unknown section"),
     ("[numerics]\ncfll = 0.5", "`numerics.cfll`", "unknown key"),
-    ("[numerics]\ncfl = 0", "`numerics.cfl`", "[1e-6, 2]"),
-    ("[numerics]\ncfl = 2.5", "`numerics.cfl`", "a number in"),
-    ('[numerics]\ncfl = "0.5"', "`numerics.cfl`", "a number in"),
-    ("[numerics]\ncfl = true", "`numerics.cfl`", "a number in"),
-    ("[numerics]\ncfl = nan", "`numerics.cfl`", "a number in"),
-    ("[numerics]\nt_end = inf", "`numerics.t_end`", "(s)"),
-    ("[numerics]\nt_end = -1.0", "`numerics.t_end`", "(s)"),
+    ("[time]\ncfl = 0", "`time.cfl`", "[1e-6, 2]"),
+    ("[time]\ncfl = 2.5", "`time.cfl`", "a number in"),
+    ('[time]\ncfl = "0.5"', "`time.cfl`", "a number in"),
+    ("[time]\ncfl = true", "`time.cfl`", "a number in"),
+    ("[time]\ncfl = nan", "`time.cfl`", "a number in"),
+    ("[time]\nt_end = inf", "`time.t_end`", "(s)"),
+    ("[time]\nt_end = -1.0", "`time.t_end`", "(s)"),
     ("[grid]\nny = 16.0", "`grid.ny`", "an integer in [8, 4096]"),
     ("[grid]\nny = 4", "`grid.ny`", "an integer in [8, 4096]"),
     ("[grid]\nny = true", "`grid.ny`", "an integer"),
     ("[grid]\nlength = 0.1", "`grid.length`", "greater than case.width"),
     ("[numerics]\nthreads = 0", "`numerics.threads`", "[1, 1024]"),
-    ("[numerics]\ntheta = 1.0", "`numerics.theta`", "[0, 1)"),
-    ("[numerics]\npicard_tol = 0.0", "`numerics.picard_tol`", "a number in"),
+    ("[bi_projection]\ntheta = 1.0", "`bi_projection.theta`", "[0, 1)"),
+    ("[bi_projection]\ntolerance = 0.0", "`bi_projection.tolerance`", "a number in"),
     ('[case]\nname = "dam-break"', "`case.name`", "'column'"),
-    ('[case]\nrheology = "bingham"', "`case.rheology`", "'drucker-prager', 'mu-i'"),
+    ('[rheology]\nlaw = "bingham"', "`rheology.law`", "'drucker-prager', 'mu-i'"),
     ('[case]\nfluidised = "yes"', "`case.fluidised`", "true or false"),
     ("[case]\npore_pressure_ratio = 1.2", "`case.pore_pressure_ratio`", "[0, 1]"),
     ("[case]\nwidth = 0", "`case.width`", "(m)"),
     ("[case]\naspect_ratio = 50", "`case.aspect_ratio`", "[0.1, 20]"),
     ("[materials]\nsolid_fraction = 0.9", "`materials.solid_fraction`", "[0.01, 0.74]"),
-    ("[materials]\nfriction_angle = 90", "`materials.friction_angle`", "(degree)"),
-    ("[materials]\ndiffusivity = 0", "`materials.diffusivity`", "(m2 s-1)"),
-    ("[materials]\ngranular_viscosity = -0.1", "`materials.granular_viscosity`", "(Pa s)"),
+    ("[rheology]\nfriction_angle = 90", "`rheology.friction_angle`", "(degree)"),
+    ("[pore_pressure]\ndiffusivity = 0", "`pore_pressure.diffusivity`", "(m2 s-1)"),
+    ("[rheology]\nviscosity = -0.1", "`rheology.viscosity`", "(Pa s)"),
     ("[materials]\ngrain_density = [2500]", "`materials.grain_density`", "(kg m-3)"),
     ("[materials]\ngrain_diameter = 1.0", "`materials.grain_diameter`", "(m)"),
     ('[output]\nformats = ["vtk", "hdf5"]', "`output.formats`", "'vtk', 'netcdf'"),
@@ -112,10 +112,10 @@ MALFORMED = [
     ("[output]\nfields_every_s = -0.1", "`output.fields_every_s`", "(s)"),
     ("[output]\nfields_every_s = 0.0\nanimation = true", "`output.animation`", "fields_every_s > 0"),
     ('[output]\ndir = ""', "`output.dir`", "non-empty string"),
-    ("[numerics]\nstep_retries = 21", "`numerics.step_retries`", "[0, 20]"),
+    ("[time]\nstep_retries = 21", "`time.step_retries`", "[0, 20]"),
     ("numerics = 3", "`numerics`", "a table"),
     ("[numerics.extra]\na = 1", "`numerics.extra`", "unknown key"),
-    ("[numerics]\ncfl = ", "", "not valid TOML"),
+    ("[time]\ncfl = ", "", "not valid TOML"),
 ]
 
 
@@ -147,7 +147,7 @@ def test_cli_runs_a_file_with_sets_and_writes_the_resolved_configuration(tmp_pat
         "--set",
         "grid.ny=16",
         "--set",
-        "numerics.t_end=0.04",
+        "time.t_end=0.04",
         "--set",
         "output.fields_every_s=0.02",
         "--set",
@@ -166,7 +166,7 @@ def test_cli_runs_a_file_with_sets_and_writes_the_resolved_configuration(tmp_pat
         EXAMPLES / "paper_fluidised.toml",
         [
             "grid.ny=16",
-            "numerics.t_end=0.04",
+            "time.t_end=0.04",
             "output.fields_every_s=0.02",
             'output.formats=["vtk"]',
             "output.animation=false",
@@ -180,14 +180,14 @@ def test_cli_runs_a_file_with_sets_and_writes_the_resolved_configuration(tmp_pat
 def test_cli_rejects_a_bad_file_before_any_work(tmp_path):
     out = tmp_path / "never"
     path = tmp_path / "bad.toml"
-    path.write_text(f'[numerics]\ncfl = 2.5\n[output]\ndir = "{out}"\n')
+    path.write_text(f'[time]\ncfl = 2.5\n[output]\ndir = "{out}"\n')
     r = cli("run", str(path))
-    assert r.returncode == 2 and "`numerics.cfl`" in r.stderr and "[1e-6, 2]" in r.stderr
+    assert r.returncode == 2 and "`time.cfl`" in r.stderr and "[1e-6, 2]" in r.stderr
     assert not out.exists()
     r = cli("run", str(EXAMPLES / "paper_dry.toml"), "--ny", "16")
     assert r.returncode == 2 and "--set" in r.stderr
-    r = cli("run", str(EXAMPLES / "paper_dry.toml"), "--set", "materials.friction_angle=95", "--out", str(out))
-    assert r.returncode == 2 and "`materials.friction_angle`" in r.stderr and not out.exists()
+    r = cli("run", str(EXAMPLES / "paper_dry.toml"), "--set", "rheology.friction_angle=95", "--out", str(out))
+    assert r.returncode == 2 and "`rheology.friction_angle`" in r.stderr and not out.exists()
 
 
 def test_no_saved_fields_turns_the_default_animation_off():

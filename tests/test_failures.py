@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import granrs
-from granrs import Simulation, SimulationError
+from granrs import BiProjection, DruckerPrager, Simulation, SimulationError, Variants
 from granrs.cases.column import ColumnCase, run_column
 from granrs.validation import run_case
 from granrs.validation.pore_pressure import pore_diffusion_error
@@ -174,7 +174,14 @@ def test_failed_column_run_keeps_summary_and_front(tmp_path):
     # (increment 2.1e-8, t = 5.9 ms). With w = 0 the same run converges.
     with pytest.raises(SimulationError, match="Picard iteration .* did not converge.*outputs written to"):
         run_column(
-            ColumnCase(ny=16, t_end=0.3, theta=0.0, picard_tol=1e-8, r_neighbourhood=2), tmp_path, progress=False
+            ColumnCase(
+                ny=16,
+                t_end=0.3,
+                rheology=DruckerPrager(viscosity=0.1, projection=BiProjection(theta=0.0, tolerance=1e-8)),
+                variants=Variants(r_neighbourhood=2),
+            ),
+            tmp_path,
+            progress=False,
         )
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["stop_reason"].startswith("error:") and "Picard" in summary["stop_reason"], summary

@@ -34,7 +34,7 @@ def tiny(out, **output) -> dict:
     return resolve(
         {
             "grid": {"ny": 16},
-            "numerics": {"t_end": 0.06},
+            "time": {"t_end": 0.06},
             "output": {"dir": str(out), "fields_every_s": 0.02, "formats": ["vtk", "netcdf"], **output},
         }
     )

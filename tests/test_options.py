@@ -14,8 +14,7 @@ import pytest
 
 import granrs
 from granrs import ParameterError, _granrs, config, options
-from granrs.cases.column import ColumnCase
-from granrs.cases.column.case import COLUMN_NUMERICS
+from granrs.cases.column import ColumnCase, column_numerics, column_pore_pressure, column_rheology
 
 ROOT = Path(__file__).resolve().parent.parent
 FLAT = [s for s in options.SCHEMA if not s.object]
@@ -99,49 +98,90 @@ def test_python_defaults_agree_with_rust():
             assert getattr(p, s.key) == s.default, s.key
 
 
-#: the column's own choices, where its run-file default is not the schema's (the reasons are in
-#: granrs.cases.column's docstring and beside each field of ColumnCase)
+#: the column's own choices, where its run-file default is not the schema's: each is stated once,
+#: in the column's default objects (granrs.cases.column.column_rheology, column_numerics,
+#: column_pore_pressure, with the measured reasons in their docstrings), and the base's α_b
 COLUMN_CHOICES = {
-    "theta": 0.8,
-    "picard_tol": 1e-3,
-    "mass_correction": True,
-    "convection_scheme": "weno5",
-    "kappa_air": 1e8,
-    "friction_angle": 27.0,
-    "wall_friction_angle": 15.0,
-    "diffusivity": 0.035,
+    "bi_projection.theta": 0.8,
+    "bi_projection.tolerance": 1e-3,
+    "numerics.mass_correction": True,
+    "numerics.convection_scheme": "weno5",
+    "pore_pressure.kappa_air": 1e8,
+    "pore_pressure.diffusivity": 0.035,
+    "base.friction_angle": 15.0,
 }
+
+
+def test_the_columns_choices_are_its_default_objects():
+    case = ColumnCase()
+    assert case.rheology == column_rheology() and case.numerics == column_numerics()
+    assert case.pore_pressure == column_pore_pressure()
+    held = {
+        "bi_projection.theta": case.rheology.projection.theta,
+        "bi_projection.tolerance": case.rheology.projection.tolerance,
+        "numerics.mass_correction": case.numerics.mass_correction,
+        "numerics.convection_scheme": case.numerics.convection_scheme,
+        "pore_pressure.kappa_air": case.pore_pressure.kappa_air,
+        "pore_pressure.diffusivity": case.pore_pressure.diffusivity,
+        "base.friction_angle": case.base.friction_angle,
+    }
+    assert held == COLUMN_CHOICES
+    # every other option of the column's objects is the schema's default
+    for name, obj in case.objects().items():
+        for field, s in obj.FIELDS.items():
+            section = {"rheology.projection": "bi_projection"}.get(name, name)
+            if f"{section}.{field}" not in COLUMN_CHOICES:
+                assert getattr(obj, field) == s.default, (name, field)
 
 
 def test_every_run_file_key_of_an_option_has_the_schemas_range_and_a_stated_default():
     by_option = {}
     for k in config.KEYS:
-        if k.option is not None:
-            by_option.setdefault((k.option.room, k.option.key), []).append(k)
-            o = k.option
-            if not o.optional:
-                assert (k.lo, k.hi, k.lo_open, k.hi_open, tuple(k.choices)) == (
-                    o.lo,
-                    o.hi,
-                    o.lo_open,
-                    o.hi_open,
-                    o.choices,
-                ), k.full
-                assert k.allowed() == o.allowed
-            assert k.section == ("variants" if o.group == "variant" else k.section), k.full
-            if k.name == "active_region":
-                assert k.default == 0 and o.default is None  # 0: off, the run files' None
-            elif k.default != o.default:
-                assert COLUMN_CHOICES.get(k.name) == k.default, (
-                    f"{k.full}: default {k.default!r} is neither the schema's nor a stated column choice"
-                )
-    # every option of the model that TOML can hold is a run-file key (only the Model arguments'
-    # `air` and the options off by default, None, are not)
-    for s in FLAT:
-        if s.optional or s.key == "air":
+        if k.option is None:
             continue
-        assert (s.room, s.key) in by_option, f"option `{s.key}` has no run-file key"
-    assert COLUMN_NUMERICS.items() <= COLUMN_CHOICES.items()
+        o = k.option
+        by_option.setdefault((o.room, o.key), []).append(k)
+        assert (k.lo, k.hi, k.lo_open, k.hi_open, tuple(k.choices)) == (o.lo, o.hi, o.lo_open, o.hi_open, o.choices)
+        assert k.allowed() == o.allowed.removeprefix("None or ") + ("; absent: none" if k.optional else "")
+        if not o.object:  # a flat option: [variants] holds the group of variants, [numerics] none of them
+            assert (k.section == "variants") == (o.group == "variant"), k.full
+        if k.optional:
+            # absent: None, an option that can be off, or the main key of an object that can be absent
+            assert k.default is None and (o.optional or k.full in ("side_walls.width", "side_walls.friction_angle"))
+        elif k.default != o.default:
+            assert COLUMN_CHOICES.get(k.full) == k.default, (
+                f"{k.full}: default {k.default!r} is neither the schema's nor a stated column choice"
+            )
+    # every option of the model is a run-file key, those off by default (None) included: only the
+    # Model argument `air` (case.model) and the pore pressure's supply (the scene's) are not
+    scene = {("model", "air"), ("pore_pressure", "basal_gradient"), ("pore_pressure", "basal_x_min")}
+    scene |= {("pore_pressure", "basal_x_max")}
+    laws = {"bingham", "mu-i"}  # made from rheology.law and rheology.friction_angle (jop_mu_i)
+    for s in options.SCHEMA:
+        if (s.room, s.key) in scene or s.room in laws:
+            continue
+        assert len(by_option.get((s.room, s.key), [])) == 1, f"option `{s.room}.{s.key}` has no single run-file key"
+
+
+def test_an_absent_optional_key_is_none_and_its_section_needs_its_main_key():
+    cfg = config.resolve({})
+    assert cfg["active_region"]["band"] is None and cfg["side_walls"]["width"] is None and cfg["time"]["dt"] is None
+    case = config.column_case(cfg)
+    assert case.active_region is None and case.side_walls is None and case.time.dt is None
+    case = config.column_case(
+        config.resolve({"active_region": {"band": 8, "sides": "open-right"}, "side_walls": {"width": 0.1}})
+    )
+    assert case.active_region == granrs.ActiveRegion(8, sides="open-right")
+    assert case.side_walls == granrs.SideWalls(0.1, case.base.friction_angle)  # absent angle: the base's
+    for raw, name in (
+        ({"active_region": {"sides": "open-right"}}, "active_region.sides"),
+        ({"side_walls": {"friction_angle": 10.0}}, "side_walls.friction_angle"),
+    ):
+        with pytest.raises(ParameterError, match=f"`{name}`: allowed only with"):
+            config.resolve(raw)
+    rows = config.describe()
+    for full in ("active_region.band", "side_walls.width", "side_walls.friction_angle", "time.dt"):
+        assert any(line.startswith(f"| `{full}` |") and "| `absent` |" in line for line in rows.splitlines()), full
 
 
 def test_granrs_keys_and_the_docs_reference_show_each_option():
@@ -155,7 +195,7 @@ def test_granrs_keys_and_the_docs_reference_show_each_option():
     for k in config.KEYS:
         if k.option is None:
             continue
-        default = "derived" if k.default is None else config.toml_value(k.default)
+        default = ("absent" if k.optional else "derived") if k.default is None else config.toml_value(k.default)
         row = f"| `{k.full}` | {k.allowed()} | `{default}` |"
         assert row in table, row
         assert f"| `{k.full}` | {k.allowed().replace('|', chr(92) + '|')} | `{default}` |" in keys_md, k.full
@@ -169,7 +209,8 @@ def test_a_variant_in_numerics_names_its_section():
         config.resolve({"numerics": {"interface_yield": "paper"}})
     cfg = config.resolve({"variants": {"interface_yield": "granular-side"}, "numerics": {"pressure_rtol": 1e-9}})
     case = config.column_case(cfg)
-    assert case.interface_yield == "granular-side" and case.numerics == {"pressure_rtol": 1e-9}
+    assert case.variants.interface_yield == "granular-side" and case.numerics.pressure_rtol == 1e-9
+    assert dataclasses.replace(case.numerics, pressure_rtol=1e-8) == column_numerics()
 
 
 # ---- provenance: from the CLI flag or run-file key to the Rust use, each default and range once
@@ -185,7 +226,29 @@ CHAIN = [
     "cases/column/build.py",
     "cases/column/run.py",
     "cases/column/__init__.py",
+    "cases/column/depth_averaged.py",
+    "depth_averaged.py",
 ]
+
+
+def cli_parser_actions(cli):
+    """The actions of `granrs run`'s parser (its flags)."""
+    import argparse
+
+    captured = {}
+    real = argparse.ArgumentParser.parse_args
+
+    def grab(self, args=None, namespace=None):
+        captured["run"] = self._subparsers._group_actions[0].choices["run"]
+        raise SystemExit(0)
+
+    argparse.ArgumentParser.parse_args = grab
+    try:
+        with pytest.raises(SystemExit):
+            cli.main(["info"])
+    finally:
+        argparse.ArgumentParser.parse_args = real
+    return captured["run"]._actions
 
 
 def _python_sources():
@@ -207,13 +270,20 @@ def _count(paths, pattern):
 
 
 def test_the_friction_angle_is_declared_once():
-    # run-file key materials.friction_angle → ColumnCase.friction_angle → DruckerPrager → Rust
+    # --friction-angle → run-file key rheology.friction_angle → ColumnCase.rheology, a DruckerPrager → Rust
     # RheologyLaw::DruckerPrager: the default 27 and the range (0, 90) are written only in the
     # Rust table DRUCKER_PRAGER_OPTIONS
-    key = config.key("materials.friction_angle")
+    key = config.key("rheology.friction_angle")
     spec = options.spec("friction_angle", "drucker-prager")
     assert (key.default, key.lo, key.hi, key.lo_open, key.hi_open) == (spec.default, 0.0, 90.0, True, True)
-    assert ColumnCase().friction_angle == spec.default == granrs.DruckerPrager().friction_angle
+    assert ColumnCase().rheology.friction_angle == spec.default == granrs.DruckerPrager().friction_angle
+    from granrs import cli
+
+    flag = next(a for a in cli_parser_actions(cli) if "--friction-angle" in a.option_strings)
+    import argparse
+
+    with pytest.raises(argparse.ArgumentTypeError, match=r"`--friction-angle` = '90': allowed a number in \(0, 90\)"):
+        flag.type("90")  # the flag's range is the key's, the schema's
     rust = [
         (p, m.group(0))
         for p in _rust_sources()
@@ -247,3 +317,86 @@ def test_the_provenance_checks_can_fail(tmp_path, monkeypatch):
     extra.write_text("pore_pressure_ratio: float = 0.9\nfriction_angle: float = 27.0\n")
     assert _count([extra], r"pore_pressure_ratio\s*(:\s*float\s*)?=\s*[0-9]")
     assert _count([extra], r"friction_angle.*\b27(\.0)?\b")
+
+
+NEW_OPTION = """
+import importlib, sys
+sys.path.insert(0, {ext!r})
+import granrs
+from granrs import _granrs
+real_schema, real_check = _granrs.schema, _granrs.check_option
+fake = dict(key="fake_tolerance", room="model", kind="float", default=1e-3, optional=False, required=False,
+            unit="1", doc="a tolerance declared in Rust only", group="common",
+            allowed="a number in [0, 1] (dimensionless)", lo=0.0, hi=1.0, lo_open=False, hi_open=False,
+            choices=(), object=False)
+_granrs.schema = lambda: [fake] + real_schema()
+_granrs.check_option = lambda key, value, room=None, name=None: (
+    float(value) if key == "fake_tolerance" else real_check(key, value, room=room, name=name))
+import granrs.options, granrs.rheology, granrs.model, granrs.cases.column.case, granrs.cases.column, granrs.config
+for m in ("options", "rheology", "model", "cases.column.case", "cases.column.build", "cases.column", "config"):
+    importlib.reload(sys.modules["granrs." + m])
+from granrs import config, options
+import granrs_docs
+assert options.Numerics.FIELDS["fake_tolerance"].default == 1e-3
+assert options.Numerics(fake_tolerance=0.5).options()["fake_tolerance"] == 0.5
+k = config.key("numerics.fake_tolerance")
+assert (k.default, k.lo, k.hi, k.doc) == (1e-3, 0.0, 1.0, "a tolerance declared in Rust only")
+assert config.column_case(config.resolve({{"numerics": {{"fake_tolerance": 0.25}}}})).numerics.fake_tolerance == 0.25
+assert "| `numerics.fake_tolerance` | a number in [0, 1] (dimensionless) | `0.001` |" in config.describe()
+assert "| `numerics.fake_tolerance` |" in granrs_docs.keys_markdown()
+assert "| `fake_tolerance` | a number in [0, 1] (dimensionless) | `0.001` | common |" in granrs_docs.options_markdown()
+print("ok")
+"""
+
+
+def test_an_option_declared_in_rust_reaches_every_consumer():
+    # a new option in the schema (as its Rust declaration exports it) appears, with nothing written
+    # for it in Python, in Numerics, the run files' [numerics], the ColumnCase built from them,
+    # `granrs keys` and the docs' key and option references (a child process: the modules are
+    # made again from the extended schema)
+    import subprocess
+
+    code = NEW_OPTION.format(ext=str(ROOT / "docs" / "_ext"))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
+
+
+def test_an_option_set_in_two_places_is_refused_naming_both():
+    grid, dense = granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0)
+    with pytest.raises(ParameterError, match=r"`numerics.cfl` = 0.3: also set by `time_stepping.cfl` = 0.5"):
+        granrs.Model(grid, dense, numerics=granrs.Numerics(cfl=0.3), time_stepping=granrs.TimeStepping())
+    # the same value in both places, or an object alone, is one setting
+    granrs.Model(grid, dense, numerics=granrs.Numerics(cfl=0.3), time_stepping=granrs.TimeStepping(cfl=0.3))
+    with pytest.raises(
+        ParameterError, match=r"`numerics.picard_tol` = 1e-06: also set by `rheology.projection.tolerance`"
+    ):
+        ColumnCase(numerics=granrs.Numerics(picard_tol=1e-6)).validate()
+    with pytest.raises(ParameterError, match="`rheology.viscosity` = 0.5: allowed None or the dense material's"):
+        granrs.Model(grid, dense, rheology=granrs.DruckerPrager(viscosity=0.5))
+
+
+def test_with_options_puts_each_option_into_the_object_that_holds_it():
+    case = ColumnCase().with_options(theta=0.6, picard_tol=1e-4, dt=1e-3, proximal_restarts=2, pressure_rtol=1e-9)
+    assert (case.rheology.projection.theta, case.rheology.projection.tolerance) == (0.6, 1e-4)
+    assert case.time.dt == 1e-3 and case.variants.proximal_restarts == 2 and case.numerics.pressure_rtol == 1e-9
+    assert ColumnCase().rheology.projection.theta == 0.8  # the original is unchanged
+    with pytest.raises(ParameterError, match="`active_region_sides`.*only with an active_region"):
+        ColumnCase().with_options(active_region_sides="open-right")
+    with pytest.raises(ParameterError, match="`no_such_option`: not an option"):
+        ColumnCase().with_options(no_such_option=1)
+    with pytest.raises(ParameterError, match=r"`theta` = 1.5: allowed a number in \[0, 1\)"):
+        ColumnCase().with_options(theta=1.5)
+
+
+def test_the_depth_averaged_binding_takes_one_configuration_object():
+    from granrs.depth_averaged import DepthAveragedModel
+
+    defaults = _granrs.RustDepthAveraged.defaults()
+    m = DepthAveragedModel(cells=8, length=1.0)
+    assert {k: m.config[k] for k in defaults} == defaults  # the Python defaults are the Rust core's
+    with pytest.raises(ParameterError, match="`config` = cell: allowed a key .* one of cells, length"):
+        _granrs.RustDepthAveraged({"cell": 8, "length": 1.0})
+    with pytest.raises(ParameterError, match="`cells`"):
+        _granrs.RustDepthAveraged({"length": 1.0})
+    with pytest.raises(ParameterError, match="`cfl`"):
+        _granrs.RustDepthAveraged({"cells": 8, "length": 1.0, "cfl": 0.9})

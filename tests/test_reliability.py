@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import granrs
-from granrs import Callback, ParameterError, Simulation, SimulationError
+from granrs import ActiveRegion, Callback, ParameterError, Simulation, SimulationError
 from granrs.cases.column import ColumnCase
 from granrs.cli import main
 from granrs.config import KEYS, load_config, resolve
@@ -51,7 +51,7 @@ def run_file(tmp_path, name="run.toml", **sections) -> Path:
     """A small run file (ny = 8, t_end = 0.04 s) with the given extra tables."""
     tables = {
         "grid": {"ny": 8},
-        "numerics": {"t_end": 0.04},
+        "time": {"t_end": 0.04},
         "output": {"dir": str(tmp_path / "out"), "fields_every_s": 0.02, "animation": False},
     }
     for section, table in sections.items():
@@ -162,16 +162,16 @@ def test_cli_flags_are_refused_with_a_run_file(tmp_path, capsys):
 
 # ---- bad run files ---------------------------------------------------------------------------------
 RUN_FILE_BAD = [
-    ("[materials]\nfriction_angle = 0\n", "`materials.friction_angle` = 0: allowed a number in (0, 90) (degree)"),
-    ("[materials]\nfriction_angle = 90\n", "`materials.friction_angle` = 90: allowed a number in (0, 90)"),
+    ("[rheology]\nfriction_angle = 0\n", "`rheology.friction_angle` = 0: allowed a number in (0, 90) (degree)"),
+    ("[rheology]\nfriction_angle = 90\n", "`rheology.friction_angle` = 90: allowed a number in (0, 90)"),
     ("[grid]\nny = 4097\n", "`grid.ny` = 4097: allowed an integer in [8, 4096] (cells)"),
     ('[grid]\nny = "16"\n', "`grid.ny` = '16': allowed an integer in [8, 4096]"),
     ("[grid]\nny = 16.0\n", "`grid.ny` = 16.0: allowed an integer in [8, 4096]"),
-    ("[numerics]\ncfl = nan\n", "`numerics.cfl` = nan: allowed a number in [1e-6, 2]"),
-    ("[numerics]\nt_end = inf\n", "`numerics.t_end` = inf: allowed a number in [1e-06, 10000] (s)"),
-    ("[numerics]\ntheta = 1.0\n", "`numerics.theta` = 1.0: allowed a number in [0, 1)"),
+    ("[time]\ncfl = nan\n", "`time.cfl` = nan: allowed a number in [1e-6, 2]"),
+    ("[time]\nt_end = inf\n", "`time.t_end` = inf: allowed a number in [1e-06, 10000] (s)"),
+    ("[bi_projection]\ntheta = 1.0\n", "`bi_projection.theta` = 1.0: allowed a number in [0, 1)"),
     ("[numerics]\nthreads = 0\n", "`numerics.threads` = 0: allowed an integer in [1, 1024]"),
-    ("[numerics]\nstep_retries = 21\n", "`numerics.step_retries` = 21: allowed an integer in [0, 20]"),
+    ("[time]\nstep_retries = 21\n", "`time.step_retries` = 21: allowed an integer in [0, 20]"),
     ("[grid]\nlength = 0.1\n", "`grid.length` = 0.1: allowed a length (m) greater than case.width = 0.2 m"),
     (
         '[output]\nformats = ["png"]\n',
@@ -183,7 +183,7 @@ RUN_FILE_BAD = [
         "`output.animation` = true: allowed only with output.fields_every_s > 0",
     ),
     ("[case]\nfluidised = 1\n", "`case.fluidised` = 1: allowed true or false"),
-    ('[case]\nrheology = "bingham"\n', "`case.rheology` = 'bingham': allowed one of 'drucker-prager', 'mu-i'"),
+    ('[rheology]\nlaw = "bingham"\n', "`rheology.law` = 'bingham': allowed one of 'drucker-prager', 'mu-i'"),
     ("[numerics]\nfoo = 1\n", "`numerics.foo`: unknown key in [numerics]"),
     ("[solver]\ncfl = 0.3\n", "`solver`: unknown section"),
     ("grid = 3\n", "`grid` = 3: allowed a table [grid]"),
@@ -215,7 +215,7 @@ def test_one_friction_angle_range_everywhere(capsys):
 
     lo, hi = FRICTION_ANGLE_RANGE
     assert main(["keys"]) == 0
-    row = next(line for line in capsys.readouterr().out.splitlines() if "`materials.friction_angle`" in line)
+    row = next(line for line in capsys.readouterr().out.splitlines() if "`rheology.friction_angle`" in line)
     assert f"({lo:g}, {hi:g})" in row, row
     for bad in (lo, hi):
         with pytest.raises(
@@ -223,13 +223,13 @@ def test_one_friction_angle_range_everywhere(capsys):
         ):
             granrs.DruckerPrager(bad)
         with pytest.raises(ParameterError, match=r"`friction_angle`.*\(0, 90\)"):
-            ColumnCase(friction_angle=bad).validate()
-        with pytest.raises(ParameterError, match=r"`materials.friction_angle`.*\(0, 90\)"):
-            resolve({"materials": {"friction_angle": bad}})
+            ColumnCase(rheology=granrs.DruckerPrager(bad, viscosity=0.1)).validate()
+        with pytest.raises(ParameterError, match=r"`rheology.friction_angle`.*\(0, 90\)"):
+            resolve({"rheology": {"friction_angle": bad}})
     for good in (1e-3, hi - 1e-9):
         granrs.DruckerPrager(good)
-        ColumnCase(friction_angle=good, ny=8).validate()
-        resolve({"materials": {"friction_angle": good}})
+        ColumnCase(rheology=granrs.DruckerPrager(good, viscosity=0.1), ny=8).validate()
+        resolve({"rheology": {"friction_angle": good}})
 
 
 try:
@@ -260,6 +260,9 @@ if given is not None:
             and (value < key.hi if key.hi_open else value <= key.hi)
         )
         raw = {key.section: {key.name: value}}
+        main = {"side_walls": ("width", 0.1), "active_region": ("band", 8)}.get(key.section)
+        if main is not None and key.name != main[0]:
+            raw[key.section][main[0]] = main[1]  # the object's own key: it is off while absent
         if key.full == "grid.length":
             raw["case"] = {"width": 0.001}  # below the key's range: any length in range is beyond the gate
         try:
@@ -354,7 +357,10 @@ PYTHON_BAD = [
     ),
     (lambda: ColumnCase(ny=True).validate(), "`ny` = True: allowed an integer in [8, 4096]"),
     (lambda: ColumnCase(threads=0).validate(), "`threads` = 0: allowed an integer in [1, 1024]"),
-    (lambda: ColumnCase(active_region=1).validate(), "`active_region` = 1: allowed None or an integer in [2, 100000]"),
+    (
+        lambda: ColumnCase(active_region=ActiveRegion(1)).validate(),
+        "`band` = 1: allowed None or an integer in [2, 100000]",
+    ),
     (lambda: ckpt.load_checkpoint("/nonexistent/ck.npz"), "`/nonexistent/ck.npz`: cannot be read"),
 ]
 
@@ -419,7 +425,7 @@ def test_a_disk_that_fills_during_the_run_stops_it_with_the_earlier_files_comple
     # 1.6 MiB: the probe and the first snapshots fit, the .vti files of a ny = 8 run (about 40 kB
     # each, fields every 2 ms) fill it within 0.2 s
     fs = small_fs(1600 << 10)
-    path = run_file(tmp_path, numerics={"t_end": 0.5}, output={"dir": str(fs / "run"), "fields_every_s": 0.002})
+    path = run_file(tmp_path, time={"t_end": 0.5}, output={"dir": str(fs / "run"), "fields_every_s": 0.002})
     rc, err = cli(capsys, "run", str(path), "--quiet")
     assert rc == 1 and "OutputError: cannot write" in err and "No space left on device" in err, err
     assert "files written before are kept" in err
@@ -444,7 +450,7 @@ def test_a_failing_writer_keeps_the_previous_complete_file(tmp_path, monkeypatch
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         return real(src, dst)
 
-    cfg = load_config(run_file(tmp_path, numerics={"t_end": 0.3}))
+    cfg = load_config(run_file(tmp_path, time={"t_end": 0.3}))
     monkeypatch.setattr(outputs.os, "replace", replace)
     with pytest.raises(OutputError, match="cannot write .*No space left on device.*files written before are kept"):
         run_config(cfg, progress=False)
@@ -467,9 +473,9 @@ def test_refused_runs_into_an_existing_run_leave_it_byte_identical(tmp_path, cap
     assert "fields.pvd" in before and "summary.json" in before
     for argv, message in (
         ([], "the folder is not empty"),
-        (["--set", "materials.friction_angle=0"], "`materials.friction_angle` = 0: allowed a number in (0, 90)"),
+        (["--set", "rheology.friction_angle=0"], "`rheology.friction_angle` = 0: allowed a number in (0, 90)"),
         (["--set", "grid.ny=4097"], "`grid.ny` = 4097"),
-        (["--overwrite", "--set", "numerics.cfl=2.5"], "`numerics.cfl` = 2.5: allowed a number in [1e-6, 2]"),
+        (["--overwrite", "--set", "time.cfl=2.5"], "`time.cfl` = 2.5: allowed a number in [1e-6, 2]"),
         (["--restart", str(tmp_path / "missing.npz")], "cannot be read"),
     ):
         rc, err = cli(capsys, "run", str(path), "--quiet", *argv)
@@ -495,7 +501,7 @@ def test_the_summary_is_written_during_the_run_with_a_truthful_stop_reason(tmp_p
         if sim.model.time > 0.15 and not seen:
             seen.append(json.loads((tmp_path / "out" / "summary.json").read_text()))
 
-    cfg = load_config(run_file(tmp_path, numerics={"t_end": 0.2}))
+    cfg = load_config(run_file(tmp_path, time={"t_end": 0.2}))
     summary = run_config(cfg, progress=False, extra_callbacks=[Callback(look, every_time=0.01)])
     # records every 0.01 s, written every 10th: the first at t = 0.09 s
     assert seen and seen[0]["stop_reason"].startswith("incomplete: written during the run at t = 0.09 s (step")
@@ -553,7 +559,7 @@ def test_an_interrupt_inside_a_record_keeps_whole_records(tmp_path, monkeypatch)
 
 
 def test_ctrl_c_prints_one_line_exits_130_and_keeps_the_last_steps(tmp_path):
-    path = run_file(tmp_path, numerics={"t_end": 5.0})
+    path = run_file(tmp_path, time={"t_end": 5.0})
     out = tmp_path / "out"
     proc = _start(tmp_path, "run", path, "--quiet")
     _wait_for(lambda: _rows(out) >= 10)
@@ -570,7 +576,7 @@ def test_ctrl_c_prints_one_line_exits_130_and_keeps_the_last_steps(tmp_path):
 
 
 def test_kill_9_then_restart_appends_to_the_same_run(tmp_path, capsys):
-    path = run_file(tmp_path, numerics={"t_end": 0.3}, output={"checkpoint_every_s": 0.05})
+    path = run_file(tmp_path, time={"t_end": 0.3}, output={"checkpoint_every_s": 0.05})
     out = tmp_path / "out"
     proc = _start(tmp_path, "run", path, "--quiet")
     _wait_for(lambda: (out / "checkpoint.npz").exists() and _rows(out) >= 10)
@@ -612,20 +618,16 @@ def test_a_restart_with_another_configuration_is_refused_naming_the_keys(tmp_pat
         "--restart",
         ck,
         "--set",
-        "numerics.t_end=0.06",
+        "time.t_end=0.06",
         "--set",
-        "materials.granular_viscosity=0.5",
+        "rheology.viscosity=0.5",
         "--set",
-        'case.rheology="mu-i"',
+        'rheology.law="mu-i"',
     )
-    assert (
-        rc == 2
-        and "materials.granular_viscosity: 0.1 -> 0.5" in err
-        and "case.rheology: 'drucker-prager' -> 'mu-i'" in err
-    )
+    assert rc == 2 and "rheology.viscosity: 0.1 -> 0.5" in err and "rheology.law: 'drucker-prager' -> 'mu-i'" in err
     assert "--allow-changes" in err and snapshot(out) == before
     rc, err = cli(
-        capsys, "run", str(path), "--quiet", "--restart", ck, "--set", "grid.ny=16", "--set", "numerics.t_end=0.06"
+        capsys, "run", str(path), "--quiet", "--restart", ck, "--set", "grid.ny=16", "--set", "time.t_end=0.06"
     )
     assert rc == 2 and "the checkpoint's grid" in err and snapshot(out) == before
     rc, err = cli(
@@ -636,14 +638,14 @@ def test_a_restart_with_another_configuration_is_refused_naming_the_keys(tmp_pat
         "--restart",
         ck,
         "--set",
-        "numerics.t_end=0.06",
+        "time.t_end=0.06",
         "--set",
-        "materials.granular_viscosity=0.5",
+        "rheology.viscosity=0.5",
         "--allow-changes",
     )
     assert rc == 0, err
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["restart"]["configuration_changes"] == ["materials.granular_viscosity: 0.1 -> 0.5"]
+    assert summary["restart"]["configuration_changes"] == ["rheology.viscosity: 0.1 -> 0.5"]
 
 
 @pytest.mark.parametrize("damage", ["truncated", "emptied", "corrupted", "not-finite"])
@@ -665,7 +667,7 @@ def test_a_damaged_checkpoint_is_a_parameter_error_naming_the_file(tmp_path, cap
         arrays["state/u"][3] = np.inf
         np.savez(ck, **arrays)
     before = snapshot(out)
-    rc, err = cli(capsys, "run", str(path), "--quiet", "--restart", str(ck), "--set", "numerics.t_end=0.06")
+    rc, err = cli(capsys, "run", str(path), "--quiet", "--restart", str(ck), "--set", "time.t_end=0.06")
     assert rc == 2 and f"invalid checkpoint `{ck}`" in err and "Traceback" not in err, err
     expected = {
         "truncated": "truncated or corrupted",
@@ -801,7 +803,7 @@ def test_a_sweep_whose_member_dies_reports_it_and_keeps_the_others(tmp_path):
 
     killer = threading.Thread(target=kill_member)
     killer.start()
-    result = run_sweep(base, ["numerics.t_end=0.04,3.0"], workers=1, out=sweep_out, plot=False)
+    result = run_sweep(base, ["time.t_end=0.04,3.0"], workers=1, out=sweep_out, plot=False)
     killer.join()
     ok, dead = result.table
     assert ok["status"] == "ok" and ok["t_end_s"] == pytest.approx(0.04)

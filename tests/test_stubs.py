@@ -48,12 +48,14 @@ def test_stubtest_finds_the_stubs_consistent_with_the_extension(tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
 
 
-def _defaulted(fn: ast.FunctionDef) -> list[tuple[ast.arg, ast.expr]]:
-    """(parameter, default) pairs of ``fn`` whose default is a plain literal (not ``...``, not None)."""
+def _defaulted(fn: ast.FunctionDef, literal_only: bool = True) -> list[tuple[ast.arg, ast.expr]]:
+    """(parameter, default) pairs of ``fn`` whose default is a plain literal (not ``...``, not None;
+    with ``literal_only=False``, None too)."""
     args = fn.args.posonlyargs + fn.args.args
     pairs = list(zip(args[len(args) - len(fn.args.defaults) :], fn.args.defaults))
     pairs += [(a, d) for a, d in zip(fn.args.kwonlyargs, fn.args.kw_defaults) if d is not None]
-    return [(a, d) for a, d in pairs if isinstance(d, ast.Constant) and d.value not in (None, Ellipsis)]
+    skip = (None, Ellipsis) if literal_only else (Ellipsis,)
+    return [(a, d) for a, d in pairs if isinstance(d, ast.Constant) and d.value not in skip]
 
 
 def test_stubtest_fails_on_a_wrong_default_and_on_a_missing_parameter(tmp_path):
@@ -61,12 +63,14 @@ def test_stubtest_fails_on_a_wrong_default_and_on_a_missing_parameter(tmp_path):
     flag flipped, a string altered) in one function and one parameter deleted from another makes
     stubtest report both."""
     tree = ast.parse(STUB.read_text())
-    functions = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef) and _defaulted(n)]
-    assert len(functions) >= 2, "the stubs hold fewer than two functions with a literal default"
-    (arg, default), removed_from = _defaulted(functions[0])[0], functions[1]
+    functions = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)]
+    literal = [n for n in functions if _defaulted(n)]
+    assert literal, "the stubs hold no function with a literal default"
+    (arg, default) = _defaulted(literal[0])[0]
+    removed_from = next(n for n in functions if n is not literal[0] and _defaulted(n, literal_only=False))
     v = default.value
     default.value = (not v) if isinstance(v, bool) else v + 1 if isinstance(v, (int, float)) else str(v) + "-x"
-    victim = next(a for a, _ in reversed(_defaulted(removed_from)) if a.arg != arg.arg)
+    victim = next(a for a, _ in reversed(_defaulted(removed_from, literal_only=False)) if a.arg != arg.arg)
     a = removed_from.args
     if victim in a.kwonlyargs:
         k = a.kwonlyargs.index(victim)

@@ -22,17 +22,18 @@ def base(out) -> dict:
     return resolve(
         {
             "grid": {"ny": 16},
-            "numerics": {"t_end": 0.05, "threads": 1},
+            "time": {"t_end": 0.05},
+            "numerics": {"threads": 1},
             "output": {"dir": str(out), "fields_every_s": 0.0, "animation": False},
         }
     )
 
 
 def test_parse_linear_ranges_and_lists():
-    assert parse_param("numerics.cfl=0.3:0.5:3") == ("numerics.cfl", pytest.approx([0.3, 0.4, 0.5]))
-    assert parse_param("materials.diffusivity=0.01,0.035") == ("materials.diffusivity", [0.01, 0.035])
+    assert parse_param("time.cfl=0.3:0.5:3") == ("time.cfl", pytest.approx([0.3, 0.4, 0.5]))
+    assert parse_param("pore_pressure.diffusivity=0.01,0.035") == ("pore_pressure.diffusivity", [0.01, 0.035])
     assert parse_param("grid.ny=16:32:3") == ("grid.ny", [16, 24, 32])
-    assert parse_param("case.rheology=drucker-prager,mu-i") == ("case.rheology", ["drucker-prager", "mu-i"])
+    assert parse_param("rheology.law=drucker-prager,mu-i") == ("rheology.law", ["drucker-prager", "mu-i"])
     assert parse_param("case.fluidised=true,false") == ("case.fluidised", [True, False])
 
 
@@ -40,10 +41,10 @@ def test_parse_linear_ranges_and_lists():
     "bad,match",
     [
         ("numerics.cfll=0.3", "`numerics.cfll`"),
-        ("numerics.cfl", "key=a:b:n"),
-        ("numerics.cfl=0.3:0.5:0", "integer n >= 1"),
+        ("time.cfl", "key=a:b:n"),
+        ("time.cfl=0.3:0.5:0", "integer n >= 1"),
         ("grid.ny=16:21:3", "not integers"),
-        ("numerics.cfl=0.3,0.3", "distinct"),
+        ("time.cfl=0.3,0.3", "distinct"),
     ],
 )
 def test_bad_parameters_are_rejected(bad, match):
@@ -52,27 +53,27 @@ def test_bad_parameters_are_rejected(bad, match):
 
 
 def test_every_member_is_validated_before_any_run(tmp_path):
-    with pytest.raises(ParameterError, match=r"sweep member 1 .*`numerics.cfl` = 2.5"):
-        members(base(tmp_path), ["numerics.cfl=0.5,2.5"])
-    with pytest.raises(ParameterError, match="`numerics.cfl`"):
-        run_sweep(base(tmp_path / "s"), ["numerics.cfl=0.5:2.5:2"])
+    with pytest.raises(ParameterError, match=r"sweep member 1 .*`time.cfl` = 2.5"):
+        members(base(tmp_path), ["time.cfl=0.5,2.5"])
+    with pytest.raises(ParameterError, match="`time.cfl`"):
+        run_sweep(base(tmp_path / "s"), ["time.cfl=0.5:2.5:2"])
     assert not (tmp_path / "s").exists()
 
 
 def test_sweep_on_a_local_cluster_equals_the_runs_one_by_one(tmp_path):
-    params = ["numerics.cfl=0.3:0.5:2", "materials.diffusivity=0.01,0.035"]
+    params = ["time.cfl=0.3:0.5:2", "pore_pressure.diffusivity=0.01,0.035"]
     result = run_sweep(base(tmp_path / "dask"), params, workers=2)
     assert len(result.table) == 4 and all(r["status"] == "ok" for r in result.table)
     for row, m in zip(result.table, members(base(tmp_path / "serial"), params)):
         alone = run_member(m.config)
-        assert row["numerics.cfl"] == m.values["numerics.cfl"]
+        assert row["time.cfl"] == m.values["time.cfl"]
         for key in ("runout_m", "t_end_s", "steps", "mass_rel_error", "stop_reason"):
             assert row[key] == alone[key], key
     assert result.table[0]["runout_m"] > 0
     ds = result.dataset
-    assert dict(ds.sizes) == {"numerics.cfl": 2, "materials.diffusivity": 2}
+    assert dict(ds.sizes) == {"time.cfl": 2, "pore_pressure.diffusivity": 2}
     assert (
-        float(ds["runout_m"].sel({"numerics.cfl": 0.5, "materials.diffusivity": 0.035})) == result.table[3]["runout_m"]
+        float(ds["runout_m"].sel({"time.cfl": 0.5, "pore_pressure.diffusivity": 0.035})) == result.table[3]["runout_m"]
     )
     assert ds["runout_m"].attrs["units"] == "m" and "granrs_version" in ds.attrs
     rows = list(csv.DictReader(open(result.files["csv"])))
@@ -105,12 +106,12 @@ def test_cli_sweep_rejects_a_bad_parameter_before_any_work(tmp_path):
             "sweep",
             str(EXAMPLES / "paper_dry.toml"),
             "--param",
-            "materials.friction_angle=20,95",
+            "rheology.friction_angle=20,95",
             "--out",
             str(tmp_path / "s"),
         ],
         capture_output=True,
         text=True,
     )
-    assert r.returncode == 2 and "`materials.friction_angle` = 95" in r.stderr
+    assert r.returncode == 2 and "`rheology.friction_angle` = 95" in r.stderr
     assert not (tmp_path / "s").exists()

@@ -54,13 +54,14 @@ def keys_markdown() -> str:
            "same table. A run file is TOML with the sections "
            + ", ".join(f"`[{s}]`" for s in config.SECTIONS)
            + ". Every key is checked before any work: a bad key or value raises `granrs.ParameterError`",
-           "naming the full key, its allowed range and its unit.", ""]
+           "naming the full key, its allowed range and its unit. A key whose default is `absent` is off",
+           "(None) while it is absent: TOML has no null.", ""]
     for section in config.SECTIONS:
         out += [f"## `[{section}]`", "", "| key | allowed | default | meaning |", "|---|---|---|---|"]
         for k in config.KEYS:
             if k.section != section:
                 continue
-            default = "derived" if k.default is None else config.toml_value(k.default)
+            default = ("absent" if k.optional else "derived") if k.default is None else config.toml_value(k.default)
             doc = k.doc.replace("|", "\\|")
             allowed = k.allowed().replace("|", "\\|")
             out.append(f"| `{k.full}` | {allowed} | `{default}` | {doc} |")

@@ -34,7 +34,7 @@ cfg = load_config(
     run_file,
     [
         "grid.ny=16",
-        "numerics.t_end=0.2",
+        "time.t_end=0.2",
         "output.fields_every_s=0.05",
         'output.formats=["netcdf", "vtk"]',
         "output.animation=false",

@@ -26,14 +26,12 @@ if __name__ == "__main__":  # Dask's worker processes re-import the main module
         for d in (Path.cwd(), *Path.cwd().parents)
         if (d / "examples" / "paper_fluidised.toml").exists()
     )
-    cfg = load_config(
-        run_file, ["grid.ny=16", "numerics.t_end=0.5", "output.fields_every_s=0", "output.animation=false"]
-    )
+    cfg = load_config(run_file, ["grid.ny=16", "time.t_end=0.5", "output.fields_every_s=0", "output.animation=false"])
     out = Path(tempfile.mkdtemp()) / "sweep"
-    result = run_sweep(cfg, ["materials.diffusivity=0.01,0.1", "numerics.cfl=0.25,0.5"], workers=2, out=out)
+    result = run_sweep(cfg, ["pore_pressure.diffusivity=0.01,0.1", "time.cfl=0.25,0.5"], workers=2, out=out)
     for row in result.table:
         print(
-            f"κ_f = {row['materials.diffusivity']:5.3f}, CFL = {row['numerics.cfl']:.2f}: "
+            f"κ_f = {row['pore_pressure.diffusivity']:5.3f}, CFL = {row['time.cfl']:.2f}: "
             f"front {row['runout_m']:.3f} m at t = {row['t_end_s']:.2f} s ({row['status']}, {row['steps']} steps)"
         )
 
@@ -41,9 +39,9 @@ if __name__ == "__main__":  # Dask's worker processes re-import the main module
     ds = result.dataset
     print(ds)
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
-    for cfl in ds["numerics.cfl"].values:
-        sel = ds.sel({"numerics.cfl": cfl})
-        ax.plot(sel["materials.diffusivity"], sel["runout_m"], "o-", label=f"CFL {cfl:g}")
+    for cfl in ds["time.cfl"].values:
+        sel = ds.sel({"time.cfl": cfl})
+        ax.plot(sel["pore_pressure.diffusivity"], sel["runout_m"], "o-", label=f"CFL {cfl:g}")
     ax.set(
         xscale="log",
         xlabel="κ_f (m² s⁻¹)",

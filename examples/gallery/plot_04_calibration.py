@@ -13,19 +13,21 @@ the paper's. ``examples/calibrate_runout.py`` does the same over κ_f × η_s on
 """
 
 # %%
+import dataclasses
 import tempfile
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, run_column
+from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, column_pore_pressure, run_column
 
 kappas = [0.01, 0.035, 0.1]
 out = Path(tempfile.mkdtemp())
 runouts = []
 for k in kappas:
-    s = run_column(ColumnCase(ny=16, diffusivity=k), out / f"kappa-{k}", progress=False)
+    pore = dataclasses.replace(column_pore_pressure(), diffusivity=k)
+    s = run_column(ColumnCase(ny=16, pore_pressure=pore), out / f"kappa-{k}", progress=False)
     runouts.append(s["runout_m"])
     print(f"κ_f = {k:5.3f} m² s⁻¹: run-out {s['runout_m']:.3f} m ({s['stop_reason']} at t = {s['t_end_s']:.2f} s)")
 

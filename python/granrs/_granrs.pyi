@@ -72,19 +72,9 @@ class RustModel:
 
 @final
 class RustDepthAveraged:
-    def __new__(
-        cls,
-        cells: int,
-        length: float,
-        gravity: float = 9.81,
-        earth_pressure: float = 1.0,
-        basal_friction_angle: float = 0.0,
-        cfl: float = 0.4,
-        dry_depth: float = 1e-6,
-        max_dt: float = 1e-2,
-        pore: Optional[dict[str, float]] = None,
-        internal_friction_angle: Optional[float] = None,
-    ) -> Self: ...
+    def __new__(cls, config: dict[str, Any]) -> Self: ...
+    @staticmethod
+    def defaults() -> dict[str, Any]: ...
     def field_storage(self, name: str) -> npt.NDArray[np.float64]: ...
     def set_state(
         self, h: npt.NDArray[np.float64], u: npt.NDArray[np.float64], beta: npt.NDArray[np.float64]

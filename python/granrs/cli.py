@@ -11,14 +11,13 @@ from pathlib import Path
 
 from . import __version__, build_info
 from ._granrs import ParameterError, SimulationError, SolverError
-from .model import ACTIVE_REGION_SIDES
 
 
-def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False):
-    """An argparse type: an int or a finite float in [lo, hi] ((lo, hi] with ``lo_open``); the
-    error names the flag and its range."""
+def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False):
+    """An argparse type: an int or a finite float in [lo, hi] (an end excluded with ``lo_open``,
+    ``hi_open``); the error names the flag and its range."""
     what = "an integer" if kind == "int" else "a number"
-    rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+    rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
 
     def parse(text: str):
         try:
@@ -27,7 +26,12 @@ def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False):
             raise argparse.ArgumentTypeError(
                 f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}"
             ) from None
-        if kind == "float" and not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
+        if (
+            kind == "float"
+            and not math.isfinite(v)
+            or (v <= lo if lo_open else v < lo)
+            or (v >= hi if hi_open else v > hi)
+        ):
             raise argparse.ArgumentTypeError(f"invalid parameter `{flag}` = {text!r}: allowed {what} in {rng}")
         return v
 
@@ -39,7 +43,15 @@ def _key_type(flag: str, dotted: str):
     from .config import key
 
     k = key(dotted)
-    return _number(flag, k.kind, -math.inf if k.lo is None else k.lo, math.inf if k.hi is None else k.hi, k.lo_open)
+    lo, hi = -math.inf if k.lo is None else k.lo, math.inf if k.hi is None else k.hi
+    return _number(flag, k.kind, lo, hi, k.lo_open, k.hi_open)
+
+
+def _choices(dotted: str) -> tuple:
+    """The allowed values of a choice key of the run files."""
+    from .config import key
+
+    return key(dotted).choices
 
 
 def _out_plan(out, overwrite: bool, append: bool = False):
@@ -116,7 +128,24 @@ _COLUMN_OPTIONS = (
     "active_region",
     "active_region_sides",
     "channel_width",
+    "friction_angle",
 )
+#: The run-file key each flag of `granrs run column` sets (its range, default and doc are the key's).
+_COLUMN_KEYS = {
+    "aspect_ratio": "case.aspect_ratio",
+    "width": "case.width",
+    "fluidised": "case.fluidised",
+    "pore_pressure_ratio": "case.pore_pressure_ratio",
+    "ny": "grid.ny",
+    "t_end": "time.t_end",
+    "cfl": "time.cfl",
+    "rheology": "rheology.law",
+    "friction_angle": "rheology.friction_angle",
+    "threads": "numerics.threads",
+    "active_region": "active_region.band",
+    "active_region_sides": "active_region.sides",
+    "channel_width": "side_walls.width",
+}
 _CAVITY_OPTIONS = ("re", "n")
 
 
@@ -208,7 +237,7 @@ def _run(args, parser) -> int:
             f"allowed {allowed}, --threads, --out, --overwrite, --quiet"
         )
     if args.case == "column":
-        from .cases.column import ColumnCase, run_column
+        from .cases.column import run_column
 
         if args.active_region_sides is not None and args.active_region is None:
             raise ParameterError(
@@ -238,25 +267,18 @@ def _run(args, parser) -> int:
                     f"{'no such folder' if not compare.is_dir() else 'no ' + ' or '.join(missing) + ' there'}"
                     "; allowed the output folder of a finished column run"
                 )
-        d = ColumnCase()
-        case = ColumnCase(
-            aspect_ratio=_given(args.aspect_ratio, d.aspect_ratio),
-            width=_given(args.width, d.width),
-            fluidised=args.fluidised,
-            pore_pressure_ratio=_given(args.pore_pressure_ratio, d.pore_pressure_ratio),
-            ny=_given(args.ny, 32),
-            t_end=_given(args.t_end, d.t_end),
-            rheology=_given(args.rheology, d.rheology),
-            cfl=_given(args.cfl, d.cfl),
-            threads=_given(args.threads, 1),
-            length=args.length,
-            model=args.model,
-            active_region=args.active_region,
-            active_region_sides=_given(args.active_region_sides, d.active_region_sides),
-            channel_width=args.channel_width,
-        )
+        from .config import column_case, resolve, set_value
+
+        raw: dict = {}
+        for name, dotted in _COLUMN_KEYS.items():
+            value = getattr(args, name)
+            if value is not None:
+                set_value(raw, dotted, value)
+        case = column_case(resolve(raw))
+        case.length = args.length  # None: the column's own domain (ColumnCase.domain)
+        case.model = args.model  # checked by the case: its error says there is no automatic choice
         case.validate()
-        if case.model in ("two-phase", "granular", "auto"):
+        if case.model in ("two-phase", "granular"):
             lx = case.domain()[0]
             if lx <= case.width:
                 raise ParameterError(
@@ -374,7 +396,7 @@ def main(argv=None) -> int:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="run file: override a key, e.g. --set numerics.cfl=0.3 (TOML value; repeat)",
+        help="run file: override a key, e.g. --set time.cfl=0.3 (TOML value; repeat)",
     )
     r.add_argument(
         "--restart",
@@ -413,22 +435,28 @@ def main(argv=None) -> int:
         type=_key_type("--ny", "grid.ny"),
         help="cells over the domain height (column; 32; 256 is the paper's grid)",
     )
+    r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "time.t_end"), help="end time in s (column; 3)")
     r.add_argument(
-        "--t-end", dest="t_end", type=_key_type("--t-end", "numerics.t_end"), help="end time in s (column; 3)"
+        "--rheology", choices=_choices("rheology.law"), help="column: drucker-prager (default) or mu-i (rheology.law)"
     )
-    r.add_argument("--rheology", choices=["drucker-prager", "mu-i"], help="column: drucker-prager (default) or mu-i")
+    r.add_argument(
+        "--friction-angle",
+        dest="friction_angle",
+        type=_key_type("--friction-angle", "rheology.friction_angle"),
+        help="column: internal friction angle α in degrees (rheology.friction_angle: `granrs keys`)",
+    )
     r.add_argument(
         "--model",
         default="two-phase",
-        metavar="two-phase|granular|depth-averaged",
+        metavar="|".join(_choices("case.model")),
         help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
         "surface at p = 0) or the depth-averaged one (docs/howto/choosing-a-model.md)",
     )
-    r.add_argument("--cfl", type=_key_type("--cfl", "numerics.cfl"), help="CFL number (column; 0.5)")
+    r.add_argument("--cfl", type=_key_type("--cfl", "time.cfl"), help="CFL number (column; time.cfl)")
     r.add_argument(
         "--active-region",
         dest="active_region",
-        type=_number("--active-region", "int", 2, 100000),
+        type=_key_type("--active-region", "active_region.band"),
         metavar="BAND",
         help="column: run each step on a window around the granular phase with BAND cells of air "
         "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
@@ -437,7 +465,7 @@ def main(argv=None) -> int:
     r.add_argument(
         "--active-region-sides",
         dest="active_region_sides",
-        choices=ACTIVE_REGION_SIDES,
+        choices=_choices("active_region.sides"),
         help="column, with --active-region: the window's right and top sides are walls (default), or its "
         "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or "
         "its right and top sides are open with backflow stabilisation (open-right-top; with the two-phase "
@@ -446,7 +474,7 @@ def main(argv=None) -> int:
     r.add_argument(
         "--channel-width",
         dest="channel_width",
-        type=_number("--channel-width", "float", 0.0, 1000.0, lo_open=True),
+        type=_key_type("--channel-width", "side_walls.width"),
         metavar="W",
         help="column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
         "not in the paper's 2D model; friction angle that of the base; docs/validation.md)",

@@ -1,11 +1,15 @@
 """Run files: a TOML file that describes one run, validated strictly before any work starts.
 
-A run file has the sections [case], [grid], [materials], [numerics] and [output]; every key is
-optional and takes the default listed in ``KEYS`` (the paper's fluidised column). Unknown
+A run file has the sections of ``SECTIONS``: the scene ([case], [grid], [materials]), its
+physics, one section per object of :class:`~granrs.cases.column.ColumnCase` ([rheology] and its
+[bi_projection], [base], [pore_pressure], [side_walls], [active_region], [time], [numerics],
+[variants]) and [output]. Every key is optional and takes the default listed in ``KEYS`` (the
+paper's fluidised column); a key whose default is None (``Key.optional``: the side walls, the
+active region's band, a fixed δt, ...) is off while absent. Unknown
 sections or keys, wrong types and out-of-range values raise ``granrs.ParameterError`` naming the
-full key (``numerics.cfl``) and what is allowed, with its unit. ``granrs keys`` prints the table.
+full key (``time.cfl``) and what is allowed, with its unit. ``granrs keys`` prints the table.
 
-    cfg = load_config("examples/paper_fluidised.toml", sets=["numerics.t_end=0.1"])
+    cfg = load_config("examples/paper_fluidised.toml", sets=["time.t_end=0.1"])
     write_config(cfg, "out/config.resolved.toml")     # the resolved file (every key explicit)
     case = column_case(cfg)                            # a granrs.cases.column.ColumnCase
 
@@ -14,7 +18,6 @@ A resolved configuration is a plain ``dict[section, dict[key, value]]`` holding 
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import sys
@@ -31,9 +34,12 @@ else:  # the same parser, before it joined the standard library
     import tomli as tomllib
 
 from ._granrs import ParameterError
+from .boundary import CoulombWall
 from .cases.column import ColumnCase
-from .cases.column.case import COLUMN_NUMERICS, OPTION_FIELD_KEYS, OPTION_FIELDS, SCENE_CHOICES, SCENE_RANGES
-from .options import OptionInfo
+from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, jop_mu_i
+from .model import PorePressure, SideWalls
+from .options import ActiveRegion, BiProjection, Numerics, OptionInfo, TimeStepping, Variants
+from .rheology import DruckerPrager
 
 
 @dataclass(frozen=True)
@@ -55,6 +61,8 @@ class Key:
     lo_open: bool = False
     #: the schema option this key sets (None: a key of the scene or the run)
     option: Optional[OptionInfo] = None
+    #: the key may be absent: its value is then None (TOML has no null; ``doc`` says what None is)
+    optional: bool = False
 
     @property
     def full(self) -> str:
@@ -63,8 +71,9 @@ class Key:
     def allowed(self) -> str:
         """The allowed values, in words (used in error messages and in ``granrs keys``); for a key
         of a schema option, the schema's own words."""
-        if self.option is not None and not self.option.optional:
-            return self.option.allowed
+        if self.option is not None:
+            words = self.option.allowed.removeprefix("None or ")
+            return words + ("; absent: none" if self.optional else "")
         if self.kind in ("float", "int"):
             what = "a number" if self.kind == "float" else "an integer"
             rng = f"{'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
@@ -87,23 +96,21 @@ def _fmt(x) -> str:
 
 
 # defaults come from the column case itself, so a run file and `granrs run column` agree
-_D = {f.name: f.default for f in dataclasses.fields(ColumnCase) if f.default is not dataclasses.MISSING}
-_PAPER_LENGTH = ColumnCase().domain()[0]
+_C = ColumnCase()
+_PAPER_LENGTH = _C.domain()[0]
 _R = SCENE_RANGES
-#: the unit words of the schema's SI symbols where a run file's comment differs
-_SECTION_OF_GROUP = {"common": "numerics", "variant": "variants"}
 
 
-def _from_schema(section: str, name: str, spec: OptionInfo, default, doc: Optional[str] = None) -> Key:
+def _from_schema(section: str, name: str, spec: OptionInfo, default, optional: bool = False, doc: str = "") -> Key:
     """The run-file key ``section.name`` of a schema option: its kind, range, choices, unit and
-    doc are the schema's; ``default`` is the column's value."""
-    kind = "choice" if spec.kind == "choice" else spec.kind
+    doc are the schema's; ``default`` is the column's value; ``optional``: the key may be absent,
+    its value then None (TOML has no null), which ``doc`` or the schema's doc explains."""
     lo = spec.lo if spec.kind != "int" or spec.lo is None else int(spec.lo)
     hi = spec.hi if spec.kind != "int" or spec.hi is None else int(spec.hi)
     return Key(
         section,
         name,
-        kind,
+        spec.kind,
         default,
         spec.unit,
         doc or spec.doc,
@@ -113,42 +120,71 @@ def _from_schema(section: str, name: str, spec: OptionInfo, default, doc: Option
         choices=tuple(spec.choices),
         lo_open=spec.lo_open,
         option=spec,
+        optional=optional,
     )
 
 
-def _column_option(section: str, name: str, doc: Optional[str] = None) -> Key:
-    key, room = OPTION_FIELDS[name]
-    return _from_schema(section, name, options.spec(key, room), _D[name], doc)
+def _object_keys(section: str, obj, exclude: tuple = ()) -> tuple[Key, ...]:
+    """The keys of a room's object (``TimeStepping``, ``BiProjection``, ...) at the column's values:
+    one per field, optional where the schema's default is None."""
+    return tuple(
+        _from_schema(section, name, s, getattr(obj, name), optional=s.optional and s.default is None)
+        for name, s in obj.FIELDS.items()
+        if name not in exclude
+    )
 
 
-_AR = options.spec("active_region")
-#: The schema's flat options that are run-file keys without a ColumnCase field of their own:
-#: [numerics] (group common) and [variants] (group variant), at the column's values. An option
-#: that is off by default (None: TOML has no null) is set from Python, ``ColumnCase(numerics=)``.
-_GENERIC = tuple(
-    _from_schema(_SECTION_OF_GROUP[s.group], s.key, s, COLUMN_NUMERICS.get(s.key, s.default))
-    for s in options.SCHEMA
-    if not s.object and s.key not in OPTION_FIELD_KEYS and s.key not in options.MODEL_ARGUMENTS and not s.optional
+def _room_keys(section: str, room: str, obj, exclude: tuple = (), docs: Optional[dict] = None) -> tuple[Key, ...]:
+    """The keys of a schema room's options at ``obj``'s values (None: optional keys)."""
+    docs = docs or {}
+    return tuple(
+        _from_schema(
+            section,
+            s.key,
+            s,
+            None if obj is None else getattr(obj, s.key),
+            optional=obj is None or s.optional,
+            doc=docs.get(s.key, ""),
+        )
+        for s in options.room(room)
+        if s.key not in exclude
+    )
+
+
+#: The rooms whose options have a section of their own (not [numerics] nor [variants]).
+_OWN_SECTION = ("time", "bi_projection", "active_region")
+_NUMERICS = tuple(
+    _from_schema(
+        "numerics" if s.group == "common" else "variants",
+        n,
+        s,
+        getattr(_C.numerics, n) if s.group == "common" else getattr(_C.variants, n),
+        optional=s.optional and s.default is None,
+    )
+    for n, s in Numerics.FIELDS.items()
+    if s.room not in _OWN_SECTION
 )
+_BASE = options.spec("friction_angle", "coulomb")
 
 KEYS: tuple[Key, ...] = (
     Key("case", "name", "choice", "column", "", "the case to run", choices=("column",)),
+    Key("case", "model", "choice", _C.model, "", "the model (docs/howto/choosing-a-model.md)", choices=MODELS),
     Key(
         "case",
         "aspect_ratio",
         "float",
-        _D["aspect_ratio"],
+        _C.aspect_ratio,
         "1",
         "a = H_c / L_c, column height over width",
         *_R["aspect_ratio"],
     ),
-    Key("case", "width", "float", _D["width"], "m", "L_c, width of the reservoir (gate at x = L_c)", *_R["width"]),
-    Key("case", "fluidised", "bool", _D["fluidised"], "", "pore gas pressure on (initial p_f and basal air supply)"),
+    Key("case", "width", "float", _C.width, "m", "L_c, width of the reservoir (gate at x = L_c)", *_R["width"]),
+    Key("case", "fluidised", "bool", _C.fluidised, "", "pore gas pressure on (initial p_f and basal air supply)"),
     Key(
         "case",
         "pore_pressure_ratio",
         "float",
-        _D["pore_pressure_ratio"],
+        _C.pore_pressure_ratio,
         "1",
         "β: initial and supplied pore pressure over the lithostatic one",
         *_R["pore_pressure_ratio"],
@@ -157,7 +193,7 @@ KEYS: tuple[Key, ...] = (
         "case",
         "air_supply",
         "choice",
-        _D["air_supply"],
+        _C.air_supply,
         "",
         "sign of the basal air supply: injection (∂p_f/∂y = −β φρ_s g, gas flows up into the column) or the printed literal "
         "∂p_f/∂n = −β φρ_s g with n the outward normal (an outflow)",
@@ -167,24 +203,12 @@ KEYS: tuple[Key, ...] = (
         "case",
         "back_wall",
         "choice",
-        _D["back_wall"],
+        _C.back_wall,
         "",
-        "the wall at x = 0: Coulomb friction at wall_friction_angle (the paper's), or free-slip (the cross-code check)",
+        "the wall at x = 0: Coulomb friction at base.friction_angle (the paper's), or free-slip (the cross-code check)",
         choices=SCENE_CHOICES["back_wall"],
     ),
-    Key("case", "rheology", "choice", _D["rheology"], "", "granular rheology", choices=("drucker-prager", "mu-i")),
-    Key(
-        "case",
-        "channel_width",
-        "float",
-        0.0,
-        "m",
-        "friction of a channel's side walls this far apart (not in the paper's 2D model; the experiment's: 0.1), at the "
-        "base's friction angle; 0: none",
-        0.0,
-        options.spec("width", "side_walls").hi,
-    ),
-    Key("grid", "ny", "int", _D["ny"], "cells", "cells over the domain height (256 is the paper's grid)", *_R["ny"]),
+    Key("grid", "ny", "int", _C.ny, "cells", "cells over the domain height (256 is the paper's grid)", *_R["ny"]),
     Key(
         "grid",
         "length",
@@ -199,73 +223,87 @@ KEYS: tuple[Key, ...] = (
         "materials",
         "solid_fraction",
         "float",
-        _D["solid_fraction"],
+        _C.solid_fraction,
         "1",
         "φ, solid volume fraction of the column",
         *_R["solid_fraction"],
     ),
     Key(
-        "materials", "grain_density", "float", _D["grain_density"], "kg m-3", "ρ_s, density of the grains", 1.0, 25000.0
+        "materials",
+        "grain_density",
+        "float",
+        _C.grain_density,
+        "kg m-3",
+        "ρ_s, density of the grains",
+        *_R["grain_density"],
     ),
     Key(
         "materials",
         "grain_diameter",
         "float",
-        _D["grain_diameter"],
+        _C.grain_diameter,
         "m",
         "d_s, grain diameter (used by mu-i)",
-        1e-7,
-        0.1,
+        *_R["grain_diameter"],
     ),
-    _column_option("materials", "friction_angle"),
-    _column_option("materials", "wall_friction_angle", "α_b, friction angle of the base and back wall"),
     Key(
-        "materials",
-        "granular_viscosity",
+        "rheology",
+        "law",
+        "choice",
+        _C.rheology.spec()[0],
+        "",
+        "granular rheology: the paper's Drucker–Prager, or μ(I) with μ_s = tan(friction_angle) (jop_mu_i)",
+        choices=("drucker-prager", "mu-i"),
+    ),
+    _from_schema(
+        "rheology", "friction_angle", options.spec("friction_angle", "drucker-prager"), _C.rheology.friction_angle
+    ),
+    Key(
+        "rheology",
+        "viscosity",
         "float",
-        _D["granular_viscosity"],
+        _C.rheology.viscosity,
         "Pa s",
         "η_s, viscosity of the granular phase",
-        *_R["granular_viscosity"],
+        0.0,
+        1e6,
+        lo_open=True,
     ),
-    _column_option("materials", "diffusivity"),
+    *_object_keys("bi_projection", _C.rheology.projection),
+    _from_schema(
+        "base",
+        "friction_angle",
+        _BASE,
+        _C.base.friction_angle,
+        doc="α_b, friction angle of the base and of a Coulomb back wall",
+    ),
+    *_room_keys(
+        "pore_pressure", "pore_pressure", _C.pore_pressure, exclude=("basal_gradient", "basal_x_min", "basal_x_max")
+    ),
+    *_room_keys(
+        "side_walls",
+        "side_walls",
+        None,
+        docs={
+            "width": "W, the friction of a channel's side walls this far apart (not in the paper's 2D model; the "
+            "experiment's: 0.1); absent: no side walls",
+            "friction_angle": "α_w, friction angle of the side walls; absent: base.friction_angle",
+        },
+    ),
+    *_object_keys("active_region", ActiveRegion()),
     Key(
-        "numerics",
+        "time",
         "t_end",
         "float",
-        _D["t_end"],
+        _C.t_end,
         "s",
         "end of the simulated time (the run stops earlier at rest)",
         *_R["t_end"],
     ),
-    _column_option("numerics", "cfl"),
-    _column_option("numerics", "threads"),
-    _column_option("numerics", "picard_tol"),
-    _column_option("numerics", "theta"),
-    _column_option("numerics", "step_retries"),
-    _column_option("numerics", "mass_correction"),
-    Key(
-        "numerics",
-        "active_region",
-        "int",
-        0,
-        "cells",
-        _AR.doc.replace("(None: the whole domain)", "(0: the whole domain)"),
-        0,
-        int(_AR.hi),  # type: ignore[arg-type]  # the schema bounds the band (tests/test_options.py)
-        option=_AR,
-    ),
-    _column_option("numerics", "active_region_sides"),
-    *(k for k in _GENERIC if k.section == "numerics"),
-    _column_option("variants", "pore_formulation"),
-    _column_option("variants", "kappa_air"),
-    _column_option("variants", "r_neighbourhood"),
-    _column_option("variants", "sigma_location"),
-    _column_option("variants", "interface_yield"),
-    _column_option("variants", "wall_normal_stress"),
-    _column_option("variants", "yield_pressure"),
-    _column_option("variants", "proximal_restarts"),
-    *(k for k in _GENERIC if k.section == "variants"),
+    *_object_keys("time", _C.time),
+    _from_schema("numerics", "threads", options.spec("threads"), _C.threads),
+    *(k for k in _NUMERICS if k.section == "numerics"),
+    *(k for k in _NUMERICS if k.section == "variants"),
     Key("output", "dir", "str", "out/run", "path", "output folder, relative to the current directory"),
     Key("output", "fields_every_s", "float", 0.05, "s", "simulated time between field snapshots; 0: none", 0.0, 1e4),
     Key(
@@ -280,11 +318,12 @@ KEYS: tuple[Key, ...] = (
     Key("output", "animation", "bool", True, "", "write animation.gif from the saved fields at the end"),
     Key("output", "checkpoint_every_s", "float", 0.0, "s", "simulated time between checkpoints; 0: none", 0.0, 1e4),
 )
-#: Keys of [numerics] that are keys of [variants] (a run file that puts them in [numerics] is
-#: told where they belong).
-_VARIANT_NAMES = {k.name for k in KEYS if k.section == "variants"}
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(k.section for k in KEYS))
 _BY_NAME = {k.full: k for k in KEYS}
+#: The sections of each key name (a key in the wrong section is told where it belongs).
+_SECTIONS_OF: dict[str, list[str]] = {}
+for _k in KEYS:
+    _SECTIONS_OF.setdefault(_k.name, []).append(_k.section)
 
 Config = dict  # dict[section, dict[key, value]], every key present once resolved
 
@@ -344,12 +383,13 @@ def resolve(raw: dict) -> Config:
         if not isinstance(table, dict):
             raise ParameterError(f"invalid parameter `{section}` = {table!r}: allowed a table [{section}]")
         for name in table:
-            if section == "numerics" and name in _VARIANT_NAMES:
-                raise ParameterError(
-                    f"invalid parameter `numerics.{name}`: a numerical variant; allowed as "
-                    f'`variants.{name}` in the section [variants] (docs/models.md, "Variants")'
-                )
             if f"{section}.{name}" not in _BY_NAME:
+                elsewhere = _SECTIONS_OF.get(name, [])
+                if elsewhere:
+                    raise ParameterError(
+                        f"invalid parameter `{section}.{name}`: not a key of [{section}]; allowed as "
+                        + " or ".join(f"`{o}.{name}`" for o in elsewhere)
+                    )
                 names = ", ".join(k.name for k in KEYS if k.section == section)
                 raise ParameterError(
                     f"invalid parameter `{section}.{name}`: unknown key in [{section}]; allowed keys {names}"
@@ -357,12 +397,17 @@ def resolve(raw: dict) -> Config:
     cfg: Config = {s: {} for s in SECTIONS}
     for key in KEYS:
         table = raw.get(key.section, {})
-        if key.name in table:
+        if key.name in table and not (key.optional and table[key.name] is None):
             cfg[key.section][key.name] = _check_value(key, table[key.name])
         else:
             cfg[key.section][key.name] = list(key.default) if isinstance(key.default, list) else key.default
-    _derive_and_cross_check(cfg, given={(s, k) for s, t in raw.items() if isinstance(t, dict) for k in t})
+    given = {(s, k) for s, t in raw.items() if isinstance(t, dict) for k, v in t.items() if v is not None}
+    _derive_and_cross_check(cfg, given=given)
     return cfg
+
+
+#: The sections of an object that is off (None) while their main key is absent.
+_MAIN_KEY = {"active_region": "band", "side_walls": "width"}
 
 
 def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -> None:
@@ -378,6 +423,21 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
             f"invalid parameter `grid.length` = {grid['length']!r}: allowed a length (m) greater than "
             f"case.width = {case['width']!r} m (the gate)"
         )
+    for section, what in (
+        ("active_region", "the window's band of air cells (absent: the whole domain)"),
+        ("side_walls", "the channel width (absent: no side walls)"),
+    ):
+        needs = _MAIN_KEY[section]
+        if cfg[section][needs] is None:
+            extra = sorted(
+                k
+                for s_, k in given
+                if s_ == section and k != needs and cfg[section][k] != _BY_NAME[f"{section}.{k}"].default
+            )
+            if extra:
+                raise ParameterError(
+                    f"invalid parameter `{section}.{extra[0]}`: allowed only with `{section}.{needs}`, {what}"
+                )
     if out["animation"] and not (out["fields_every_s"] > 0 and out["formats"]):
         if ("output", "animation") in given:
             raise ParameterError(
@@ -401,7 +461,7 @@ def apply_sets(raw: dict, sets: Iterable[str]) -> dict:
     raw = {s: dict(t) if isinstance(t, dict) else t for s, t in raw.items()}
     for item in sets:
         if "=" not in item:
-            raise ParameterError(f"invalid parameter `--set {item}`: allowed section.key=value, e.g. numerics.cfl=0.3")
+            raise ParameterError(f"invalid parameter `--set {item}`: allowed section.key=value, e.g. time.cfl=0.3")
         dotted, text = item.split("=", 1)
         set_value(raw, dotted.strip(), parse_scalar(text.strip()))
     return raw
@@ -479,6 +539,9 @@ def dumps(cfg: Config, header: Iterable[str] = ()) -> str:
     lines go first as comments."""
     lines = [f"# {h}" for h in header]
     for section in SECTIONS:
+        main = _MAIN_KEY.get(section)
+        if main is not None and (section not in cfg or cfg[section].get(main) is None):
+            continue  # an object that is off: its section absent
         lines += ["", f"[{section}]"] if lines else [f"[{section}]"]
         for k in (k for k in KEYS if k.section == section):
             if section not in cfg or k.name not in cfg[section] or cfg[section][k.name] is None:
@@ -499,38 +562,51 @@ def describe() -> str:
     """The table of keys (markdown): key, type and allowed values with units, default, meaning."""
     rows = ["| key | allowed | default | meaning |", "|---|---|---|---|"]
     for k in KEYS:
-        default = "derived" if k.default is None else toml_value(k.default)
+        default = ("absent" if k.optional else "derived") if k.default is None else toml_value(k.default)
         rows.append(f"| `{k.full}` | {k.allowed()} | `{default}` | {k.doc} |")
     return "\n".join(rows) + "\n"
 
 
 def column_case(cfg: Config) -> ColumnCase:
-    """The ``ColumnCase`` of a resolved configuration."""
-    c, g, m, n, v = cfg["case"], cfg["grid"], cfg["materials"], cfg["numerics"], cfg["variants"]
-    fields = {name: section[name] for section in (m, n, v) for name in section if name in OPTION_FIELDS}
-    fields["active_region"] = n["active_region"] or None
-    # the schema's other options: passed on where they differ from the column's values
-    extra = {
-        k.name: cfg[k.section][k.name]
-        for k in _GENERIC
-        if cfg[k.section][k.name] != COLUMN_NUMERICS.get(k.name, k.option.default if k.option else None)
-    }
-    return ColumnCase(
+    """The ``ColumnCase`` of a resolved configuration: the scene's keys, and one object per
+    section of its physics."""
+    c, g, m, r = cfg["case"], cfg["grid"], cfg["materials"], cfg["rheology"]
+    case = ColumnCase(
         aspect_ratio=c["aspect_ratio"],
         width=c["width"],
-        fluidised=c["fluidised"],
-        channel_width=c["channel_width"] or None,
-        air_supply=c["air_supply"],
-        back_wall=c["back_wall"],
-        pore_pressure_ratio=c["pore_pressure_ratio"],
-        rheology=c["rheology"],
-        ny=g["ny"],
         length=g["length"],
-        t_end=n["t_end"],
         solid_fraction=m["solid_fraction"],
         grain_density=m["grain_density"],
         grain_diameter=m["grain_diameter"],
-        granular_viscosity=m["granular_viscosity"],
-        numerics=extra,
-        **fields,
+        fluidised=c["fluidised"],
+        pore_pressure_ratio=c["pore_pressure_ratio"],
+        air_supply=c["air_supply"],
+        back_wall=c["back_wall"],
+        ny=g["ny"],
+        t_end=cfg["time"]["t_end"],
+        model=c["model"],
+        base=CoulombWall(cfg["base"]["friction_angle"]),
+        pore_pressure=PorePressure(**cfg["pore_pressure"]),
+        time=TimeStepping(**{k: v for k, v in cfg["time"].items() if k != "t_end"}),
+        numerics=Numerics(**{k: v for k, v in cfg["numerics"].items() if k != "threads"}),
+        variants=Variants(**cfg["variants"]),
+        threads=cfg["numerics"]["threads"],
     )
+    projection = BiProjection(**cfg["bi_projection"])
+    if r["law"] == "mu-i":
+        case.rheology = jop_mu_i(
+            r["friction_angle"],
+            grain_diameter=case.grain_diameter,
+            grain_density=case.grain_density,
+            viscosity=r["viscosity"],
+            projection=projection,
+        )
+    else:
+        case.rheology = DruckerPrager(r["friction_angle"], viscosity=r["viscosity"], projection=projection)
+    walls = cfg["side_walls"]
+    if walls["width"] is not None:
+        angle = walls["friction_angle"] if walls["friction_angle"] is not None else case.base.friction_angle
+        case.side_walls = SideWalls(walls["width"], 0.0 if angle is None else angle)  # a frictionless base: 0
+    if cfg["active_region"]["band"] is not None:
+        case.active_region = ActiveRegion(**cfg["active_region"])
+    return case

@@ -23,58 +23,65 @@ and the model's limits are in ``rust/granrs-core/src/models/depth_averaged.rs`` 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
-from ._granrs import RustDepthAveraged
+from ._granrs import ParameterError, RustDepthAveraged
+
+#: The defaults of the model's optional parameters: the Rust core's (``DepthAveragedConfig::new``).
+_DEFAULTS = RustDepthAveraged.defaults()
 
 
 @dataclass(frozen=True)
 class DepthAveragedPore:
     """Pore pressure of the depth-averaged model: diffusivity κ (m² s⁻¹), supply ratio β_s and the
-    extent 0 < x < ``supply_x_max`` of the basal air supply (the reservoir)."""
+    extent 0 < x < ``supply_x_max`` of the basal air supply (the reservoir; 0: no supply)."""
 
-    diffusivity: float = 0.035
-    supply_ratio: float = 0.9
+    diffusivity: float
+    supply_ratio: float
     supply_x_max: float = 0.0
 
 
 class DepthAveragedModel:
-    """The depth-averaged model (see the module docstring). ``pore=None``: not fluidised, β ≡ 0
-    and no pore pressure is solved."""
+    """The depth-averaged model (see the module docstring): ``cells`` over a channel of ``length``
+    [m], ``gravity`` [m s⁻²], a constant ``earth_pressure`` coefficient k (or, with
+    ``internal_friction_angle`` φ in degrees, Savage & Hutter's active one per cell), the
+    ``basal_friction_angle`` α_b [degrees], the ``cfl`` number (≤ 0.5), the wet/dry threshold
+    ``dry_depth`` [m] and the largest step ``max_dt`` [s]; defaults are the Rust core's.
+    ``pore=None``: not fluidised, β ≡ 0 and no pore pressure is solved. ``config`` holds the
+    configuration object given to the Rust model; every value is checked in Rust."""
 
     def __init__(
         self,
         cells: int,
         length: float,
-        gravity: float = 9.81,
-        earth_pressure: float = 1.0,
-        basal_friction_angle: float = 0.0,
-        cfl: float = 0.4,
-        dry_depth: float = 1e-6,
-        max_dt: float = 1e-2,
+        gravity: float = _DEFAULTS["gravity"],
+        earth_pressure: float = _DEFAULTS["earth_pressure"],
+        basal_friction_angle: float = _DEFAULTS["basal_friction_angle"],
+        cfl: float = _DEFAULTS["cfl"],
+        dry_depth: float = _DEFAULTS["dry_depth"],
+        max_dt: float = _DEFAULTS["max_dt"],
         pore: Optional[DepthAveragedPore] = None,
         internal_friction_angle: Optional[float] = None,
     ) -> None:
-        pore_dict = (
-            None
-            if pore is None
-            else {"diffusivity": pore.diffusivity, "supply_ratio": pore.supply_ratio, "supply_x_max": pore.supply_x_max}
-        )
-        self._rust = RustDepthAveraged(
-            cells,
-            length,
-            gravity,
-            earth_pressure,
-            basal_friction_angle,
-            cfl,
-            dry_depth,
-            max_dt,
-            pore_dict,
-            internal_friction_angle,
-        )
+        if pore is not None and not isinstance(pore, DepthAveragedPore):
+            raise ParameterError(f"invalid parameter `pore` = {pore!r}: allowed a granrs.DepthAveragedPore or None")
+        self.config = {
+            "cells": cells,
+            "length": length,
+            "gravity": gravity,
+            "earth_pressure": earth_pressure,
+            "basal_friction_angle": basal_friction_angle,
+            "cfl": cfl,
+            "dry_depth": dry_depth,
+            "max_dt": max_dt,
+            "pore": None if pore is None else dataclasses.asdict(pore),
+            "internal_friction_angle": internal_friction_angle,
+        }
+        self._rust = RustDepthAveraged(self.config)
         self.pore = pore
         n, _, dx, ghosts = self._rust.grid
         self.cells, self.length, self.dx = n, length, dx

@@ -166,10 +166,12 @@ class Model:
     ``granrs.SideWalls(width, friction_angle)``: the friction of a channel's side walls on the flow.
 
     The numerical options come from ``numerics`` (a ``granrs.Numerics``, the flat form of every
-    option) and, where given, from the objects of their rooms, which take precedence:
+    option) and, where given, from the objects of their rooms, which hold their own options:
     ``time_stepping`` (``granrs.TimeStepping``), the rheology's ``projection``
     (``granrs.BiProjection``), ``active_region`` (``granrs.ActiveRegion``) and ``variants``
-    (``granrs.Variants``). Every value is checked in Rust against the schema
+    (``granrs.Variants``); an option that ``numerics`` sets away from its default and an object
+    sets otherwise is refused (``granrs.options.merge``). The rheology's ``viscosity``, where
+    given, is ``dense.viscosity``. Every value is checked in Rust against the schema
     (``granrs.options``); ``model.numerics`` holds the options in force.
     """
 
@@ -240,21 +242,26 @@ class Model:
                 f"invalid parameter `pore_pressure` = {pore_pressure!r}: allowed a granrs.PorePressure or None"
             )
         self.pore_pressure = pore_pressure
-        # the flat options: numerics, then each room's object given (it wins over numerics)
-        opts = (numerics if numerics is not None else Numerics()).options()
+        # the flat options: numerics, then each room's object given (an option set in both is refused)
+        objects = {}
         for name, obj, cls in (
             ("time_stepping", time_stepping, TimeStepping),
             ("active_region", active_region, ActiveRegion),
             ("variants", variants, Variants),
         ):
-            if obj is None:
-                continue
-            if not isinstance(obj, cls):
+            if obj is not None and not isinstance(obj, cls):
                 raise ParameterError(f"invalid parameter `{name}` = {obj!r}: allowed a granrs.{cls.__name__} or None")
-            opts.update(obj.options())
-        projection = getattr(rheology, "projection", None)
-        if projection is not None:
-            opts.update(projection.options())
+            if obj is not None:
+                objects[name] = obj
+        if getattr(rheology, "projection", None) is not None:
+            objects["rheology.projection"] = rheology.projection
+        viscosity = getattr(rheology, "viscosity", None)
+        if viscosity is not None and viscosity != dense.viscosity:
+            raise ParameterError(
+                f"invalid parameter `rheology.viscosity` = {viscosity!r}: allowed None or the dense material's "
+                f"viscosity {dense.viscosity!r} Pa s (one viscosity of the dense phase)"
+            )
+        opts = options.merge(numerics if numerics is not None else Numerics(), objects)
         self.numerics = Numerics(**opts)
         opts.update(threads=threads, air=air)
         self.config = {

@@ -17,8 +17,10 @@ object             the options it holds (its room in the schema)
 =================  ============================================================================
 
 A new option declared in Rust appears in ``Numerics``, in its room's object, in the run files'
-[numerics] or [variants] section, in ``granrs keys`` and in the docs' key reference, with
-nothing written for it here.
+section of that object ([time], [bi_projection], [active_region]) or else [numerics] or
+[variants], in ``granrs keys`` and in the docs' key reference, with nothing written for it here
+(tests/test_options.py shows it). An option set both in ``Numerics`` and in the object that
+holds it is refused (:func:`merge`).
 """
 
 from __future__ import annotations
@@ -157,6 +159,25 @@ Variants: Any = _options_class(
     [(s.key, s) for s in SCHEMA if not s.object and s.group == "variant"],
     "granrs",
 )
+
+
+def merge(numerics, objects: dict) -> dict:
+    """The flat options by key: those of ``numerics`` (a ``Numerics``), then those of each object
+    of ``objects`` (name → a room's object: ``TimeStepping``, ``BiProjection``, ...), which hold
+    their own options. An option that ``numerics`` sets away from its default and an object sets
+    to another value is a ParameterError naming both: each option is set in one place."""
+    opts = numerics.options()
+    for name, obj in objects.items():
+        for field, s in obj.FIELDS.items():
+            v, flat = getattr(obj, field), opts[s.key]
+            if flat != s.default and v != flat:
+                raise ParameterError(
+                    f"invalid parameter `numerics.{s.key}` = {flat!r}: also set by `{name}.{field}` = {v!r}; "
+                    f"allowed in one place, `{name}.{field}`"
+                )
+            opts[s.key] = v
+    return opts
+
 
 #: Keys of the flat options that are arguments of ``Model`` itself rather than numerics.
 MODEL_ARGUMENTS = ("threads", "air")

@@ -3,16 +3,17 @@
 The deviatoric stress is T = 2η D(u) + τ Σ with Σ = P(Σ + r D(u)) (Aravena et al. eq. 5–7):
 
 ==================  ==========================  ==========================================
-law                 yield stress τ              viscosity of the dense phase
+law                 yield stress τ              viscosity of the dense phase (η)
 ==================  ==========================  ==========================================
-``Newtonian()``     0                           ``dense.viscosity``
-``Bingham(τ_y)``    ``yield_stress``            ``dense.viscosity``
-``DruckerPrager``   tan(``friction_angle``) p⁺  ``dense.viscosity`` (the paper's D-P model)
-``MuI``             ``mu_s`` p⁺                 ``dense.viscosity`` + (μ₂ − μ_s) p⁺ / (2|D| + (I₀/d)√(p⁺/ρ_s))
+``Newtonian()``     0                           η
+``Bingham(τ_y)``    ``yield_stress``            η
+``DruckerPrager``   tan(``friction_angle``) p⁺  η (the paper's D-P model, η_s)
+``MuI``             ``mu_s`` p⁺                 η + (μ₂ − μ_s) p⁺ / (2|D| + (I₀/d)√(p⁺/ρ_s))
 ==================  ==========================  ==========================================
 
-|D| = √(½ Σ D_ij²), so a simple shear u(y) has the shear stress η u' + τ sign(u'). p is the model
-pressure (fix its gauge with an ``Outflow`` side, as the paper's open top). Angles are in degrees.
+η is the law's ``viscosity`` where given (it must then be ``dense.viscosity``: one viscosity of the
+dense phase), else ``dense.viscosity``. |D| = √(½ Σ D_ij²), so a simple shear u(y) has the shear
+stress η u' + τ sign(u'). p is the model pressure (fix its gauge with an ``Outflow`` side, as the paper's open top). Angles are in degrees.
 How the yield stress is imposed is a numerical choice of the law's ``projection``, a
 ``granrs.BiProjection``: ``plastic="projection"`` (the bi-projection, default; ``theta``,
 ``tolerance``, ``max_iterations``, ...) or a regularisation (``"papanastasiou"``,
@@ -22,6 +23,7 @@ schema's (``granrs.options``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -36,7 +38,16 @@ def _law_param(law: str, name: str, value) -> float:
     return options.spec(name, law).check(value, name)
 
 
+def _viscosity(rheology) -> None:
+    v = rheology.viscosity
+    if v is not None and (not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or v <= 0):
+        raise ParameterError(f"invalid parameter `viscosity` = {v!r}: allowed None or a finite number > 0 (Pa s)")
+    if v is not None:
+        object.__setattr__(rheology, "viscosity", float(v))
+
+
 def _projection(rheology) -> None:
+    _viscosity(rheology)
     p = rheology.projection
     if p is not None and not isinstance(p, BiProjection):
         raise ParameterError(f"invalid parameter `projection` = {p!r}: allowed a granrs.BiProjection or None")
@@ -66,9 +77,11 @@ class Newtonian:
 @dataclass(frozen=True)
 class Bingham:
     """Bingham plastic: T = 2η D(u) + τ_y Σ with a constant ``yield_stress`` τ_y [Pa];
-    ``projection``: the numerics of its bi-projection (None: the model's numerics)."""
+    ``viscosity``: η [Pa s] (None: the dense material's); ``projection``: the numerics of its
+    bi-projection (None: the model's numerics)."""
 
     yield_stress: float
+    viscosity: Optional[float] = None
     projection: Optional[BiProjection] = None
 
     def __post_init__(self):
@@ -82,10 +95,12 @@ class Bingham:
 @dataclass(frozen=True)
 class DruckerPrager:
     """The paper's D-P model: T = 2η_s D(u) + tan(α) p⁺ Σ, ``friction_angle`` α in degrees (the
-    schema's default: the paper's 27°); ``projection``: the numerics of its bi-projection
-    (``granrs.BiProjection(theta, tolerance, ...)``; None: the model's numerics)."""
+    schema's default: the paper's 27°); ``viscosity``: η_s [Pa s] (None: the dense material's);
+    ``projection``: the numerics of its bi-projection (``granrs.BiProjection(theta, tolerance,
+    ...)``; None: the model's numerics)."""
 
     friction_angle: float = _DP.default
+    viscosity: Optional[float] = None
     projection: Optional[BiProjection] = None
 
     def __post_init__(self):
@@ -99,13 +114,15 @@ class DruckerPrager:
 @dataclass(frozen=True)
 class MuI:
     """μ(I) rheology (paper eq. 3–5): μ(I) = μ_s + (μ₂ − μ_s)/(I₀/I + 1), I = 2|D| d √(ρ_s/p);
-    ``projection``: the numerics of its bi-projection (None: the model's numerics)."""
+    ``viscosity``: η [Pa s] of the viscous part (None: the dense material's); ``projection``: the
+    numerics of its bi-projection (None: the model's numerics)."""
 
     mu_s: float
     mu_2: float
     i0: float
     grain_diameter: float
     grain_density: float
+    viscosity: Optional[float] = None
     projection: Optional[BiProjection] = None
 
     def __post_init__(self):

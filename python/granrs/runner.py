@@ -1,6 +1,6 @@
 """Runs a resolved run-file configuration: the case, its field outputs, animation and checkpoints.
 
-    cfg = granrs.config.load_config("examples/paper_fluidised.toml", sets=["numerics.t_end=0.1"])
+    cfg = granrs.config.load_config("examples/paper_fluidised.toml", sets=["time.t_end=0.1"])
     summary = run_config(cfg)          # what ``granrs run FILE.toml`` does
 
 Everything is checked before anything is written (``preflight``): the configuration, the
@@ -47,9 +47,9 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
         return None
     ck = ckpt.load_checkpoint(restart)
     meta = ck.meta
-    if meta["time"] >= cfg["numerics"]["t_end"]:
+    if meta["time"] >= cfg["time"]["t_end"]:
         raise ParameterError(
-            f"invalid parameter `numerics.t_end` = {cfg['numerics']['t_end']!r}: allowed a time "
+            f"invalid parameter `time.t_end` = {cfg['time']['t_end']!r}: allowed a time "
             f"after the checkpoint's t = {meta['time']!r} s"
         )
     grid = column_case(cfg).grid()

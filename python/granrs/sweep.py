@@ -1,7 +1,7 @@
 """Parameter sweeps of a run file on dask.distributed: the cartesian product of swept keys.
 
     result = run_sweep("examples/paper_fluidised.toml",
-                       ["numerics.cfl=0.3:0.5:3", "materials.diffusivity=0.01,0.035"], workers=2)
+                       ["time.cfl=0.3:0.5:3", "pore_pressure.diffusivity=0.01,0.035"], workers=2)
     result.table        # list of dicts, one per member (also sweep.csv)
     result.dataset      # xarray.Dataset over the swept keys (also sweep.nc)
 

@@ -118,14 +118,15 @@ def load_checkpoint(path) -> Checkpoint:
 
 #: Keys that may differ between a checkpoint's configuration and its restart's without
 #: ``allow_changes`` (they change neither the state nor the equations).
-RESTART_FREE_KEYS = ("numerics.t_end", "numerics.threads")
+RESTART_FREE_KEYS = ("time.t_end", "numerics.threads")
 
 
 def configuration_changes(ck: Checkpoint, cfg: dict) -> list[str]:
     """The keys (``section.key: old -> new``) whose value in ``cfg`` differs from the configuration
     the checkpoint was written with (its provenance); output.* and RESTART_FREE_KEYS are not
     compared. Empty when the checkpoint holds no configuration."""
-    from ..config import tomllib
+    from .._granrs import ParameterError
+    from ..config import resolve, tomllib
 
     text = (ck.meta.get("provenance") or {}).get("configuration") or ""
     if not text:
@@ -134,6 +135,10 @@ def configuration_changes(ck: Checkpoint, cfg: dict) -> list[str]:
         old = tomllib.loads(text)
     except tomllib.TOMLDecodeError:
         return ["(the checkpoint's configuration cannot be read)"]
+    try:  # with its defaults: the sections of an object that is off are not written
+        old = resolve(old)
+    except ParameterError:
+        pass  # compared as written
     changes = []
     for section, table in cfg.items():
         if section == "output" or not isinstance(table, dict):

@@ -34,6 +34,7 @@ definitions do not converge (docs/validation.md, "Cross-code check: Basilisk").
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tempfile
@@ -61,7 +62,8 @@ def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0):
     """The granrs ColumnCase of the shared set-up at ``cells_per_hc`` cells per H_c (the grid has
     ny = 2 cells_per_hc rows over the 0.8 m domain, nx = 6 cells_per_hc columns over 2.4 m)."""
     from .._granrs import ParameterError
-    from ..cases.column import ColumnCase
+    from ..boundary import CoulombWall
+    from ..cases.column import ColumnCase, column_rheology
 
     if not isinstance(cells_per_hc, int) or isinstance(cells_per_hc, bool) or not 4 <= cells_per_hc <= 512:
         raise ParameterError(
@@ -75,9 +77,8 @@ def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0):
         length=LENGTH,
         height=DOMAIN_HEIGHT,
         back_wall="free-slip",
-        friction_angle=27.0,
-        wall_friction_angle=15.0,
-        granular_viscosity=0.1,
+        rheology=dataclasses.replace(column_rheology(), friction_angle=27.0, viscosity=0.1),
+        base=CoulombWall(15.0),
         solid_fraction=0.58,
         grain_density=2500.0,
         t_end=t_end,

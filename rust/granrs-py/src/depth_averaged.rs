@@ -19,45 +19,92 @@ fn slice1<'a>(name: &str, a: &'a PyReadonlyArray1<'_, f64>) -> PyResult<&'a [f64
     a.as_slice().map_err(|_| param_err(name, "a non-contiguous array", "a contiguous 1-D float64 array"))
 }
 
+/// The keys of the depth-averaged model's configuration object.
+const KEYS: [&str; 10] =
+    ["cells", "length", "gravity", "earth_pressure", "basal_friction_angle", "cfl", "dry_depth", "max_dt", "pore", "internal_friction_angle"];
+
+/// The core's configuration from the one configuration object of `RustDepthAveraged(config)`: a
+/// dict with `cells` and `length` (required) and any of `gravity`, `earth_pressure`,
+/// `basal_friction_angle`, `cfl`, `dry_depth`, `max_dt` (absent: `DepthAveragedConfig::new`'s
+/// defaults), `pore` (None: not fluidised, or {diffusivity, supply_ratio, supply_x_max}) and
+/// `internal_friction_angle` (None: the constant k = earth_pressure; φ in degrees: Savage–Hutter's
+/// active coefficient per cell). Every value is checked in Rust (`DepthAveragedConfig::validate`).
+fn build_config(config: &Bound<'_, PyDict>) -> PyResult<DepthAveragedConfig> {
+    for k in config.keys() {
+        let k: String = k.extract()?;
+        if !KEYS.contains(&k.as_str()) {
+            return Err(param_err("config", &k, &format!("a key of the depth-averaged model's configuration, one of {}", KEYS.join(", "))));
+        }
+    }
+    let item = |k: &str| -> PyResult<Option<Bound<'_, PyAny>>> { Ok(config.get_item(k)?.filter(|v| !v.is_none())) };
+    let number = |k: &str, default: f64| -> PyResult<f64> {
+        match item(k)? {
+            None => Ok(default),
+            Some(v) => v.extract::<f64>().map_err(|_| param_err(k, &v, "a number")),
+        }
+    };
+    let cells: usize = match item("cells")? {
+        None => return Err(param_err("cells", "missing", "an integer in [4, 10000000]")),
+        Some(v) => v.extract().map_err(|_| param_err("cells", &v, "an integer in [4, 10000000]"))?,
+    };
+    let length = match item("length")? {
+        None => return Err(param_err("length", "missing", "a finite number > 0 (m)")),
+        Some(v) => v.extract::<f64>().map_err(|_| param_err("length", &v, "a finite number > 0 (m)"))?,
+    };
+    let mut cfg = DepthAveragedConfig::new(cells, length);
+    cfg.gravity = number("gravity", cfg.gravity)?;
+    cfg.basal_friction_angle = number("basal_friction_angle", cfg.basal_friction_angle)?;
+    cfg.cfl = number("cfl", cfg.cfl)?;
+    cfg.dry_depth = number("dry_depth", cfg.dry_depth)?;
+    cfg.max_dt = number("max_dt", cfg.max_dt)?;
+    let EarthPressure::Constant(k_default) = cfg.earth_pressure else { unreachable!("DepthAveragedConfig::new: a constant k") };
+    cfg.earth_pressure = match item("internal_friction_angle")? {
+        None => EarthPressure::Constant(number("earth_pressure", k_default)?),
+        Some(v) => EarthPressure::SavageHutterActive {
+            internal_friction_angle: v.extract::<f64>().map_err(|_| param_err("internal_friction_angle", &v, "None or a number"))?,
+        },
+    };
+    cfg.pore = match item("pore")? {
+        None => None,
+        Some(p) => {
+            let d = p.cast::<PyDict>().map_err(|_| param_err("pore", &p, "None or a dict {diffusivity, supply_ratio, supply_x_max}"))?;
+            let get = |key: &str| -> PyResult<f64> {
+                match d.get_item(key)? {
+                    Some(v) => v.extract::<f64>().map_err(|_| param_err(&format!("pore.{key}"), v, "a number")),
+                    None => Err(param_err(&format!("pore.{key}"), "missing", "a number")),
+                }
+            };
+            Some(DepthAveragedPore { diffusivity: get("diffusivity")?, supply_ratio: get("supply_ratio")?, supply_x_max: get("supply_x_max")? })
+        }
+    };
+    Ok(cfg)
+}
+
 #[pymethods]
 impl PyDepthAveraged {
-    /// pore: None (not fluidised) or {"diffusivity", "supply_ratio", "supply_x_max"};
-    /// internal_friction_angle: None (constant k = earth_pressure) or φ in degrees (Savage–Hutter's
-    /// active coefficient per cell, earth_pressure ignored).
+    /// Builds a model from its configuration object (see `build_config`).
     #[new]
-    #[pyo3(signature = (cells, length, gravity=9.81, earth_pressure=1.0, basal_friction_angle=0.0, cfl=0.4,
-                        dry_depth=1e-6, max_dt=1e-2, pore=None, internal_friction_angle=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        cells: usize,
-        length: f64,
-        gravity: f64,
-        earth_pressure: f64,
-        basal_friction_angle: f64,
-        cfl: f64,
-        dry_depth: f64,
-        max_dt: f64,
-        pore: Option<&Bound<'_, PyDict>>,
-        internal_friction_angle: Option<f64>,
-    ) -> PyResult<Self> {
-        let pore = match pore {
-            None => None,
-            Some(d) => {
-                let get = |key: &str| -> PyResult<f64> {
-                    match d.get_item(key)? {
-                        Some(v) => v.extract::<f64>().map_err(|_| param_err(&format!("pore.{key}"), v, "a number")),
-                        None => Err(param_err(&format!("pore.{key}"), "missing", "a number")),
-                    }
-                };
-                Some(DepthAveragedPore { diffusivity: get("diffusivity")?, supply_ratio: get("supply_ratio")?, supply_x_max: get("supply_x_max")? })
-            }
-        };
-        let earth_pressure = match internal_friction_angle {
-            None => EarthPressure::Constant(earth_pressure),
-            Some(phi) => EarthPressure::SavageHutterActive { internal_friction_angle: phi },
-        };
-        let cfg = DepthAveragedConfig { cells, length, gravity, earth_pressure, basal_friction_angle, cfl, dry_depth, max_dt, pore };
+    fn new(config: &Bound<'_, PyDict>) -> PyResult<Self> {
+        let cfg = build_config(config)?;
         Ok(PyDepthAveraged { inner: DepthAveragedModel::new(cfg).map_err(to_py)? })
+    }
+
+    /// The defaults of the optional keys of the configuration object (`DepthAveragedConfig::new`).
+    #[staticmethod]
+    fn defaults<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let cfg = DepthAveragedConfig::new(4, 1.0);
+        let d = PyDict::new(py);
+        d.set_item("gravity", cfg.gravity)?;
+        if let EarthPressure::Constant(k) = cfg.earth_pressure {
+            d.set_item("earth_pressure", k)?;
+        }
+        d.set_item("basal_friction_angle", cfg.basal_friction_angle)?;
+        d.set_item("cfl", cfg.cfl)?;
+        d.set_item("dry_depth", cfg.dry_depth)?;
+        d.set_item("max_dt", cfg.max_dt)?;
+        d.set_item("pore", py.None())?;
+        d.set_item("internal_friction_angle", py.None())?;
+        Ok(d)
     }
 
     /// Full storage (2 ghost cells at each end) of "h", "u" or "beta" as a zero-copy, read-only

@@ -8,11 +8,11 @@ pressure starts at p_f = β φ ρ_s g (H_c − y) (β = 0.9) and air is supplied
 base, ∂p_f/∂y = −β φ ρ_s g for 0 < x < L_c; κ_f = 0.035 m² s⁻¹. D-P rheology with η_s = 0.1 Pa s.
 The paper's run-out from the gate: 1.6874 m (simulation), 1.8443 m (experiment).
 
-Numerics chosen for this case (measured reasons in docs/validation.md, "Column collapse"):
-convection by upwind WENO5 (the centred form lets the air's shear layer over the flowing grains
-oscillate at the grid scale, 5–9 m/s at ny = 32–64, until droplets of grains are flung down the
-channel); a free-slip lid at the top of the domain (with an open top the inner viscous solves
-stall near 1e-3 relative and floor the Picard increment above its tolerance).
+Numerics chosen for this case (measured reasons in docs/validation.md, "Column collapse"): the
+column's default objects (``column_rheology``: θ = 0.8, Picard tolerance 1e-3;
+``column_numerics``: WENO5 convection, mass correction; ``column_pore_pressure``: κ_∞ = 1e8)
+state theirs; a free-slip lid at the top of the domain (with an open top the inner viscous
+solves stall near 1e-3 relative and floor the Picard increment above its tolerance).
 
 Rest criterion (documented): the run stops when the largest velocity in the granular phase
 (cells with Φ > 0; the air side of the smoothed interface band, Φ ≤ 0, where H_ε still gives a
@@ -43,8 +43,18 @@ outputs), ``measures`` (front, deposit quantile, surface profile, basal pore-pre
 and ``depth_averaged`` (the depth-averaged variant).
 """
 
-from .build import _rheology_kwargs as _rheology_kwargs, build_model, side_walls
-from .case import MODELS, PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
+from .build import build_model, pore_pressure
+from .case import (
+    MODELS,
+    PAPER_RUNOUT_EXP,
+    PAPER_RUNOUT_SIM,
+    ColumnCase,
+    G,
+    column_numerics,
+    column_pore_pressure,
+    column_rheology,
+    jop_mu_i,
+)
 from .depth_averaged import build_depth_averaged, depth_averaged_front_depth, run_column_depth_averaged
 from .measures import (
     DEPOSIT_QUANTILE,
@@ -90,6 +100,11 @@ __all__ = [
     "basal_pore_pressure_ratio",
     "build_depth_averaged",
     "build_model",
+    "column_numerics",
+    "column_pore_pressure",
+    "column_rheology",
+    "jop_mu_i",
+    "pore_pressure",
     "deposit_quantile",
     "depth_averaged_front_depth",
     "energy_summary",
@@ -103,7 +118,6 @@ __all__ = [
     "plot_profiles",
     "run_column",
     "run_column_depth_averaged",
-    "side_walls",
     "surface_profile",
     "write_energy",
     "write_outputs",

@@ -1,16 +1,28 @@
 """The column's scene: :class:`ColumnCase` (the paper's parameters as defaults), its validation, its
-domain and grid, and the paper's run-outs."""
+domain and grid, and the paper's run-outs.
+
+A case states the scene (geometry, granular material, fluidisation, channel, grid, run) in its
+own fields and takes the package's physics objects for the rest: the rheology with its
+bi-projection, the Coulomb base, the pore pressure, the side walls, the active region, the
+clock, the numerics and the variants. Their ranges, units and docs are those of the Rust schema
+(``granrs.options``); where the column's choice differs from the schema's default, it is stated
+once below, in the column's default object, with the measurement behind it.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Optional, Union
+from typing import Any, Optional, Union
 
 from ... import options
 from ..._granrs import ParameterError
+from ...boundary import Coulomb, CoulombWall
 from ...grid import Grid
-from ...model import check_side_walls, estimate_memory, memory_check
+from ...model import PorePressure, SideWalls, estimate_memory, memory_check
+from ...options import ActiveRegion, BiProjection, Numerics, TimeStepping, Variants
+from ...rheology import Bingham, DruckerPrager, MuI
 
 G = 9.81
 PAPER_RUNOUT_SIM = 1.6874
@@ -23,156 +35,144 @@ SCENE_RANGES = {
     "width": (1e-3, 10.0),
     "pore_pressure_ratio": (0.0, 1.0),
     "t_end": (1e-6, 1e4),
-    "granular_viscosity": (1e-8, 1e6),
     "solid_fraction": (0.01, 0.74),
+    "grain_density": (1.0, 25000.0),
+    "grain_diameter": (1e-7, 0.1),
     "ny": (8, 4096),
 }
 #: The scene's choices: the air supply through the reservoir's base and the back wall.
 SCENE_CHOICES = {"air_supply": ("injection", "literal"), "back_wall": ("coulomb", "free-slip")}
-#: The case's fields that are options of the Rust schema, as (key, room): their ranges, units and
-#: choices are the schema's (checked in Rust); their defaults are the column's own (below).
-OPTION_FIELDS = {
-    "friction_angle": ("friction_angle", "drucker-prager"),
-    "wall_friction_angle": ("friction_angle", "coulomb"),
-    "diffusivity": ("diffusivity", "pore_pressure"),
-    "pore_formulation": ("formulation", "pore_pressure"),
-    "kappa_air": ("kappa_air", "pore_pressure"),
-    "cfl": ("cfl", None),
-    "threads": ("threads", None),
-    "picard_tol": ("picard_tol", None),
-    "theta": ("theta", None),
-    "r_neighbourhood": ("r_neighbourhood", None),
-    "sigma_location": ("sigma_location", None),
-    "interface_yield": ("interface_yield", None),
-    "wall_normal_stress": ("wall_normal_stress", None),
-    "yield_pressure": ("yield_pressure", None),
-    "proximal_restarts": ("proximal_restarts", None),
-    "active_region": ("active_region", None),
-    "active_region_sides": ("active_region_sides", None),
-    "step_retries": ("step_retries", None),
-    "mass_correction": ("mass_correction", None),
-}
-#: The schema keys of the flat options among OPTION_FIELDS, with their field names.
-OPTION_FIELD_KEYS = {key: name for name, (key, room) in OPTION_FIELDS.items() if room is None}
-#: The column's numerics where they differ from the schema's defaults (the measured reasons are
-#: in the package's docstring): convection by upwind WENO5.
-COLUMN_NUMERICS = {"convection_scheme": "weno5"}
+#: The rheologies of the column (the law's name in the run files: the Rust schema's room).
+RHEOLOGIES = {"drucker-prager": DruckerPrager, "mu-i": MuI, "bingham": Bingham}
+
+
+def column_rheology() -> DruckerPrager:
+    """The column's rheology: the paper's D-P law (α: the schema's 27°) with η_s = 0.1 Pa s (the
+    paper's), and the column's bi-projection: pseudo-relaxation θ = 0.8 (geometric ratio of the
+    Picard increment about 1 − θ) and the stress-weighted increment tolerance 1e-3 (max |τ ΔΣ|/τ_max:
+    a stress change of ~3 Pa against stresses of 10²–10³ Pa; at ny = 32–64 the increment stalls
+    transiently between 1e-4 and 5e-4, so 1e-4 stopped runs; docs/validation.md, "Column collapse")."""
+    return DruckerPrager(viscosity=0.1, projection=BiProjection(theta=0.8, tolerance=1e-3))
+
+
+def jop_mu_i(
+    friction_angle: float,
+    *,
+    grain_diameter: float,
+    grain_density: float,
+    viscosity: float,
+    projection: Optional[BiProjection] = None,
+) -> MuI:
+    """μ(I) for the column's glass beads: the paper gives no μ(I) constants, so μ_s = tan α with
+    the Δμ = μ₂ − μ_s = 0.26 and I₀ = 0.279 of Jop, Forterre & Pouliquen (2006, Nature 441) for
+    glass beads (an assumption); ``grain_diameter`` and ``grain_density`` are the case's."""
+    mu_s = math.tan(math.radians(options.spec("friction_angle", "drucker-prager").check(friction_angle)))
+    return MuI(
+        mu_s=mu_s,
+        mu_2=mu_s + 0.26,
+        i0=0.279,
+        grain_diameter=grain_diameter,
+        grain_density=grain_density,
+        viscosity=viscosity,
+        projection=projection,
+    )
+
+
+def column_pore_pressure() -> PorePressure:
+    """The column's pore pressure: κ_f = 0.035 m² s⁻¹ (the paper's) and, for the 'kappa-infinity'
+    formulations, κ_∞ = 1e8 m² s⁻¹ instead of the paper's 1e16: it places the same boundary
+    (κ_∞(1 − H_ε) exceeds κ_f wherever 1 − H_ε > 4e-10) and keeps the pore-pressure CG in double
+    precision (with 1e16, κ_∞/κ_f = 3e17, it stalled at t = 2.23 s on the fluidised column at
+    ny = 32). The basal supply is the scene's (``pore_pressure_ratio``, ``air_supply``)."""
+    return PorePressure(diffusivity=0.035, kappa_air=1e8)
+
+
+def column_numerics() -> Numerics:
+    """The column's numerics: convection by upwind WENO5 (the centred form lets the air's shear
+    layer over the flowing grains oscillate at the grid scale, 5–9 m/s at ny = 32–64, until
+    droplets of grains are flung down the channel) and the level set's global mass correction
+    (without it the dense area grows by 6 % at ny = 32 by t = 3 s: thin films;
+    docs/validation.md, dam break)."""
+    return Numerics(convection_scheme="weno5", mass_correction=True)
+
+
+def _number(name: str, v, lo: float, hi: float, integer: bool = False) -> None:
+    if integer:
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed an integer in [{lo}, {hi}]")
+    elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
+        raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo:g}, {hi:g}]")
+
+
+def _instance(name: str, v, kinds: tuple, words: str, optional: bool = False) -> None:
+    if not (isinstance(v, kinds) or optional and v is None):
+        raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed {words}" + (" or None" if optional else ""))
 
 
 @dataclass
 class ColumnCase:
-    """Parameters of the column collapse (defaults: the paper's values)."""
+    """The column collapse: the scene, with the paper's values as defaults, and its physics.
+
+    Scene. Geometry: ``aspect_ratio`` a = H_c/L_c, ``width`` L_c [m], the domain's ``length`` and
+    ``height`` [m] (None: L_c + 8.25 H_c and 1.125 H_c, see :meth:`domain`). Granular material:
+    ``solid_fraction`` φ, ``grain_density`` ρ_s [kg m⁻³], ``grain_diameter`` d_s [m] (μ(I)).
+    Fluidisation: ``fluidised``, ``pore_pressure_ratio`` β (initial p_f = β φρ_s g (H_c − y) and
+    the basal supply under the reservoir), ``air_supply``: 'injection' (∂p_f/∂y = −β φρ_s g, gas
+    flowing up into the column, as the paper's text describes and its initial p_f implies) or
+    'literal' (the printed ∂p_f/∂n = −β φρ_s g with n the outward normal: an outflow;
+    docs/validation.md, "Observables"). Channel: ``back_wall`` at x = 0, 'coulomb' (the base's
+    friction, the paper's) or 'free-slip' (the cross-code check against Basilisk). Grid: ``ny``
+    cells over the domain's height. Run: ``t_end`` [s], the rest criterion ``rest_speed`` [m/s]
+    and ``rest_duration`` [s], the ``profile_times`` of profiles.csv [s], the ``model``
+    ('two-phase', 'granular' or 'depth-averaged'; docs/howto/choosing-a-model.md) and, for the
+    depth-averaged model, ``earth_pressure`` ('savage-hutter' or a number) and ``da_resolution``
+    (cells across min(L_c, H_c)).
+
+    Physics: ``rheology`` (``DruckerPrager``, ``MuI`` or ``Bingham`` with its
+    ``BiProjection``; :func:`column_rheology`), ``base`` (the ``CoulombWall`` of the base and of a
+    Coulomb back wall, the paper's α_b = 15°), ``pore_pressure`` (``PorePressure``, used when
+    fluidised; :func:`column_pore_pressure`), ``side_walls`` (None, the paper's 2D model, or
+    ``SideWalls(width, friction_angle)``), ``active_region`` (None, the whole domain, or an
+    ``ActiveRegion``), ``time`` (``TimeStepping``), ``numerics`` (``Numerics``, the options of
+    no other object; :func:`column_numerics`), ``variants`` (``Variants``) and ``threads``.
+    """
 
     aspect_ratio: float = 2.0
     width: float = 0.20
-    fluidised: bool = True
-    pore_pressure_ratio: float = 0.9
-    ny: int = 32
-    t_end: float = 3.0
-    rheology: str = "drucker-prager"
-    cfl: float = 0.5
-    threads: int = 1
+    length: Optional[float] = None
+    height: Optional[float] = None
     solid_fraction: float = 0.58
     grain_density: float = 2500.0
     grain_diameter: float = 75e-6
-    friction_angle: float = options.spec("friction_angle", "drucker-prager").default
-    wall_friction_angle: float = 15.0
-    granular_viscosity: float = 0.1
-    diffusivity: float = 0.035
-    # the pore-pressure formulation of the two-phase model (granrs.PorePressure): 'granular-only'
-    # (solve where Φ > 0 with p_f = 0 on the interface: the default, docs/validation.md) or the
-    # paper's 'kappa-infinity' extension by zero through the air
-    pore_formulation: str = "granular-only"
-    # κ_∞ of the 'kappa-infinity' formulations [m² s⁻¹] (the paper: 1e16). 1e8 places the same
-    # boundary (κ_∞(1 − H_ε) exceeds κ_f wherever 1 − H_ε > 4e-10) and keeps the pore-pressure
-    # CG in double precision: with 1e16 (κ_∞/κ_f = 3e17) it stalled at ny = 32, t = 2.23 s
-    # (measured on the fluidised column at ny = 32)
-    kappa_air: float = 1e8
-    # where the smoothed jump of the yield stress and of the basal friction sits across the
-    # interface band (granrs.Numerics.interface_yield): the paper's 'paper' (default,
-    # τ = tan(α) p H_ε(Φ)), 'granular-side' (full strength wherever Φ > 0) or 'density-support'
-    # (full strength wherever the smoothed density carries grains, Φ > −ε); docs/validation.md
-    interface_yield: str = "paper"
-    # the normal stress of the Coulomb base and back wall (granrs.Numerics.wall_normal_stress):
-    # 'pressure' (default, −σ_n = p) or 'total' (the paper's −σ_n = p − T_nn); docs/validation.md
-    wall_normal_stress: str = "pressure"
-    # the sign of the air supply through the reservoir's base: 'injection' (default: ∂p_f/∂y =
-    # −β φρ_s g, the gas flows up into the column, as the text describes and the initial p_f
-    # implies) or 'literal' (the printed ∂p_f/∂n = −β φρ_s g with n the base's outward normal,
-    # ∂p_f/∂y = +β φρ_s g: an outflow); docs/validation.md, "Observables"
+    fluidised: bool = True
+    pore_pressure_ratio: float = 0.9
     air_supply: str = "injection"
-    # the back wall (x = 0): 'coulomb' (default, the paper's: friction angle wall_friction_angle)
-    # or 'free-slip' (the cross-code check against Basilisk, docs/validation.md)
     back_wall: str = "coulomb"
-    # the pressure of the yield stress and the walls' normal stress (granrs.Numerics.yield_pressure):
-    # 'absolute' (default, the paper's p) or 'surface-air' (p minus the mean air pressure on the
-    # granular surface: independent of the pressure gauge; docs/models.md, active region)
-    yield_pressure: str = "absolute"
-    # active region (granrs.Numerics.active_region): None (whole domain) or the band of air
-    # cells kept around the granular phase; each step then runs on that window (docs/models.md)
-    active_region: Optional[int] = None
-    # the window's sides (granrs.Numerics.active_region_sides): 'walls' (default), 'open-right' or
-    # 'open-right-top' (its right side, or its right and top sides, outflows at the air's hydrostatic
-    # pressure, the latter with backflow stabilisation; docs/models.md, "An open right side")
-    active_region_sides: str = "walls"
-    length: Optional[float] = None
-    height: Optional[float] = None
-    # Picard iteration of the plastic projection: stress-weighted increment tolerance and
-    # pseudo-relaxation (geometric ratio about 1 − θ). The increment is max |τ ΔΣ|/τ_max, so
-    # 1e-3 is a stress change of ~3 Pa against stresses of 10²–10³ Pa; at ny = 32–64 the increment
-    # stalls transiently between 1e-4 and 5e-4 (see docs/validation.md), so 1e-4 stopped runs.
-    picard_tol: float = 1e-3
-    theta: float = 0.8
-    # proximal restarts of the anchor Σⁿ of eq. (12) per step (granrs.Numerics.proximal_restarts):
-    # 0 (default) the paper's iteration; 5 brings the relaxed fixed point towards eq. (11), whose
-    # rigid zones do not ring (docs/validation.md, "Arrest of the deposit")
-    proximal_restarts: int = 0
-    # half-width of the neighbourhood of the plastic projection's local r (granrs.Numerics.r_neighbourhood):
-    # within this many cells of the air the relaxed fixed point of eq. (12) is as soft as the air's
-    # faces make it; 0 keeps the run-out independent of δt (docs/validation.md)
-    r_neighbourhood: int = 0
-    # the friction of the channel's side walls (granrs.SideWalls; not in the paper's 2D model): None
-    # (default, the paper) or the channel width W in m (the experiment's: 0.10), with the friction
-    # angle side_wall_friction_angle (None: the base's wall_friction_angle); docs/validation.md
-    channel_width: Optional[float] = None
-    side_wall_friction_angle: Optional[float] = None
-    # where the plastic tensor lives (granrs.Numerics.sigma_location): 'staggered' (default) or
-    # 'centres' (the paper's Figure 3: Σ_xx and Σ_xy at cell centres); docs/validation.md
-    sigma_location: str = "staggered"
-    # rejections of a step whose Picard iteration does not converge (retaken with δt halved;
-    # granrs.Numerics.step_retries): the paper's grid, ny = 256, needs them at t ≈ 6 ms
-    step_retries: int = 3
-    # global mass correction of the level set (Φ shifted by a constant after each transport,
-    # found by the secant method; see docs/validation.md, dam break): without it the dense area
-    # grows by 6 % at ny = 32 by t = 3 s (thin films); switchable for comparison
-    mass_correction: bool = True
-    # any other option of the Rust schema by its key (granrs.Numerics, granrs.options), over the
-    # column's numerics (COLUMN_NUMERICS and the fields above): e.g. {"pressure_rtol": 1e-10}
-    numerics: dict = field(default_factory=dict)
+    ny: int = 32
+    t_end: float = 3.0
     rest_speed: float = 5e-3
     rest_duration: float = 0.05
     profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
-    # which model: "two-phase" (default), "granular" (the air not resolved: a free surface at p = 0),
-    # "depth-averaged" (docs/howto/choosing-a-model.md)
     model: str = "two-phase"
-    # depth-averaged model only: earth-pressure coefficient k ("savage-hutter": the active
-    # coefficient from friction_angle and wall_friction_angle, reduced by the pore pressure; or a
-    # number; docs/models.md) and cells across min(L_c, H_c)
     earth_pressure: Union[str, float] = "savage-hutter"
     da_resolution: int = 64
+    rheology: Any = field(default_factory=column_rheology)
+    base: Coulomb = field(default_factory=lambda: CoulombWall(15.0))
+    pore_pressure: PorePressure = field(default_factory=column_pore_pressure)
+    side_walls: Optional[SideWalls] = None
+    active_region: Optional[ActiveRegion] = None
+    time: Any = field(default_factory=TimeStepping)
+    numerics: Any = field(default_factory=column_numerics)
+    variants: Any = field(default_factory=Variants)
+    threads: int = options.spec("threads").default
 
     def validate(self) -> None:
+        """ParameterError naming the first bad field (its allowed values) before any work; the
+        memory the model needs is checked against the memory available."""
         for name, (lo, hi) in SCENE_RANGES.items():
-            v = getattr(self, name)
-            if name == "ny":
-                if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-                    raise ParameterError(f"invalid parameter `ny` = {v!r}: allowed an integer in [{lo}, {hi}]")
-            elif not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not lo <= v <= hi:
-                raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed a number in [{lo}, {hi}]")
-        for name, (key, room) in OPTION_FIELDS.items():
-            v = getattr(self, name)
-            if not (name == "active_region" and v is None):
-                options.spec(key, room).check(v, name)
+            _number(name, getattr(self, name), lo, hi, integer=name == "ny")
+        for name, (lo, hi) in (("rest_speed", (1e-9, 10.0)), ("rest_duration", (0.0, 1e4))):
+            _number(name, getattr(self, name), lo, hi)
         for name, v, lo, what in (
             ("length", self.length, self.width, "the gate at x = width"),
             ("height", self.height, self.column_height, "the column height aspect_ratio × width"),
@@ -184,32 +184,21 @@ class ColumnCase:
                     f"invalid parameter `{name}` = {v!r}: allowed None (the default) or a number of metres "
                     f"in ({lo:g}, 1000] (beyond {what} = {lo:g} m)"
                 )
-        if self.channel_width is not None:
-            angle = self.wall_friction_angle if self.side_wall_friction_angle is None else self.side_wall_friction_angle
-            check_side_walls(self.channel_width, angle, "channel_width", "side_wall_friction_angle")
-        elif self.side_wall_friction_angle is not None:
-            raise ParameterError(
-                f"invalid parameter `side_wall_friction_angle` = {self.side_wall_friction_angle!r}: "
-                "allowed only with a channel_width"
-            )
-        if not isinstance(self.numerics, dict):
-            raise ParameterError(
-                f"invalid parameter `numerics` = {self.numerics!r}: allowed a dict of option keys "
-                "(granrs.options.FLAT) to values"
-            )
-        for key, v in self.numerics.items():
-            if key in OPTION_FIELD_KEYS:
-                raise ParameterError(
-                    f"invalid parameter `numerics.{key}`: allowed as the case's field "
-                    f"`{OPTION_FIELD_KEYS[key]}`, not in numerics"
-                )
-            options.spec(key).check(v, f"numerics.{key}")
+        if not isinstance(self.fluidised, bool):
+            raise ParameterError(f"invalid parameter `fluidised` = {self.fluidised!r}: allowed True or False")
         for name, choices in SCENE_CHOICES.items():
             if getattr(self, name) not in choices:
                 raise ParameterError(
                     f"invalid parameter `{name}` = {getattr(self, name)!r}: allowed "
                     + ", ".join(repr(c) for c in choices)
                 )
+        if not isinstance(self.profile_times, (list, tuple)) or not all(
+            isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) and t >= 0
+            for t in self.profile_times
+        ):
+            raise ParameterError(
+                f"invalid parameter `profile_times` = {self.profile_times!r}: allowed a list of times >= 0 (s)"
+            )
         if self.model not in MODELS:
             raise ParameterError(
                 f"invalid parameter `model` = {self.model!r}: allowed 'two-phase', 'granular' or "
@@ -224,14 +213,41 @@ class ColumnCase:
                 f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
                 "or a number in [0.01, 100]"
             )
-        if not isinstance(self.da_resolution, int) or not 4 <= self.da_resolution <= 4096:
+        _number("da_resolution", self.da_resolution, 4, 4096, integer=True)
+        _instance(
+            "rheology", self.rheology, tuple(RHEOLOGIES.values()), "granrs.DruckerPrager(...), MuI(...) or Bingham(...)"
+        )
+        if self.rheology.viscosity is None:
             raise ParameterError(
-                f"invalid parameter `da_resolution` = {self.da_resolution!r}: allowed an integer in [4, 4096]"
+                f"invalid parameter `rheology.viscosity` = None: allowed the granular phase's viscosity η_s "
+                f"(Pa s), e.g. {type(self.rheology).__name__}(..., viscosity=0.1)"
             )
-        if self.rheology not in ("drucker-prager", "mu-i"):
+        if isinstance(self.rheology, MuI):
+            for name in ("grain_diameter", "grain_density"):
+                if getattr(self.rheology, name) != getattr(self, name):
+                    raise ParameterError(
+                        f"invalid parameter `rheology.{name}` = {getattr(self.rheology, name)!r}: allowed the "
+                        f"case's {name} = {getattr(self, name)!r} (granrs.cases.column.jop_mu_i builds it)"
+                    )
+        _instance("base", self.base, (Coulomb,), "a granrs.CoulombWall(friction_angle)")
+        _instance("pore_pressure", self.pore_pressure, (PorePressure,), "a granrs.PorePressure(diffusivity, ...)")
+        for name in ("basal_gradient", "basal_x_min", "basal_x_max"):
+            if getattr(self.pore_pressure, name) is not None:
+                raise ParameterError(
+                    f"invalid parameter `pore_pressure.{name}` = {getattr(self.pore_pressure, name)!r}: allowed "
+                    "None (the column's air supply is the scene's: pore_pressure_ratio, air_supply, width)"
+                )
+        _instance("side_walls", self.side_walls, (SideWalls,), "a granrs.SideWalls(width, friction_angle)", True)
+        _instance("active_region", self.active_region, (ActiveRegion,), "a granrs.ActiveRegion(band, ...)", True)
+        if self.active_region is not None and self.active_region.band is None:
             raise ParameterError(
-                f"invalid parameter `rheology` = {self.rheology!r}: allowed 'drucker-prager' or 'mu-i'"
+                "invalid parameter `active_region.band` = None: allowed an integer number of cells of air "
+                f"({options.spec('active_region').allowed}); active_region=None runs on the whole domain"
             )
+        for name, cls in (("time", TimeStepping), ("numerics", Numerics), ("variants", Variants)):
+            _instance(name, getattr(self, name), (cls,), f"a granrs.{cls.__name__}(...)")
+        options.spec("threads").check(self.threads, "threads")
+        options.merge(self.numerics, self.objects())  # an option set in two places is refused
         if self.model != "depth-averaged":  # memory before any work (granrs.model.estimate_memory)
             grid = self.grid()
             memory_check(
@@ -240,11 +256,53 @@ class ColumnCase:
                     grid,
                     pore_pressure=bool(self.fluidised and self.pore_pressure_ratio > 0),
                     air="free-surface" if self.model == "granular" else "resolved",
-                    side_walls=self.channel_width is not None,
-                    step_retries=self.step_retries,
+                    side_walls=self.side_walls is not None,
+                    step_retries=self.time.step_retries,
                 ),
                 f"the column's {self.model} model",
             )
+
+    def objects(self) -> dict:
+        """The case's option objects by name, as ``options.merge`` takes them (the rheology's
+        bi-projection, the clock, the active region, the variants)."""
+        objs = {"time": self.time, "variants": self.variants}
+        if self.rheology.projection is not None:
+            objs["rheology.projection"] = self.rheology.projection
+        if self.active_region is not None:
+            objs["active_region"] = self.active_region
+        return objs
+
+    def with_options(self, **changes) -> ColumnCase:
+        """A copy of the case with model options changed by their schema keys
+        (``granrs.options.FLAT``: ``theta``, ``picard_tol``, ``dt``, ``proximal_restarts``, ...),
+        each in the object that holds it: the rheology's bi-projection, the clock, the active
+        region, the variants or the numerics (``threads``: the case's own). ParameterError for
+        a key that is not an option, or an option of an active region the case does not have."""
+        case = dataclasses.replace(self)
+        for key, value in changes.items():
+            s = options.spec(key)
+            if key == "threads":
+                case.threads = value
+                continue
+            holders = {
+                "time": ("time", case.time),
+                "bi_projection": ("rheology.projection", case.rheology.projection or BiProjection()),
+                "active_region": ("active_region", case.active_region),
+            }
+            name, obj = holders.get(s.room) or (
+                ("variants", case.variants) if s.group == "variant" else ("numerics", case.numerics)
+            )
+            if obj is None:
+                raise ParameterError(
+                    f"invalid parameter `{key}` = {value!r}: allowed only with an active_region=ActiveRegion(band)"
+                )
+            field_name = next(n for n, f in obj.FIELDS.items() if f.key == key)
+            obj = dataclasses.replace(obj, **{field_name: value})
+            if name == "rheology.projection":
+                case.rheology = dataclasses.replace(case.rheology, projection=obj)
+            else:
+                setattr(case, name, obj)
+        return case
 
     @property
     def column_height(self) -> float:
@@ -253,6 +311,31 @@ class ColumnCase:
     @property
     def mixture_density(self) -> float:
         return self.solid_fraction * self.grain_density
+
+    @property
+    def internal_friction_angle(self) -> float:
+        """α of the rheology in degrees (μ(I): atan μ_s); the depth-averaged model's φ."""
+        if isinstance(self.rheology, DruckerPrager):
+            return self.rheology.friction_angle
+        if isinstance(self.rheology, MuI):
+            return math.degrees(math.atan(self.rheology.mu_s))
+        raise ParameterError(
+            f"invalid parameter `rheology` = {self.rheology!r} with the depth-averaged model: allowed "
+            "DruckerPrager(...) or MuI(...) (a friction angle)"
+        )
+
+    def summary(self) -> dict:
+        """The case as plain data (summary.json's "case"): the scene's fields and each object's
+        fields, the rheology with its law's name; a non-finite number as its string."""
+
+        def plain(v):  # JSON has no infinity: an unbounded option (time.max_dt) reads "inf"
+            if isinstance(v, dict):
+                return {k: plain(x) for k, x in v.items()}
+            return str(v) if isinstance(v, float) and not math.isfinite(v) else v
+
+        d = dataclasses.asdict(self)
+        d["rheology"] = {"law": self.rheology.spec()[0], **d["rheology"]}
+        return plain(d)
 
     def domain(self) -> tuple[float, float]:
         """(length, height): height 1.125 H_c (the paper's 0.45 m), length L_c + 8.25 H_c (3.5 m

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Optional
 
@@ -31,7 +30,7 @@ def depth_averaged_front_depth(case: ColumnCase) -> float:
 
 def build_depth_averaged(case: ColumnCase):
     """The depth-averaged model of the column (same channel length as the two-phase domain,
-    Δx = min(L_c, H_c)/da_resolution, basal friction α_b, supply β_s under the reservoir when
+    Δx = min(L_c, H_c)/da_resolution, basal friction α_b of ``case.base``, supply β_s under the reservoir when
     fluidised; k: Savage & Hutter's active coefficient from α and α_b reduced by the pore
     pressure, or the constant ``earth_pressure``) with its initial condition: h = H_c, β = β_s for
     x < L_c."""
@@ -42,18 +41,18 @@ def build_depth_averaged(case: ColumnCase):
     length = case.domain()[0]
     cells = int(math.ceil(length / (min(lc, hc) / case.da_resolution)))
     fluidised = bool(case.fluidised and case.pore_pressure_ratio > 0)
-    pore = DepthAveragedPore(case.diffusivity, case.pore_pressure_ratio, lc) if fluidised else None
+    pore = DepthAveragedPore(case.pore_pressure.diffusivity, case.pore_pressure_ratio, lc) if fluidised else None
     sh = case.earth_pressure == "savage-hutter"
     m = DepthAveragedModel(
         cells,
         length,
         gravity=G,
         earth_pressure=1.0 if sh else float(case.earth_pressure),
-        basal_friction_angle=case.wall_friction_angle,
+        basal_friction_angle=case.base.friction_angle or 0.0,
         cfl=0.4,
         dry_depth=1e-6 * hc,
         pore=pore,
-        internal_friction_angle=case.friction_angle if sh else None,
+        internal_friction_angle=case.internal_friction_angle if sh else None,
     )
     inside = m.x < lc
     m.set_state(h=np.where(inside, hc, 0.0), beta=np.where(inside, case.pore_pressure_ratio if fluidised else 0.0, 0.0))
@@ -146,7 +145,7 @@ def run_column_depth_averaged(
         "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
         "model": "depth-averaged",
         "model_reason": reason,
-        "case": asdict(case),
+        "case": case.summary(),
     }
     summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest_since))
     summary["observables"] = _observables_summary(rec, profiles["final"], m.dx, threshold * 2, lc)

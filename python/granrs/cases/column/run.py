@@ -5,7 +5,6 @@ package's docstring describes the criterion and the records)."""
 from __future__ import annotations
 
 import time
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Optional
 
@@ -15,7 +14,7 @@ from ... import __version__, observables as obs
 from ..._granrs import ParameterError, SimulationError, SolverError
 from ...io.outputs import OutputError, RunOutputs
 from ...simulation import Callback, Simulation
-from .build import build_model, side_walls
+from .build import build_model
 from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .depth_averaged import run_column_depth_averaged
 from .measures import basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position, surface_profile
@@ -63,9 +62,9 @@ def run_column(
                 "invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
                 "restart: allowed only with the 2D models ('two-phase', 'granular')"
             )
-        if case.channel_width is not None:
+        if case.side_walls is not None:
             raise ParameterError(
-                "invalid parameter `channel_width` with the depth-averaged model: allowed only with the "
+                "invalid parameter `side_walls` with the depth-averaged model: allowed only with the "
                 "2D models ('two-phase', 'granular')"
             )
         return run_column_depth_averaged(
@@ -138,7 +137,7 @@ def run_column(
                     "nx": grid.nx,
                     "ny": grid.ny,
                     "model": model_name,
-                    "case": asdict(case),
+                    "case": case.summary(),
                 }
                 | (extra_summary or {}),
                 rec,
@@ -167,7 +166,7 @@ def run_column(
     hist = sim.history_arrays()
     front = np.array(rec["front"])
     area = np.array(rec["area"])
-    walls = side_walls(case)
+    walls, region = case.side_walls, case.active_region
     summary: dict[str, Any] = {
         "runout_m": float(front[-1]) if front.size else 0.0,
         "max_front_m": float(front.max()) if front.size else 0.0,
@@ -182,16 +181,16 @@ def run_column(
         "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0),
-        "rheology": case.rheology,
-        "interface_yield": case.interface_yield,
-        "wall_normal_stress": case.wall_normal_stress,
-        "yield_pressure": case.yield_pressure,
-        "sigma_location": case.sigma_location,
-        "channel_width_m": case.channel_width,
+        "rheology": case.rheology.spec()[0],
+        "interface_yield": case.variants.interface_yield,
+        "wall_normal_stress": case.variants.wall_normal_stress,
+        "yield_pressure": case.variants.yield_pressure,
+        "sigma_location": case.variants.sigma_location,
+        "channel_width_m": None if walls is None else walls.width,
         "side_wall_friction_angle": None if walls is None else walls.friction_angle,
-        "r_neighbourhood": case.r_neighbourhood,
-        "active_region": case.active_region,
-        "active_region_sides": case.active_region_sides,
+        "r_neighbourhood": case.variants.r_neighbourhood,
+        "active_region": None if region is None else region.band,
+        "active_region_sides": None if region is None else region.sides,
         "threads": case.threads,
         "version": __version__,
         "stop_reason": sim.stop_reason
@@ -205,7 +204,7 @@ def run_column(
         "paper_runout_experiment_m": PAPER_RUNOUT_EXP,
         "model": model_name,
         "model_reason": model_reason,
-        "case": asdict(case),
+        "case": case.summary(),
     }
     summary.update(
         arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], state["rest_since"])
