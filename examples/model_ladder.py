@@ -1,6 +1,6 @@
 """The model ladder on the observables: how far is each cheaper model from the two-phase reference?
 
-    python examples/model_ladder.py                                   # every run (~1 h on one core)
+    python examples/model_ladder.py                                   # every run (~25 min on one idle core)
     python examples/model_ladder.py --reference-from out/convergence  # a = 2 references of column_convergence.py
 
 For the column of the paper (L_c = 0.20 m, glass beads, α_b = 15°, κ_f = 0.035 m² s⁻¹,
@@ -15,7 +15,11 @@ rungs at ny = 32,
 4. ``two-phase``: the two-phase model on the whole domain (``granrs run column --ny 32
    --aspect-ratio A [--no-fluidised]``),
 
-and the reference, the two-phase model on the whole domain at ny = REFERENCE_NY = 64. For every
+and the reference, the two-phase model at ny = REFERENCE_NY = 64 on the open active window of the
+grid study (``--active-region 4 --active-region-sides open-right-top``, 4.3 times cheaper than the
+whole domain at ny = 64, docs/models.md). At a = 2 the whole domain at ny = 64 is run too (or read
+from ``--reference-from``, the folder of examples/column_convergence.py) and tabulated as the rung
+``two-phase-64``: the reference's own error. For every
 rung and scene it tabulates the relative error (rung − reference)/reference of the
 well-conditioned observables of summary.json["observables"] (granrs.observables, docs/validation.md
 "Observables": the 20 mm front, the travel of the centre of mass, the 50 and 90 % quantiles, the
@@ -50,6 +54,10 @@ RUNGS = {
 }
 WINDOW_BAND = RUNGS["window"]["active_region"]
 REFERENCE_NY = 64
+#: the reference's numerics: the open window of the grid study from ny = 128 up
+#: (examples/column_convergence.py), BAND = REFERENCE_NY/16 cells of air with open right and top
+#: sides; its error against the whole domain is measured at a = 2 (rung "two-phase-64")
+REFERENCE_WINDOW = dict(active_region=REFERENCE_NY // 16, active_region_sides="open-right-top")
 #: the observables compared (summary.json["observables"] keys, and the lowest-row run-out)
 OBSERVABLES = {
     "front_h20mm_m": "20 mm front",
@@ -63,13 +71,25 @@ OBSERVABLES = {
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def run(case: ColumnCase, out: Path) -> dict:
-    """Runs the case into ``out`` (or re-reads it); on 'reached the far end' doubles the channel."""
+#: with ``--read-only``: tabulate the finished runs only, leave the others blank
+READ_ONLY = False
+
+
+def finished(summary: dict) -> bool:
+    """Whether a summary.json is a finished run's (run_column rewrites a partial one every 0.1 s)."""
+    return "wall_s" in summary and "observables" in summary and not summary["stop_reason"].startswith("error")
+
+
+def run(case: ColumnCase, out: Path):
+    """Runs the case into ``out`` (or re-reads it); on 'reached the far end' doubles the channel.
+    With READ_ONLY, the finished run's summary or None."""
     summary_path = out / "summary.json"
     if summary_path.exists():
         s = json.loads(summary_path.read_text())
-        if not s["stop_reason"].startswith("error"):
+        if finished(s):
             return s
+    if READ_ONLY:
+        return None
     print(f"  running {out.name} ...", flush=True)
     while True:
         try:
@@ -81,8 +101,15 @@ def run(case: ColumnCase, out: Path) -> dict:
             print(f"  {out.name}: reached the far end, rerun with length {case.length:.2f} m", flush=True)
 
 
-def value(summary: dict, key: str):
+def value(summary, key: str):
+    if summary is None:
+        return None
     return summary["runout_m"] if key == "runout_m" else summary["observables"].get(key)
+
+
+def run_facts(summary) -> dict:
+    keys = ("wall_s", "stop_reason", "t_end_s")
+    return {k: (summary[k] if summary else None) for k in keys}
 
 
 def main() -> None:
@@ -94,7 +121,10 @@ def main() -> None:
         default=None,
         help="a folder of examples/column_convergence.py whose {fluidised,dry}-64 runs are the a = 2 references",
     )
+    ap.add_argument("--read-only", dest="read_only", action="store_true", help="tabulate the finished runs only")
     args = ap.parse_args()
+    global READ_ONLY
+    READ_ONLY = args.read_only
     out = ROOT / "out" / "ladder"
     t_start = time.perf_counter()
     scenes = [(fl, a) for fl in (True, False) for a in ASPECT_RATIOS]
@@ -104,39 +134,50 @@ def main() -> None:
     for fluidised, a in scenes:
         base = ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=args.ny)
         tp = run(replace(base, **RUNGS["two-phase"]), out / f"two-phase-{tag[fluidised, a]}")
-        length = tp["case"]["length"]  # None unless the channel had to be lengthened
+        length = tp["case"]["length"] if tp else None  # None unless the channel had to be lengthened
         rungs[fluidised, a] = {"two-phase": tp}
         for name in ("depth-averaged", "granular", "window"):
             rungs[fluidised, a][name] = run(
                 replace(base, length=length, **RUNGS[name]), out / f"{name}-{tag[fluidised, a]}"
             )
     references = {}
-    for fluidised, a in sorted(scenes, key=lambda s: s[1] == 2.0):
-        length = rungs[fluidised, a]["two-phase"]["case"]["length"]
-        folder = out / f"reference-{REFERENCE_NY}-{tag[fluidised, a]}"
-        if a == 2.0 and length is None and args.reference_from:
-            folder = Path(args.reference_from) / f"{'fluidised' if fluidised else 'dry'}-{REFERENCE_NY}"
-            while not (folder / "summary.json").exists():  # still running in column_convergence.py
-                time.sleep(20)
+    for fluidised, a in scenes:
+        tp = rungs[fluidised, a]["two-phase"]
+        length = tp["case"]["length"] if tp else None
         references[fluidised, a] = run(
-            ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=REFERENCE_NY, length=length), folder
+            ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=REFERENCE_NY, length=length, **REFERENCE_WINDOW),
+            out / f"reference-{REFERENCE_NY}-{tag[fluidised, a]}",
         )
+    # the reference's own error: the whole domain at ny = REFERENCE_NY, a = 2
+    whole = {}
+    for fluidised in (True, False):
+        folder = out / f"two-phase-{REFERENCE_NY}-{tag[fluidised, 2.0]}"
+        if args.reference_from:
+            folder = Path(args.reference_from) / f"{'fluidised' if fluidised else 'dry'}-{REFERENCE_NY}"
+            while not READ_ONLY and not (
+                (folder / "summary.json").exists() and finished(json.loads((folder / "summary.json").read_text()))
+            ):  # still running in column_convergence.py
+                time.sleep(20)
+        whole[fluidised, 2.0] = run(ColumnCase(aspect_ratio=2.0, fluidised=fluidised, ny=REFERENCE_NY), folder)
 
     rows = []
     for fluidised, a in scenes:
         ref = references[fluidised, a]
         row = {"aspect_ratio": a, "fluidised": fluidised, "rung": "reference", "ny": REFERENCE_NY}
         row.update({k: value(ref, k) for k in OBSERVABLES})
-        row.update({"wall_s": ref["wall_s"], "stop_reason": ref["stop_reason"], "t_end_s": ref["t_end_s"]})
+        row.update(run_facts(ref))
         rows.append(row)
-        for name in RUNGS:
-            s = rungs[fluidised, a][name]
-            row = {"aspect_ratio": a, "fluidised": fluidised, "rung": name, "ny": args.ny}
+        cheaper = dict(rungs[fluidised, a])
+        if (fluidised, a) in whole:
+            cheaper[f"two-phase-{REFERENCE_NY}"] = whole[fluidised, a]
+        for name, s in cheaper.items():
+            ny = REFERENCE_NY if name == f"two-phase-{REFERENCE_NY}" else args.ny
+            row = {"aspect_ratio": a, "fluidised": fluidised, "rung": name, "ny": ny}
             row.update({k: value(s, k) for k in OBSERVABLES})
             for k in OBSERVABLES:
                 v, r = value(s, k), value(ref, k)
                 row[f"rel_{k}"] = (v - r) / r if v is not None and r else None
-            row.update({"wall_s": s["wall_s"], "stop_reason": s["stop_reason"], "t_end_s": s["t_end_s"]})
+            row.update(run_facts(s))
             rows.append(row)
             print(
                 json.dumps(
@@ -145,7 +186,7 @@ def main() -> None:
                         "fluidised": fluidised,
                         "rung": name,
                         **{OBSERVABLES[k]: round(100 * row[f"rel_{k}"], 1) for k in OBSERVABLES if row[f"rel_{k}"]},
-                        "wall_s": round(s["wall_s"], 1),
+                        "wall_s": round(s["wall_s"], 1) if s else None,
                     },
                     ensure_ascii=False,
                 ),
@@ -181,7 +222,13 @@ def plot(rows: list, path: Path, ny: int) -> None:
     from matplotlib.ticker import NullFormatter
 
     fig, axes = plt.subplots(2, 4, figsize=(16, 7.5))
-    styles = {"depth-averaged": "C0s", "granular": "C1^", "window": "C2D", "two-phase": "C3o"}
+    styles = {
+        "depth-averaged": "C0s",
+        "granular": "C1^",
+        "window": "C2D",
+        "two-phase": "C3o",
+        f"two-phase-{REFERENCE_NY}": "C4*",
+    }
     for ax, key in zip(axes.flat, OBSERVABLES):
         for name, style in styles.items():
             for fluidised, ls in ((True, "-"), (False, "--")):
@@ -204,7 +251,7 @@ def plot(rows: list, path: Path, ny: int) -> None:
             rs = [r for r in rows if r["rung"] == name and r["fluidised"] == fluidised]
             ax.plot(
                 [r["aspect_ratio"] for r in rs],
-                [r["wall_s"] for r in rs],
+                [r["wall_s"] if r["wall_s"] is not None else float("nan") for r in rs],
                 style + ls,
                 mfc="none" if not fluidised else None,
                 ms=5,
@@ -212,7 +259,9 @@ def plot(rows: list, path: Path, ny: int) -> None:
                 label=f"{name if name != 'reference' else f'two-phase ny = {REFERENCE_NY}'}, "
                 f"{'fluidised' if fluidised else 'dry'}",
             )
-    ax.set(yscale="log", title="wall time (one thread, shared machine)", ylabel="s")
+    ax.set(title="wall time (one thread, shared machine)", ylabel="s")
+    if any(r["wall_s"] for r in rows):
+        ax.set_yscale("log")
     for ax in axes.flat:
         ax.set_xscale("log")
         ax.set_xticks(ASPECT_RATIOS, [f"{v:g}" for v in ASPECT_RATIOS])
