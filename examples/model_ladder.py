@@ -264,6 +264,7 @@ def plot(rows: list, path: Path, ny: int) -> None:
         ax.set_yscale("log")
     for ax in axes.flat:
         ax.set_xscale("log")
+        ax.set_xlim(0.4, 5.0)
         ax.set_xticks(ASPECT_RATIOS, [f"{v:g}" for v in ASPECT_RATIOS])
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("aspect ratio a = H_c / L_c")
