@@ -1,6 +1,6 @@
 """The model ladder on the observables: how far is each cheaper model from the two-phase reference?
 
-    python examples/model_ladder.py                                   # every run (~25 min on one idle core)
+    python examples/model_ladder.py                                   # every run (30 min on a shared 2-core machine)
     python examples/model_ladder.py --reference-from out/convergence  # a = 2 references of column_convergence.py
 
 For the column of the paper (L_c = 0.20 m, glass beads, α_b = 15°, κ_f = 0.035 m² s⁻¹,
