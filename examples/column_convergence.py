@@ -70,7 +70,8 @@ def run_or_load(
     name = ("fluidised" if fluidised else "dry") + ("-literal" if air_supply == "literal" else "")
     folder = out / f"{name}-{ny}"
     summary = folder / "summary.json"
-    if not summary.exists():
+    # run_column rewrites a partial summary.json every 0.1 s: a finished run's has the wall time
+    if not summary.exists() or "wall_s" not in json.loads(summary.read_text()):
         print(f"running ny = {ny}, {name} ...", flush=True)
         run_column(case_for(ny, fluidised, threads, channel_width, air_supply), folder, progress=True)
     return json.loads(summary.read_text())
