@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from granrs import ActiveRegion, SideWalls
 from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column
 from granrs.observables import observable_keys
 
@@ -57,9 +58,10 @@ ACTIVE_REGION_FROM_NY = 128
 def case_for(ny: int, fluidised: bool, threads: int, channel_width, air_supply: str = "injection") -> ColumnCase:
     """The study's case on the grid ny: the whole domain below ACTIVE_REGION_FROM_NY, the open
     active window (BAND = ny/16) from it up."""
-    window = dict(active_region=ny // 16, active_region_sides="open-right-top") if ny >= ACTIVE_REGION_FROM_NY else {}
+    window = dict(active_region=ActiveRegion(ny // 16, sides="open-right-top")) if ny >= ACTIVE_REGION_FROM_NY else {}
+    side_walls = None if channel_width is None else SideWalls(channel_width, ColumnCase().base.friction_angle)
     return ColumnCase(
-        ny=ny, fluidised=fluidised, threads=threads, channel_width=channel_width, air_supply=air_supply, **window
+        ny=ny, fluidised=fluidised, threads=threads, side_walls=side_walls, air_supply=air_supply, **window
     )
 
 

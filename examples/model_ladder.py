@@ -42,6 +42,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from granrs import SimulationError
+from granrs import ActiveRegion
 from granrs.cases.column import ColumnCase, run_column
 
 ASPECT_RATIOS = (0.5, 1.0, 2.0, 4.0)
@@ -49,15 +50,15 @@ ASPECT_RATIOS = (0.5, 1.0, 2.0, 4.0)
 RUNGS = {
     "depth-averaged": dict(model="depth-averaged"),
     "granular": dict(model="granular"),
-    "window": dict(model="two-phase", active_region=16),
+    "window": dict(model="two-phase", active_region=ActiveRegion(16)),
     "two-phase": dict(model="two-phase"),
 }
-WINDOW_BAND = RUNGS["window"]["active_region"]
+WINDOW_BAND = RUNGS["window"]["active_region"].band
 REFERENCE_NY = 64
 #: the reference's numerics: the open window of the grid study from ny = 128 up
 #: (examples/column_convergence.py), BAND = REFERENCE_NY/16 cells of air with open right and top
 #: sides; its error against the whole domain is measured at a = 2 (rung "two-phase-64")
-REFERENCE_WINDOW = dict(active_region=REFERENCE_NY // 16, active_region_sides="open-right-top")
+REFERENCE_WINDOW = dict(active_region=ActiveRegion(REFERENCE_NY // 16, sides="open-right-top"))
 #: the observables compared (summary.json["observables"] keys, and the lowest-row run-out)
 OBSERVABLES = {
     "front_h20mm_m": "20 mm front",
