@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs.cases.column import ColumnCase, build as col, build_model, front_position, surface_profile
-from granrs.observables import area_quantile, thickness_front, volume_profile
+from granrs.observables import area_quantile, observe_profile, thickness_front, volume_profile
 
 VARIANTS = {
     "default": {},
@@ -93,6 +93,38 @@ VARIANTS = {
     "density-support-no-mass-correction-proximal-20": {
         "case": {"interface_yield": "density-support", "proximal_restarts": 20},
         "anderson_depth": 5,
+        "mass_correction": False,
+    },
+    # Φ transported with the dense phase's velocity extended along the normal from Φ = d h
+    # (interface_velocity = "extended", extension_depth = d), alone and with 20 restarts
+    "extended": {"interface_velocity": "extended"},
+    "extended-1.5": {"interface_velocity": "extended", "extension_depth": 1.5},
+    "extended-3": {"interface_velocity": "extended", "extension_depth": 3.0},
+    "extended-no-mass-correction": {"interface_velocity": "extended", "mass_correction": False},
+    "proximal-20-extended": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "interface_velocity": "extended"},
+    "proximal-20-extended-1.5": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_depth": 1.5,
+    },
+    "proximal-20-extended-3": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_depth": 3.0,
+    },
+    "proximal-20-extended-no-mass-correction": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "mass_correction": False,
+    },
+    "proximal-20-extended-1.5-no-mass-correction": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_depth": 1.5,
         "mass_correction": False,
     },
 }
@@ -144,6 +176,7 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         hvol = volume_profile(phi, g.dy)
         row["front_half_cell"] = thickness_front(hvol, g.dx, 0.5 * g.dy) - lc
         row["front_q99"] = area_quantile(hvol, g.dx, 0.99) - lc
+        row["front_20mm"] = thickness_front(hvol, g.dx, 0.02) - lc
         for key, mask in groups.items():
             row[f"speed_{key}"] = float(speed[mask].max()) if mask.any() else 0.0
         granular = phi > 0
@@ -204,7 +237,8 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     out["gravity_work_after_1p5_J_m"] = rows[-1]["gravity_work"] - rows[i15]["gravity_work"]
     if 2.5 in profiles and t_end in profiles:
         out["profile_change_2p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[2.5])))
-    for key in ("front_half_cell", "front_q99"):
+    out["observables_end"] = observe_profile(volume_profile(m.phi, g.dy), g.dx, g.dy, lc)
+    for key in ("front_half_cell", "front_q99", "front_20mm"):
         f = np.array([r[key] for r in rows])
         out[f"retreat_{key}_cells"] = float((f.max() - f[-1]) / g.dx)
     out["arrest_time_s"] = arrest
@@ -218,6 +252,9 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
             max((r["speed_granular"] for r, is_after in zip(rows, after) if is_after), default=0.0)
         )
         out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
+        out["area_drift_after_arrest"] = float(
+            np.max(np.abs(area[t >= arrest] / area[t >= arrest][0] - 1.0)) if np.any(t >= arrest) else 0.0
+        )
     if 1.5 in profiles and t_end in profiles:
         out["profile_change_1p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[1.5])))
     return out, rows

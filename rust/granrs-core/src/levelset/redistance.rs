@@ -95,6 +95,11 @@ pub struct RedistanceSettings {
     pub band: Option<f64>,
     /// Treatment of the cells next to the interface.
     pub interface: InterfaceTreatment,
+    /// The velocity that transports Φ: the one-fluid velocity (default) or its extension from
+    /// the level Φ = `extension_depth` · h of the dense phase ([`super::extension`]).
+    pub extended_velocity: bool,
+    /// The source level of the extension, in cells (Φ ≥ depth · h keeps its velocity).
+    pub extension_depth: f64,
 }
 
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
@@ -128,6 +133,22 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "treatment of the cells next to the interface: frozen band at the bicubic zero set (Chopp 2001) or the subcell PDE (Min 2010)",
     )
     .variant(),
+    options::choice(
+        "redistance",
+        "interface_velocity",
+        "one-fluid",
+        &["one-fluid", "extended"],
+        "the velocity that transports Φ: the one-fluid velocity, or the dense phase's extended along the normal from Φ = extension_depth·h (Adalsteinsson & Sethian 1999)",
+    ),
+    options::float(
+        "redistance",
+        "extension_depth",
+        0.0,
+        0.0,
+        20.0,
+        "cells",
+        "with interface_velocity = extended: faces with Φ ≥ depth·h keep their velocity, the others take the one at Φ = (depth + 1.5)·h along the normal",
+    ),
 ];
 
 impl InterfaceTreatment {
@@ -149,6 +170,8 @@ impl Default for RedistanceSettings {
             cfl: o("redistance_cfl").float(),
             band: None,
             interface: InterfaceTreatment::ClosestPoint,
+            extended_velocity: options::as_name(&o("interface_velocity").default) == "extended",
+            extension_depth: o("extension_depth").float(),
         }
     }
 }
@@ -164,6 +187,8 @@ impl Configurable for RedistanceSettings {
             "redistance_cfl" => Value::Float(self.cfl),
             "redistance_band" => Value::opt_f64(self.band),
             "redistance_interface" => Value::str(self.interface.name()),
+            "interface_velocity" => Value::str(if self.extended_velocity { "extended" } else { "one-fluid" }),
+            "extension_depth" => Value::Float(self.extension_depth),
             _ => Value::None,
         }
     }
@@ -176,6 +201,8 @@ impl Configurable for RedistanceSettings {
             "redistance_interface" => {
                 self.interface = if options::as_name(v) == "subcell-pde" { InterfaceTreatment::SubcellPde } else { InterfaceTreatment::ClosestPoint }
             }
+            "interface_velocity" => self.extended_velocity = options::as_name(v) == "extended",
+            "extension_depth" => self.extension_depth = v.as_f64().unwrap_or(self.extension_depth),
             _ => {}
         }
         Ok(())
