@@ -120,6 +120,27 @@ VARIANTS = {
         "interface_velocity": "extended",
         "mass_correction": False,
     },
+    # the extension only where the dense phase is at rest (extension_rest_speed = the column's
+    # rest_speed, 5 mm/s): the one-fluid velocity where it flows
+    "extended-at-rest": {"interface_velocity": "extended", "extension_rest_speed": 0.005},
+    "extended-at-rest-no-mass-correction": {
+        "interface_velocity": "extended",
+        "extension_rest_speed": 0.005,
+        "mass_correction": False,
+    },
+    "proximal-20-extended-at-rest": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_rest_speed": 0.005,
+    },
+    "proximal-20-extended-at-rest-no-mass-correction": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_rest_speed": 0.005,
+        "mass_correction": False,
+    },
     "proximal-20-extended-1.5-no-mass-correction": {
         "case": {"proximal_restarts": 20},
         "anderson_depth": 5,
@@ -192,6 +213,7 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         b = m.energy_budget()
         row["plastic_work"], row["plastic_negative_work"] = b["plastic_work"], b["plastic_negative_work"]
         row["gravity_work"] = b["gravity_work"]
+        row["potential"] = b["potential"]
         rows.append(row)
         if arrest is None:
             if m.time > 0.1 and row["speed_granular"] < case.rest_speed:
@@ -235,6 +257,11 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     out["plastic_work_after_1p5_J_m"] = rows[-1]["plastic_work"] - rows[i15]["plastic_work"]
     out["plastic_negative_work_after_1p5_J_m"] = rows[-1]["plastic_negative_work"] - rows[i15]["plastic_negative_work"]
     out["gravity_work_after_1p5_J_m"] = rows[-1]["gravity_work"] - rows[i15]["gravity_work"]
+    # the potential energy the interface's motion releases; equal to gravity's work on the flow
+    # when Φ moves with the momentum's velocity
+    out["potential_drop_after_1p5_J_m"] = rows[i15]["potential"] - rows[-1]["potential"]
+    b0 = m.energy_budget()
+    out["gravity_work_minus_potential_drop_J_m"] = b0["gravity_work"] - (b0["potential_initial"] - b0["potential"])
     if 2.5 in profiles and t_end in profiles:
         out["profile_change_2p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[2.5])))
     out["observables_end"] = observe_profile(volume_profile(m.phi, g.dy), g.dx, g.dy, lc)

@@ -100,6 +100,8 @@ pub struct RedistanceSettings {
     pub extended_velocity: bool,
     /// The source level of the extension, in cells (Φ ≥ depth · h keeps its velocity).
     pub extension_depth: f64,
+    /// The extension only where the dense phase moves slower than this [m s⁻¹] (0: everywhere).
+    pub extension_rest_speed: f64,
 }
 
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
@@ -149,6 +151,15 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "cells",
         "with interface_velocity = extended: faces with Φ ≥ depth·h keep their velocity, the others take the one at Φ = (depth + 1.5)·h along the normal",
     ),
+    options::float(
+        "redistance",
+        "extension_rest_speed",
+        0.0,
+        0.0,
+        f64::INFINITY,
+        "m/s",
+        "with interface_velocity = extended: the extension only where the dense phase moves slower than this, blended to the one-fluid velocity above (0: everywhere)",
+    ),
 ];
 
 impl InterfaceTreatment {
@@ -172,6 +183,7 @@ impl Default for RedistanceSettings {
             interface: InterfaceTreatment::ClosestPoint,
             extended_velocity: options::as_name(&o("interface_velocity").default) == "extended",
             extension_depth: o("extension_depth").float(),
+            extension_rest_speed: o("extension_rest_speed").float(),
         }
     }
 }
@@ -189,6 +201,7 @@ impl Configurable for RedistanceSettings {
             "redistance_interface" => Value::str(self.interface.name()),
             "interface_velocity" => Value::str(if self.extended_velocity { "extended" } else { "one-fluid" }),
             "extension_depth" => Value::Float(self.extension_depth),
+            "extension_rest_speed" => Value::Float(self.extension_rest_speed),
             _ => Value::None,
         }
     }
@@ -203,6 +216,7 @@ impl Configurable for RedistanceSettings {
             }
             "interface_velocity" => self.extended_velocity = options::as_name(v) == "extended",
             "extension_depth" => self.extension_depth = v.as_f64().unwrap_or(self.extension_depth),
+            "extension_rest_speed" => self.extension_rest_speed = v.as_f64().unwrap_or(self.extension_rest_speed),
             _ => {}
         }
         Ok(())

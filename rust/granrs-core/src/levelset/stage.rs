@@ -70,7 +70,8 @@ impl Interface {
         fill_velocity_ghosts(vel.out_u, vel.out_v, bc, grid, BcMode::Full);
         if let Some(ext) = self.extension.as_mut() {
             phi.extrapolate_ghosts_linear();
-            ext.extend(phi, vel.out_u, vel.out_v, grid, self.redistancer.settings().extension_depth, exec);
+            let s = self.redistancer.settings();
+            ext.extend(phi, vel.out_u, vel.out_v, grid, s.extension_depth, s.extension_rest_speed, exec);
             fill_velocity_ghosts(&mut ext.u, &mut ext.v, bc, grid, BcMode::Full);
             self.transport.advect(phi, &ext.u, &ext.v, grid, dt, exec)?;
         } else {
