@@ -24,7 +24,12 @@ column's ``interface_yield`` choices ``density-support`` and ``granular-side``, 
 of depth 5, ``Numerics(anderson_depth=5)``) and that one combined with no mass correction,
 redistancing every 50 steps or never, and ``density-support``; ``uzawa-anderson-10`` (θ = 0,
 whose fixed point is eq. 11 itself, with Anderson mixing of depth 10) and
-``theta-0.3-anderson-5``. The runs do not stop at rest (the records go to t_end); the column's
+``theta-0.3-anderson-5``; ``extended``, ``extended-1.5``, ``extended-3`` (Φ transported with the
+dense phase's velocity extended along the normal from Φ = d h, d = 0, 1.5, 3:
+``Numerics(interface_velocity="extended", extension_depth=d)``), ``extended-at-rest`` (the
+extension only where the dense phase moves slower than 5 mm/s, the column's rest speed:
+``extension_rest_speed=0.005``), each also with ``no-mass-correction`` and with 20 proximal
+restarts and Anderson mixing (``proximal-20-extended...``). The runs do not stop at rest (the records go to t_end); the column's
 rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
 same, to say when the run would have stopped and what changes after that.
 
@@ -32,7 +37,9 @@ Writes ``OUT/arrest_<variant>.csv`` (the records, with two fronts of the volume 
 lowest-row front: where the deposit is half a cell thick, and its 99 % area quantile) and
 ``OUT/arrest_summary.json`` (per variant: largest front and when, the front at t_end, its retreat
 in cells for the three fronts, the late speeds by group at t = 1.5-t_end, the area drift, the
-give-back of the plastic work after 1.5 s, the deposit profile's change from 2.5 s to t_end;
+give-back of the plastic work after 1.5 s, gravity's work and the potential energy released
+after 1.5 s and their difference over the run, the deposit profile's change from 2.5 s to t_end,
+the observables of the final volume profile (``granrs.observables.observe_profile``);
 ``arrest_time_s`` under the rest criterion and, after it, the largest granular speed, the
 front's retreat and the change of the surface profile and of the volume profile to t_end).
 docs/validation.md, "Arrest of the deposit", quotes it.

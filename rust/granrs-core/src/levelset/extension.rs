@@ -20,10 +20,11 @@
 //! ```
 //!
 //! with Φ̃ and ∇Φ̃ bilinear in the cell-centre values of Φ and of its centred differences, and ũ
-//! the bilinear interpolant of the face velocity on its own lattice. The level 1.5 h deeper than
-//! Φ_s keeps the interpolation stencil (its corners within √2 h of x*) in Φ ≥ Φ_s: where the dense
-//! phase beyond Φ_s is at rest, the extended velocity is zero on every face of the band, and the
-//! zero level does not move. Where the foot is not found (a film thinner than Φ_s + 1.5 h: the
+//! the bilinear interpolant of the face velocity on its own lattice over the corners of its stencil
+//! with Φ ≥ Φ_s (weights renormalised). The level 1.5 h deeper than Φ_s keeps the whole stencil
+//! (its corners within √2 h of x*) in Φ ≥ Φ_s where the dense phase is thicker than that: where
+//! the dense phase beyond Φ_s is at rest, the extended velocity is zero on every face of the band,
+//! and the zero level does not move. Where the foot is not found (a film thinner than Φ_s + 1.5 h: the
 //! iteration climbs to the film's ridge and stops, ∇Φ̃ vanishing) the velocity at the highest
 //! point reached is taken if it lies in the dense phase (Φ̃ > 0: the film's own velocity), the
 //! face's own velocity otherwise. Faces deeper in the light phase than [`EXTENSION_BAND_CELLS`]
@@ -107,7 +108,7 @@ impl Levels<'_> {
                 return Ok((x, y));
             }
             let g2 = gx * gx + gy * gy;
-            if !(g2 > 0.01) {
+            if g2.is_nan() || g2 <= 0.01 {
                 return Err(best);
             }
             let (mut dx, mut dy) = ((c - f) * gx / g2, (c - f) * gy / g2);
@@ -130,16 +131,27 @@ impl Levels<'_> {
     }
 }
 
-/// Bilinear interpolation of a face field `q` (ghosts valid) at (x, y); `(ox, oy)` is the
-/// position of q(0, 0) in cell units (0 or ½).
+/// Bilinear interpolation of a face field `q` (ghosts valid) at (x, y) over the corners of its
+/// stencil that lie in the source region (face level ½(Φ_a + Φ_b) ≥ `source`), the weights
+/// renormalised; `None` if no corner does. `x_face`: q on x faces (q(0, 0) at (x0, y0 + dy/2)),
+/// else on y faces (at (x0 + dx/2, y0)).
 #[inline]
-fn sample(q: &Field, grid: &Grid, ox: f64, oy: f64, x: f64, y: f64) -> f64 {
+fn sample(q: &Field, phi: &Field, grid: &Grid, x_face: bool, source: f64, x: f64, y: f64) -> Option<f64> {
+    let (ox, oy) = if x_face { (0.0, 0.5) } else { (0.5, 0.0) };
     let s = ((x - grid.x0) / grid.dx - ox).clamp(0.0, (q.nx - 1) as f64);
     let t = ((y - grid.y0) / grid.dy - oy).clamp(-1.0, q.ny as f64);
     let i = (s.floor() as isize).clamp(0, q.nx as isize - 2);
     let j = (t.floor() as isize).clamp(-1, q.ny as isize - 1);
     let (fs, ft) = (s - i as f64, t - j as f64);
-    (1.0 - ft) * ((1.0 - fs) * q.at(i, j) + fs * q.at(i + 1, j)) + ft * ((1.0 - fs) * q.at(i, j + 1) + fs * q.at(i + 1, j + 1))
+    let (mut sum, mut wsum) = (0.0, 0.0);
+    for (a, b, w) in [(i, j, (1.0 - fs) * (1.0 - ft)), (i + 1, j, fs * (1.0 - ft)), (i, j + 1, (1.0 - fs) * ft), (i + 1, j + 1, fs * ft)] {
+        let level = if x_face { 0.5 * (phi.at(a - 1, b) + phi.at(a, b)) } else { 0.5 * (phi.at(a, b - 1) + phi.at(a, b)) };
+        if level >= source {
+            sum += w * q.at(a, b);
+            wsum += w;
+        }
+    }
+    (wsum > 1e-9).then(|| sum / wsum)
 }
 
 impl VelocityExtension {
@@ -159,11 +171,16 @@ impl VelocityExtension {
     #[allow(clippy::too_many_arguments)]
     pub fn extend(&mut self, phi: &Field, u: &Field, v: &Field, grid: &Grid, depth: f64, rest_speed: f64, exec: Exec) {
         let lv = Levels { phi, grid };
+        let h = grid.h();
+        let source = depth * h;
         // the transport velocity of a face (component `x_component`) from the foot point (x, y)
+        // the transport velocity of a face (component `x_component`) from the point (x, y) of the
+        // dense phase; the face's own velocity where no source face is near it
         let at = |own: f64, x: f64, y: f64, x_component: bool| -> f64 {
             let both = rest_speed > 0.0;
-            let eu = if x_component || both { sample(u, grid, 0.0, 0.5, x, y) } else { 0.0 };
-            let ev = if !x_component || both { sample(v, grid, 0.5, 0.0, x, y) } else { 0.0 };
+            let eu = if x_component || both { sample(u, phi, grid, true, source, x, y) } else { Some(0.0) };
+            let ev = if !x_component || both { sample(v, phi, grid, false, source, x, y) } else { Some(0.0) };
+            let (Some(eu), Some(ev)) = (eu, ev) else { return own };
             let ext = if x_component { eu } else { ev };
             if rest_speed > 0.0 {
                 let chi = (eu.hypot(ev) / rest_speed).min(1.0);
@@ -172,8 +189,6 @@ impl VelocityExtension {
                 ext
             }
         };
-        let h = grid.h();
-        let source = depth * h;
         let level = source + FOOT_DEPTH_CELLS * h;
         let far = -EXTENSION_BAND_CELLS * h;
         let ps = phi.slice();

@@ -51,8 +51,8 @@ pub mod transport;
 pub mod validation;
 pub use crate::operators::weno5;
 
-pub use extension::VelocityExtension;
 pub use diagnostics::{dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError};
+pub use extension::VelocityExtension;
 pub use heaviside::{blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS};
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};
