@@ -27,8 +27,9 @@
 //! and the zero level does not move. Where the foot is not found (a film thinner than Φ_s + 1.5 h: the
 //! iteration climbs to the film's ridge and stops, ∇Φ̃ vanishing) the velocity at the highest
 //! point reached is taken if it lies in the dense phase (Φ̃ > 0: the film's own velocity), the
-//! face's own velocity otherwise. Faces deeper in the light phase than [`EXTENSION_BAND_CELLS`]
-//! cells, and the faces on the domain's boundary, keep their velocity.
+//! face's own velocity otherwise. The faces on the domain's boundary keep their velocity. Every face
+//! of the light phase is extended (a band edge in the air would let the air's velocity carry Φ
+//! through it, towards the interface, between two redistancings).
 //!
 //! With a rest speed u_r > 0 the extension is kept only where the dense phase is at rest,
 //!
@@ -46,10 +47,6 @@
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, HALO};
 use crate::operators::for_each_interior_row;
-
-/// Faces with Φ < −EXTENSION_BAND_CELLS · h keep their own velocity (the transport there only
-/// moves the far field of Φ, which the redistancing resets).
-pub const EXTENSION_BAND_CELLS: f64 = 8.0;
 
 /// Depth below the source level of the foot point, in cells (see the module's doc).
 const FOOT_DEPTH_CELLS: f64 = 1.5;
@@ -190,7 +187,6 @@ impl VelocityExtension {
             }
         };
         let level = source + FOOT_DEPTH_CELLS * h;
-        let far = -EXTENSION_BAND_CELLS * h;
         let ps = phi.slice();
         let st = phi.stride();
         // x faces: the face (i, j) lies between centres (i − 1, j) and (i, j) at (x0 + i dx, y_{j+½})
@@ -201,7 +197,7 @@ impl VelocityExtension {
             for i in 0..nxu {
                 let own = us[bu + i];
                 let f = if i == 0 || i + 1 == nxu { f64::INFINITY } else { 0.5 * (ps[bp + i - 1] + ps[bp + i]) };
-                row[HALO + i] = if f >= source || f < far {
+                row[HALO + i] = if f >= source {
                     own
                 } else {
                     let p = (grid.x0 + i as f64 * grid.dx, grid.y0 + (j as f64 + 0.5) * grid.dy);
@@ -220,7 +216,7 @@ impl VelocityExtension {
             for i in 0..nxv {
                 let own = vs[bv + i];
                 let f = if j == 0 || j + 1 == nyv { f64::INFINITY } else { 0.5 * (ps[(j + HALO - 1) * st + HALO + i] + ps[(j + HALO) * st + HALO + i]) };
-                row[HALO + i] = if f >= source || f < far {
+                row[HALO + i] = if f >= source {
                     own
                 } else {
                     let p = (grid.x0 + (i as f64 + 0.5) * grid.dx, grid.y0 + j as f64 * grid.dy);
@@ -331,8 +327,8 @@ mod tests {
     }
 
     /// A deposit at rest under an air flow of 0.5 m/s over it: transported with the extension, the
-    /// zero level does not move over 200 steps (Φ unchanged on every cell within 2 h of it, the
-    /// dense area to round-off); with the one-fluid velocity it is eroded.
+    /// zero level does not move over 200 steps (Φ unchanged to round-off on every cell within 2 h
+    /// of it, the dense area to 1e-14); with the one-fluid velocity it is eroded.
     #[test]
     fn the_zero_level_of_a_deposit_at_rest_stays_put() {
         use crate::levelset::{dense_area, LevelSetTransport};
@@ -341,9 +337,10 @@ mod tests {
         init_signed_distance(&Shape::Circle { xc: 1.0, yc: -0.1, radius: 0.5 }, &grid, &mut phi0).unwrap();
         phi0.extrapolate_ghosts_linear();
         let inside = |x: f64, y: f64| 0.5 - ((x - 1.0).powi(2) + (y + 0.1).powi(2)).sqrt() > 0.0;
-        // a circulation in the air (zero in the grains), sheared at the surface
-        let u = Field::from_fn(&grid, Location::XFace, |x, y| if inside(x, y) { 0.0 } else { 0.5 * (std::f64::consts::PI * y).sin() });
-        let v = Field::from_fn(&grid, Location::YFace, |x, y| if inside(x, y) { 0.0 } else { -0.2 * (std::f64::consts::PI * x).sin() });
+        // a circulation in the air (zero in the grains and on the walls), sheared at the surface
+        use std::f64::consts::PI;
+        let u = Field::from_fn(&grid, Location::XFace, |x, y| if inside(x, y) { 0.0 } else { 0.5 * (PI * y).sin() * (0.5 * PI * x).sin() });
+        let v = Field::from_fn(&grid, Location::YFace, |x, y| if inside(x, y) { 0.0 } else { -0.2 * (PI * x).sin() * (PI * y).sin() });
         let dt = 0.2 * grid.h() / 0.5;
         let a0 = dense_area(&phi0, &grid, Exec::SERIAL);
         let mut transport = LevelSetTransport::new(&grid);
@@ -359,7 +356,9 @@ mod tests {
         for j in 0..grid.ny as isize {
             for i in 0..grid.nx as isize {
                 if phi0.at(i, j).abs() < 2.0 * h {
-                    assert_eq!(phi_e.at(i, j), phi0.at(i, j), "Φ at ({i}, {j})");
+                    // round-off only: TVD-RK3's convex combinations ¾Φ + ¼Φ round by an ulp a stage
+                    // (600 stages: ≲ 1e-13 relative)
+                    assert!((phi_e.at(i, j) - phi0.at(i, j)).abs() <= 1e-12 * h, "Φ at ({i}, {j}): {} against {}", phi_e.at(i, j), phi0.at(i, j));
                 }
             }
         }
