@@ -148,7 +148,7 @@ fn sample(q: &Field, phi: &Field, grid: &Grid, x_face: bool, source: f64, x: f64
             wsum += w;
         }
     }
-    (wsum > 1e-9).then(|| sum / wsum)
+    (wsum > 1e-9).then_some(sum / wsum)
 }
 
 impl VelocityExtension {
@@ -170,7 +170,6 @@ impl VelocityExtension {
         let lv = Levels { phi, grid };
         let h = grid.h();
         let source = depth * h;
-        // the transport velocity of a face (component `x_component`) from the foot point (x, y)
         // the transport velocity of a face (component `x_component`) from the point (x, y) of the
         // dense phase; the face's own velocity where no source face is near it
         let at = |own: f64, x: f64, y: f64, x_component: bool| -> f64 {
