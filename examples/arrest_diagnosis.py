@@ -24,7 +24,12 @@ column's ``interface_yield`` choices ``density-support`` and ``granular-side``, 
 of depth 5, ``Numerics(anderson_depth=5)``) and that one combined with no mass correction,
 redistancing every 50 steps or never, and ``density-support``; ``uzawa-anderson-10`` (θ = 0,
 whose fixed point is eq. 11 itself, with Anderson mixing of depth 10) and
-``theta-0.3-anderson-5``. The runs do not stop at rest (the records go to t_end); the column's
+``theta-0.3-anderson-5``; ``extended``, ``extended-1.5``, ``extended-3`` (Φ transported with the
+dense phase's velocity extended along the normal from Φ = d h, d = 0, 1.5, 3:
+``Numerics(interface_velocity="extended", extension_depth=d)``), ``extended-at-rest`` (the
+extension only where the dense phase moves slower than 5 mm/s, the column's rest speed:
+``extension_rest_speed=0.005``), each also with ``no-mass-correction`` and with 20 proximal
+restarts and Anderson mixing (``proximal-20-extended...``). The runs do not stop at rest (the records go to t_end); the column's
 rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
 same, to say when the run would have stopped and what changes after that.
 
@@ -32,7 +37,9 @@ Writes ``OUT/arrest_<variant>.csv`` (the records, with two fronts of the volume 
 lowest-row front: where the deposit is half a cell thick, and its 99 % area quantile) and
 ``OUT/arrest_summary.json`` (per variant: largest front and when, the front at t_end, its retreat
 in cells for the three fronts, the late speeds by group at t = 1.5-t_end, the area drift, the
-give-back of the plastic work after 1.5 s, the deposit profile's change from 2.5 s to t_end;
+give-back of the plastic work after 1.5 s, gravity's work and the potential energy released
+after 1.5 s and their difference over the run, the deposit profile's change from 2.5 s to t_end,
+the observables of the final volume profile (``granrs.observables.observe_profile``);
 ``arrest_time_s`` under the rest criterion and, after it, the largest granular speed, the
 front's retreat and the change of the surface profile and of the volume profile to t_end).
 docs/validation.md, "Arrest of the deposit", quotes it.
@@ -49,7 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
-from granrs.observables import area_quantile, thickness_front, volume_profile
+from granrs.observables import area_quantile, observe_profile, thickness_front, volume_profile
 
 VARIANTS = {
     "default": {},
@@ -94,6 +101,59 @@ VARIANTS = {
         "anderson_depth": 5,
         "mass_correction": False,
     },
+    # Φ transported with the dense phase's velocity extended along the normal from Φ = d h
+    # (interface_velocity = "extended", extension_depth = d), alone and with 20 restarts
+    "extended": {"interface_velocity": "extended"},
+    "extended-1.5": {"interface_velocity": "extended", "extension_depth": 1.5},
+    "extended-3": {"interface_velocity": "extended", "extension_depth": 3.0},
+    "extended-no-mass-correction": {"interface_velocity": "extended", "mass_correction": False},
+    "proximal-20-extended": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "interface_velocity": "extended"},
+    "proximal-20-extended-1.5": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_depth": 1.5,
+    },
+    "proximal-20-extended-3": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_depth": 3.0,
+    },
+    "proximal-20-extended-no-mass-correction": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "mass_correction": False,
+    },
+    # the extension only where the dense phase is at rest (extension_rest_speed = the column's
+    # rest_speed, 5 mm/s): the one-fluid velocity where it flows
+    "extended-at-rest": {"interface_velocity": "extended", "extension_rest_speed": 0.005},
+    "extended-at-rest-no-mass-correction": {
+        "interface_velocity": "extended",
+        "extension_rest_speed": 0.005,
+        "mass_correction": False,
+    },
+    "proximal-20-extended-at-rest": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_rest_speed": 0.005,
+    },
+    "proximal-20-extended-at-rest-no-mass-correction": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_rest_speed": 0.005,
+        "mass_correction": False,
+    },
+    "proximal-20-extended-1.5-no-mass-correction": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "interface_velocity": "extended",
+        "extension_depth": 1.5,
+        "mass_correction": False,
+    },
 }
 
 
@@ -130,6 +190,7 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         hvol = volume_profile(phi, g.dy)
         row["front_half_cell"] = thickness_front(hvol, g.dx, 0.5 * g.dy) - lc
         row["front_q99"] = area_quantile(hvol, g.dx, 0.99) - lc
+        row["front_20mm"] = thickness_front(hvol, g.dx, 0.02) - lc
         for key, mask in groups.items():
             row[f"speed_{key}"] = float(speed[mask].max()) if mask.any() else 0.0
         granular = phi > 0
@@ -145,6 +206,7 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         b = m.energy_budget()
         row["plastic_work"], row["plastic_negative_work"] = b["plastic_work"], b["plastic_negative_work"]
         row["gravity_work"] = b["gravity_work"]
+        row["potential"] = b["potential"]
         rows.append(row)
         if arrest is None:
             if m.time > 0.1 and row["speed_granular"] < case.rest_speed:
@@ -188,9 +250,15 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     out["plastic_work_after_1p5_J_m"] = rows[-1]["plastic_work"] - rows[i15]["plastic_work"]
     out["plastic_negative_work_after_1p5_J_m"] = rows[-1]["plastic_negative_work"] - rows[i15]["plastic_negative_work"]
     out["gravity_work_after_1p5_J_m"] = rows[-1]["gravity_work"] - rows[i15]["gravity_work"]
+    # the potential energy the interface's motion releases; equal to gravity's work on the flow
+    # when Φ moves with the momentum's velocity
+    out["potential_drop_after_1p5_J_m"] = rows[i15]["potential"] - rows[-1]["potential"]
+    b0 = m.energy_budget()
+    out["gravity_work_minus_potential_drop_J_m"] = b0["gravity_work"] - (b0["potential_initial"] - b0["potential"])
     if 2.5 in profiles and t_end in profiles:
         out["profile_change_2p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[2.5])))
-    for key in ("front_half_cell", "front_q99"):
+    out["observables_end"] = observe_profile(volume_profile(m.phi, g.dy), g.dx, g.dy, lc)
+    for key in ("front_half_cell", "front_q99", "front_20mm"):
         f = np.array([r[key] for r in rows])
         out[f"retreat_{key}_cells"] = float((f.max() - f[-1]) / g.dx)
     out["arrest_time_s"] = arrest
@@ -204,6 +272,9 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
             max((r["speed_granular"] for r, is_after in zip(rows, after) if is_after), default=0.0)
         )
         out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
+        out["area_drift_after_arrest"] = float(
+            np.max(np.abs(area[t >= arrest] / area[t >= arrest][0] - 1.0)) if np.any(t >= arrest) else 0.0
+        )
     if 1.5 in profiles and t_end in profiles:
         out["profile_change_1p5_to_end_m"] = float(np.max(np.abs(profiles[t_end] - profiles[1.5])))
     return out, rows

@@ -8,6 +8,7 @@
 //! | [`weno5`] | one-sided WENO5 derivatives Φ_x^± | Jiang & Shu 1996; Jiang & Peng 2000 |
 //! | [`transport`] | ∂Φ/∂t + u·∇Φ = 0 (10a), TVD-RK3 + upwind WENO5 | Shu & Osher 1988 |
 //! | [`redistance`] | ∂Φ/∂τ + S(Φ⁰)(\|∇Φ\| − 1) = 0 with a frozen subcell band | Sussman, Smereka & Osher 1994; Russo & Smereka 2000; Chopp 2001; Min 2010 |
+//! | [`extension`] | ∇u_ext·∇Φ = 0 below Φ = d h: the transport velocity extended from the dense phase (option) | Adalsteinsson & Sethian 1999 |
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
 //! | [`stage`] | the room's stages of a step: transport and redistancing (step 1), ρ(Φ), η(Φ) (step 2) | paper §3.1 |
 //! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
@@ -40,6 +41,7 @@
 
 mod closest_point;
 pub mod diagnostics;
+pub mod extension;
 pub mod heaviside;
 pub mod redistance;
 pub mod shapes;
@@ -50,6 +52,7 @@ pub mod validation;
 pub use crate::operators::weno5;
 
 pub use diagnostics::{dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError};
+pub use extension::VelocityExtension;
 pub use heaviside::{blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS};
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};

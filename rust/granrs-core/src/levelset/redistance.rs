@@ -95,6 +95,13 @@ pub struct RedistanceSettings {
     pub band: Option<f64>,
     /// Treatment of the cells next to the interface.
     pub interface: InterfaceTreatment,
+    /// The velocity that transports Φ: the one-fluid velocity (default) or its extension from
+    /// the level Φ = `extension_depth` · h of the dense phase ([`super::extension`]).
+    pub extended_velocity: bool,
+    /// The source level of the extension, in cells (Φ ≥ depth · h keeps its velocity).
+    pub extension_depth: f64,
+    /// The extension only where the dense phase moves slower than this [m s⁻¹] (0: everywhere).
+    pub extension_rest_speed: f64,
 }
 
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
@@ -128,6 +135,31 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "treatment of the cells next to the interface: frozen band at the bicubic zero set (Chopp 2001) or the subcell PDE (Min 2010)",
     )
     .variant(),
+    options::choice(
+        "redistance",
+        "interface_velocity",
+        "one-fluid",
+        &["one-fluid", "extended"],
+        "the velocity that transports Φ: the one-fluid velocity, or the dense phase's extended along the normal from Φ = extension_depth·h (Adalsteinsson & Sethian 1999)",
+    ),
+    options::float(
+        "redistance",
+        "extension_depth",
+        0.0,
+        0.0,
+        20.0,
+        "cells",
+        "with interface_velocity = extended: faces with Φ ≥ depth·h keep their velocity, the others take the one at Φ = (depth + 1.5)·h along the normal",
+    ),
+    options::float(
+        "redistance",
+        "extension_rest_speed",
+        0.0,
+        0.0,
+        f64::INFINITY,
+        "m/s",
+        "with interface_velocity = extended: the extension only where the dense phase moves slower than this, blended to the one-fluid velocity above (0: everywhere)",
+    ),
 ];
 
 impl InterfaceTreatment {
@@ -149,6 +181,9 @@ impl Default for RedistanceSettings {
             cfl: o("redistance_cfl").float(),
             band: None,
             interface: InterfaceTreatment::ClosestPoint,
+            extended_velocity: options::as_name(&o("interface_velocity").default) == "extended",
+            extension_depth: o("extension_depth").float(),
+            extension_rest_speed: o("extension_rest_speed").float(),
         }
     }
 }
@@ -164,6 +199,9 @@ impl Configurable for RedistanceSettings {
             "redistance_cfl" => Value::Float(self.cfl),
             "redistance_band" => Value::opt_f64(self.band),
             "redistance_interface" => Value::str(self.interface.name()),
+            "interface_velocity" => Value::str(if self.extended_velocity { "extended" } else { "one-fluid" }),
+            "extension_depth" => Value::Float(self.extension_depth),
+            "extension_rest_speed" => Value::Float(self.extension_rest_speed),
             _ => Value::None,
         }
     }
@@ -176,6 +214,9 @@ impl Configurable for RedistanceSettings {
             "redistance_interface" => {
                 self.interface = if options::as_name(v) == "subcell-pde" { InterfaceTreatment::SubcellPde } else { InterfaceTreatment::ClosestPoint }
             }
+            "interface_velocity" => self.extended_velocity = options::as_name(v) == "extended",
+            "extension_depth" => self.extension_depth = v.as_f64().unwrap_or(self.extension_depth),
+            "extension_rest_speed" => self.extension_rest_speed = v.as_f64().unwrap_or(self.extension_rest_speed),
             _ => {}
         }
         Ok(())

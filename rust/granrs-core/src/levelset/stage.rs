@@ -1,12 +1,13 @@
 //! The level set's two stages of a step (Aravena et al. §3.1; the order is `models/step.rs`'s):
 //!
 //! - step 1, eq. (10a): ∂_t Φ + u·∇Φ = 0 by WENO5 + TVD-RK3 ([`super::transport`]) with the
-//!   time-centred velocity u^{n+½} ≈ (1 + ω/2)uⁿ − (ω/2)uⁿ⁻¹, and the redistancing of
+//!   time-centred velocity u^{n+½} ≈ (1 + ω/2)uⁿ − (ω/2)uⁿ⁻¹ (or its extension from the dense
+//!   phase, [`super::extension`], with `interface_velocity = "extended"`), and the redistancing of
 //!   [`super::redistance`] every N steps ([`Interface::advance`]);
 //! - step 2: the material properties from Φ^{n+1}, ρ(Φ) on the faces and η(Φ) (harmonic blend)
 //!   at centres and nodes ([`material_properties`], the laws of [`super::heaviside`]).
 
-use super::{LevelSetTransport, RedistanceSettings, Redistancer};
+use super::{LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, HALO};
@@ -16,6 +17,8 @@ use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row
 pub struct Interface {
     pub transport: LevelSetTransport,
     pub redistancer: Redistancer,
+    /// The transport velocity's extension from the dense phase (`interface_velocity = "extended"`).
+    pub extension: Option<VelocityExtension>,
 }
 
 /// The velocity the interface is transported with, and where to put the time-centred one.
@@ -36,7 +39,8 @@ pub struct TransportVelocity<'a> {
 impl Interface {
     /// The state for `grid`.
     pub fn new(grid: &Grid, redistance: RedistanceSettings) -> Result<Self> {
-        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)? })
+        let extension = redistance.extended_velocity.then(|| VelocityExtension::new(grid));
+        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension })
     }
 
     /// Step 1: Φ^{n+1} from Φⁿ (in `phi`) transported over δt with u^{n+½}, then redistanced
@@ -64,7 +68,15 @@ impl Interface {
             }
         }
         fill_velocity_ghosts(vel.out_u, vel.out_v, bc, grid, BcMode::Full);
-        self.transport.advect(phi, vel.out_u, vel.out_v, grid, dt, exec)?;
+        if let Some(ext) = self.extension.as_mut() {
+            phi.extrapolate_ghosts_linear();
+            let s = self.redistancer.settings();
+            ext.extend(phi, vel.out_u, vel.out_v, grid, s.extension_depth, s.extension_rest_speed, exec);
+            fill_velocity_ghosts(&mut ext.u, &mut ext.v, bc, grid, BcMode::Full);
+            self.transport.advect(phi, &ext.u, &ext.v, grid, dt, exec)?;
+        } else {
+            self.transport.advect(phi, vel.out_u, vel.out_v, grid, dt, exec)?;
+        }
         if redistance {
             self.redistancer.redistance(phi, grid, exec)?;
         }
