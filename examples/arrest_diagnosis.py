@@ -26,7 +26,7 @@ redistancing every 50 steps or never, and ``density-support``; ``uzawa-anderson-
 whose fixed point is eq. 11 itself, with Anderson mixing of depth 10) and
 ``theta-0.3-anderson-5``; ``extended``, ``extended-1.5``, ``extended-3`` (Φ transported with the
 dense phase's velocity extended along the normal from Φ = d h, d = 0, 1.5, 3:
-``Numerics(interface_velocity="extended", extension_depth=d)``), ``extended-at-rest`` (the
+``Variants(interface_velocity="extended", extension_depth=d)``), ``extended-at-rest`` (the
 extension only where the dense phase moves slower than 5 mm/s, the column's rest speed:
 ``extension_rest_speed=0.005``), each also with ``no-mass-correction`` and with 20 proximal
 restarts and Anderson mixing (``proximal-20-extended...``). The runs do not stop at rest (the records go to t_end); the column's

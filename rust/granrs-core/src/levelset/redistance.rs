@@ -141,7 +141,8 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "one-fluid",
         &["one-fluid", "extended"],
         "the velocity that transports Φ: the one-fluid velocity, or the dense phase's extended along the normal from Φ = extension_depth·h (Adalsteinsson & Sethian 1999)",
-    ),
+    )
+    .variant(),
     options::float(
         "redistance",
         "extension_depth",
@@ -150,7 +151,8 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         20.0,
         "cells",
         "with interface_velocity = extended: faces with Φ ≥ depth·h keep their velocity, the others take the one at Φ = (depth + 1.5)·h along the normal",
-    ),
+    )
+    .variant(),
     options::float(
         "redistance",
         "extension_rest_speed",
@@ -159,7 +161,8 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         f64::INFINITY,
         "m/s",
         "with interface_velocity = extended: the extension only where the dense phase moves slower than this, blended to the one-fluid velocity above (0: everywhere)",
-    ),
+    )
+    .variant(),
 ];
 
 impl InterfaceTreatment {
