@@ -9,7 +9,7 @@
 //! | [`transport`] | ∂Φ/∂t + u·∇Φ = 0 (10a), TVD-RK3 + upwind WENO5 | Shu & Osher 1988 |
 //! | [`redistance`] | ∂Φ/∂τ + S(Φ⁰)(\|∇Φ\| − 1) = 0 with a frozen subcell band | Sussman, Smereka & Osher 1994; Russo & Smereka 2000; Chopp 2001; Min 2010 |
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
-//! | [`stage`] | the room's stages of a step: transport and redistancing (step 1), ρ(Φ), η(Φ) (step 2) | paper §3.1 |
+//! | [`stage`] | the room's stage of a step: transport, redistancing and the optional mass correction (step 1) | paper §3.1 |
 //! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
 //! | [`diagnostics`] | dense-phase area, symmetric difference, eikonal error | — |
 //! | [`validation`] | Zalesak disk, Rider–Kothe vortex | docs/reference-data.md, "Level-set transport" |
@@ -53,7 +53,7 @@ pub use diagnostics::{dense_area, dense_area_refined, eikonal_error, interface_p
 pub use heaviside::{blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS};
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};
-pub use stage::{material_properties, Interface, MaterialFields, TransportVelocity};
+pub use stage::{Interface, TransportVelocity};
 pub use subcell::{interface_diagonal, interface_faces, interface_fraction, THETA_MIN};
 pub use transport::{cfl_number, max_transport_rate, stable_dt, LevelSetTransport, DEFAULT_CFL};
 pub use validation::{single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics};
