@@ -173,3 +173,45 @@ impl crate::grid::WindowState for MaterialProperties {
         vec![&mut self.eta_c]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Φ = x − 0.5 on the unit square: ρ and η take the phases' values beyond ε from the
+    /// interface and the blends' midpoints on it (H_ε(0) = ½: ρ = (ρ_d + ρ_l)/2 exactly,
+    /// η = 2η_dη_l/(η_d + η_l)), and the state is current until invalidated.
+    #[test]
+    fn properties_of_a_planar_interface() {
+        let grid = Grid::new(8, 4, 1.0, 0.5).unwrap();
+        let mut phi = Field::from_fn(&grid, Location::Centre, |x, _| x - 0.5);
+        phi.extrapolate_ghosts_linear();
+        let laws = PropertyLaws { dense_density: 1500.0, dense_viscosity: 1e-3, light_density: 1.0, light_viscosity: 2e-5, eps: 0.1, free_surface: false };
+        let mut props = MaterialProperties::new(&grid);
+        assert!(props.needs_update(true));
+        props.update(&phi, &laws, Exec::SERIAL);
+        assert!(!props.needs_update(true) && props.needs_update(false));
+        let (rho_u, rho_v) = props.density();
+        // u-faces at x = i/8: the interface face i = 4, the dense phase beyond x = 0.6
+        assert_eq!(rho_u.at(4, 1), 0.5 * (1500.0 + 1.0));
+        assert_eq!(rho_u.at(7, 1), 1500.0);
+        assert_eq!(rho_u.at(1, 1), 1.0);
+        assert_eq!(rho_v.at(0, 2), 1.0);
+        let (eta_c, eta_n) = props.viscosity();
+        // η_dη_l/η_l and η_dη_l/η_d: a few round-offs from the phases' values
+        let close = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * b;
+        assert!(close(eta_c.at(7, 0), 1e-3) && close(eta_c.at(0, 0), 2e-5));
+        assert!(close(eta_n.at(4, 2), 2.0 * 1e-3 * 2e-5 / (1e-3 + 2e-5)));
+        props.invalidate();
+        assert!(props.needs_update(true));
+    }
+
+    /// The granular-only model: ρ_d on every face beside a granular cell, ρ_l elsewhere.
+    #[test]
+    fn free_surface_face_density() {
+        let laws = PropertyLaws { dense_density: 1500.0, dense_viscosity: 1e-3, light_density: 1.0, light_viscosity: 2e-5, eps: 0.1, free_surface: true };
+        assert_eq!(laws.face_density(0.01, -0.3), 1500.0);
+        assert_eq!(laws.face_density(-0.01, -0.3), 1.0);
+        assert!(laws.face_is_solved(-0.2, 1e-9) && !laws.face_is_solved(-0.2, 0.0));
+    }
+}
