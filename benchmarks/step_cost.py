@@ -15,7 +15,8 @@ table reports the medians of the rounds and the ratio of the medians, of the wal
 the process's CPU time (all threads; with one thread the CPU time does not count the time the
 process waits for a core, so its ratio is the steadier one on a shared machine). Both builds must reach
 the same state: a digest of u, v, p, Φ (and p_f) after the timed steps is compared and a
-mismatch is reported.
+mismatch is reported. The JSON of ``--out`` keeps, per case, the pairs of wall and CPU times
+of each round and the 1-minute load average at the start and the end of its rounds.
 
 ``--steps-total N --wall-total W``: the estimate of a whole run of N steps that took W seconds
 with the baseline (the reference case: 14 967 steps, 1 209 s): W × ratio, and N × (cost per
@@ -56,8 +57,14 @@ def worker(args: argparse.Namespace) -> None:
             continue
         if a is not None:
             h.update(np.ascontiguousarray(a).tobytes())
-    out = {"s_per_step": wall / args.steps, "cpu_s_per_step": cpu / args.steps, "steps": args.steps, "time": m.time, "digest": h.hexdigest()[:16],
-           "granrs": os.path.dirname(granrs.__file__)}
+    out = {
+        "s_per_step": wall / args.steps,
+        "cpu_s_per_step": cpu / args.steps,
+        "steps": args.steps,
+        "time": m.time,
+        "digest": h.hexdigest()[:16],
+        "granrs": os.path.dirname(granrs.__file__),
+    }
     for key in ("picard_iterations", "pressure_iterations", "viscous_iterations"):
         if key in log and len(log[key]):
             out[key + "_median"] = float(statistics.median(log[key]))
@@ -71,8 +78,21 @@ def measure(build: str | None, case: dict, args: argparse.Namespace) -> dict:
     env = dict(os.environ)
     if build:
         env["PYTHONPATH"] = build + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    cmd = [sys.executable, os.path.abspath(__file__), "--worker", "--ny", str(case["ny"]), "--model", case["model"], "--threads",
-           str(case["threads"]), "--warmup", str(args.warmup), "--steps", str(args.steps)]
+    cmd = [
+        sys.executable,
+        os.path.abspath(__file__),
+        "--worker",
+        "--ny",
+        str(case["ny"]),
+        "--model",
+        case["model"],
+        "--threads",
+        str(case["threads"]),
+        "--warmup",
+        str(args.warmup),
+        "--steps",
+        str(args.steps),
+    ]
     if case["dry"]:
         cmd.append("--dry")
     if args.active_region is not None:
@@ -114,6 +134,7 @@ def main() -> None:
             for threads in args.threads:
                 case = {"model": model, "ny": ny, "threads": threads, "dry": args.dry}
                 runs: dict[str, list] = {"base": [], "new": []}
+                load_start = os.getloadavg()
                 for k in range(args.rounds):
                     order = [("base", args.base), ("new", None)]
                     if k % 2:
@@ -126,10 +147,22 @@ def main() -> None:
                 digests = {r["digest"] for r in runs["base"] + runs["new"]}
                 cb = statistics.median(r["cpu_s_per_step"] for r in runs["base"])
                 cn = statistics.median(r["cpu_s_per_step"] for r in runs["new"])
-                row = {**case, "s_per_step_base": tb, "s_per_step_new": tn, "ratio_new_over_base": tn / tb,
-                       "cpu_s_per_step_base": cb, "cpu_s_per_step_new": cn, "cpu_ratio_new_over_base": cn / cb,
-                       "pairs": [[b["s_per_step"], n["s_per_step"]] for b, n in zip(runs["base"], runs["new"])],
-                       "same_state": len(digests) == 1}
+                row = {
+                    **case,
+                    "s_per_step_base": tb,
+                    "s_per_step_new": tn,
+                    "ratio_new_over_base": tn / tb,
+                    "cpu_s_per_step_base": cb,
+                    "cpu_s_per_step_new": cn,
+                    "cpu_ratio_new_over_base": cn / cb,
+                    "pairs": [[b["s_per_step"], n["s_per_step"]] for b, n in zip(runs["base"], runs["new"])],
+                    "cpu_pairs": [
+                        [b["cpu_s_per_step"], n["cpu_s_per_step"]] for b, n in zip(runs["base"], runs["new"])
+                    ],
+                    "rounds": args.rounds,
+                    "load_average_start_end": [load_start[0], os.getloadavg()[0]],
+                    "same_state": len(digests) == 1,
+                }
                 if args.steps_total:
                     row["estimate_steps_x_cost_s"] = args.steps_total * tn
                     if args.wall_total:
@@ -137,14 +170,27 @@ def main() -> None:
                 rows.append(row)
                 print(json.dumps({"summary": row}), flush=True)
     print()
-    print("| model | ny | threads | base wall/step | new wall/step | new/base (wall) | new/base (CPU time) | same state |")
+    print(
+        "| model | ny | threads | base wall/step | new wall/step | new/base (wall) | new/base (CPU time) | same state |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['model']}{' dry' if r['dry'] else ''} | {r['ny']} | {r['threads']} | {r['s_per_step_base'] * 1e3:.1f} ms | "
-              f"{r['s_per_step_new'] * 1e3:.1f} ms | {r['ratio_new_over_base']:.3f} | {r['cpu_ratio_new_over_base']:.3f} | {r['same_state']} |")
+        print(
+            f"| {r['model']}{' dry' if r['dry'] else ''} | {r['ny']} | {r['threads']} | {r['s_per_step_base'] * 1e3:.1f} ms | "
+            f"{r['s_per_step_new'] * 1e3:.1f} ms | {r['ratio_new_over_base']:.3f} | {r['cpu_ratio_new_over_base']:.3f} | {r['same_state']} |"
+        )
     if args.out:
-        Path(args.out).write_text(json.dumps({"cpu_count": os.cpu_count(), "args": {k: v for k, v in vars(args).items() if k != "worker"},
-                                              "rows": rows}, indent=2) + "\n")
+        Path(args.out).write_text(
+            json.dumps(
+                {
+                    "cpu_count": os.cpu_count(),
+                    "args": {k: v for k, v in vars(args).items() if k != "worker"},
+                    "rows": rows,
+                },
+                indent=2,
+            )
+            + "\n"
+        )
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ FLOORS = [
     ["error", "exec", "options"],
     ["grid"],
     ["operators", "solvers"],
-    ["levelset", "plasticity", "pore_pressure", "projection", "walls", "rheology", "diagnostics"],
+    ["levelset", "properties", "plasticity", "pore_pressure", "projection", "walls", "rheology", "diagnostics"],
     ["time_stepping"],
     ["models"],
 ]

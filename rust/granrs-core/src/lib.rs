@@ -18,7 +18,9 @@
 //! | (10d) | Σ = P(Σ + r D(u)), the plastic projection | `rheology/plastic.rs` | [`rheology::PlasticState::update`] |
 //! | (10e) | σ_t = τ_b s, s = P_b(s − r_b u_t), the Coulomb walls | `walls/mod.rs` | [`walls::CoulombWalls::update`] |
 //! | (10f) | ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (step 3) | `pore_pressure/mod.rs` | [`pore_pressure::PorePressure::advance`] |
-//! | step 2 | ρ(Φ), η(Φ) from Φ^{n+1}; τ(Φ), τ_b, r, r_b | `levelset/stage.rs`, `rheology/stage.rs` | [`levelset::material_properties`], [`rheology::stage::RheologyState::prepare`] |
+//! | (10a), mass | the optional global mass correction Φ ← Φ + δ, \|{Φ > 0}\| = A_ref (after step 1) | `levelset/stage.rs` | [`levelset::Interface::correct_mass`] |
+//! | step 2 | ρ(Φ), η(Φ) from Φ^{n+1} | `properties/mod.rs` | [`properties::MaterialProperties::update`] ([`properties::PropertyLaws`]) |
+//! | step 2 | τ(Φ), τ_b, r, r_b, the lagged viscosity of μ(I) | `rheology/stage.rs` | [`rheology::stage::RheologyState::prepare`] |
 //! | (11) | the predictor ũ^{n+1} with Σ^{n+1}, s^{n+1} (step 4, BDF2) | `models/step.rs`, `models/rheology_stage.rs` | `TwoPhaseModel::predictor`, `TwoPhaseModel::momentum_solve` |
 //! | (12) | the Picard iteration of the bi-projection (pseudo-relaxation θ) | `rheology/stage.rs` | [`rheology::stage::RheologyState::bi_projection`] |
 //! | step 5 | the pressure projection: a₀ρ(u^{n+1} − ũ)/δt + ∇δp = 0, div u^{n+1} = 0 | `projection/stage.rs` (two-phase: `projection/mod.rs`, granular-only: `projection/free_surface.rs`) | [`projection::PressureStage::project`] ([`projection::PressureProjection::project`], [`projection::free_surface::FreeSurfaceProjection::project`]) |
@@ -41,8 +43,9 @@
 //!    budget, the memory estimate) and the depth-averaged model;
 //! 4. [`time_stepping`]: clock (δt, BDF2 coefficients, the step's floor), the momentum
 //!    predictor's viscous solver, what a step did (with the wall time of each stage);
-//! 3. physics rooms: [`levelset`] (the interface stage: transport, redistancing; the
-//!    properties; smoothed Heaviside and material laws), [`pore_pressure`], [`projection`] (the
+//! 3. physics rooms: [`levelset`] (the interface stage: transport, redistancing, the mass
+//!    correction; smoothed Heaviside and material laws), [`properties`] (ρ on the faces, η at
+//!    centres and nodes: their state and step 2's stage), [`pore_pressure`], [`projection`] (the
 //!    pressure projections and their stage), [`rheology`] (laws, the plastic projection, the
 //!    room's state with its preparation and the bi-projection of eq. 12), [`walls`] (Coulomb and side-wall friction),
 //!    [`plasticity`] (what rheology and walls share: the unit-ball projection, the increment of
@@ -66,6 +69,7 @@ pub mod options;
 pub mod plasticity;
 pub mod pore_pressure;
 pub mod projection;
+pub mod properties;
 pub mod rheology;
 pub mod solvers;
 pub mod time_stepping;

@@ -10,7 +10,7 @@
 //! | [`redistance`] | ∂Φ/∂τ + S(Φ⁰)(\|∇Φ\| − 1) = 0 with a frozen subcell band | Sussman, Smereka & Osher 1994; Russo & Smereka 2000; Chopp 2001; Min 2010 |
 //! | [`extension`] | ∇u_ext·∇Φ = 0 below Φ = d h: the transport velocity extended from the dense phase (option) | Adalsteinsson & Sethian 1999 |
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
-//! | [`stage`] | the room's stages of a step: transport and redistancing (step 1), ρ(Φ), η(Φ) (step 2) | paper §3.1 |
+//! | [`stage`] | the room's stage of a step: transport, redistancing and the optional mass correction (step 1) | paper §3.1 |
 //! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
 //! | [`diagnostics`] | dense-phase area, symmetric difference, eikonal error | — |
 //! | [`validation`] | Zalesak disk, Rider–Kothe vortex | docs/reference-data.md, "Level-set transport" |
@@ -56,7 +56,7 @@ pub use extension::VelocityExtension;
 pub use heaviside::{blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS};
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};
 pub use shapes::{init_signed_distance, Shape};
-pub use stage::{material_properties, Interface, MaterialFields, TransportVelocity};
+pub use stage::{Interface, TransportVelocity};
 pub use subcell::{interface_diagonal, interface_faces, interface_fraction, THETA_MIN};
 pub use transport::{cfl_number, max_transport_rate, stable_dt, LevelSetTransport, DEFAULT_CFL};
 pub use validation::{single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics};

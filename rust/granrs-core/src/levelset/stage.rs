@@ -1,17 +1,17 @@
-//! The level set's two stages of a step (Aravena et al. §3.1; the order is `models/step.rs`'s):
-//!
-//! - step 1, eq. (10a): ∂_t Φ + u·∇Φ = 0 by WENO5 + TVD-RK3 ([`super::transport`]) with the
-//!   time-centred velocity u^{n+½} ≈ (1 + ω/2)uⁿ − (ω/2)uⁿ⁻¹ (or its extension from the dense
-//!   phase, [`super::extension`], with `interface_velocity = "extended"`), and the redistancing of
-//!   [`super::redistance`] every N steps ([`Interface::advance`]);
-//! - step 2: the material properties from Φ^{n+1}, ρ(Φ) on the faces and η(Φ) (harmonic blend)
-//!   at centres and nodes ([`material_properties`], the laws of [`super::heaviside`]).
+//! The level set's stage of a step (Aravena et al. §3.1; the order is `models/step.rs`'s):
+//! step 1, eq. (10a): ∂_t Φ + u·∇Φ = 0 by WENO5 + TVD-RK3 ([`super::transport`]) with the
+//! time-centred velocity u^{n+½} ≈ (1 + ω/2)uⁿ − (ω/2)uⁿ⁻¹ (or its extension from the dense
+//! phase, [`super::extension`], with `interface_velocity = "extended"`), and the redistancing of
+//! [`super::redistance`] every N steps ([`Interface::advance`]); then, when asked, the global
+//! mass correction Φ ← Φ + δ with the constant δ that restores the dense phase's reference area
+//! A_ref = |{Φ > 0}| ([`Interface::correct_mass`]). The material properties of step 2 are the
+//! properties room's (`properties/mod.rs`).
 
 use super::{LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, HALO};
-use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, BcMode};
+use crate::operators::{fill_velocity_ghosts, for_each_interior_row, BcMode};
 
 /// The interface room's state: the transport's stage fields and the redistancer (allocated once).
 pub struct Interface {
@@ -82,50 +82,39 @@ impl Interface {
         }
         Ok(())
     }
-}
 
-/// The fields step 2 fills: ρ on x and y faces, η at centres (ghosts extrapolated) and nodes.
-pub struct MaterialFields<'a> {
-    pub rho_u: &'a mut Field,
-    pub rho_v: &'a mut Field,
-    pub eta_c: &'a mut Field,
-    pub eta_n: &'a mut Field,
-}
-
-/// Step 2: ρ(Φ) on the faces, `rho_face(Φ_a, Φ_b)` of the level set of the two cells beside a
-/// face, and η(Φ) = `eta(Φ)` at centres and at nodes (Φ averaged to the node). `phi` with its
-/// ghosts filled.
-pub fn material_properties(phi: &Field, rho_face: impl Fn(f64, f64) -> f64 + Sync, eta: impl Fn(f64) -> f64 + Sync, out: MaterialFields, exec: Exec) {
-    let ps = phi.slice();
-    let st = phi.stride();
-    let nxc = phi.nx;
-    // density on faces from Φ averaged to the face
-    let nxu = out.rho_u.nx;
-    for_each_interior_row(exec, out.rho_u, |j, row| {
-        let b = (j + HALO) * st + HALO;
-        for i in 0..nxu {
-            row[HALO + i] = rho_face(ps[b + i], ps[b + i - 1]);
+    /// The global mass correction after step 1: Φ ← Φ + δ with the constant δ that restores
+    /// the dense-phase area to `reference_area` (secant iterations on the sub-cell area A(δ) of
+    /// [`super::dense_area`]; the first guess δ = (A_ref − A)/L uses the interface length
+    /// L ≈ ∫ δ_ε(Φ) dx). Nothing is done for a reference area ≤ 0, an area already within
+    /// 1e-12 of it, or no interface. Switchable: `mass_correction`.
+    pub fn correct_mass(&self, phi: &mut Field, reference_area: f64, grid: &Grid, exec: Exec) {
+        let target = reference_area;
+        let area = |phi: &Field| super::dense_area(phi, grid, exec);
+        let a0 = area(phi);
+        if target <= 0.0 || (a0 - target).abs() <= 1e-12 * target {
+            return;
         }
-    });
-    for_each_interior_row(exec, out.rho_v, |j, row| {
-        let (b0, b1) = ((j + HALO - 1) * st + HALO, (j + HALO) * st + HALO);
-        for i in 0..nxc {
-            row[HALO + i] = rho_face(ps[b0 + i], ps[b1 + i]);
+        let eps = 1.5 * grid.h();
+        let length: f64 = phi.interior().iter().map(|&p| super::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
+        if length <= 0.0 {
+            return;
         }
-    });
-    // viscosity at centres (with ghosts) and nodes
-    for_each_interior_row(exec, out.eta_c, |j, row| {
-        let b = (j + HALO) * st + HALO;
-        for i in 0..nxc {
-            row[HALO + i] = eta(ps[b + i]);
+        let shift = |phi: &mut Field, d: f64| {
+            let n = phi.nx;
+            for_each_interior_row(exec, phi, |_, row| row[HALO..HALO + n].iter_mut().for_each(|x| *x += d));
+        };
+        let (mut d_prev, mut a_prev) = (0.0, a0);
+        let mut d = (target - a0) / length;
+        shift(phi, d);
+        for _ in 0..4 {
+            let a = area(phi);
+            if (a - target).abs() <= 1e-10 * target || (a - a_prev).abs() < 1e-300 {
+                break;
+            }
+            let d_new = d + (target - a) * (d - d_prev) / (a - a_prev);
+            shift(phi, d_new - d);
+            (d_prev, a_prev, d) = (d, a, d_new);
         }
-    });
-    out.eta_c.extrapolate_ghosts_constant();
-    cell_to_node(phi, out.eta_n, exec);
-    let nxn = out.eta_n.nx;
-    for_each_interior_row(exec, out.eta_n, |_, row| {
-        for x in &mut row[HALO..HALO + nxn] {
-            *x = eta(*x);
-        }
-    });
+    }
 }

@@ -103,7 +103,7 @@ impl TwoPhaseModel {
         let dt_prev = get("dt_prev")[0];
         self.dt_prev = if dt_prev.is_nan() { None } else { Some(dt_prev) };
         self.reference_area = get("reference_area")[0];
-        self.properties_current = false;
+        self.properties.invalidate();
         self.pressure.density_changed();
         self.time_to_land = None;
         self.window = None;

@@ -88,12 +88,12 @@ impl TwoPhaseModel {
         let (idx, idy) = (1.0 / g.dx, 1.0 / g.dy);
         let (u, v, phi) = (&self.u, &self.v, &self.phi);
         let (us, vs, ps) = (u.slice(), v.slice(), phi.slice());
-        let (eta_c, eta_n) = (&self.work.eta_c, &self.work.eta_n);
+        let (eta_c, eta_n) = self.properties.viscosity();
         let (ec, en) = (eta_c.slice(), eta_n.slice());
         let plastic = self.rheology.as_ref().map(|r| (&r.plastic.tau_c, &r.plastic.tau_n, &r.plastic.sigma_xx, &r.plastic.sigma_xy));
         // the face densities of the step just taken (stage 3 of `step.rs`; `start_energy_budget`
         // computes them for the initial state)
-        let (rho_u, rho_v) = (&self.work.rho_u, &self.work.rho_v);
+        let (rho_u, rho_v) = self.properties.density();
         let (ru, rv) = (rho_u.slice(), rho_v.slice());
         let cfg = &self.config;
         let per = periodicity(self);

@@ -43,8 +43,11 @@ impl ModelConfig {
         let n = (g.nx * g.ny) as u64;
         let s = &self.pressure_solver;
         // the state (u, v, their history and convection at n − 1; p, Φ) and the work arrays
+        // (convection, right-hand side, gradient, diagonal; p + p_f)
         let mut f = 3 * (xf + yf) + 2 * c;
-        f += 5 * (xf + yf) + 2 * c + nd;
+        f += 4 * (xf + yf) + c;
+        // the properties: ρ on the faces, η at centres and nodes
+        f += (xf + yf) + c + nd;
         // level set: transport (2 stages) and redistancing (10 fields)
         f += 12 * c;
         // momentum solver (5 vectors of CG per component)

@@ -48,7 +48,7 @@ impl TwoPhaseModel {
         pl.sigma_xy.fill(0.0);
         let (nxn, nyn) = (pl.sigma_xy.nx, pl.sigma_xy.ny);
         let z = pl.zero_tangential();
-        let (rho_u, grad_x) = (&wk.rho_u, &wk.gx);
+        let (rho_u, grad_x) = (self.properties.density().0, &wk.gx);
         let mut out = RestStress::default();
         // stresses below this are the round-off of the pressure solve, not a weight to hold
         // (1e-9 of the full-height column's ρ g L_y)

@@ -30,14 +30,14 @@ impl TwoPhaseModel {
         fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
         fill_pressure_ghosts(&mut self.p, bc);
         self.phi.extrapolate_ghosts_linear();
-        let wk = &mut self.work;
+        let ((rho_u, rho_v), (eta_c, eta_n)) = self.properties.density_and_viscosity_mut();
         let input = RheologyInputs {
             u: &self.u,
             v: &self.v,
             p: &self.p,
             phi: &self.phi,
-            rho_u: &wk.rho_u,
-            rho_v: &wk.rho_v,
+            rho_u,
+            rho_v,
             grid,
             eps: cfg.interface_width * grid.h(),
             two_phase: cfg.light.is_some(),
@@ -45,7 +45,7 @@ impl TwoPhaseModel {
             light_viscosity: light.viscosity,
             a0_over_dt,
         };
-        rs.prepare(&cfg.rheology, &input, &mut wk.eta_c, &mut wk.eta_n, exec);
+        rs.prepare(&cfg.rheology, &input, eta_c, eta_n, exec);
         Ok(())
     }
 
@@ -75,7 +75,8 @@ impl TwoPhaseModel {
             self.momentum.max_iterations = cap_outer.min(cfg.rheology.picard_solve_max_iterations);
         }
         let wk = &self.work;
-        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c: &wk.eta_c, eta_n: &wk.eta_n, grid, bc };
+        let (eta_c, eta_n) = self.properties.viscosity();
+        let sys = ViscousSystem { c_u: &wk.c_u, c_v: &wk.c_v, eta_c, eta_n, grid, bc };
         let momentum = &mut self.momentum;
         let mut solve = |u: &mut Field, v: &mut Field, rhs_u: &Field, rhs_v: &Field| {
             let t = Instant::now();

@@ -11,9 +11,10 @@
 //!
 //! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
 //! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^{n+½}, redistancing every N steps
-//!    (`levelset::Interface::advance`), then the optional global mass correction.
+//!    (`levelset::Interface::advance`), then the optional global mass correction
+//!    (`levelset::Interface::correct_mass`, to the area `reference_area`).
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1})
-//!    (`levelset::material_properties`).
+//!    (`properties::MaterialProperties::update`).
 //! 4. `pore_pressure` [step 3]: p_f^{n+1} (`pore_pressure::PorePressure::advance`, implicit
 //!    BDF2 or explicit forward Euler; an explicit step past h²/(4κ) stops here, naming the cell;
 //!    skipped when not fluidised).
@@ -63,7 +64,7 @@ use super::{ConvectionScheme, ModelConfig, TwoPhaseModel};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
-use crate::levelset::{blend_harmonic, material_properties, MaterialFields, TransportVelocity};
+use crate::levelset::TransportVelocity;
 use crate::operators::{
     convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed, BcMode,
 };
@@ -196,12 +197,13 @@ impl TwoPhaseModel {
         let [gx, gy] = cfg.gravity;
         // g on the unknown faces, zero on fixed boundary faces; project it with δt/a₀ = 1.
         let wk = &mut self.work;
+        let (rho_u, rho_v) = self.properties.density();
         wk.rhs_u.fill(gx);
         wk.rhs_v.fill(gy);
         let rho_ref = cfg.reference_density();
         if rho_ref != 0.0 {
             // (1 − ρ_f/ρ) g: the ambient hydrostatic pressure is not part of p
-            for (f, rho) in [(&mut wk.rhs_u, &wk.rho_u), (&mut wk.rhs_v, &wk.rho_v)] {
+            for (f, rho) in [(&mut wk.rhs_u, rho_u), (&mut wk.rhs_v, rho_v)] {
                 let (rs, st, n) = (rho.slice(), f.stride(), f.nx);
                 for_each_interior_row(exec, f, |j, row| {
                     let b = (j + HALO) * st;
@@ -215,7 +217,7 @@ impl TwoPhaseModel {
             // the pore-pressure force −∇p_f/ρ is balanced as well
             pore.pf.extrapolate_ghosts_constant();
             gradient(&pore.pf, &cfg.grid, &mut wk.gx, &mut wk.gy, exec);
-            for (f, gr, rho) in [(&mut wk.rhs_u, &wk.gx, &wk.rho_u), (&mut wk.rhs_v, &wk.gy, &wk.rho_v)] {
+            for (f, gr, rho) in [(&mut wk.rhs_u, &wk.gx, rho_u), (&mut wk.rhs_v, &wk.gy, rho_v)] {
                 let (gs, rs, st, n) = (gr.slice(), rho.slice(), f.stride(), f.nx);
                 for_each_interior_row(exec, f, |j, row| {
                     let b = (j + HALO) * st;
@@ -230,15 +232,7 @@ impl TwoPhaseModel {
         if cfg.free_surface {
             self.phi.extrapolate_ghosts_linear();
         }
-        let input = ProjectionInputs {
-            rho_u: &wk.rho_u,
-            rho_v: &wk.rho_v,
-            phi: &self.phi,
-            dense_density: cfg.dense.density,
-            rotational: None,
-            grid: &cfg.grid,
-            bc: &cfg.bc,
-        };
+        let input = ProjectionInputs { rho_u, rho_v, phi: &self.phi, dense_density: cfg.dense.density, rotational: None, grid: &cfg.grid, bc: &cfg.bc };
         let info = self.pressure.balance(&mut wk.rhs_u, &mut wk.rhs_v, &mut self.p, &input, exec);
         self.gauge_pressure();
         info
@@ -338,62 +332,22 @@ impl TwoPhaseModel {
         let r = self.levelset.advance(&mut self.phi, vel, &cfg.grid, &cfg.bc, dt, redistance, exec);
         r.map_err(|e| self.at_step(e))?;
         if cfg.mass_correction {
-            self.correct_mass(exec);
+            self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
         }
-        self.properties_current = false;
+        self.properties.invalidate();
         Ok(())
     }
 
-    /// Global mass correction: Φ ← Φ + δ with the constant δ that restores the reference area
-    /// (secant iterations on the sub-cell area A(δ); the first guess δ = (A_ref − A)/L uses the
-    /// interface length L ≈ ∫ δ_ε(Φ) dx). Documented and switchable: `mass_correction`.
-    fn correct_mass(&mut self, exec: Exec) {
-        let grid = &self.config.grid;
-        let target = self.reference_area;
-        let area = |phi: &Field| crate::levelset::dense_area(phi, grid, exec);
-        let a0 = area(&self.phi);
-        if target <= 0.0 || (a0 - target).abs() <= 1e-12 * target {
-            return;
-        }
-        let eps = 1.5 * grid.h();
-        let length: f64 = self.phi.interior().iter().map(|&p| crate::levelset::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
-        if length <= 0.0 {
-            return;
-        }
-        let shift = |phi: &mut Field, d: f64| {
-            let n = phi.nx;
-            for_each_interior_row(exec, phi, |_, row| row[HALO..HALO + n].iter_mut().for_each(|x| *x += d));
-        };
-        let (mut d_prev, mut a_prev) = (0.0, a0);
-        let mut d = (target - a0) / length;
-        shift(&mut self.phi, d);
-        for _ in 0..4 {
-            let a = area(&self.phi);
-            if (a - target).abs() <= 1e-10 * target || (a - a_prev).abs() < 1e-300 {
-                break;
-            }
-            let d_new = d + (target - a) * (d - d_prev) / (a - a_prev);
-            shift(&mut self.phi, d_new - d);
-            (d_prev, a_prev, d) = (d, a, d_new);
-        }
-    }
-
-    /// Stage 3 (paper step 2): material properties from the level set.
+    /// Stage 3 (paper step 2): material properties from the level set
+    /// ([`crate::properties::MaterialProperties::update`]; skipped when Φ is held fixed and they
+    /// are current).
     pub(crate) fn properties(&mut self, exec: Exec) {
-        if self.properties_current && (self.config.light.is_none() || !self.config.transport_interface) {
+        let phi_fixed = self.config.light.is_none() || !self.config.transport_interface;
+        if !self.properties.needs_update(phi_fixed) {
             return;
         }
-        let cfg = &self.config;
-        let eps = cfg.interface_width * cfg.grid.h();
-        let dense = cfg.dense;
-        let light = cfg.light.unwrap_or(dense);
-        let rho_face = |a: f64, b: f64| cfg.face_density(a, b);
-        let eta = |phi: f64| blend_harmonic(phi, eps, dense.viscosity, light.viscosity);
         self.phi.extrapolate_ghosts_linear();
-        let w = &mut self.work;
-        let out = MaterialFields { rho_u: &mut w.rho_u, rho_v: &mut w.rho_v, eta_c: &mut w.eta_c, eta_n: &mut w.eta_n };
-        material_properties(&self.phi, rho_face, eta, out, exec);
-        self.properties_current = true;
+        self.properties.update(&self.phi, &self.config.property_laws(), exec);
         self.pressure.density_changed();
     }
 
@@ -423,6 +377,7 @@ impl TwoPhaseModel {
         fill_velocity_ghosts(&mut self.u, &mut self.v, bc, grid, BcMode::Full);
         fill_pressure_ghosts(&mut self.p, bc);
         let wk = &mut self.work;
+        let (rho_u, rho_v) = self.properties.density();
         if cfg.convection {
             match cfg.convection_scheme {
                 ConvectionScheme::Centred => convection(&self.u, &self.v, grid, &mut wk.conv_u, &mut wk.conv_v, exec),
@@ -444,13 +399,13 @@ impl TwoPhaseModel {
             pressure_gradient(Some(&self.p), self.pore.as_mut(), &mut wk.ptot, &mut wk.gx, &mut wk.gy, grid, bc, exec);
         }
         // open sides with backflow stabilisation: p_b − ½ρ(u·n)² on the faces where air enters
-        crate::projection::add_backflow_pressure(&self.u, &self.v, &wk.rho_u, &wk.rho_v, &mut wk.gx, &mut wk.gy, grid, bc);
+        crate::projection::add_backflow_pressure(&self.u, &self.v, rho_u, rho_v, &mut wk.gx, &mut wk.gy, grid, bc);
         let first = self.dt_prev.is_none();
         // rhs = ρ[(a₁uⁿ − a₂uⁿ⁻¹)/δt − N* + g] − ρ_ref g − ∇pⁿ ;  c = a₀ρ/δt
         // (ρ_ref = ρ_f with `ambient_hydrostatic`, else 0: the same floating-point result)
         for (rhs, c, rho, un, um, nn, nm, gp, gcomp) in [
-            (&mut wk.rhs_u, &mut wk.c_u, &wk.rho_u, &self.u, &self.u_prev, &wk.conv_u, &self.conv_prev_u, &wk.gx, gxv),
-            (&mut wk.rhs_v, &mut wk.c_v, &wk.rho_v, &self.v, &self.v_prev, &wk.conv_v, &self.conv_prev_v, &wk.gy, gyv),
+            (&mut wk.rhs_u, &mut wk.c_u, rho_u, &self.u, &self.u_prev, &wk.conv_u, &self.conv_prev_u, &wk.gx, gxv),
+            (&mut wk.rhs_v, &mut wk.c_v, rho_v, &self.v, &self.v_prev, &wk.conv_v, &self.conv_prev_v, &wk.gy, gyv),
         ] {
             let st = rhs.stride();
             let n = rhs.nx;
@@ -536,13 +491,13 @@ impl TwoPhaseModel {
     /// Stage 6 (paper step 5): pressure projection.
     fn projection_stage(&mut self, dt_over_a0: f64, exec: Exec) -> Result<SolveInfo> {
         let cfg = &self.config;
-        let wk = &self.work;
+        let ((rho_u, rho_v), (eta_c, _)) = (self.properties.density(), self.properties.viscosity());
         let input = ProjectionInputs {
-            rho_u: &wk.rho_u,
-            rho_v: &wk.rho_v,
+            rho_u,
+            rho_v,
             phi: &self.phi,
             dense_density: cfg.dense.density,
-            rotational: cfg.rotational_pressure.then_some(&wk.eta_c),
+            rotational: cfg.rotational_pressure.then_some(eta_c),
             grid: &cfg.grid,
             bc: &cfg.bc,
         };

@@ -7,10 +7,11 @@ use crate::diagnostics::EnergyLedger;
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
-use crate::levelset::{blend, dense_area, init_signed_distance, Interface, RedistanceSettings, Shape};
+use crate::levelset::{dense_area, init_signed_distance, Interface, RedistanceSettings, Shape};
 use crate::options::{self, Configurable, OptionMap, OptionSpec, Value};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureStage;
+use crate::properties::{MaterialProperties, PropertyLaws};
 use crate::rheology::stage::RheologyState;
 use crate::rheology::{RheologyConfig, RheologyLaw};
 use crate::solvers::{SolveInfo, SolverSettings};
@@ -372,26 +373,33 @@ impl ModelConfig {
         cfg
     }
 
-    /// Density of a face between cells whose level set is `a` and `b` (step 2 of the paper):
-    /// ρ(Φ) of Φ averaged to the face; in the granular-only model ρ_s on every face beside a
-    /// granular cell (the free-surface projection's density), the light phase's elsewhere.
+    /// The laws of step 2 (the properties room's [`PropertyLaws`]): the phases' densities and
+    /// viscosities, ε = `interface_width` h, the granular-only model's face density.
     #[inline]
-    pub(crate) fn face_density(&self, a: f64, b: f64) -> f64 {
+    pub(crate) fn property_laws(&self) -> PropertyLaws {
         let light = self.light.unwrap_or(self.dense);
-        if !self.free_surface {
-            blend(0.5 * (a + b), self.interface_width * self.grid.h(), self.dense.density, light.density)
-        } else if self.face_is_solved(a, b) {
-            self.dense.density
-        } else {
-            light.density
+        PropertyLaws {
+            dense_density: self.dense.density,
+            dense_viscosity: self.dense.viscosity,
+            light_density: light.density,
+            light_viscosity: light.viscosity,
+            eps: self.interface_width * self.grid.h(),
+            free_surface: self.free_surface,
         }
     }
 
-    /// Whether the momentum of a face between cells `a` and `b` is solved for: always, except
-    /// the granular-only model's faces with no granular cell beside them (extended, not solved).
+    /// Density of a face between cells whose level set is `a` and `b` (step 2 of the paper,
+    /// [`PropertyLaws::face_density`]).
+    #[inline]
+    pub(crate) fn face_density(&self, a: f64, b: f64) -> f64 {
+        self.property_laws().face_density(a, b)
+    }
+
+    /// Whether the momentum of a face between cells `a` and `b` is solved for
+    /// ([`PropertyLaws::face_is_solved`]).
     #[inline]
     pub(crate) fn face_is_solved(&self, a: f64, b: f64) -> bool {
-        !self.free_surface || a > 0.0 || b > 0.0
+        self.property_laws().face_is_solved(a, b)
     }
 
     /// The reference density of the body force: ρ_f with `ambient_hydrostatic`, else 0.
@@ -467,10 +475,6 @@ pub(crate) struct Work {
     pub gy: Field,
     pub c_u: Field,
     pub c_v: Field,
-    pub rho_u: Field,
-    pub rho_v: Field,
-    pub eta_c: Field,
-    pub eta_n: Field,
     /// p + p_f, whose gradient drives the predictor.
     pub ptot: Field,
 }
@@ -497,6 +501,8 @@ pub struct TwoPhaseModel {
     /// Level set Φ^n (cell centres; > 0 in the dense phase).
     pub phi: Field,
     pub(crate) work: Work,
+    /// The properties room: ρ on the faces, η at centres and nodes (step 2).
+    pub(crate) properties: MaterialProperties,
     /// The interface room: level-set transport and redistancing.
     pub(crate) levelset: Interface,
     /// Pore gas pressure (None when not fluidised).
@@ -515,7 +521,6 @@ pub struct TwoPhaseModel {
     pub dt_prev: Option<f64>,
     /// What the last step did.
     pub last: StepInfo,
-    pub(crate) properties_current: bool,
     /// Time left to a target time the next step must not overshoot.
     pub(crate) time_to_land: Option<f64>,
     /// Dense-phase area the mass correction restores (set when Φ is set).
@@ -552,21 +557,7 @@ impl TwoPhaseModel {
         momentum.rtol = config.viscous_rtol;
         momentum.max_iterations = config.viscous_max_iterations;
         let rheology = RheologyState::new(g, &config.bc, &config.rheology);
-        let work = Work {
-            conv_u: xf(),
-            conv_v: yf(),
-            rhs_u: xf(),
-            rhs_v: yf(),
-            gx: xf(),
-            gy: yf(),
-            c_u: xf(),
-            c_v: yf(),
-            rho_u: xf(),
-            rho_v: yf(),
-            eta_c: c(),
-            eta_n: Field::zeros(g, Location::Node),
-            ptot: c(),
-        };
+        let work = Work { conv_u: xf(), conv_v: yf(), rhs_u: xf(), rhs_v: yf(), gx: xf(), gy: yf(), c_u: xf(), c_v: yf(), ptot: c() };
         let pore = match &config.pore {
             Some(pc) => Some(PorePressure::new(g, *pc, config.pressure_solver)?),
             None => None,
@@ -583,6 +574,7 @@ impl TwoPhaseModel {
             p: c(),
             phi,
             work,
+            properties: MaterialProperties::new(g),
             pore,
             pressure,
             momentum,
@@ -591,7 +583,6 @@ impl TwoPhaseModel {
             step_count: 0,
             dt_prev: None,
             last: StepInfo::default(),
-            properties_current: false,
             time_to_land: None,
             reference_area: 0.0,
             window: None,
@@ -654,7 +645,7 @@ impl TwoPhaseModel {
     /// properties are recomputed and the BDF2 history restarts with a first-order step.
     pub fn fields_changed(&mut self) {
         self.window = None;
-        self.properties_current = false;
+        self.properties.invalidate();
         self.dt_prev = None;
         self.reference_area = self.dense_area();
         self.start_energy_budget();
@@ -662,12 +653,12 @@ impl TwoPhaseModel {
 
     /// Density on u and v faces as last computed.
     pub fn face_density(&self) -> (&Field, &Field) {
-        (&self.work.rho_u, &self.work.rho_v)
+        self.properties.density()
     }
 
     /// Viscosity at centres and nodes as last computed.
     pub fn viscosity(&self) -> (&Field, &Field) {
-        (&self.work.eta_c, &self.work.eta_n)
+        self.properties.viscosity()
     }
 
     /// The last pressure solve.

@@ -252,13 +252,13 @@ impl TwoPhaseModel {
         for (src, dst) in flow_state(&w).into_iter().zip(flow_state_mut(self)) {
             copy_back(src, dst);
         }
-        copy_back(&w.work.eta_c, &mut self.work.eta_c);
         let nx = self.config.grid.nx;
         copy_flat(w.pressure_increment(), w.config.grid.nx, self.pressure_increment_mut(), nx);
         room_back(w.pore.as_ref(), self.pore.as_mut());
         room_back(w.rheology.as_ref(), self.rheology.as_mut());
+        room_back(Some(&w.properties), Some(&mut self.properties));
         copy_clock(&w, self);
-        self.properties_current = false;
+        self.properties.invalidate();
         self.pressure.density_changed();
         self.window = Some(w);
     }
