@@ -41,8 +41,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from granrs import SimulationError
-from granrs import ActiveRegion
+from granrs import ActiveRegion, SimulationError
 from granrs.cases.column import ColumnCase, run_column
 
 ASPECT_RATIOS = (0.5, 1.0, 2.0, 4.0)
