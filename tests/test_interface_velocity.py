@@ -23,13 +23,13 @@ def test_one_fluid_velocity_is_the_default():
 
 def test_bad_interface_velocity_names_the_parameter():
     with pytest.raises(Exception, match="interface_velocity"):
-        build_model(ColumnCase(ny=8, fluidised=False, numerics={"interface_velocity": "air"}))
+        build_model(ColumnCase(ny=8, fluidised=False).with_options(interface_velocity="air"))
     with pytest.raises(Exception, match="extension_depth"):
-        build_model(ColumnCase(ny=8, fluidised=False, numerics={"extension_depth": -1.0}))
+        build_model(ColumnCase(ny=8, fluidised=False).with_options(extension_depth=-1.0))
 
 
 def _energy_mismatch(numerics: dict) -> tuple[float, float]:
-    m = build_model(ColumnCase(ny=16, fluidised=False, numerics=numerics))
+    m = build_model(ColumnCase(ny=16, fluidised=False).with_options(**numerics))
     m.advance(1.0)
     b = m.energy_budget()
     drop = b["potential_initial"] - b["potential"]
