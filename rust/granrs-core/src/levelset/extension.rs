@@ -56,6 +56,10 @@ const FOOT_DEPTH_CELLS: f64 = 1.5;
 pub struct VelocityExtension {
     pub u: Field,
     pub v: Field,
+    /// The source level Φ = `depth` · h (cells, ≥ 0: `extension_depth`).
+    pub depth: f64,
+    /// The rest speed of the blend (m/s; 0: the extension alone: `extension_rest_speed`).
+    pub rest_speed: f64,
 }
 
 /// Φ̃ and ∇Φ̃ of a cell-centre field with valid ghost layers (bilinear in Φ and in its centred
@@ -152,21 +156,22 @@ fn sample(q: &Field, phi: &Field, grid: &Grid, x_face: bool, source: f64, x: f64
 }
 
 impl VelocityExtension {
-    /// The fields for `grid`.
-    pub fn new(grid: &Grid) -> Self {
-        VelocityExtension { u: Field::zeros(grid, Location::XFace), v: Field::zeros(grid, Location::YFace) }
+    /// The fields for `grid`, extending from the level Φ = `depth` · h with the rest speed
+    /// `rest_speed` of [`Self::extend`].
+    pub fn new(grid: &Grid, depth: f64, rest_speed: f64) -> Self {
+        VelocityExtension { u: Field::zeros(grid, Location::XFace), v: Field::zeros(grid, Location::YFace), depth, rest_speed }
     }
 
-    /// `self.u`, `self.v` ← the extension of (`u`, `v`) from the level Φ = `depth` · h (cells,
-    /// ≥ 0) of `phi`. `phi`, `u` and `v` with their ghost layers filled; the ghosts of the
+    /// `self.u`, `self.v` ← the extension of (`u`, `v`) from the level Φ = `self.depth` · h
+    /// (cells, ≥ 0) of `phi`. `phi`, `u` and `v` with their ghost layers filled; the ghosts of the
     /// output are the caller's to fill.
     ///
-    /// With `rest_speed` > 0 the extension is kept only where the dense phase is at rest: the
+    /// With `self.rest_speed` > 0 the extension is kept only where the dense phase is at rest: the
     /// face takes u_ext + χ (u − u_ext), χ = min(1, |u_ext| / rest_speed) with |u_ext| the speed
     /// of both components at the foot point (the one-fluid velocity where the dense phase moves
     /// at `rest_speed` or faster, zero where it is at rest). `rest_speed` = 0: the extension alone.
-    #[allow(clippy::too_many_arguments)]
-    pub fn extend(&mut self, phi: &Field, u: &Field, v: &Field, grid: &Grid, depth: f64, rest_speed: f64, exec: Exec) {
+    pub fn extend(&mut self, phi: &Field, u: &Field, v: &Field, grid: &Grid, exec: Exec) {
+        let (depth, rest_speed) = (self.depth, self.rest_speed);
         let lv = Levels { phi, grid };
         let h = grid.h();
         let source = depth * h;
@@ -259,8 +264,8 @@ mod tests {
                 *a += b;
             }
         }
-        let mut ext = VelocityExtension::new(&grid);
-        ext.extend(&phi, &u, &v, &grid, 1.0, 0.0, Exec::SERIAL);
+        let mut ext = VelocityExtension::new(&grid, 1.0, 0.0);
+        ext.extend(&phi, &u, &v, &grid, Exec::SERIAL);
         let h = grid.h();
         let mut checked = 0;
         for j in 0..grid.ny {
@@ -304,8 +309,8 @@ mod tests {
             };
             let u = Field::from_fn(&grid, Location::XFace, |x, y| air(x, y, 0.8));
             let v = Field::from_fn(&grid, Location::YFace, |x, y| air(x, y, -0.5));
-            let mut ext = VelocityExtension::new(&grid);
-            ext.extend(&phi, &u, &v, &grid, depth, 0.0, Exec::SERIAL);
+            let mut ext = VelocityExtension::new(&grid, depth, 0.0);
+            ext.extend(&phi, &u, &v, &grid, Exec::SERIAL);
             for j in 0..grid.ny as isize {
                 for i in 1..grid.nx as isize {
                     let f = 0.5 * (phi.at(i - 1, j) + phi.at(i, j));
@@ -343,11 +348,11 @@ mod tests {
         let dt = 0.2 * grid.h() / 0.5;
         let a0 = dense_area(&phi0, &grid, Exec::SERIAL);
         let mut transport = LevelSetTransport::new(&grid);
-        let mut ext = VelocityExtension::new(&grid);
+        let mut ext = VelocityExtension::new(&grid, 0.0, 0.0);
         let (mut phi_e, mut phi_o) = (phi0.clone(), phi0.clone());
         for _ in 0..200 {
             phi_e.extrapolate_ghosts_linear();
-            ext.extend(&phi_e, &u, &v, &grid, 0.0, 0.0, Exec::SERIAL);
+            ext.extend(&phi_e, &u, &v, &grid, Exec::SERIAL);
             transport.advect(&mut phi_e, &ext.u, &ext.v, &grid, dt, Exec::SERIAL).unwrap();
             transport.advect(&mut phi_o, &u, &v, &grid, dt, Exec::SERIAL).unwrap();
         }
@@ -372,10 +377,10 @@ mod tests {
         let (grid, phi) = setup(160, 80);
         let u = Field::from_fn(&grid, Location::XFace, |x, y| (5.0 * x).sin() * (3.0 * y).cos());
         let v = Field::from_fn(&grid, Location::YFace, |x, y| (2.0 * x + y).cos());
-        let (mut a, mut b) = (VelocityExtension::new(&grid), VelocityExtension::new(&grid));
-        a.extend(&phi, &u, &v, &grid, 1.5, 0.01, Exec::SERIAL);
+        let (mut a, mut b) = (VelocityExtension::new(&grid, 1.5, 0.01), VelocityExtension::new(&grid, 1.5, 0.01));
+        a.extend(&phi, &u, &v, &grid, Exec::SERIAL);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        pool.install(|| b.extend(&phi, &u, &v, &grid, 1.5, 0.01, Exec::with_threads(2)));
+        pool.install(|| b.extend(&phi, &u, &v, &grid, Exec::with_threads(2)));
         assert_eq!(a.u.slice(), b.u.slice());
         assert_eq!(a.v.slice(), b.v.slice());
     }

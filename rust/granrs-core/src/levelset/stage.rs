@@ -39,7 +39,7 @@ pub struct TransportVelocity<'a> {
 impl Interface {
     /// The state for `grid`.
     pub fn new(grid: &Grid, redistance: RedistanceSettings) -> Result<Self> {
-        let extension = redistance.extended_velocity.then(|| VelocityExtension::new(grid));
+        let extension = redistance.extended_velocity.then(|| VelocityExtension::new(grid, redistance.extension_depth, redistance.extension_rest_speed));
         Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension })
     }
 
@@ -70,8 +70,7 @@ impl Interface {
         fill_velocity_ghosts(vel.out_u, vel.out_v, bc, grid, BcMode::Full);
         if let Some(ext) = self.extension.as_mut() {
             phi.extrapolate_ghosts_linear();
-            let s = self.redistancer.settings();
-            ext.extend(phi, vel.out_u, vel.out_v, grid, s.extension_depth, s.extension_rest_speed, exec);
+            ext.extend(phi, vel.out_u, vel.out_v, grid, exec);
             fill_velocity_ghosts(&mut ext.u, &mut ext.v, bc, grid, BcMode::Full);
             self.transport.advect(phi, &ext.u, &ext.v, grid, dt, exec)?;
         } else {
