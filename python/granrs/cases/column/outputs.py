@@ -55,9 +55,8 @@ def write_outputs(out: Path, summary: dict, rec: dict, profiles: dict, xs: np.nd
 
 def _progress(outputs, summary: dict, rec: dict, hist: dict, t: float, steps: int) -> None:
     """The outputs written during the run: front.csv and history.npz so far, and a summary whose
-    ``stop_reason`` says the run had not finished when it was written."""
-    outputs.write_columns("front.csv", front_columns(rec))
-    outputs.write_history(hist)
+    ``stop_reason`` says the run had not finished when it was written. The summary is written
+    first: a run killed between the writes keeps a summary for every record front.csv holds."""
     outputs.write_json(
         "summary.json",
         summary
@@ -66,3 +65,5 @@ def _progress(outputs, summary: dict, rec: dict, hist: dict, t: float, steps: in
             "its final stop_reason here, so this one was killed or its disk filled"
         },
     )
+    outputs.write_columns("front.csv", front_columns(rec))
+    outputs.write_history(hist)
