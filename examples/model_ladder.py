@@ -2,6 +2,7 @@
 
     python examples/model_ladder.py                                   # every run (30 min on a shared 2-core machine)
     python examples/model_ladder.py --reference-from out/convergence  # a = 2 references of column_convergence.py
+    python examples/model_ladder.py --replot                          # redraw the figure from the stored table
 
 For the column of the paper (L_c = 0.20 m, glass beads, α_b = 15°, κ_f = 0.035 m² s⁻¹,
 β_s = 0.9) at aspect ratios a = H_c/L_c = 0.5, 1, 2, 4, fluidised and not, this script runs four
@@ -122,7 +123,18 @@ def main() -> None:
         help="a folder of examples/column_convergence.py whose {fluidised,dry}-64 runs are the a = 2 references",
     )
     ap.add_argument("--read-only", dest="read_only", action="store_true", help="tabulate the finished runs only")
+    ap.add_argument(
+        "--replot", action="store_true", help="redraw docs/img/model_ladder.png from docs/img/model_ladder.csv, no runs"
+    )
     args = ap.parse_args()
+    if args.replot:
+        rows = read_table(ROOT / "docs" / "img" / "model_ladder.csv")
+        plot(
+            rows,
+            ROOT / "docs" / "img" / "model_ladder.png",
+            int(next(r["ny"] for r in rows if r["rung"] == "two-phase")),
+        )
+        return
     global READ_ONLY
     READ_ONLY = args.read_only
     out = ROOT / "out" / "ladder"
@@ -214,6 +226,24 @@ def main() -> None:
     print(f"total wall time {time.perf_counter() - t_start:.0f} s")
 
 
+def read_table(path: Path) -> list:
+    """The rows of a model_ladder.csv written by :func:`main`, with their numbers and flags parsed
+    (blank cells are None)."""
+    rows = []
+    with open(path, newline="") as f:
+        for raw in csv.DictReader(f):
+            row: dict = {}
+            for k, v in raw.items():
+                if k == "fluidised":
+                    row[k] = v == "True"
+                elif k in ("rung", "stop_reason"):
+                    row[k] = v
+                else:
+                    row[k] = float(v) if v != "" else None
+            rows.append(row)
+    return rows
+
+
 def plot(rows: list, path: Path, ny: int) -> None:
     import matplotlib
 
@@ -269,12 +299,13 @@ def plot(rows: list, path: Path, ny: int) -> None:
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("aspect ratio a = H_c / L_c")
         ax.grid(alpha=0.3)
-    axes.flat[-1].legend(fontsize=6.5, ncol=2)
-    axes.flat[0].legend(fontsize=6.5, ncol=2)
+    # one legend for every panel, below them, so that no panel's points are hidden under it
+    handles, labels = axes.flat[-1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=6, fontsize=8, frameon=False)
     fig.suptitle(
         f"Model ladder at ny = {ny} against the two-phase model at ny = {REFERENCE_NY} (grey: ±5 %)", fontsize=11
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
