@@ -82,6 +82,19 @@ def test_a_resolution_without_reference_is_run_and_not_judged():
         run_case("peer-dry-column", n=[2])
 
 
+def test_a_sensitivity_run_changes_only_the_options_it_names_and_records_them():
+    base, changed = peer.peer_case(8), peer.peer_case(8, options={"proximal_restarts": 20, "anderson_depth": 5})
+    assert base.variants.proximal_restarts == 0
+    assert changed.variants.proximal_restarts == 20
+    assert changed.rheology.projection.anderson_depth == 5
+    assert changed.rheology.friction_angle == base.rheology.friction_angle == 27.0
+    assert changed.back_wall == base.back_wall == "free-slip"
+    with pytest.raises(ParameterError, match="no_such_option"):
+        peer.peer_case(8, options={"no_such_option": 1})
+    metrics, _, passed = peer.peer_dry_column([8], t_end=0.05, options={"proximal_restarts": 3})
+    assert passed is None and metrics["options"] == {"proximal_restarts": 3}
+
+
 @pytest.fixture(scope="module")
 def peer_record():
     # the shared set-up at 32 and 64 cells per H_c: about 20 s + 4 min on the 2-core machine

@@ -58,9 +58,12 @@ CENTRE_OF_MASS_TOLERANCE = 0.10
 FRONT_THICKNESSES_M = obs.FRONT_THICKNESSES_M
 
 
-def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0):
+def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0, options: Optional[dict] = None):
     """The granrs ColumnCase of the shared set-up at ``cells_per_hc`` cells per H_c (the grid has
-    ny = 2 cells_per_hc rows over the 0.8 m domain, nx = 6 cells_per_hc columns over 2.4 m)."""
+    ny = 2 cells_per_hc rows over the 0.8 m domain, nx = 6 cells_per_hc columns over 2.4 m).
+    ``options``: model options changed from granrs's defaults by their schema keys
+    (``ColumnCase.with_options``, e.g. ``{"proximal_restarts": 20}``), for a sensitivity run; the
+    validation case itself runs the defaults."""
     from .._granrs import ParameterError
     from ..boundary import CoulombWall
     from ..cases.column import ColumnCase, column_rheology
@@ -69,7 +72,7 @@ def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0):
         raise ParameterError(
             f"invalid parameter `n` = {cells_per_hc!r}: allowed an integer number of cells per H_c in [4, 512]"
         )
-    return ColumnCase(
+    case = ColumnCase(
         aspect_ratio=HEIGHT / WIDTH,
         width=WIDTH,
         fluidised=False,
@@ -84,6 +87,7 @@ def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0):
         t_end=t_end,
         threads=threads,
     )
+    return case.with_options(**options) if options else case
 
 
 def load_reference(cells_per_hc: int) -> Optional[dict]:
@@ -224,33 +228,47 @@ def _finite(v):
     return v
 
 
-def run_or_load(cells_per_hc: int, out: Path, threads: int = 1, t_end: float = 3.0, progress: bool = False) -> dict:
+def run_or_load(
+    cells_per_hc: int,
+    out: Path,
+    threads: int = 1,
+    t_end: float = 3.0,
+    progress: bool = False,
+    options: Optional[dict] = None,
+) -> dict:
     """granrs's run of the shared set-up in ``out/n{cells_per_hc}`` (run first if its summary is not
     there), as :func:`read_run`."""
     from ..cases.column import run_column
 
     folder = Path(out) / f"n{cells_per_hc}"
     if not (folder / "summary.json").exists():
-        run_column(peer_case(cells_per_hc, threads, t_end), folder, progress=progress)
+        run_column(peer_case(cells_per_hc, threads, t_end, options), folder, progress=progress)
     return read_run(folder)
 
 
-def peer_dry_column(n=REFERENCE_RESOLUTIONS, threads: int = 1, t_end: float = 3.0, out: Optional[str] = None):
+def peer_dry_column(
+    n=REFERENCE_RESOLUTIONS,
+    threads: int = 1,
+    t_end: float = 3.0,
+    out: Optional[str] = None,
+    options: Optional[dict] = None,
+):
     """``granrs validate peer-dry-column``: runs the shared set-up at ``n`` cells per H_c and
     compares each with the reference at that resolution (:func:`compare`). Returns (metrics,
     reference, passed): passed is None when no run has reference data, else True only when every
-    compared run passes."""
+    compared run passes. ``options`` (see :func:`peer_case`) makes it a sensitivity run; the
+    record says which options were changed."""
     ns = [int(k) for k in (n if isinstance(n, (list, tuple)) else [n])]
     for k in ns:
-        peer_case(k)  # the parameter's check, before any run
+        peer_case(k, options=options)  # the parameters' check, before any run
     finest = max((k for k in ns if load_reference(k) is not None), default=None)
     tmp = tempfile.TemporaryDirectory() if out is None else None
     base = Path(tmp.name) if tmp is not None else Path(str(out))
-    metrics: dict[str, Any] = {"cells_per_hc": ns, "runs": {}}
+    metrics: dict[str, Any] = {"cells_per_hc": ns, "options": dict(options or {}), "runs": {}}
     verdicts = []
     try:
         for k in ns:
-            run = run_or_load(k, base, threads, t_end)
+            run = run_or_load(k, base, threads, t_end, options=options)
             s = run["summary"]
             entry = {
                 "stop_reason": s["stop_reason"],
@@ -327,17 +345,36 @@ def plot_comparison(runs: dict, png: Path) -> None:
 
 
 def main(argv=None) -> int:
-    """``python -m granrs.validation.peer --out DIR [--png FILE] [--n 32 64]``: the case with its
-    runs kept in DIR (reused when run again), its JSON record in DIR/record.json, and the figure."""
+    """``python -m granrs.validation.peer --out DIR [--png FILE] [--n 32 64] [--option KEY=VALUE
+    ...]``: the case with its runs kept in DIR (reused when run again), its JSON record in
+    DIR/record.json, and the figure. ``--option`` changes a model option from its default (a
+    schema key of ``granrs.options``, the value in TOML syntax) for a sensitivity run."""
     import argparse
+
+    from ..config import parse_scalar
 
     ap = argparse.ArgumentParser(description="granrs's dry column against Basilisk")
     ap.add_argument("--out", required=True)
     ap.add_argument("--png", default=None)
     ap.add_argument("--n", type=int, nargs="+", default=list(REFERENCE_RESOLUTIONS))
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change a model option from its default, e.g. --option proximal_restarts=20 (repeat)",
+    )
     args = ap.parse_args(argv)
-    metrics, reference, passed = peer_dry_column(args.n, threads=args.threads, out=args.out)
+    options = {}
+    for item in args.option:
+        key, sep, value = item.partition("=")
+        if not sep:
+            from .._granrs import ParameterError
+
+            raise ParameterError(f"invalid parameter `--option` = {item!r}: allowed KEY=VALUE")
+        options[key.strip()] = parse_scalar(value.strip())
+    metrics, reference, passed = peer_dry_column(args.n, threads=args.threads, out=args.out, options=options)
     record = {"case": "peer-dry-column", "metrics": metrics, "reference": reference, "passed": passed}
     Path(args.out, "record.json").write_text(json.dumps(record, indent=2) + "\n")
     plot_comparison(
