@@ -3,6 +3,7 @@
     python examples/arrest_diagnosis.py --ny 32 --dry        # 10-25 s per variant at ny = 32, 2 min at 64
     python examples/arrest_diagnosis.py --ny 32 --dry --variants default no-mass-correction
     python examples/arrest_diagnosis.py --ny 32 --out out/arrest-wet
+    python examples/arrest_diagnosis.py --ny 32 --dry --active-region 2 --variants proximal-20-anderson-5 --out out/arrest-window
 
 Runs the paper's column (granrs.cases.column.build_model) to ``--t-end`` under several level-set
 variants and records, every 0.01 s:
@@ -55,6 +56,7 @@ from pathlib import Path
 
 import numpy as np
 
+from granrs import ActiveRegion
 from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, observe_profile, thickness_front, volume_profile
 
@@ -286,15 +288,24 @@ def main() -> None:
     ap.add_argument("--dry", action="store_true", help="the non-fluidised column")
     ap.add_argument("--t-end", type=float, default=3.0)
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    ap.add_argument(
+        "--active-region",
+        dest="active_region",
+        type=int,
+        default=None,
+        metavar="BAND",
+        help="run on the active region with BAND cells of air and open right and top sides (the air leaves)",
+    )
     ap.add_argument("--out", type=Path, default=Path("out/arrest"))
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
-    case = ColumnCase(ny=a.ny, fluidised=not a.dry, t_end=a.t_end)
+    window = {} if a.active_region is None else {"active_region": ActiveRegion(a.active_region, sides="open-right-top")}
+    case = ColumnCase(ny=a.ny, fluidised=not a.dry, t_end=a.t_end, **window)
     summary_path = a.out / "arrest_summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     for name in a.variants:
         s, rows = run_variant(case, name, a.t_end)
-        s["case"] = {"ny": a.ny, "fluidised": not a.dry, "t_end": a.t_end}
+        s["case"] = {"ny": a.ny, "fluidised": not a.dry, "t_end": a.t_end, "active_region_band": a.active_region}
         summary[name] = s
         with open(a.out / f"arrest_{name}.csv", "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
