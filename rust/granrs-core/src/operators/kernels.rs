@@ -107,7 +107,7 @@ pub fn strain_rate_norm_centre(dxx: &Field, dyy: &Field, dxy: &Field, out: &mut 
 /// v-face (i, j): [2η_n D_xy]_{i}^{i+1} / dx + [2η_c D_yy]_{j−1}^{j} / dy.
 #[allow(clippy::too_many_arguments)]
 pub fn viscous(u: &Field, v: &Field, eta_c: &Field, eta_n: &Field, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
-    viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, None, exec);
+    viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, None, None, exec);
 }
 
 /// The implicit viscous operator c ⊙ u − div(2η D(u)) on every face, in one pass: out_u =
@@ -126,7 +126,70 @@ pub fn viscous_helmholtz(
     out_v: &mut Field,
     exec: Exec,
 ) {
-    viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, Some((c_u, c_v)), exec);
+    viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, Some((c_u, c_v)), None, exec);
+}
+
+/// Per-row dot products of the input with the output of [`viscous_helmholtz_dots`]: for each
+/// interior row j, `rows_u[j]` = Σ_{i ∈ cols_u} u_{ij} out_u_{ij} summed left to right from 0
+/// (the order of a row of `Iterator::fold`), and likewise for v.
+pub struct RowDots<'a> {
+    /// Columns (interior face indices) of the u-faces summed.
+    pub cols_u: std::ops::Range<usize>,
+    /// Columns of the v-faces summed.
+    pub cols_v: std::ops::Range<usize>,
+    /// One sum per interior row of u-faces (length ny).
+    pub rows_u: &'a mut [f64],
+    /// One sum per interior row of v-faces (length ny + 1).
+    pub rows_v: &'a mut [f64],
+}
+
+/// [`viscous_helmholtz`] and, in the same sweep, the per-row sums of u·out_u and v·out_v of
+/// `dots` (each row summed while it is in cache): out_u, out_v are those of
+/// [`viscous_helmholtz`] bit for bit, and the row sums those of a separate pass.
+#[allow(clippy::too_many_arguments)]
+pub fn viscous_helmholtz_dots(
+    u: &Field,
+    v: &Field,
+    eta_c: &Field,
+    eta_n: &Field,
+    c_u: &Field,
+    c_v: &Field,
+    grid: &Grid,
+    out_u: &mut Field,
+    out_v: &mut Field,
+    dots: RowDots<'_>,
+    exec: Exec,
+) {
+    viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, Some((c_u, c_v)), Some(dots), exec);
+}
+
+/// Runs `f(j, row)` over the interior rows of `field` like [`for_each_interior_row`], and stores
+/// what it returns in `sums[j]` when `sums` is given (the same blocks of rows either way).
+fn interior_rows_sums<F>(exec: Exec, field: &mut Field, sums: Option<&mut [f64]>, f: F)
+where
+    F: Fn(usize, &mut [f64]) -> f64 + Sync + Send,
+{
+    use crate::exec::ROW_BLOCK;
+    use rayon::prelude::*;
+    let Some(sums) = sums else {
+        for_each_interior_row(exec, field, |j, row| {
+            f(j, row);
+        });
+        return;
+    };
+    let (stride, ny) = (field.stride(), field.ny);
+    let sums = &mut sums[..ny];
+    let data = &mut field.slice_mut()[HALO * stride..(HALO + ny) * stride];
+    let block = |b: usize, rows: &mut [f64], out: &mut [f64]| {
+        for (r, (row, o)) in rows.chunks_mut(stride).zip(out.iter_mut()).enumerate() {
+            *o = f(b * ROW_BLOCK + r, row);
+        }
+    };
+    if exec.use_parallel(data.len()) {
+        data.par_chunks_mut(stride * ROW_BLOCK).zip(sums.par_chunks_mut(ROW_BLOCK)).enumerate().for_each(|(b, (rows, out))| block(b, rows, out));
+    } else {
+        block(0, data, sums);
+    }
 }
 
 /// Rows of [`viscous`] (`shift` None) or [`viscous_helmholtz`] (`shift` the face coefficients c).
@@ -143,12 +206,17 @@ fn viscous_rows(
     out_u: &mut Field,
     out_v: &mut Field,
     shift: Option<(&Field, &Field)>,
+    dots: Option<RowDots<'_>>,
     exec: Exec,
 ) {
+    let (cols_u, cols_v, rows_u, rows_v) = match dots {
+        Some(d) => (Some(d.cols_u), Some(d.cols_v), Some(d.rows_u), Some(d.rows_v)),
+        None => (None, None, None, None),
+    };
     let (us, vs, ec, en) = (u.slice(), v.slice(), eta_c.slice(), eta_n.slice());
     let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
     let cu = shift.map(|(c, _)| (c.slice(), c.stride()));
-    for_each_interior_row(exec, out_u, |j, row| {
+    interior_rows_sums(exec, out_u, rows_u, |j, row| {
         let ji = j as isize;
         let (bu, bum, bup) = (base(u, ji), base(u, ji - 1), base(u, ji + 1));
         let (bv0, bv1) = (base(v, ji), base(v, ji + 1));
@@ -170,9 +238,10 @@ fn viscous_rows(
         let out = &mut row[HALO..HALO + n];
         let c = cu.map(|(cs, st)| &cs[(j + HALO) * st + HALO..(j + HALO) * st + HALO + n]);
         ux_row(&r, out, c);
+        cols_u.clone().map_or(0.0, |cols| row_dot(&us[bu + cols.start..bu + cols.end], &out[cols]))
     });
     let cv = shift.map(|(_, c)| (c.slice(), c.stride()));
-    for_each_interior_row(exec, out_v, |j, row| {
+    interior_rows_sums(exec, out_v, rows_v, |j, row| {
         let ji = j as isize;
         let (bv, bvm, bvp) = (base(v, ji), base(v, ji - 1), base(v, ji + 1));
         let (bu0, bum) = (base(u, ji), base(u, ji - 1));
@@ -194,7 +263,14 @@ fn viscous_rows(
         let out = &mut row[HALO..HALO + n];
         let c = cv.map(|(cs, st)| &cs[(j + HALO) * st + HALO..(j + HALO) * st + HALO + n]);
         vy_row(&r, out, c);
+        cols_v.clone().map_or(0.0, |cols| row_dot(&vs[bv + cols.start..bv + cols.end], &out[cols]))
     });
+}
+
+/// Σ a_i b_i summed left to right from 0.
+#[inline]
+fn row_dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q)
 }
 
 /// The rows read by one row of u-faces of [`viscous`] (n = nx + 1 faces): `uc[i + 1]` = u_{i,j}
@@ -523,6 +599,36 @@ mod tests {
             *x = ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.3;
         }
         f
+    }
+
+    /// `viscous_helmholtz_dots` writes the faces of `viscous_helmholtz` and, per row, the sums of
+    /// a separate left-to-right pass over the chosen columns, serially and on two threads.
+    #[test]
+    fn viscous_helmholtz_dots_are_the_operator_then_the_row_sums_bit_for_bit() {
+        let grid = Grid::new(67, 41, 1.3, 0.7).unwrap();
+        let (u, v) = (random(&grid, Location::XFace, 11), random(&grid, Location::YFace, 12));
+        let (ec, en) = (random(&grid, Location::Centre, 13), random(&grid, Location::Node, 14));
+        let (cu, cv) = (random(&grid, Location::XFace, 15), random(&grid, Location::YFace, 16));
+        let (cols_u, cols_v) = (1..grid.nx, 0..grid.nx);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        for exec in [Exec::SERIAL, Exec::with_threads(2)] {
+            let (mut hu, mut hv) = (Field::zeros(&grid, Location::XFace), Field::zeros(&grid, Location::YFace));
+            let (mut fu, mut fv) = (Field::zeros(&grid, Location::XFace), Field::zeros(&grid, Location::YFace));
+            let (mut rows_u, mut rows_v) = (vec![f64::NAN; grid.ny], vec![f64::NAN; grid.ny + 1]);
+            pool.install(|| {
+                viscous_helmholtz(&u, &v, &ec, &en, &cu, &cv, &grid, &mut hu, &mut hv, exec);
+                let dots = RowDots { cols_u: cols_u.clone(), cols_v: cols_v.clone(), rows_u: &mut rows_u, rows_v: &mut rows_v };
+                viscous_helmholtz_dots(&u, &v, &ec, &en, &cu, &cv, &grid, &mut fu, &mut fv, dots, exec);
+            });
+            assert_eq!(hu.slice(), fu.slice(), "{exec:?}");
+            assert_eq!(hv.slice(), fv.slice(), "{exec:?}");
+            for (w, out, cols, rows) in [(&u, &hu, &cols_u, &rows_u), (&v, &hv, &cols_v, &rows_v)] {
+                for (j, got) in rows.iter().enumerate().take(out.ny) {
+                    let want = cols.clone().fold(0.0, |s, i| s + w.at(i as isize, j as isize) * out.at(i as isize, j as isize));
+                    assert_eq!(got.to_bits(), want.to_bits(), "row {j}, {exec:?}");
+                }
+            }
+        }
     }
 
     /// `viscous` and `viscous_helmholtz` (row slices, AVX2 where the CPU has it) give the bits of

@@ -16,7 +16,7 @@
 use crate::error::{Error, Result};
 use crate::exec::{Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
-use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, viscous_helmholtz, BcMode};
+use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots};
 use crate::solvers::SolveInfo;
 use std::ops::Range;
 
@@ -65,6 +65,12 @@ pub struct MomentumSolver {
     qv: Field,
     diag_u: Field,
     diag_v: Field,
+    /// Per-row sums of the fused passes: d·Ad on u and v rows.
+    row_dq_u: Vec<f64>,
+    row_dq_v: Vec<f64>,
+    /// Per-row sums of the initial residual pass (rhs·rhs, r·r, r·z) on u and v rows.
+    row_init_u: Vec<[f64; 3]>,
+    row_init_v: Vec<[f64; 3]>,
     /// Relative residual tolerance ‖rhs − Aũ‖/‖rhs‖.
     pub rtol: f64,
     /// Iteration cap; reaching it is an error.
@@ -76,7 +82,9 @@ fn ranges(grid: &Grid, bc: &BoundaryConditions) -> (Range<usize>, Range<usize>) 
 }
 
 /// Σ a·b over the unknown faces of one component (deterministic block sum; row slices so the
-/// inner loop has no bounds checks).
+/// inner loop has no bounds checks): the order of the solver's sums, which compute each row's
+/// part inside the pass that writes the row ([`rows3_sums`], `viscous_helmholtz_dots`).
+#[cfg(test)]
 fn dot(a: &Field, b: &Field, ri: &Range<usize>, rj: &Range<usize>, exec: Exec) -> f64 {
     let (sa, sb, st) = (a.slice(), b.slice(), a.stride());
     let (rj0, i0, i1) = (rj.start, ri.start, ri.end);
@@ -85,6 +93,14 @@ fn dot(a: &Field, b: &Field, ri: &Range<usize>, rj: &Range<usize>, exec: Exec) -
         let (x, y) = (&sa[bse + i0..bse + i1], &sb[bse + i0..bse + i1]);
         x.iter().zip(y).fold(0.0, |s, (p, q)| s + p * q)
     })
+}
+
+/// Σ over the rows `rj` of per-row sums computed elsewhere (`rows[j]` for interior row j):
+/// blocks of `ROW_BLOCK` rows added in order (`Exec::sum_rows`), the order of a dot product
+/// over the unknown faces whatever the number of threads. `cells` is the field's nx·ny.
+fn sum_row_sums(rows: &[f64], rj: &Range<usize>, cells: usize, exec: Exec) -> f64 {
+    let rj0 = rj.start;
+    exec.sum_rows(rj.len(), cells, |r| rows[r + rj0])
 }
 
 impl MomentumSolver {
@@ -103,6 +119,10 @@ impl MomentumSolver {
             qv: fv(),
             diag_u: fu(),
             diag_v: fv(),
+            row_dq_u: vec![0.0; grid.ny],
+            row_dq_v: vec![0.0; grid.ny + 1],
+            row_init_u: vec![[0.0; 3]; grid.ny],
+            row_init_v: vec![[0.0; 3]; grid.ny + 1],
             rtol: 1e-10,
             max_iterations: 2000,
         }
@@ -122,7 +142,7 @@ impl MomentumSolver {
     /// of a flow that is invariant along the normal vary along it and excite that asymmetry: CG
     /// then stalls near 1e-10 (seen on the x-invariant Poiseuille channel). With the interior
     /// value such flows stay in the invariant subspace, where the operator is symmetric.
-    fn diagonal(&mut self, sys: &ViscousSystem, exec: Exec) {
+    pub fn set_diagonal(&mut self, sys: &ViscousSystem, exec: Exec) {
         let g = sys.grid;
         let (idx2, idy2) = (1.0 / (g.dx * g.dx), 1.0 / (g.dy * g.dy));
         // tangential ghost factor a of each side; open sides get the interior value (factor 0)
@@ -173,17 +193,34 @@ impl MomentumSolver {
     /// Solves A ũ = rhs on the unknown faces by Jacobi-preconditioned CG. On entry `u`, `v` hold
     /// the initial guess; their boundary values are set from the boundary conditions.
     pub fn solve_implicit(&mut self, sys: &ViscousSystem, u: &mut Field, v: &mut Field, rhs_u: &Field, rhs_v: &Field, exec: Exec) -> Result<SolveInfo> {
+        self.set_diagonal(sys, exec);
+        self.solve_implicit_with_diagonal(sys, u, v, rhs_u, rhs_v, exec)
+    }
+
+    /// [`Self::solve_implicit`] with the Jacobi preconditioner that [`Self::set_diagonal`] last
+    /// computed, which must be that of `sys` (c and η unchanged since): the solves of one Picard
+    /// loop share their system and compute its diagonal once.
+    pub fn solve_implicit_with_diagonal(
+        &mut self,
+        sys: &ViscousSystem,
+        u: &mut Field,
+        v: &mut Field,
+        rhs_u: &Field,
+        rhs_v: &Field,
+        exec: Exec,
+    ) -> Result<SolveInfo> {
         let (ru, rv) = ranges(sys.grid, sys.bc);
         fill_velocity_ghosts(u, v, sys.bc, sys.grid, BcMode::Full);
-        self.diagonal(sys, exec);
         Self::apply(sys, u, v, &mut self.qu, &mut self.qv, exec);
-        // r = rhs − A u, z = r / diag, d = z (zero off the unknown faces)
-        let mut bnorm2 = 0.0;
-        for (r, q, rhs, z, d, diag, ri, rj) in [
-            (&mut self.ru, &self.qu, rhs_u, &mut self.zu, &mut self.du, &self.diag_u, ru.clone(), 0..sys.grid.ny),
-            (&mut self.rv, &self.qv, rhs_v, &mut self.zv, &mut self.dv, &self.diag_v, 0..sys.grid.nx, rv.clone()),
+        // r = rhs − A u, z = r / diag, d = z (zero off the unknown faces), and per row
+        // rhs·rhs, r·r and r·z over the unknown faces in the same pass (summed below in the
+        // blocks of `dot`: the bits of three `dot` calls)
+        let (mut bnorm2, mut rr0, mut rz0) = (0.0, 0.0, 0.0);
+        for (r, q, rhs, z, d, diag, ri, rj, sums) in [
+            (&mut self.ru, &self.qu, rhs_u, &mut self.zu, &mut self.du, &self.diag_u, ru.clone(), 0..sys.grid.ny, &mut self.row_init_u),
+            (&mut self.rv, &self.qv, rhs_v, &mut self.zv, &mut self.dv, &self.diag_v, 0..sys.grid.nx, rv.clone(), &mut self.row_init_v),
         ] {
-            bnorm2 += dot(rhs, rhs, &ri, &rj, exec);
+            let cells = r.nx * r.ny;
             // zero everywhere but on the unknown faces, where r = rhs − A u, z = d = r / diag:
             // the halo rows here, the interior rows row by row (elementwise: serial == parallel)
             let st = r.stride();
@@ -194,12 +231,12 @@ impl MomentumSolver {
             }
             let (qs, bs, dg) = (q.slice(), rhs.slice(), diag.slice());
             let (i0, i1) = (HALO + ri.start, HALO + ri.end);
-            rows3(exec, st, 0..nyf, r.slice_mut(), z.slice_mut(), d.slice_mut(), |j, rr_, zr, dr| {
+            rows3_sums(exec, st, 0..nyf, r.slice_mut(), z.slice_mut(), d.slice_mut(), &mut sums[..nyf], |j, rr_, zr, dr| {
                 rr_.fill(0.0);
                 zr.fill(0.0);
                 dr.fill(0.0);
                 if !rj.contains(&j) {
-                    return;
+                    return [0.0; 3];
                 }
                 let base = (j + HALO) * st;
                 for c in i0..i1 {
@@ -209,10 +246,20 @@ impl MomentumSolver {
                     zr[c] = zz;
                     dr[c] = zz;
                 }
+                let (b, rc, zc) = (&bs[base + i0..base + i1], &rr_[i0..i1], &zr[i0..i1]);
+                [
+                    b.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q),
+                    rc.iter().zip(rc).fold(0.0, |s, (p, q)| s + p * q),
+                    rc.iter().zip(zc).fold(0.0, |s, (p, q)| s + p * q),
+                ]
             });
+            let rj0 = rj.start;
+            bnorm2 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][0]);
+            rr0 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][1]);
+            rz0 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][2]);
         }
         let bnorm = bnorm2.sqrt();
-        let rnorm0 = (dot(&self.ru, &self.ru, &ru, &(0..sys.grid.ny), exec) + dot(&self.rv, &self.rv, &(0..sys.grid.nx), &rv, exec)).sqrt();
+        let rnorm0 = rr0.sqrt();
         if !rnorm0.is_finite() {
             return Err(Error::SolverFailure {
                 solver: "viscous CG".into(),
@@ -222,15 +269,18 @@ impl MomentumSolver {
         let scale = if bnorm > 0.0 { bnorm } else { 1.0 };
         let mut res = rnorm0 / scale;
         let initial = res;
-        let mut rz = dot(&self.ru, &self.zu, &ru, &(0..sys.grid.ny), exec) + dot(&self.rv, &self.zv, &(0..sys.grid.nx), &rv, exec);
+        let mut rz = rz0;
         let mut it = 0;
         while res > self.rtol && rnorm0 > 0.0 {
             if it >= self.max_iterations {
                 return Err(Error::NotConverged { solver: "viscous CG (momentum predictor)".into(), iterations: it, residual: res, tolerance: self.rtol });
             }
             fill_velocity_ghosts(&mut self.du, &mut self.dv, sys.bc, sys.grid, BcMode::Homogeneous);
-            Self::apply(sys, &self.du, &self.dv, &mut self.qu, &mut self.qv, exec);
-            let dq = dot(&self.du, &self.qu, &ru, &(0..sys.grid.ny), exec) + dot(&self.dv, &self.qv, &(0..sys.grid.nx), &rv, exec);
+            // q = A d with the rows of d·q in the same sweep
+            let dots = RowDots { cols_u: ru.clone(), cols_v: 0..sys.grid.nx, rows_u: &mut self.row_dq_u, rows_v: &mut self.row_dq_v };
+            viscous_helmholtz_dots(&self.du, &self.dv, sys.eta_c, sys.eta_n, sys.c_u, sys.c_v, sys.grid, &mut self.qu, &mut self.qv, dots, exec);
+            let dq = sum_row_sums(&self.row_dq_u, &(0..sys.grid.ny), self.du.nx * self.du.ny, exec)
+                + sum_row_sums(&self.row_dq_v, &rv, self.dv.nx * self.dv.ny, exec);
             let alpha = rz / dq;
             let mut rz_new = 0.0;
             let mut rr = 0.0;
@@ -299,8 +349,8 @@ impl MomentumSolver {
 }
 
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
-/// with the same stride, in parallel when `exec` says so; rows are whole (ghosts included).
-/// [`rows3`] over `rows`, then per row Σ r·z and Σ r·r over the columns `cols` of the updated
+/// with the same stride, in parallel when `exec` says so (rows are whole, ghosts included),
+/// then per row Σ r·z and Σ r·r over the columns `cols` of the updated
 /// rows: row partials added in row order within blocks of [`ROW_BLOCK`] rows, blocks added in
 /// order — the summation order of [`dot`] (`Exec::sum_rows`), so the sums are bit for bit those
 /// of two `dot` calls after the update, serial or parallel, with one pass over the rows and one
@@ -346,6 +396,34 @@ where
     (rz, rr)
 }
 
+/// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields with
+/// the same stride (rows whole, ghosts included), in parallel when `exec` says so, and stores what
+/// `f` returns for each row in `sums` (one entry per row of `rows`).
+#[allow(clippy::too_many_arguments)]
+fn rows3_sums<const K: usize, F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], sums: &mut [[f64; K]], f: F)
+where
+    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) -> [f64; K] + Sync + Send,
+{
+    let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
+    let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
+    let sums = &mut sums[..rows.len()];
+    if exec.use_parallel(x.len()) {
+        use rayon::prelude::*;
+        x.par_chunks_mut(st)
+            .zip(r.par_chunks_mut(st))
+            .zip(z.par_chunks_mut(st))
+            .zip(sums.par_iter_mut())
+            .enumerate()
+            .for_each(|(k, (((a, b), c), s))| *s = f(rows.start + k, a, b, c));
+    } else {
+        for (k, (((a, b), c), s)) in x.chunks_mut(st).zip(r.chunks_mut(st)).zip(z.chunks_mut(st)).zip(sums.iter_mut()).enumerate() {
+            *s = f(rows.start + k, a, b, c);
+        }
+    }
+}
+
+/// `rows3_sums` without the sums.
+#[cfg(test)]
 fn rows3<F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], f: F)
 where
     F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
