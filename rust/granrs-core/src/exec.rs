@@ -12,6 +12,10 @@ use rayon::prelude::*;
 /// deterministic.
 pub const ROW_BLOCK: usize = 8;
 
+/// Blocks whose partial sums [`Exec::sum_rows`] keeps on the stack (rows up to
+/// `STACK_BLOCKS × ROW_BLOCK` = 4096).
+const STACK_BLOCKS: usize = 512;
+
 /// Below this many cells a kernel runs serially even when parallel execution is allowed:
 /// the rayon overhead would dominate.
 pub const PARALLEL_MIN_CELLS: usize = 4096;
@@ -57,6 +61,23 @@ impl Exec {
         }
     }
 
+    /// Runs `f(row_index, row)` on every row, as [`Exec::for_each_row`], and returns the largest
+    /// of the values `f` returns (NaN propagates). A maximum is exact, so the result does not
+    /// depend on the order of the rows or on the number of threads.
+    pub fn max_each_row<F>(self, data: &mut [f64], stride: usize, f: F) -> f64
+    where
+        F: Fn(usize, &mut [f64]) -> f64 + Sync + Send,
+    {
+        if self.use_parallel(data.len()) {
+            data.par_chunks_mut(stride * ROW_BLOCK)
+                .enumerate()
+                .map(|(b, block)| block.chunks_mut(stride).enumerate().fold(f64::NEG_INFINITY, |m, (r, row)| max_nan(m, f(b * ROW_BLOCK + r, row))))
+                .reduce(|| f64::NEG_INFINITY, max_nan)
+        } else {
+            data.chunks_mut(stride).enumerate().fold(f64::NEG_INFINITY, |m, (r, row)| max_nan(m, f(r, row)))
+        }
+    }
+
     /// Deterministic sum over rows `0..nrows` of `f(row)`: partial sums per block of
     /// [`ROW_BLOCK`] rows, added in block order.
     pub fn sum_rows<F>(self, nrows: usize, cells: usize, f: F) -> f64
@@ -72,7 +93,17 @@ impl Exec {
             s
         };
         if self.use_parallel(cells) {
-            let partial: Vec<f64> = (0..nblocks).into_par_iter().map(block).collect();
+            // the blocks' partial sums on the stack (no allocation per call) up to
+            // STACK_BLOCKS blocks, then on the heap; added in block order either way
+            let mut stack = [0.0f64; STACK_BLOCKS];
+            let mut heap = Vec::new();
+            let partial: &mut [f64] = if nblocks <= STACK_BLOCKS {
+                &mut stack[..nblocks]
+            } else {
+                heap.resize(nblocks, 0.0);
+                &mut heap
+            };
+            partial.par_iter_mut().enumerate().for_each(|(b, p)| *p = block(b));
             partial.iter().sum()
         } else {
             let mut s = 0.0;
@@ -88,12 +119,21 @@ impl Exec {
     where
         F: Fn(usize) -> f64 + Sync + Send,
     {
-        let fold = |a: f64, b: f64| if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) };
         if self.use_parallel(cells) {
-            (0..nrows).into_par_iter().map(&f).reduce(|| f64::NEG_INFINITY, fold)
+            (0..nrows).into_par_iter().map(&f).reduce(|| f64::NEG_INFINITY, max_nan)
         } else {
-            (0..nrows).map(&f).fold(f64::NEG_INFINITY, fold)
+            (0..nrows).map(&f).fold(f64::NEG_INFINITY, max_nan)
         }
+    }
+}
+
+/// max(a, b), NaN when either is NaN.
+#[inline]
+fn max_nan(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
     }
 }
 

@@ -40,6 +40,18 @@ where
     exec.for_each_row(interior, stride, f);
 }
 
+/// [`for_each_interior_row`] for a sweep that also reduces: returns the largest of the values
+/// `f(j, row)` returns (NaN propagates), the same on any number of threads.
+pub fn for_each_interior_row_max<F>(exec: Exec, field: &mut Field, f: F) -> f64
+where
+    F: Fn(usize, &mut [f64]) -> f64 + Sync + Send,
+{
+    let stride = field.stride();
+    let ny = field.ny;
+    let data = field.slice_mut();
+    exec.max_each_row(&mut data[HALO * stride..(HALO + ny) * stride], stride, f)
+}
+
 /// Runs `f(j, row_a, row_b)` over interior rows of two fields of the same shape.
 pub fn for_each_interior_row2<F>(exec: Exec, a: &mut Field, b: &mut Field, f: F)
 where

@@ -69,7 +69,7 @@ use super::SigmaLocation;
 use crate::error::Error;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
-use crate::operators::{for_each_interior_row, strain_rate_norm_centre};
+use crate::operators::{for_each_interior_row, for_each_interior_row_max, strain_rate, strain_rate_norm_centre};
 pub(crate) use crate::plasticity::exceeds;
 pub use crate::plasticity::{unit_ball_scale, weighted_max_abs_diff};
 
@@ -93,6 +93,15 @@ pub struct PicardInfo {
 #[inline]
 fn base(f: &Field, j: isize) -> usize {
     ((j + HALO as isize) as usize) * f.stride() + HALO
+}
+
+/// Copies the ghost rows (the HALO rows below and above the interior) of `from` into `to`.
+fn copy_halo_rows(from: &Field, to: &mut Field) {
+    debug_assert_eq!(from.data.dim(), to.data.dim());
+    let (st, ny) = (from.stride(), from.ny);
+    let (a, b) = (from.slice(), to.slice_mut());
+    b[..HALO * st].copy_from_slice(&a[..HALO * st]);
+    b[(HALO + ny) * st..].copy_from_slice(&a[(HALO + ny) * st..]);
 }
 
 /// The plastic tensor Σ and the work arrays of its projection (allocated once).
@@ -239,7 +248,10 @@ impl PlasticState {
     ///
     ///   u-face (i, j): [τ_c Σ_xx]_{i−1}^{i}/dx + [τ_n Σ_xy]_{j}^{j+1}/dy,
     ///   v-face (i, j): [τ_n Σ_xy]_{i}^{i+1}/dx − [τ_c Σ_xx]_{j−1}^{j}/dy   (Σ_yy = −Σ_xx).
-    pub fn add_force(&mut self, grid: &Grid, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
+    ///
+    /// With `base = Some((b_u, b_v))` the result is out = b + div(τΣ): each row of b is copied
+    /// into `out` in the force's own sweep (the same values as a copy followed by the addition).
+    pub fn add_force(&mut self, grid: &Grid, base_rhs: Option<(&Field, &Field)>, out_u: &mut Field, out_v: &mut Field, exec: Exec) {
         let centred = self.centred.is_some();
         if centred {
             self.centred_shear_to_nodes(exec);
@@ -259,7 +271,16 @@ impl PlasticState {
         let (sc, sn) = (self.stress_c.slice(), self.stress_n.slice());
         let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
         let (stress_c, stress_n) = (&self.stress_c, &self.stress_n);
+        if let Some((bu, bv)) = base_rhs {
+            copy_halo_rows(bu, out_u);
+            copy_halo_rows(bv, out_v);
+        }
+        let base_u = base_rhs.map(|(bu, _)| (bu.slice(), bu.stride()));
+        let base_v = base_rhs.map(|(_, bv)| (bv.slice(), bv.stride()));
         for_each_interior_row(exec, out_u, |j, row| {
+            if let Some((b, st)) = base_u {
+                row.copy_from_slice(&b[(j + HALO) * st..(j + HALO + 1) * st]);
+            }
             let j = j as isize;
             let (bc, bn0, bn1) = (base(stress_c, j), base(stress_n, j), base(stress_n, j + 1));
             for i in 0..=nx {
@@ -267,6 +288,9 @@ impl PlasticState {
             }
         });
         for_each_interior_row(exec, out_v, |j, row| {
+            if let Some((b, st)) = base_v {
+                row.copy_from_slice(&b[(j + HALO) * st..(j + HALO + 1) * st]);
+            }
             let j = j as isize;
             let (bc0, bcm, bn) = (base(stress_c, j), base(stress_c, j - 1), base(stress_n, j));
             for i in 0..nx {
@@ -314,6 +338,9 @@ impl PlasticState {
                     row[HALO + i] = if tn[k] > 0.0 && !held(i, j) { sy[k] + rn[k] * c[k] + theta * (syn[k] - sy[k]) } else { 0.0 };
                 }
             });
+        }
+        if !self.locate {
+            return self.project_in_place(exec);
         }
         // projections: at centres with Σ_xy averaged from the corners, at nodes with Σ_xx
         // averaged from the adjacent cells
@@ -370,6 +397,119 @@ impl PlasticState {
         inc
     }
 
+    /// [`PlasticState::update`] from the velocity ũ itself: D_dev(ũ) is computed in the sweeps
+    /// that form the trial values, where Σ has a layout of its own (Σ_xy at nodes) and the
+    /// largest increment is not located; otherwise the strain rate is written to `dxx`, `dyy`,
+    /// `dxy` by [`crate::operators::strain_rate`] and [`PlasticState::update`] runs on them.
+    /// Each D component and each trial value is computed by the same operations in the same
+    /// order as in the separate sweeps: the result is the same bit for bit. With the fused
+    /// sweeps `dxx`, `dyy`, `dxy` are not written.
+    #[allow(clippy::too_many_arguments)]
+    pub fn update_from_velocity(
+        &mut self,
+        u: &Field,
+        v: &Field,
+        grid: &Grid,
+        (dxx, dyy, dxy): (&mut Field, &mut Field, &mut Field),
+        theta: f64,
+        exec: Exec,
+    ) -> f64 {
+        if self.centred.is_some() || self.locate {
+            strain_rate(u, v, grid, dxx, dyy, dxy, exec);
+            return self.update(dxx, dyy, dxy, theta, exec);
+        }
+        let (us, vs) = (u.slice(), v.slice());
+        let (idx, idy) = (1.0 / grid.dx, 1.0 / grid.dy);
+        {
+            let (sx, sxn, tc) = (self.sigma_xx.slice(), self.sigma_xx_n.slice(), self.tau_c.slice());
+            let rc = self.r_c.slice();
+            let st = self.sigma_xx.stride();
+            let n = self.trial_c.nx;
+            for_each_interior_row(exec, &mut self.trial_c, |j, row| {
+                let bb = (j + HALO) * st + HALO;
+                let (bu, bv0, bv1) = (base(u, j as isize), base(v, j as isize), base(v, j as isize + 1));
+                for i in 0..n {
+                    let k = bb + i;
+                    row[HALO + i] = if tc[k] > 0.0 {
+                        let a = (us[bu + i + 1] - us[bu + i]) * idx;
+                        let b = (vs[bv1 + i] - vs[bv0 + i]) * idy;
+                        sx[k] + 0.5 * rc[k] * (a - b) + theta * (sxn[k] - sx[k])
+                    } else {
+                        0.0
+                    };
+                }
+            });
+        }
+        self.trial_c.extrapolate_ghosts_constant();
+        {
+            let (sy, syn, tn) = (self.sigma_xy.slice(), self.sigma_xy_n.slice(), self.tau_n.slice());
+            let rn = self.r_n.slice();
+            let st = self.sigma_xy.stride();
+            let (nxn, nyn) = (self.trial_n.nx, self.trial_n.ny);
+            let z = self.zero_tangential;
+            let held = move |i: usize, j: usize| node_held(&z, i, j, nxn, nyn);
+            for_each_interior_row(exec, &mut self.trial_n, |j, row| {
+                let bb = (j + HALO) * st + HALO;
+                let jj = j as isize;
+                let (bu0, bu1, bv) = (base(u, jj - 1), base(u, jj), base(v, jj));
+                for i in 0..nxn {
+                    let k = bb + i;
+                    row[HALO + i] = if tn[k] > 0.0 && !held(i, j) {
+                        let c = 0.5 * ((us[bu1 + i] - us[bu0 + i]) * idy + (vs[bv + i] - vs[bv + i - 1]) * idx);
+                        sy[k] + rn[k] * c + theta * (syn[k] - sy[k])
+                    } else {
+                        0.0
+                    };
+                }
+            });
+        }
+        self.project_in_place(exec)
+    }
+
+    /// The projections of [`PlasticState::update`] written straight into Σ, with the increment's
+    /// maximum taken in the same sweep: Σ_xx ← P at centres (Λ_xy averaged from the corners),
+    /// Σ_xy ← P at nodes (Λ_xx averaged from the adjacent cells), each value compared with the
+    /// one it replaces. Every new value and every |τ(Σ^{k+1} − Σ^k)|/τ_max is computed by the
+    /// same operations as in the separate sweeps (new values, then the two increments, then the
+    /// copies), and a maximum does not depend on the order: the result is the same bit for bit.
+    fn project_in_place(&mut self, exec: Exec) -> f64 {
+        let scale = if self.tau_max > 0.0 { 1.0 / self.tau_max } else { 0.0 };
+        let (tcs, tns) = (self.trial_c.slice(), self.trial_n.slice());
+        let (trial_c, trial_n) = (&self.trial_c, &self.trial_n);
+        let (tc, tn) = (self.tau_c.slice(), self.tau_n.slice());
+        let n = self.sigma_xx.nx;
+        let xx = for_each_interior_row_max(exec, &mut self.sigma_xx, |j, row| {
+            let j = j as isize;
+            let (bc, bn0, bn1) = (base(trial_c, j), base(trial_n, j), base(trial_n, j + 1));
+            let mut m = 0.0f64;
+            for i in 0..n {
+                let xx = tcs[bc + i];
+                let xy = 0.25 * (tns[bn0 + i] + tns[bn0 + i + 1] + tns[bn1 + i] + tns[bn1 + i + 1]);
+                let new = xx * unit_ball_scale(xx, xy);
+                let d = (new - row[HALO + i]).abs() * tc[bc + i] * scale;
+                m = if d.is_nan() { f64::NAN } else { m.max(d) };
+                row[HALO + i] = new;
+            }
+            m
+        });
+        let n = self.sigma_xy.nx;
+        let xy = for_each_interior_row_max(exec, &mut self.sigma_xy, |j, row| {
+            let j = j as isize;
+            let (bn, bc0, bc1) = (base(trial_n, j), base(trial_c, j - 1), base(trial_c, j));
+            let mut m = 0.0f64;
+            for i in 0..n {
+                let xy = tns[bn + i];
+                let xx = 0.25 * (tcs[bc0 + i] + tcs[bc0 + i - 1] + tcs[bc1 + i] + tcs[bc1 + i - 1]);
+                let new = xy * unit_ball_scale(xx, xy);
+                let d = (new - row[HALO + i]).abs() * tn[bn + i] * scale;
+                m = if d.is_nan() { f64::NAN } else { m.max(d) };
+                row[HALO + i] = new;
+            }
+            m
+        });
+        xx.max(xy)
+    }
+
     /// [`PlasticState::update`] with Σ_xy at centres (`trial_c` holds Λ_xx): the trial
     /// Λ_xy = Σ_xy + r D_xy + θ(Σ_xy^n − Σ_xy) with D_xy averaged from the four corner nodes
     /// (held boundary nodes count as 0: their tangential stress is the wall's), then the pair is
@@ -395,6 +535,29 @@ impl PlasticState {
                     };
                 }
             });
+        }
+        if !self.locate {
+            // the pair projected straight into Σ, each component's increment in its sweep (the
+            // same values and the same maximum as the separate sweeps below)
+            let scale = if self.tau_max > 0.0 { 1.0 / self.tau_max } else { 0.0 };
+            let (xxs, xys, tc, st) = (self.trial_c.slice(), cs.trial.slice(), self.tau_c.slice(), cs.trial.stride());
+            let n = self.sigma_xx.nx;
+            let project = |component: usize| {
+                move |j: usize, row: &mut [f64]| {
+                    let b = (j + HALO) * st + HALO;
+                    let mut m = 0.0f64;
+                    for i in 0..n {
+                        let (xx, xy) = (xxs[b + i], xys[b + i]);
+                        let new = (if component == 0 { xx } else { xy }) * unit_ball_scale(xx, xy);
+                        let d = (new - row[HALO + i]).abs() * tc[b + i] * scale;
+                        m = if d.is_nan() { f64::NAN } else { m.max(d) };
+                        row[HALO + i] = new;
+                    }
+                    m
+                }
+            };
+            let xx = for_each_interior_row_max(exec, &mut self.sigma_xx, project(0));
+            return xx.max(for_each_interior_row_max(exec, &mut cs.sigma, project(1)));
         }
         {
             let (xxs, xys, st) = (self.trial_c.slice(), cs.trial.slice(), cs.trial.stride());
@@ -633,5 +796,137 @@ pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta:
         ),
         step,
         time,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A state on an 80 × 64 grid (more cells than the parallel threshold) with a yield stress
+    /// that vanishes in a corner, Σ, Σⁿ, r and a strain rate from a fixed pseudo-random sequence
+    /// scaled so that part of the trial values lie outside the unit ball.
+    fn state(location: SigmaLocation) -> (PlasticState, [Field; 3]) {
+        let grid = Grid::new(80, 64, 1.0, 0.8).unwrap();
+        let bc = BoundaryConditions::uniform(VelocityBc::FreeSlip).with(Side::Top, VelocityBc::Outflow);
+        let mut p = PlasticState::new(&grid, &bc, location);
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut fill = |f: &mut Field, scale: f64, zero_corner: bool| {
+            for j in 0..f.ny {
+                for i in 0..f.nx {
+                    let v = if zero_corner && i < 10 && j + 10 > f.ny { 0.0 } else { scale * next() };
+                    f.set(i, j, v);
+                }
+            }
+        };
+        fill(&mut p.tau_c, 1.0, true);
+        fill(&mut p.tau_n, 1.0, true);
+        for f in [&mut p.tau_c, &mut p.tau_n] {
+            f.slice_mut().iter_mut().for_each(|x| *x = x.abs());
+        }
+        p.tau_max = 0.5;
+        fill(&mut p.sigma_xx, 1.2, false);
+        fill(&mut p.sigma_xy, 1.2, false);
+        fill(&mut p.sigma_xx_n, 1.2, false);
+        fill(&mut p.sigma_xy_n, 1.2, false);
+        fill(&mut p.r_c, 1.0, false);
+        fill(&mut p.r_n, 1.0, false);
+        if let Some(cs) = p.centred.as_mut() {
+            fill(&mut cs.sigma, 1.2, false);
+            fill(&mut cs.sigma_n, 1.2, false);
+        }
+        let mut d = [Field::zeros(&grid, Location::Centre), Field::zeros(&grid, Location::Centre), Field::zeros(&grid, Location::Node)];
+        for f in d.iter_mut() {
+            fill(f, 3.0, false);
+        }
+        (p, d)
+    }
+
+    #[test]
+    fn force_onto_a_base_equals_the_copy_and_the_addition() {
+        let grid = Grid::new(80, 64, 1.0, 0.8).unwrap();
+        for location in [SigmaLocation::Staggered, SigmaLocation::Centres] {
+            let (mut p, _) = state(location);
+            let mut base = [Field::zeros(&grid, Location::XFace), Field::zeros(&grid, Location::YFace)];
+            for (k, f) in base.iter_mut().enumerate() {
+                f.slice_mut().iter_mut().enumerate().for_each(|(n, x)| *x = ((n * 7 + k * 3) % 23) as f64 - 11.0);
+            }
+            let (mut ru, mut rv) = (base[0].clone(), base[1].clone());
+            p.add_force(&grid, None, &mut ru, &mut rv, Exec::SERIAL);
+            for exec in [Exec::SERIAL, Exec { parallel: true }] {
+                let (mut fu, mut fv) = (Field::zeros(&grid, Location::XFace), Field::zeros(&grid, Location::YFace));
+                let pool = crate::exec::build_pool(2).unwrap();
+                pool.install(|| p.add_force(&grid, Some((&base[0], &base[1])), &mut fu, &mut fv, exec));
+                let bits = |f: &Field| f.slice().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fu), bits(&ru), "{location:?} {exec:?}");
+                assert_eq!(bits(&fv), bits(&rv), "{location:?} {exec:?}");
+            }
+        }
+    }
+
+    fn interior_bits(f: &Field) -> Vec<u64> {
+        (0..f.ny).flat_map(|j| (0..f.nx).map(move |i| (i, j))).map(|(i, j)| f.at(i as isize, j as isize).to_bits()).collect()
+    }
+
+    #[test]
+    fn projection_in_place_equals_the_separate_sweeps_bit_for_bit() {
+        for location in [SigmaLocation::Staggered, SigmaLocation::Centres] {
+            let (mut reference, d) = state(location);
+            reference.locate = true;
+            let inc_ref = reference.update(&d[0], &d[1], &d[2], 0.8, Exec::SERIAL);
+            assert!(inc_ref > 0.0 && inc_ref.is_finite());
+            let clamped = (0..reference.sigma_xx.ny).any(|j| (0..reference.sigma_xx.nx).any(|i| reference.trial_c.at(i as isize, j as isize).abs() > 1.0));
+            assert!(clamped, "some trial values must lie outside the unit ball");
+            for exec in [Exec::SERIAL, Exec { parallel: true }] {
+                let (mut fused, d) = state(location);
+                fused.locate = false;
+                let pool = crate::exec::build_pool(2).unwrap();
+                let inc = pool.install(|| fused.update(&d[0], &d[1], &d[2], 0.8, exec));
+                assert_eq!(inc.to_bits(), inc_ref.to_bits(), "{location:?} {exec:?}");
+                assert_eq!(interior_bits(&fused.sigma_xx), interior_bits(&reference.sigma_xx));
+                assert_eq!(interior_bits(&fused.sigma_xy), interior_bits(&reference.sigma_xy));
+                if let (Some(a), Some(b)) = (&fused.centred, &reference.centred) {
+                    assert_eq!(interior_bits(&a.sigma), interior_bits(&b.sigma));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn update_from_the_velocity_equals_the_strain_rate_then_the_update_bit_for_bit() {
+        let grid = Grid::new(80, 64, 1.0, 0.8).unwrap();
+        let mut vel = [Field::zeros(&grid, Location::XFace), Field::zeros(&grid, Location::YFace)];
+        for (k, f) in vel.iter_mut().enumerate() {
+            // ghosts included: both paths read the velocity's ghost rows and columns
+            f.slice_mut().iter_mut().enumerate().for_each(|(n, x)| *x = 0.04 * (((n * 13 + k * 5) % 31) as f64 - 15.0));
+        }
+        for location in [SigmaLocation::Staggered, SigmaLocation::Centres] {
+            let (mut reference, mut d) = state(location);
+            reference.locate = true;
+            let [dxx, dyy, dxy] = &mut d;
+            strain_rate(&vel[0], &vel[1], &grid, dxx, dyy, dxy, Exec::SERIAL);
+            let inc_ref = reference.update(&d[0], &d[1], &d[2], 0.8, Exec::SERIAL);
+            assert!(inc_ref > 0.0 && inc_ref.is_finite());
+            for exec in [Exec::SERIAL, Exec { parallel: true }] {
+                let (mut fused, mut d) = state(location);
+                fused.locate = false;
+                let pool = crate::exec::build_pool(2).unwrap();
+                let [dxx, dyy, dxy] = &mut d;
+                let inc = pool.install(|| fused.update_from_velocity(&vel[0], &vel[1], &grid, (dxx, dyy, dxy), 0.8, exec));
+                assert_eq!(inc.to_bits(), inc_ref.to_bits(), "{location:?} {exec:?}");
+                assert_eq!(interior_bits(&fused.trial_c), interior_bits(&reference.trial_c));
+                assert_eq!(interior_bits(&fused.sigma_xx), interior_bits(&reference.sigma_xx));
+                assert_eq!(interior_bits(&fused.sigma_xy), interior_bits(&reference.sigma_xy));
+                if let (Some(a), Some(b)) = (&fused.centred, &reference.centred) {
+                    assert_eq!(interior_bits(&a.sigma), interior_bits(&b.sigma));
+                }
+            }
+        }
     }
 }

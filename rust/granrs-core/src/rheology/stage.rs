@@ -306,10 +306,11 @@ impl RheologyState {
         }
         for k in 1..=rc.picard_max_iterations {
             // rhs + div(τΣ^k) + wall friction τ_b s^k / h
-            self.rhs_u.assign(rhs_u);
-            self.rhs_v.assign(rhs_v);
             if self.projection {
-                self.plastic.add_force(grid, &mut self.rhs_u, &mut self.rhs_v, exec);
+                self.plastic.add_force(grid, Some((rhs_u, rhs_v)), &mut self.rhs_u, &mut self.rhs_v, exec);
+            } else {
+                self.rhs_u.assign(rhs_u);
+                self.rhs_v.assign(rhs_v);
             }
             self.walls.add_force(&mut self.rhs_u, &mut self.rhs_v, grid);
             if let Some(sw) = self.side_walls.as_ref() {
@@ -343,11 +344,10 @@ impl RheologyState {
             // where Σ moves most, recorded only when this iteration may be the last
             self.plastic.locate = k == rc.picard_max_iterations || (halvings == PICARD_MAX_HALVINGS && k % PICARD_STALL_WINDOW == 0);
             if self.projection {
-                strain_rate(u, v, grid, &mut self.dxx, &mut self.dyy, &mut self.dxy, exec);
                 if let Some(a) = self.anderson.as_mut() {
                     a.save_iterate(&self.plastic);
                 }
-                inc = self.plastic.update(&self.dxx, &self.dyy, &self.dxy, rc.theta, exec);
+                inc = self.plastic.update_from_velocity(u, v, grid, (&mut self.dxx, &mut self.dyy, &mut self.dxy), rc.theta, exec);
             }
             if self.walls.is_active() {
                 let d = self.walls.update(u, v, self.r_wall, rc.theta, grid);
