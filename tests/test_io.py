@@ -200,6 +200,29 @@ def test_a_failed_run_is_data_outputs_summary_and_animation(tmp_path):
     assert (tmp_path / "animation.gif").exists() and (tmp_path / "front.png").exists()
 
 
+def test_a_state_saving_callback_finds_front_and_history_written_up_to_its_time(tmp_path):
+    # A checkpoint taken between two progress flushes would let a restart append to a front.csv
+    # and history.npz that stop short of it: the driver flushes them before every such callback.
+    seen = []
+
+    def check(sim):
+        t = sim.model.time
+        front = np.genfromtxt(tmp_path / "front.csv", delimiter=",", names=True)["t_s"]
+        with np.load(tmp_path / "history.npz") as z:  # no step yet at t = 0: no entries
+            step_t = float(z["time"][-1]) if "time" in z.files else 0.0
+        seen.append((t, float(np.atleast_1d(front)[-1]), step_t))
+
+    run_config(tiny(tmp_path), progress=False, extra_callbacks=[Callback(check, every_time=0.03, saves_state=True)])
+    assert [round(t, 9) for t, _, _ in seen] == [0.0, 0.03, 0.06]
+    for t, front_t, step_t in seen:  # records every 0.01 s (6 digits in front.csv); steps land on t
+        assert front_t == pytest.approx(t, abs=1e-6) and step_t == pytest.approx(t, abs=1e-12)
+
+
+def test_saves_state_must_be_a_bool():
+    with pytest.raises(ParameterError, match="saves_state"):
+        Callback(lambda sim: None, every_time=0.1, saves_state="yes")  # type: ignore[arg-type]
+
+
 def test_a_real_failure_domain_too_short_is_reported(tmp_path):
     cfg = resolve({**tiny(tmp_path), "grid": {"ny": 16, "length": 0.25}})
     with pytest.raises(SimulationError, match="far end"):

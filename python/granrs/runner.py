@@ -143,6 +143,7 @@ def run_config(
             Callback(
                 lambda sim: ckpt.save_checkpoint(sim.model, out / "checkpoint.npz", prov),
                 every_time=out_cfg["checkpoint_every_s"],
+                saves_state=True,
             )
         )
     prepare = (lambda model: ckpt.restore_checkpoint(model, ck)) if ck is not None else None
@@ -153,7 +154,7 @@ def run_config(
         "fields": {"formats": list(out_cfg["formats"]) if writer else [], "every_s": out_cfg["fields_every_s"]},
     }
     if ck is not None:
-        whole = plan.mode == "append" and front_prefix is not None
+        whole = plan.mode == "append" and front_prefix is not None and history_prefix is not None
         extra["restart"] = {
             "checkpoint": str(restart),
             "t_start_s": t_start,

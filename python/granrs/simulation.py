@@ -36,11 +36,15 @@ from .model import Model
 @dataclass
 class Callback:
     """Calls ``func(simulation)`` every ``every_time`` seconds of simulated time (landing on those
-    times exactly) or every ``every_steps`` steps."""
+    times exactly) or every ``every_steps`` steps. ``saves_state``: ``func`` saves the model's
+    state for a restart (a checkpoint); the simulation's ``flush_outputs`` (a driver's outputs
+    gathered so far) is then called first, so what a restart from that state appends to on disk
+    holds every record and step before it."""
 
     func: Callable[[Simulation], object]  # what it returns is not used
     every_time: Optional[float] = None
     every_steps: Optional[int] = None
+    saves_state: bool = False
 
     def __post_init__(self):
         if (self.every_time is None) == (self.every_steps is None):
@@ -49,6 +53,8 @@ class Callback:
             raise ParameterError(f"invalid parameter `every_time` = {self.every_time!r}: allowed a finite number > 0")
         if self.every_steps is not None and not (isinstance(self.every_steps, int) and self.every_steps >= 1):
             raise ParameterError(f"invalid parameter `every_steps` = {self.every_steps!r}: allowed an integer >= 1")
+        if not isinstance(self.saves_state, bool):
+            raise ParameterError(f"invalid parameter `saves_state` = {self.saves_state!r}: allowed True or False")
 
 
 class Simulation:
@@ -125,6 +131,13 @@ class Simulation:
         self.stop = False
         self.stop_reason = ""
         self.wall_time = 0.0
+        #: called before each ``saves_state`` callback; a driver sets it to write its outputs so far
+        self.flush_outputs: Optional[Callable[[Simulation], object]] = None
+
+    def _call(self, cb: Callback) -> None:
+        if cb.saves_state and self.flush_outputs is not None:
+            self.flush_outputs(self)
+        cb.func(self)
 
     def _next_stop(self):
         m = self.model
@@ -153,7 +166,7 @@ class Simulation:
         m = self.model
         start = _time.perf_counter()
         for cb in self.callbacks:
-            cb.func(self)
+            self._call(cb)
         while not self.stop:
             if self.stop_time is not None and m.time >= self.stop_time * (1 - 1e-12):
                 self.stop_reason = "stop_time"
@@ -187,7 +200,7 @@ class Simulation:
                     self.history.setdefault(k, []).extend(v)
             for cb in self.callbacks:
                 if self._due(cb, t_before, n_before):
-                    cb.func(self)
+                    self._call(cb)
             if self.progress:
                 self._print_progress(start)
         self.wall_time = _time.perf_counter() - start

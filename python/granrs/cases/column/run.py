@@ -52,7 +52,7 @@ def run_column(
     is built (a restart restores its state there); ``outputs``: the folder's ``RunOutputs`` (a
     restart's earlier rows and original dense area). summary.json, front.csv and history.npz are
     rewritten atomically every ``FLUSH_RECORDS`` records during the run (``stop_reason``
-    'incomplete: ...'). A SimulationError, SolverError or KeyboardInterrupt still writes every
+    'incomplete: ...') and before every callback that ``saves_state``. A SimulationError, SolverError or KeyboardInterrupt still writes every
     output from the steps done, with the ``stop_reason``, then is raised again."""
     case.validate()
     model_name, model_reason = case.model, "requested"
@@ -126,25 +126,30 @@ def run_column(
         else:
             state["rest_since"] = None
         if len(rec["t"]) % FLUSH_RECORDS == 0:
-            front = rec["front"]
-            _progress(
-                outputs,
-                {
-                    "runout_m": front[-1],
-                    "max_front_m": max(front),
-                    "t_end_s": t,
-                    "steps": model.step_count,
-                    "nx": grid.nx,
-                    "ny": grid.ny,
-                    "model": model_name,
-                    "case": case.summary(),
-                }
-                | (extra_summary or {}),
-                rec,
-                sim.history_arrays(),
-                t,
-                model.step_count,
-            )
+            flush(sim)
+
+    def flush(sim: Simulation) -> None:
+        front = rec["front"]
+        if not front:
+            return
+        _progress(
+            outputs,
+            {
+                "runout_m": front[-1],
+                "max_front_m": max(front),
+                "t_end_s": model.time,
+                "steps": model.step_count,
+                "nx": grid.nx,
+                "ny": grid.ny,
+                "model": model_name,
+                "case": case.summary(),
+            }
+            | (extra_summary or {}),
+            rec,
+            sim.history_arrays(),
+            model.time,
+            model.step_count,
+        )
 
     sim = Simulation(
         model,
@@ -152,6 +157,7 @@ def run_column(
         callbacks=[Callback(observe, every_time=0.01)] + list(callbacks or []),
         progress=progress,
     )
+    sim.flush_outputs = flush  # a checkpoint never runs ahead of front.csv and history.npz
     t0 = time.perf_counter()
     error = failure = None
     try:
