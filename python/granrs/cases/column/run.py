@@ -52,8 +52,9 @@ def run_column(
     is built (a restart restores its state there); ``outputs``: the folder's ``RunOutputs`` (a
     restart's earlier rows and original dense area). summary.json, front.csv and history.npz are
     rewritten atomically every ``FLUSH_RECORDS`` records during the run (``stop_reason``
-    'incomplete: ...') and before every callback that ``saves_state``. A SimulationError, SolverError or KeyboardInterrupt still writes every
-    output from the steps done, with the ``stop_reason``, then is raised again."""
+    'incomplete: ...') and before every callback that ``saves_state``. A SimulationError,
+    SolverError or KeyboardInterrupt still writes every output from the steps done, with the
+    ``stop_reason``, then is raised again."""
     case.validate()
     model_name, model_reason = case.model, "requested"
     if model_name == "depth-averaged":
@@ -87,6 +88,7 @@ def run_column(
         rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
     profiles: dict = {}
     state: dict[str, Optional[float]] = {"rest_since": None}
+    flushed = [(0, -1)]  # (records, steps) of the last flush
     pending_profiles = sorted(case.profile_times)
 
     def granular_speed() -> float:
@@ -129,9 +131,10 @@ def run_column(
             flush(sim)
 
     def flush(sim: Simulation) -> None:
-        front = rec["front"]
-        if not front:
+        front, done = rec["front"], (len(rec["t"]), model.step_count)
+        if not front or flushed[-1] == done:  # nothing new since the last flush
             return
+        flushed[-1] = done
         _progress(
             outputs,
             {
