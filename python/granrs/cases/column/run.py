@@ -88,7 +88,7 @@ def run_column(
         rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
     profiles: dict = {}
     state: dict[str, Optional[float]] = {"rest_since": None}
-    flushed = [(0, -1)]  # (records, steps) of the last flush
+    last_flush = (0, -1)  # (records, steps) written by the last flush
     pending_profiles = sorted(case.profile_times)
 
     def granular_speed() -> float:
@@ -131,10 +131,11 @@ def run_column(
             flush(sim)
 
     def flush(sim: Simulation) -> None:
+        nonlocal last_flush
         front, done = rec["front"], (len(rec["t"]), model.step_count)
-        if not front or flushed[-1] == done:  # nothing new since the last flush
+        if not front or last_flush == done:  # nothing new since the last flush
             return
-        flushed[-1] = done
+        last_flush = done
         _progress(
             outputs,
             {
