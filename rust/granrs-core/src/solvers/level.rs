@@ -300,20 +300,211 @@ impl Level {
     }
 
     /// Residual of this level restricted by averaging the 4 children: b_c = ¼ Σ_children (b − A x),
-    /// without storing the fine residual.
+    /// without storing the fine residual. Each coarse row is made by chunks of
+    /// [`RESTRICT_CHUNK`] / 2 coarse cells: the residual of the two fine rows under the chunk goes
+    /// to buffers on the stack ([`Level::residual_range`]), then each coarse cell adds its four
+    /// children in the order (2i, 2j), (2i+1, 2j), (2i, 2j+1), (2i+1, 2j+1), starting from 0.
     pub fn restrict_residual(&self, x: &[f64], b: &[f64], coarse_b: &mut [f64], exec: Exec) {
         let (nx, ncx) = (self.nx, self.nx / 2);
+        debug_assert!(nx % 2 == 0 && self.ny % 2 == 0 && coarse_b.len() == ncx * (self.ny / 2));
+        const CHUNK: usize = RESTRICT_CHUNK / 2;
         exec.for_each_row(coarse_b, ncx, |jc, row| {
-            row.iter_mut().for_each(|v| *v = 0.0);
-            for j in [2 * jc, 2 * jc + 1] {
-                let br = &b[j * nx..(j + 1) * nx];
-                self.stencil_row(j, x, |i, v| row[i >> 1] += br[i] - v);
+            let (mut r0, mut r1) = ([0.0; RESTRICT_CHUNK], [0.0; RESTRICT_CHUNK]);
+            for (c, out) in row.chunks_mut(CHUNK).enumerate() {
+                let (lo, hi) = (2 * c * CHUNK, 2 * (c * CHUNK + out.len()));
+                let (r0, r1) = (&mut r0[..hi - lo], &mut r1[..hi - lo]);
+                self.residual_range(2 * jc, x, b, lo, hi, r0);
+                self.residual_range(2 * jc + 1, x, b, lo, hi, r1);
+                for (k, v) in out.iter_mut().enumerate() {
+                    *v = ((((0.0 + r0[2 * k]) + r0[2 * k + 1]) + r1[2 * k]) + r1[2 * k + 1]) * 0.25;
+                }
             }
-            row.iter_mut().for_each(|v| *v *= 0.25);
         });
     }
+
+    /// `out[i − lo]` = (b − A p)_ij for the cells lo ≤ i < hi of row `j`: the operations of
+    /// [`Level::stencil_row`], with the interior cells by the vectorised [`residual_span`].
+    #[inline(always)]
+    pub fn residual_range(&self, j: usize, p: &[f64], b: &[f64], lo: usize, hi: usize, out: &mut [f64]) {
+        let nx = self.nx;
+        debug_assert!(lo <= hi && hi <= nx && out.len() == hi - lo);
+        let pc = &p[j * nx..(j + 1) * nx];
+        let ps = if j > 0 { &p[(j - 1) * nx..j * nx] } else { &self.zeros[..] };
+        let pn = if j + 1 < self.ny { &p[(j + 1) * nx..(j + 2) * nx] } else { &self.zeros[..] };
+        let cxr = &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)];
+        let cys = &self.cy[j * nx..(j + 1) * nx];
+        let cyn = &self.cy[(j + 1) * nx..(j + 2) * nx];
+        let dg = &self.diag[j * nx..(j + 1) * nx];
+        let br = &b[j * nx..(j + 1) * nx];
+        if lo == hi {
+            return;
+        }
+        if nx == 1 {
+            out[0] = br[0] - (dg[0] * pc[0] - cys[0] * ps[0] - cyn[0] * pn[0]);
+            return;
+        }
+        let first = lo.max(1);
+        let last = hi.min(nx - 1);
+        if lo == 0 {
+            out[0] = br[0] - (dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0]);
+        }
+        if last > first {
+            let (s, e) = (first, last);
+            let span = Span {
+                b: &br[s..e],
+                d: &dg[s..e],
+                cw: &cxr[s..e],
+                ce: &cxr[s + 1..e + 1],
+                pw: &pc[s - 1..e - 1],
+                pc: &pc[s..e],
+                pe: &pc[s + 1..e + 1],
+                cs: &cys[s..e],
+                ps: &ps[s..e],
+                cn: &cyn[s..e],
+                pn: &pn[s..e],
+            };
+            residual_span(&mut out[s - lo..e - lo], &span);
+        }
+        if hi == nx {
+            let i = nx - 1;
+            out[i - lo] = br[i] - (dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i]);
+        }
+    }
 }
+
+/// A run of consecutive interior cells of one row, all slices of the same length n: the
+/// right-hand side `b`, the diagonal `d`, the couplings across the west, east, south and north
+/// faces and the values of the cell `pc` and of its four neighbours.
+struct Span<'a> {
+    b: &'a [f64],
+    d: &'a [f64],
+    cw: &'a [f64],
+    ce: &'a [f64],
+    pw: &'a [f64],
+    pc: &'a [f64],
+    pe: &'a [f64],
+    cs: &'a [f64],
+    ps: &'a [f64],
+    cn: &'a [f64],
+    pn: &'a [f64],
+}
+
+crate::multiversion! {
+    /// Residual of a span: out = b − ((((d·pc − cw·pw) − ce·pe) − cs·ps) − cn·pn), the
+    /// operations of [`Level::stencil_row`] in its order.
+    fn residual_span / residual_span_base(out: &mut [f64], s: &Span<'_>) {
+        let n = out.len();
+        let (b, d, cw, ce, pw, pc, pe) = (&s.b[..n], &s.d[..n], &s.cw[..n], &s.ce[..n], &s.pw[..n], &s.pc[..n], &s.pe[..n]);
+        let (cs, ps, cn, pn) = (&s.cs[..n], &s.ps[..n], &s.cn[..n], &s.pn[..n]);
+        for k in 0..n {
+            out[k] = b[k] - (d[k] * pc[k] - cw[k] * pw[k] - ce[k] * pe[k] - cs[k] * ps[k] - cn[k] * pn[k]);
+        }
+    }
+}
+
+/// Fine cells per chunk of the restriction (two stack buffers of 2 KiB).
+const RESTRICT_CHUNK: usize = 256;
 
 /// Rows per block of the parallel red–black sweep (the smoother needs no reduction, so its block
 /// size only trades parallelism against the boundary rows of phase B).
 pub(crate) const SMOOTH_BLOCK: usize = 16;
+
+#[cfg(test)]
+mod tests {
+    //! The span kernels against the cell-by-cell operations they replace, bit for bit.
+    use super::*;
+
+    /// A level with face coefficients that vary from face to face (a jump of 10³ across a
+    /// wavy line, as at the interface), Dirichlet on the top, and a right-hand side and a guess.
+    fn case(nx: usize, ny: usize) -> (Level, Vec<f64>, Vec<f64>) {
+        let bc = [PressureBc::Neumann, PressureBc::Neumann, PressureBc::Neumann, PressureBc::Dirichlet];
+        let mut level = Level::new(nx, ny, 0.01, 0.012, bc);
+        let beta = |x: f64, y: f64| if y > 0.5 + 0.1 * (7.0 * x).sin() { 1.0 } else { 1e-3 };
+        for j in 0..ny {
+            for i in 0..=nx {
+                level.beta_x[j * (nx + 1) + i] = beta(i as f64 / nx as f64, (j as f64 + 0.5) / ny as f64);
+            }
+        }
+        for j in 0..=ny {
+            for i in 0..nx {
+                level.beta_y[j * nx + i] = beta((i as f64 + 0.5) / nx as f64, j as f64 / ny as f64);
+            }
+        }
+        level.update_stencil(Exec::SERIAL);
+        let wave = |k: usize, a: f64| (a * k as f64).sin() + 0.3 * (0.37 * a * k as f64).cos();
+        let b = (0..nx * ny).map(|k| wave(k, 0.91)).collect();
+        let x = (0..nx * ny).map(|k| wave(k, 1.73)).collect();
+        (level, b, x)
+    }
+
+    /// The restriction as the sum of the children scattered in cell order.
+    fn restrict_by_cells(level: &Level, x: &[f64], b: &[f64]) -> Vec<f64> {
+        let (nx, ncx) = (level.nx, level.nx / 2);
+        let mut out = vec![0.0; ncx * (level.ny / 2)];
+        for (jc, row) in out.chunks_mut(ncx).enumerate() {
+            for j in [2 * jc, 2 * jc + 1] {
+                let br = &b[j * nx..(j + 1) * nx];
+                level.stencil_row(j, x, |i, v| row[i >> 1] += br[i] - v);
+            }
+            row.iter_mut().for_each(|v| *v *= 0.25);
+        }
+        out
+    }
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    const SIZES: [(usize, usize); 7] = [(2, 2), (4, 6), (6, 1), (130, 40), (514, 18), (600, 96), (1280, 64)];
+
+    #[test]
+    fn restriction_by_spans_adds_the_same_children_in_the_same_order() {
+        let pool = crate::exec::build_pool(2).unwrap();
+        for (nx, ny) in SIZES.into_iter().filter(|&(nx, ny)| nx % 2 == 0 && ny % 2 == 0) {
+            let (level, b, x) = case(nx, ny);
+            let expected = bits(&restrict_by_cells(&level, &x, &b));
+            for exec in [Exec::SERIAL, Exec::with_threads(2)] {
+                let mut out = vec![f64::NAN; expected.len()];
+                pool.install(|| level.restrict_residual(&x, &b, &mut out, exec));
+                assert_eq!(bits(&out), expected, "{nx}×{ny}, {exec:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn residual_range_matches_the_stencil_on_every_cut_of_a_row() {
+        let (level, b, x) = case(37, 5);
+        for j in 0..5 {
+            let mut row = vec![0.0; 37];
+            level.stencil_row(j, &x, |i, v| row[i] = b[j * 37 + i] - v);
+            for (lo, hi) in [(0, 37), (0, 1), (36, 37), (1, 36), (5, 6), (3, 20), (20, 20)] {
+                let mut out = vec![f64::NAN; hi - lo];
+                level.residual_range(j, &x, &b, lo, hi, &mut out);
+                assert_eq!(bits(&out), bits(&row[lo..hi]), "row {j}, cells {lo}..{hi}");
+            }
+        }
+    }
+
+    #[test]
+    fn both_copies_of_the_residual_span_agree() {
+        let (level, b, x) = case(300, 3);
+        let (nx, j) = (300, 1);
+        let s = Span {
+            b: &b[j * nx + 1..j * nx + nx - 1],
+            d: &level.diag[j * nx + 1..j * nx + nx - 1],
+            cw: &level.cx[j * (nx + 1) + 1..j * (nx + 1) + nx - 1],
+            ce: &level.cx[j * (nx + 1) + 2..j * (nx + 1) + nx],
+            pw: &x[j * nx..j * nx + nx - 2],
+            pc: &x[j * nx + 1..j * nx + nx - 1],
+            pe: &x[j * nx + 2..j * nx + nx],
+            cs: &level.cy[j * nx + 1..j * nx + nx - 1],
+            ps: &x[1..nx - 1],
+            cn: &level.cy[(j + 1) * nx + 1..(j + 1) * nx + nx - 1],
+            pn: &x[2 * nx + 1..2 * nx + nx - 1],
+        };
+        let (mut a, mut c) = (vec![0.0; nx - 2], vec![0.0; nx - 2]);
+        residual_span(&mut a, &s);
+        residual_span_base(&mut c, &s);
+        assert_eq!(bits(&a), bits(&c));
+    }
+}
