@@ -154,17 +154,27 @@ impl Level {
         });
     }
 
+    /// The rows of `p` and of the coefficients that the operator reads for row `j` (the zero row
+    /// stands for the rows beyond the bottom and top boundaries).
+    #[inline(always)]
+    fn row_views<'a>(&'a self, j: usize, p: &'a [f64]) -> StencilRow<'a> {
+        let nx = self.nx;
+        StencilRow {
+            pc: &p[j * nx..(j + 1) * nx],
+            ps: if j > 0 { &p[(j - 1) * nx..j * nx] } else { &self.zeros[..] },
+            pn: if j + 1 < self.ny { &p[(j + 1) * nx..(j + 2) * nx] } else { &self.zeros[..] },
+            cxr: &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)],
+            cys: &self.cy[j * nx..(j + 1) * nx],
+            cyn: &self.cy[(j + 1) * nx..(j + 2) * nx],
+            dg: &self.diag[j * nx..(j + 1) * nx],
+        }
+    }
+
     /// Calls `emit(i, (A p)_ij)` for every cell of row `j`.
     #[inline(always)]
     pub fn stencil_row(&self, j: usize, p: &[f64], mut emit: impl FnMut(usize, f64)) {
         let nx = self.nx;
-        let pc = &p[j * nx..(j + 1) * nx];
-        let ps = if j > 0 { &p[(j - 1) * nx..j * nx] } else { &self.zeros[..] };
-        let pn = if j + 1 < self.ny { &p[(j + 1) * nx..(j + 2) * nx] } else { &self.zeros[..] };
-        let cxr = &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)];
-        let cys = &self.cy[j * nx..(j + 1) * nx];
-        let cyn = &self.cy[(j + 1) * nx..(j + 2) * nx];
-        let dg = &self.diag[j * nx..(j + 1) * nx];
+        let StencilRow { pc, ps, pn, cxr, cys, cyn, dg } = self.row_views(j, p);
         if nx == 1 {
             emit(0, dg[0] * pc[0] - cys[0] * ps[0] - cyn[0] * pn[0]);
             return;
@@ -328,13 +338,7 @@ impl Level {
     pub fn residual_range(&self, j: usize, p: &[f64], b: &[f64], lo: usize, hi: usize, out: &mut [f64]) {
         let nx = self.nx;
         debug_assert!(lo <= hi && hi <= nx && out.len() == hi - lo);
-        let pc = &p[j * nx..(j + 1) * nx];
-        let ps = if j > 0 { &p[(j - 1) * nx..j * nx] } else { &self.zeros[..] };
-        let pn = if j + 1 < self.ny { &p[(j + 1) * nx..(j + 2) * nx] } else { &self.zeros[..] };
-        let cxr = &self.cx[j * (nx + 1)..(j + 1) * (nx + 1)];
-        let cys = &self.cy[j * nx..(j + 1) * nx];
-        let cyn = &self.cy[(j + 1) * nx..(j + 2) * nx];
-        let dg = &self.diag[j * nx..(j + 1) * nx];
+        let StencilRow { pc, ps, pn, cxr, cys, cyn, dg } = self.row_views(j, p);
         let br = &b[j * nx..(j + 1) * nx];
         if lo == hi {
             return;
@@ -370,6 +374,19 @@ impl Level {
             out[i - lo] = br[i] - (dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i]);
         }
     }
+}
+
+/// The rows read by the operator on one row j: p on rows j, j − 1, j + 1 (`pc`, `ps`, `pn`), the
+/// couplings across the row's vertical faces (nx + 1 values), its south and north faces, and the
+/// diagonal.
+struct StencilRow<'a> {
+    pc: &'a [f64],
+    ps: &'a [f64],
+    pn: &'a [f64],
+    cxr: &'a [f64],
+    cys: &'a [f64],
+    cyn: &'a [f64],
+    dg: &'a [f64],
 }
 
 /// A run of consecutive interior cells of one row, all slices of the same length n: the
