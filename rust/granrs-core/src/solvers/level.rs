@@ -428,7 +428,7 @@ pub(crate) const SMOOTH_BLOCK: usize = 16;
 
 #[cfg(test)]
 mod tests {
-    //! The span kernels against the cell-by-cell operations they replace, bit for bit.
+    //! The span kernels against the operator applied cell by cell, bit for bit.
     use super::*;
 
     /// A level with face coefficients that vary from face to face (a jump of 10³ across a
