@@ -338,7 +338,8 @@ impl Level {
     pub fn residual_range(&self, j: usize, p: &[f64], b: &[f64], lo: usize, hi: usize, out: &mut [f64]) {
         let nx = self.nx;
         debug_assert!(lo <= hi && hi <= nx && out.len() == hi - lo);
-        let StencilRow { pc, ps, pn, cxr, cys, cyn, dg } = self.row_views(j, p);
+        let row = self.row_views(j, p);
+        let StencilRow { pc, ps, pn, cxr, cys, cyn, dg } = row;
         let br = &b[j * nx..(j + 1) * nx];
         if lo == hi {
             return;
@@ -353,21 +354,7 @@ impl Level {
             out[0] = br[0] - (dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0]);
         }
         if last > first {
-            let (s, e) = (first, last);
-            let span = Span {
-                b: &br[s..e],
-                d: &dg[s..e],
-                cw: &cxr[s..e],
-                ce: &cxr[s + 1..e + 1],
-                pw: &pc[s - 1..e - 1],
-                pc: &pc[s..e],
-                pe: &pc[s + 1..e + 1],
-                cs: &cys[s..e],
-                ps: &ps[s..e],
-                cn: &cyn[s..e],
-                pn: &pn[s..e],
-            };
-            residual_span(&mut out[s - lo..e - lo], &span);
+            residual_span(&mut out[first - lo..last - lo], &row, br, first);
         }
         if hi == nx {
             let i = nx - 1;
@@ -389,32 +376,17 @@ struct StencilRow<'a> {
     dg: &'a [f64],
 }
 
-/// A run of consecutive interior cells of one row, all slices of the same length n: the
-/// right-hand side `b`, the diagonal `d`, the couplings across the west, east, south and north
-/// faces and the values of the cell `pc` and of its four neighbours.
-struct Span<'a> {
-    b: &'a [f64],
-    d: &'a [f64],
-    cw: &'a [f64],
-    ce: &'a [f64],
-    pw: &'a [f64],
-    pc: &'a [f64],
-    pe: &'a [f64],
-    cs: &'a [f64],
-    ps: &'a [f64],
-    cn: &'a [f64],
-    pn: &'a [f64],
-}
-
 crate::multiversion! {
-    /// Residual of a span: out = b − ((((d·pc − cw·pw) − ce·pe) − cs·ps) − cn·pn), the
-    /// operations of [`Level::stencil_row`] in its order.
-    fn residual_span / residual_span_base(out: &mut [f64], s: &Span<'_>) {
-        let n = out.len();
-        let (b, d, cw, ce, pw, pc, pe) = (&s.b[..n], &s.d[..n], &s.cw[..n], &s.ce[..n], &s.pw[..n], &s.pc[..n], &s.pe[..n]);
-        let (cs, ps, cn, pn) = (&s.cs[..n], &s.ps[..n], &s.cn[..n], &s.pn[..n]);
-        for k in 0..n {
-            out[k] = b[k] - (d[k] * pc[k] - cw[k] * pw[k] - ce[k] * pe[k] - cs[k] * ps[k] - cn[k] * pn[k]);
+    /// Residual of the interior cells first ≤ i < first + out.len() of one row (`b` the row of
+    /// the right-hand side, 1 ≤ first, first + out.len() < nx): out = b − ((((d·pc − cw·pw) −
+    /// ce·pe) − cs·ps) − cn·pn), the operations of [`Level::stencil_row`] in its order.
+    fn residual_span / residual_span_base(out: &mut [f64], row: &StencilRow<'_>, b: &[f64], first: usize) {
+        let (s, e) = (first, first + out.len());
+        let (b, d, cw, ce) = (&b[s..e], &row.dg[s..e], &row.cxr[s..e], &row.cxr[s + 1..e + 1]);
+        let (pw, pc, pe) = (&row.pc[s - 1..e - 1], &row.pc[s..e], &row.pc[s + 1..e + 1]);
+        let (cs, ps, cn, pn) = (&row.cys[s..e], &row.ps[s..e], &row.cyn[s..e], &row.pn[s..e]);
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = b[k] - (d[k] * pc[k] - cw[k] * pw[k] - ce[k] * pe[k] - cs[k] * ps[k] - cn[k] * pn[k]);
         }
     }
 }
@@ -506,22 +478,10 @@ mod tests {
     fn both_copies_of_the_residual_span_agree() {
         let (level, b, x) = case(300, 3);
         let (nx, j) = (300, 1);
-        let s = Span {
-            b: &b[j * nx + 1..j * nx + nx - 1],
-            d: &level.diag[j * nx + 1..j * nx + nx - 1],
-            cw: &level.cx[j * (nx + 1) + 1..j * (nx + 1) + nx - 1],
-            ce: &level.cx[j * (nx + 1) + 2..j * (nx + 1) + nx],
-            pw: &x[j * nx..j * nx + nx - 2],
-            pc: &x[j * nx + 1..j * nx + nx - 1],
-            pe: &x[j * nx + 2..j * nx + nx],
-            cs: &level.cy[j * nx + 1..j * nx + nx - 1],
-            ps: &x[1..nx - 1],
-            cn: &level.cy[(j + 1) * nx + 1..(j + 1) * nx + nx - 1],
-            pn: &x[2 * nx + 1..2 * nx + nx - 1],
-        };
+        let row = level.row_views(j, &x);
         let (mut a, mut c) = (vec![0.0; nx - 2], vec![0.0; nx - 2]);
-        residual_span(&mut a, &s);
-        residual_span_base(&mut c, &s);
+        residual_span(&mut a, &row, &b[j * nx..(j + 1) * nx], 1);
+        residual_span_base(&mut c, &row, &b[j * nx..(j + 1) * nx], 1);
         assert_eq!(bits(&a), bits(&c));
     }
 }
