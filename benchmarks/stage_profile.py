@@ -27,6 +27,41 @@ STAGES = ("choose_dt", "interface", "properties", "pore_pressure", "rheology", "
           "projections", "pressure_projection", "diagnostics")
 
 
+def profile(m, steps: int, observe: bool = False) -> tuple[float, dict, dict]:
+    """Step ``m`` ``steps`` times, one step at a time: the mean wall seconds per step (as the
+    binding measures it), each stage's mean seconds per step (``binding`` the rest) and the
+    medians of the iteration counts."""
+    import numpy as np
+
+    sums = dict.fromkeys(STAGES, 0.0)
+    walls, obs = [], []
+    iters: dict = {"picard_iterations": [], "pressure_iterations": [], "viscous_iterations": []}
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        d = m.step()
+        walls.append(time.perf_counter() - t0)
+        for k in STAGES:
+            sums[k] += d["stage_seconds"][k]
+        for k, (group, key) in {"picard_iterations": ("picard", "iterations"), "pressure_iterations": ("pressure", "iterations"),
+                                "viscous_iterations": ("viscous", "iterations")}.items():
+            iters[k].append(d[group][key])
+        if observe:
+            t0 = time.perf_counter()
+            (m.phi > 0).any(axis=0).nonzero()  # the front's column
+            m.dense_area()
+            m.energy_budget()
+            uc, vc = m.centre_velocity()
+            inside = m.phi > 0
+            float(np.max(np.hypot(uc, vc)[inside])) if inside.any() else 0.0
+            obs.append(time.perf_counter() - t0)
+    step = sum(walls) / steps
+    rows = {k: sums[k] / steps for k in STAGES}
+    rows["binding"] = step - sum(rows.values())
+    if obs:
+        rows["observation (per step, upper bound)"] = sum(obs) / steps
+    return step, rows, {k: statistics.median(v) for k, v in iters.items() if v}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ny", type=int, default=64)
@@ -41,41 +76,13 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
 
-    import numpy as np
-
-
     m = warm_column_model(args)
-    sums = dict.fromkeys(STAGES, 0.0)
-    walls, obs = [], []
-    iters = {"picard_iterations": [], "pressure_iterations": [], "viscous_iterations": []}
-    for _ in range(args.steps):
-        t0 = time.perf_counter()
-        d = m.step()
-        walls.append(time.perf_counter() - t0)
-        for k in STAGES:
-            sums[k] += d["stage_seconds"][k]
-        for k, (group, key) in {"picard_iterations": ("picard", "iterations"), "pressure_iterations": ("pressure", "iterations"),
-                                "viscous_iterations": ("viscous", "iterations")}.items():
-            iters[k].append(d[group][key])
-        if args.observe:
-            t0 = time.perf_counter()
-            (m.phi > 0).any(axis=0).nonzero()  # the front's column
-            m.dense_area()
-            m.energy_budget()
-            uc, vc = m.centre_velocity()
-            inside = m.phi > 0
-            float(np.max(np.hypot(uc, vc)[inside])) if inside.any() else 0.0
-            obs.append(time.perf_counter() - t0)
     n = args.steps
-    step = sum(walls) / n
-    rows = {k: sums[k] / n for k in STAGES}
-    rows["binding"] = step - sum(rows.values())
-    if obs:
-        rows["observation (per step, upper bound)"] = sum(obs) / n
+    step, rows, medians = profile(m, n, args.observe)
     cells = m.grid.nx * m.grid.ny
     print(f"column ny = {args.ny} ({m.grid.nx} x {m.grid.ny} = {cells} cells), {args.model}, "
           f"{'dry' if args.dry else 'fluidised'}, {args.threads} thread(s), steps {args.warmup + 1}-{args.warmup + n}, "
-          f"t = {m.time:.4f} s; medians per step: " + ", ".join(f"{k} {statistics.median(v):g}" for k, v in iters.items() if v))
+          f"t = {m.time:.4f} s; medians per step: " + ", ".join(f"{k} {v:g}" for k, v in medians.items()))
     print("| stage | ms per step | share |")
     print("|---|---|---|")
     for k, v in rows.items():
@@ -83,7 +90,7 @@ def main() -> None:
     print(f"| step (binding's wall) | {step * 1e3:.2f} | 100 % |")
     if args.out:
         Path(args.out).write_text(json.dumps({"args": vars(args), "cells": cells, "s_per_step": step, "stages_s": rows,
-                                              "iterations_median": {k: statistics.median(v) for k, v in iters.items() if v}},
+                                              "iterations_median": medians},
                                              indent=2) + "\n")
 
 

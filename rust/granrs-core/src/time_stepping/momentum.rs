@@ -71,6 +71,8 @@ pub struct MomentumSolver {
     /// Per-row sums of the initial residual pass (rhs·rhs, r·r, r·z) on u and v rows.
     row_init_u: Vec<[f64; 3]>,
     row_init_v: Vec<[f64; 3]>,
+    /// Per-block sums (r·z, r·r) of the update pass ([`rows3_dots`]).
+    block_sums: Vec<(f64, f64)>,
     /// Relative residual tolerance ‖rhs − Aũ‖/‖rhs‖.
     pub rtol: f64,
     /// Iteration cap; reaching it is an error.
@@ -123,6 +125,7 @@ impl MomentumSolver {
             row_dq_v: vec![0.0; grid.ny + 1],
             row_init_u: vec![[0.0; 3]; grid.ny],
             row_init_v: vec![[0.0; 3]; grid.ny + 1],
+            block_sums: vec![(0.0, 0.0); (grid.ny + 1).div_ceil(ROW_BLOCK)],
             rtol: 1e-10,
             max_iterations: 2000,
         }
@@ -239,19 +242,20 @@ impl MomentumSolver {
                     return [0.0; 3];
                 }
                 let base = (j + HALO) * st;
+                // the three sums in column order, as three separate folds would add them
+                let (mut bb, mut rr, mut rz) = (0.0, 0.0, 0.0);
                 for c in i0..i1 {
-                    let res = bs[base + c] - qs[base + c];
+                    let b = bs[base + c];
+                    let res = b - qs[base + c];
                     rr_[c] = res;
                     let zz = res / dg[base + c];
                     zr[c] = zz;
                     dr[c] = zz;
+                    bb += b * b;
+                    rr += res * res;
+                    rz += res * zz;
                 }
-                let (b, rc, zc) = (&bs[base + i0..base + i1], &rr_[i0..i1], &zr[i0..i1]);
-                [
-                    b.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q),
-                    rc.iter().zip(rc).fold(0.0, |s, (p, q)| s + p * q),
-                    rc.iter().zip(zc).fold(0.0, |s, (p, q)| s + p * q),
-                ]
+                [bb, rr, rz]
             });
             let rj0 = rj.start;
             bnorm2 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][0]);
@@ -293,13 +297,19 @@ impl MomentumSolver {
                 let (i0, i1) = (ri.start, ri.end);
                 // x += α d, r −= α q, z = r / diag, row by row (elementwise: serial == parallel),
                 // with r·z and r·r summed in the same pass (the block order of `dot`)
-                let (a, b) = rows3_dots(exec, st, rj.clone(), HALO + i0..HALO + i1, x.slice_mut(), r.slice_mut(), z.slice_mut(), |j, xr, rr_, zr| {
+                let (a, b) = rows3_dots(exec, st, rj.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), &mut self.block_sums, |j, xr, rr_, zr| {
                     let base = (j + HALO) * st;
+                    let (mut rz_row, mut rr_row) = (0.0, 0.0);
                     for c in HALO + i0..HALO + i1 {
                         xr[c] += alpha * ds[base + c];
-                        rr_[c] -= alpha * qs[base + c];
-                        zr[c] = rr_[c] / dg[base + c];
+                        let res = rr_[c] - alpha * qs[base + c];
+                        rr_[c] = res;
+                        let zz = res / dg[base + c];
+                        zr[c] = zz;
+                        rz_row += res * zz;
+                        rr_row += res * res;
                     }
+                    (rz_row, rr_row)
                 });
                 rz_new += a;
                 rr += b;
@@ -349,47 +359,54 @@ impl MomentumSolver {
 }
 
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
-/// with the same stride, in parallel when `exec` says so (rows are whole, ghosts included),
-/// then per row Σ r·z and Σ r·r over the columns `cols` of the updated
-/// rows: row partials added in row order within blocks of [`ROW_BLOCK`] rows, blocks added in
-/// order — the summation order of [`dot`] (`Exec::sum_rows`), so the sums are bit for bit those
-/// of two `dot` calls after the update, serial or parallel, with one pass over the rows and one
-/// parallel region instead of three.
+/// with the same stride, in parallel when `exec` says so (rows are whole, ghosts included); `f`
+/// updates the row and returns its sums (r·z, r·r), which are added in row order within blocks
+/// of [`ROW_BLOCK`] rows (into `block_sums`, one entry per block), the blocks then in order: the
+/// summation order of [`dot`] (`Exec::sum_rows`). An `f` that adds each row's products in column
+/// order from 0.0 gives the bits of two `dot` calls after the update, serial or parallel, with
+/// one pass over the rows and one parallel region instead of three.
 #[allow(clippy::too_many_arguments)]
 fn rows3_dots<F>(
     exec: Exec,
     st: usize,
     rows: std::ops::Range<usize>,
-    cols: std::ops::Range<usize>,
     x: &mut [f64],
     r: &mut [f64],
     z: &mut [f64],
+    block_sums: &mut [(f64, f64)],
     f: F,
 ) -> (f64, f64)
 where
-    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
+    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) -> (f64, f64) + Sync + Send,
 {
     let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
     let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
     let block = |b: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64]| -> (f64, f64) {
         let (mut rz, mut rr) = (0.0, 0.0);
         for (k, ((xr, rrow), zr)) in xb.chunks_mut(st).zip(rb.chunks_mut(st)).zip(zb.chunks_mut(st)).enumerate() {
-            f(rows.start + b * ROW_BLOCK + k, xr, rrow, zr);
-            let (rc, zc) = (&rrow[cols.clone()], &zr[cols.clone()]);
-            rz += rc.iter().zip(zc).fold(0.0, |s, (p, q)| s + p * q);
-            rr += rc.iter().zip(rc).fold(0.0, |s, (p, q)| s + p * q);
+            let (a, b) = f(rows.start + b * ROW_BLOCK + k, xr, rrow, zr);
+            rz += a;
+            rr += b;
         }
         (rz, rr)
     };
     let blk = st * ROW_BLOCK;
-    let partial: Vec<(f64, f64)> = if exec.use_parallel(x.len()) {
+    let sums = &mut block_sums[..rows.len().div_ceil(ROW_BLOCK)];
+    if exec.use_parallel(x.len()) {
         use rayon::prelude::*;
-        x.par_chunks_mut(blk).zip(r.par_chunks_mut(blk)).zip(z.par_chunks_mut(blk)).enumerate().map(|(b, ((xb, rb), zb))| block(b, xb, rb, zb)).collect()
+        x.par_chunks_mut(blk)
+            .zip(r.par_chunks_mut(blk))
+            .zip(z.par_chunks_mut(blk))
+            .zip(sums.par_iter_mut())
+            .enumerate()
+            .for_each(|(b, (((xb, rb), zb), out))| *out = block(b, xb, rb, zb));
     } else {
-        x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).enumerate().map(|(b, ((xb, rb), zb))| block(b, xb, rb, zb)).collect()
-    };
+        for (b, (((xb, rb), zb), out)) in x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).zip(sums.iter_mut()).enumerate() {
+            *out = block(b, xb, rb, zb);
+        }
+    }
     let (mut rz, mut rr) = (0.0, 0.0);
-    for (a, b) in partial {
+    for &(a, b) in sums.iter() {
         rz += a;
         rr += b;
     }
@@ -476,8 +493,24 @@ mod tests {
                     zr[c] = rr[c] / (gs[base + c] + 2.0);
                 }
             };
+            // the solver's form: the update and the row's two sums in one loop
+            let upd_sums = |j: usize, xr: &mut [f64], rr: &mut [f64], zr: &mut [f64]| {
+                let base = (j + HALO) * st;
+                let (mut rz, mut r2) = (0.0, 0.0);
+                for c in HALO + ri.start..HALO + ri.end {
+                    xr[c] += alpha * ds[base + c];
+                    let res = rr[c] - alpha * qs[base + c];
+                    rr[c] = res;
+                    let zz = res / (gs[base + c] + 2.0);
+                    zr[c] = zz;
+                    rz += res * zz;
+                    r2 += res * res;
+                }
+                (rz, r2)
+            };
+            let mut block_sums = vec![(f64::NAN, f64::NAN); rj.len().div_ceil(ROW_BLOCK)];
             let (fused, reference) = pool.install(|| {
-                let fused = rows3_dots(exec, st, rj.clone(), HALO + ri.start..HALO + ri.end, x1.slice_mut(), r1.slice_mut(), z1.slice_mut(), upd);
+                let fused = rows3_dots(exec, st, rj.clone(), x1.slice_mut(), r1.slice_mut(), z1.slice_mut(), &mut block_sums, upd_sums);
                 rows3(exec, st, rj.clone(), x2.slice_mut(), r2.slice_mut(), z2.slice_mut(), upd);
                 (fused, (dot(&r2, &z2, &ri, &rj, exec), dot(&r2, &r2, &ri, &rj, exec)))
             });
