@@ -163,32 +163,55 @@ pub fn viscous_helmholtz_dots(
     viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, Some((c_u, c_v)), Some(dots), exec);
 }
 
-/// Runs `f(j, row)` over the interior rows of `field` like [`for_each_interior_row`], and stores
-/// what it returns in `sums[j]` when `sums` is given (the same blocks of rows either way).
-fn interior_rows_sums<F>(exec: Exec, field: &mut Field, sums: Option<&mut [f64]>, f: F)
+/// Rows whose dot products [`interior_rows_dots`] sums together: independent chains of
+/// additions, which the processor overlaps where one row's sum would wait on each addition.
+const DOT_ROWS: usize = 4;
+
+/// Runs `f(j, row)` over the interior rows of `field` like [`for_each_interior_row`]; with
+/// `dots = Some((sums, input, cols))` it then stores in `sums[j]` the dot product of the row's
+/// columns `cols` (interior indices) with the same columns of `input`'s row j (a field of the
+/// same layout), each summed left to right from 0 as [`row_dot`] does: the rows of a block of
+/// [`ROW_BLOCK`](crate::exec::ROW_BLOCK) are computed first, then their dots, [`DOT_ROWS`] rows
+/// at a time (the same blocks of rows either way).
+fn interior_rows_dots<F>(exec: Exec, field: &mut Field, dots: Option<(&mut [f64], &Field, std::ops::Range<usize>)>, f: F)
 where
-    F: Fn(usize, &mut [f64]) -> f64 + Sync + Send,
+    F: Fn(usize, &mut [f64]) + Sync + Send,
 {
     use crate::exec::ROW_BLOCK;
     use rayon::prelude::*;
-    let Some(sums) = sums else {
-        for_each_interior_row(exec, field, |j, row| {
-            f(j, row);
-        });
+    let Some((sums, input, cols)) = dots else {
+        for_each_interior_row(exec, field, f);
         return;
     };
     let (stride, ny) = (field.stride(), field.ny);
+    assert!(input.stride() == stride && input.ny == ny, "the dot's input has the layout of the field");
     let sums = &mut sums[..ny];
+    let inp = input.slice();
     let data = &mut field.slice_mut()[HALO * stride..(HALO + ny) * stride];
+    let (c0, n) = (HALO + cols.start, cols.len());
     let block = |b: usize, rows: &mut [f64], out: &mut [f64]| {
-        for (r, (row, o)) in rows.chunks_mut(stride).zip(out.iter_mut()).enumerate() {
-            *o = f(b * ROW_BLOCK + r, row);
+        for (r, row) in rows.chunks_mut(stride).enumerate() {
+            f(b * ROW_BLOCK + r, row);
+        }
+        let rows = &*rows;
+        let a_row = |k: usize| &inp[(b * ROW_BLOCK + k + HALO) * stride + c0..][..n];
+        let b_row = |k: usize| &rows[k * stride + c0..][..n];
+        let mut k = 0;
+        while k + DOT_ROWS <= out.len() {
+            let s = row_dots::<DOT_ROWS>(std::array::from_fn(|m| a_row(k + m)), std::array::from_fn(|m| b_row(k + m)));
+            out[k..k + DOT_ROWS].copy_from_slice(&s);
+            k += DOT_ROWS;
+        }
+        for (kk, o) in out.iter_mut().enumerate().skip(k) {
+            *o = row_dot(a_row(kk), b_row(kk));
         }
     };
     if exec.use_parallel(data.len()) {
         data.par_chunks_mut(stride * ROW_BLOCK).zip(sums.par_chunks_mut(ROW_BLOCK)).enumerate().for_each(|(b, (rows, out))| block(b, rows, out));
     } else {
-        block(0, data, sums);
+        for (b, (rows, out)) in data.chunks_mut(stride * ROW_BLOCK).zip(sums.chunks_mut(ROW_BLOCK)).enumerate() {
+            block(b, rows, out);
+        }
     }
 }
 
@@ -216,7 +239,7 @@ fn viscous_rows(
     let (us, vs, ec, en) = (u.slice(), v.slice(), eta_c.slice(), eta_n.slice());
     let (idx, idy, nx) = (1.0 / grid.dx, 1.0 / grid.dy, grid.nx);
     let cu = shift.map(|(c, _)| (c.slice(), c.stride()));
-    interior_rows_sums(exec, out_u, rows_u, |j, row| {
+    interior_rows_dots(exec, out_u, rows_u.map(|r| (r, u, cols_u.clone().unwrap())), |j, row| {
         let ji = j as isize;
         let (bu, bum, bup) = (base(u, ji), base(u, ji - 1), base(u, ji + 1));
         let (bv0, bv1) = (base(v, ji), base(v, ji + 1));
@@ -238,10 +261,9 @@ fn viscous_rows(
         let out = &mut row[HALO..HALO + n];
         let c = cu.map(|(cs, st)| &cs[(j + HALO) * st + HALO..(j + HALO) * st + HALO + n]);
         ux_row(&r, out, c);
-        cols_u.clone().map_or(0.0, |cols| row_dot(&us[bu + cols.start..bu + cols.end], &out[cols]))
     });
     let cv = shift.map(|(_, c)| (c.slice(), c.stride()));
-    interior_rows_sums(exec, out_v, rows_v, |j, row| {
+    interior_rows_dots(exec, out_v, rows_v.map(|r| (r, v, cols_v.clone().unwrap())), |j, row| {
         let ji = j as isize;
         let (bv, bvm, bvp) = (base(v, ji), base(v, ji - 1), base(v, ji + 1));
         let (bu0, bum) = (base(u, ji), base(u, ji - 1));
@@ -263,7 +285,6 @@ fn viscous_rows(
         let out = &mut row[HALO..HALO + n];
         let c = cv.map(|(cs, st)| &cs[(j + HALO) * st + HALO..(j + HALO) * st + HALO + n]);
         vy_row(&r, out, c);
-        cols_v.clone().map_or(0.0, |cols| row_dot(&vs[bv + cols.start..bv + cols.end], &out[cols]))
     });
 }
 
@@ -271,6 +292,22 @@ fn viscous_rows(
 #[inline]
 fn row_dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q)
+}
+
+/// [`row_dot`] of `R` pairs of rows of one length, in one loop over the columns.
+#[inline]
+fn row_dots<const R: usize>(a: [&[f64]; R], b: [&[f64]; R]) -> [f64; R] {
+    let n = a[0].len();
+    for m in 0..R {
+        assert!(a[m].len() == n && b[m].len() == n);
+    }
+    let mut s = [0.0; R];
+    for c in 0..n {
+        for m in 0..R {
+            s[m] += a[m][c] * b[m][c];
+        }
+    }
+    s
 }
 
 /// The rows read by one row of u-faces of [`viscous`] (n = nx + 1 faces): `uc[i + 1]` = u_{i,j}
