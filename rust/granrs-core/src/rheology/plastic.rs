@@ -95,6 +95,95 @@ fn base(f: &Field, j: isize) -> usize {
     ((j + HALO as isize) as usize) * f.stride() + HALO
 }
 
+/// Row kernels of the projection and of the force, on slices of the rows they read (no bounds
+/// checks in the loops, which vectorise), each compiled for AVX2 as well ([`crate::multiversion`]:
+/// the same operations in the same order, the same bits).
+mod rows {
+    use crate::plasticity::unit_ball_scale;
+
+    /// The largest of |d| values ≥ 0 seen so far, NaN once a NaN was seen: (max, seen NaN).
+    #[inline(always)]
+    fn fold_max(m: f64, nan: bool, d: f64) -> (f64, bool) {
+        (if d > m { d } else { m }, nan | d.is_nan())
+    }
+
+    crate::multiversion! {
+        /// Σ_xx ← P at centres: `out[i]` = Λ_xx scaled onto the unit ball with Λ_xy the mean of
+        /// the four corners (`n0`, `n1`: the node rows below and above, n + 1 values each);
+        /// returns max |τ(new − old)| · `scale` over the row, NaN if any value is NaN.
+        pub fn project_xx / project_xx_base(xx: &[f64], n0: &[f64], n1: &[f64], tau: &[f64], out: &mut [f64], scale: f64) -> f64 {
+            let n = out.len();
+            let (xx, n0, n1, tau) = (&xx[..n], &n0[..n + 1], &n1[..n + 1], &tau[..n]);
+            let (mut m, mut nan) = (0.0f64, false);
+            for i in 0..n {
+                let a = xx[i];
+                let b = 0.25 * (n0[i] + n0[i + 1] + n1[i] + n1[i + 1]);
+                let new = a * unit_ball_scale(a, b);
+                let d = (new - out[i]).abs() * tau[i] * scale;
+                (m, nan) = fold_max(m, nan, d);
+                out[i] = new;
+            }
+            if nan { f64::NAN } else { m }
+        }
+    }
+
+    crate::multiversion! {
+        /// Σ_xy ← P at nodes: `out[i]` = Λ_xy scaled onto the unit ball with Λ_xx the mean of the
+        /// four adjacent cells (`c0`, `c1`: the centre rows below and above, from the cell left
+        /// of node 0, n + 1 values each); returns the row's max as [`project_xx`].
+        pub fn project_xy / project_xy_base(xy: &[f64], c0: &[f64], c1: &[f64], tau: &[f64], out: &mut [f64], scale: f64) -> f64 {
+            let n = out.len();
+            let (xy, c0, c1, tau) = (&xy[..n], &c0[..n + 1], &c1[..n + 1], &tau[..n]);
+            let (mut m, mut nan) = (0.0f64, false);
+            for i in 0..n {
+                let b = xy[i];
+                let a = 0.25 * (c0[i + 1] + c0[i] + c1[i + 1] + c1[i]);
+                let new = b * unit_ball_scale(a, b);
+                let d = (new - out[i]).abs() * tau[i] * scale;
+                (m, nan) = fold_max(m, nan, d);
+                out[i] = new;
+            }
+            if nan { f64::NAN } else { m }
+        }
+    }
+
+    crate::multiversion! {
+        /// `out[i]` = a[i] · b[i].
+        pub fn product / product_base(a: &[f64], b: &[f64], out: &mut [f64]) {
+            let n = out.len();
+            let (a, b) = (&a[..n], &b[..n]);
+            for i in 0..n {
+                out[i] = a[i] * b[i];
+            }
+        }
+    }
+
+    crate::multiversion! {
+        /// A row of u-faces: `out[i]` += (c[i + 1] − c[i])·idx + (n1[i] − n0[i])·idy, with `c` the
+        /// τΣ_xx row from the cell left of face 0 (n + 1 values), `n0`, `n1` the τΣ_xy node rows
+        /// below and above (n values).
+        pub fn force_u / force_u_base(c: &[f64], n0: &[f64], n1: &[f64], idx: f64, idy: f64, out: &mut [f64]) {
+            let n = out.len();
+            let (c, n0, n1) = (&c[..n + 1], &n0[..n], &n1[..n]);
+            for i in 0..n {
+                out[i] += (c[i + 1] - c[i]) * idx + (n1[i] - n0[i]) * idy;
+            }
+        }
+    }
+
+    crate::multiversion! {
+        /// A row of v-faces: `out[i]` += (nd[i + 1] − nd[i])·idx − (c1[i] − c0[i])·idy, with `nd` the
+        /// τΣ_xy node row (n + 1 values), `c0`, `c1` the τΣ_xx rows below and above (n values).
+        pub fn force_v / force_v_base(nd: &[f64], c0: &[f64], c1: &[f64], idx: f64, idy: f64, out: &mut [f64]) {
+            let n = out.len();
+            let (nd, c0, c1) = (&nd[..n + 1], &c0[..n], &c1[..n]);
+            for i in 0..n {
+                out[i] += (nd[i + 1] - nd[i]) * idx - (c1[i] - c0[i]) * idy;
+            }
+        }
+    }
+}
+
 /// Copies the ghost rows (the HALO rows below and above the interior) of `from` into `to`.
 fn copy_halo_rows(from: &Field, to: &mut Field) {
     debug_assert_eq!(from.data.dim(), to.data.dim());
@@ -262,9 +351,7 @@ impl PlasticState {
             let n = stress.nx;
             for_each_interior_row(exec, stress, |j, row| {
                 let b = (j + HALO) * st + HALO;
-                for i in 0..n {
-                    row[HALO + i] = ts[b + i] * ss[b + i];
-                }
+                rows::product(&ts[b..b + n], &ss[b..b + n], &mut row[HALO..HALO + n]);
             });
         }
         self.stress_c.extrapolate_ghosts_constant();
@@ -283,9 +370,8 @@ impl PlasticState {
             }
             let j = j as isize;
             let (bc, bn0, bn1) = (base(stress_c, j), base(stress_n, j), base(stress_n, j + 1));
-            for i in 0..=nx {
-                row[HALO + i] += (sc[bc + i] - sc[bc + i - 1]) * idx + (sn[bn1 + i] - sn[bn0 + i]) * idy;
-            }
+            let n = nx + 1;
+            rows::force_u(&sc[bc - 1..bc + n], &sn[bn0..bn0 + n], &sn[bn1..bn1 + n], idx, idy, &mut row[HALO..HALO + n]);
         });
         for_each_interior_row(exec, out_v, |j, row| {
             if let Some((b, st)) = base_v {
@@ -293,9 +379,7 @@ impl PlasticState {
             }
             let j = j as isize;
             let (bc0, bcm, bn) = (base(stress_c, j), base(stress_c, j - 1), base(stress_n, j));
-            for i in 0..nx {
-                row[HALO + i] += (sn[bn + i + 1] - sn[bn + i]) * idx - (sc[bc0 + i] - sc[bcm + i]) * idy;
-            }
+            rows::force_v(&sn[bn..bn + nx + 1], &sc[bcm..bcm + nx], &sc[bc0..bc0 + nx], idx, idy, &mut row[HALO..HALO + nx]);
         });
     }
 
@@ -481,31 +565,13 @@ impl PlasticState {
         let xx = for_each_interior_row_max(exec, &mut self.sigma_xx, |j, row| {
             let j = j as isize;
             let (bc, bn0, bn1) = (base(trial_c, j), base(trial_n, j), base(trial_n, j + 1));
-            let mut m = 0.0f64;
-            for i in 0..n {
-                let xx = tcs[bc + i];
-                let xy = 0.25 * (tns[bn0 + i] + tns[bn0 + i + 1] + tns[bn1 + i] + tns[bn1 + i + 1]);
-                let new = xx * unit_ball_scale(xx, xy);
-                let d = (new - row[HALO + i]).abs() * tc[bc + i] * scale;
-                m = if d.is_nan() { f64::NAN } else { m.max(d) };
-                row[HALO + i] = new;
-            }
-            m
+            rows::project_xx(&tcs[bc..bc + n], &tns[bn0..bn0 + n + 1], &tns[bn1..bn1 + n + 1], &tc[bc..bc + n], &mut row[HALO..HALO + n], scale)
         });
         let n = self.sigma_xy.nx;
         let xy = for_each_interior_row_max(exec, &mut self.sigma_xy, |j, row| {
             let j = j as isize;
             let (bn, bc0, bc1) = (base(trial_n, j), base(trial_c, j - 1), base(trial_c, j));
-            let mut m = 0.0f64;
-            for i in 0..n {
-                let xy = tns[bn + i];
-                let xx = 0.25 * (tcs[bc0 + i] + tcs[bc0 + i - 1] + tcs[bc1 + i] + tcs[bc1 + i - 1]);
-                let new = xy * unit_ball_scale(xx, xy);
-                let d = (new - row[HALO + i]).abs() * tn[bn + i] * scale;
-                m = if d.is_nan() { f64::NAN } else { m.max(d) };
-                row[HALO + i] = new;
-            }
-            m
+            rows::project_xy(&tns[bn..bn + n], &tcs[bc0 - 1..bc0 + n], &tcs[bc1 - 1..bc1 + n], &tn[bn..bn + n], &mut row[HALO..HALO + n], scale)
         });
         xx.max(xy)
     }
@@ -802,6 +868,52 @@ pub fn not_converged(increment: f64, iterations: usize, tol: f64, r: f64, theta:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The row kernels' two copies (AVX2 where the CPU has it, and the build target's) give the
+    /// same bits on rows whose trial values lie inside and outside the unit ball, and a NaN
+    /// anywhere in a row makes the projection's row maximum NaN.
+    #[test]
+    fn row_kernels_agree_across_instruction_sets_and_propagate_nan() {
+        let mut seed = 7u64;
+        let mut rnd = |n: usize, amp: f64| -> Vec<f64> {
+            (0..n)
+                .map(|_| {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    amp * (((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5)
+                })
+                .collect()
+        };
+        let n = 37;
+        let (a, b0, b1, tau) = (rnd(n + 1, 3.0), rnd(n + 1, 3.0), rnd(n + 1, 3.0), rnd(n, 1.0).iter().map(|t| t.abs()).collect::<Vec<_>>());
+        let old = rnd(n, 1.0);
+        for (f, g) in [
+            (
+                rows::project_xx as fn(&[f64], &[f64], &[f64], &[f64], &mut [f64], f64) -> f64,
+                rows::project_xx_base as fn(&[f64], &[f64], &[f64], &[f64], &mut [f64], f64) -> f64,
+            ),
+            (rows::project_xy, rows::project_xy_base),
+        ] {
+            let (mut o1, mut o2) = (old.clone(), old.clone());
+            let (m1, m2) = (f(&a, &b0, &b1, &tau, &mut o1, 0.5), g(&a, &b0, &b1, &tau, &mut o2, 0.5));
+            assert!(m1 > 0.0 && m1.to_bits() == m2.to_bits());
+            assert_eq!(o1.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), o2.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+            assert!(o1.iter().any(|v| v.abs() < 1.0) && a.iter().any(|v| v.abs() > 1.0), "rows inside and outside the ball");
+            let mut bad = a.clone();
+            bad[n / 2] = f64::NAN;
+            assert!(f(&bad, &b0, &b1, &tau, &mut old.clone(), 0.5).is_nan() && g(&bad, &b0, &b1, &tau, &mut old.clone(), 0.5).is_nan());
+        }
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let (mut u1, mut u2) = (old.clone(), old.clone());
+        rows::force_u(&a, &b0[..n], &b1[..n], 3.0, 7.0, &mut u1);
+        rows::force_u_base(&a, &b0[..n], &b1[..n], 3.0, 7.0, &mut u2);
+        assert_eq!(bits(&u1), bits(&u2));
+        rows::force_v(&a, &b0[..n], &b1[..n], 3.0, 7.0, &mut u1);
+        rows::force_v_base(&a, &b0[..n], &b1[..n], 3.0, 7.0, &mut u2);
+        assert_eq!(bits(&u1), bits(&u2));
+        rows::product(&a, &b0, &mut u1);
+        rows::product_base(&a, &b0, &mut u2);
+        assert_eq!(bits(&u1), bits(&u2));
+    }
 
     /// A state on an 80 × 64 grid (more cells than the parallel threshold) with a yield stress
     /// that vanishes in a corner, Σ, Σⁿ, r and a strain rate from a fixed pseudo-random sequence
