@@ -148,6 +148,37 @@ mod rows {
     }
 
     crate::multiversion! {
+        /// Trial Λ_xx = Σ_xx + ½ r (D_xx − D_yy) + θ(Σ_xx^n − Σ_xx) along a row of centres where
+        /// τ > 0 (0 elsewhere), with D_xx = (u[i + 1] − u[i])·idx (n + 1 faces) and D_yy =
+        /// (v1[i] − v0[i])·idy (the face rows below and above).
+        pub fn trial_xx / trial_xx_base(u: &[f64], v0: &[f64], v1: &[f64], sx: &[f64], sxn: &[f64], tau: &[f64], r: &[f64], idx: f64, idy: f64, theta: f64, out: &mut [f64]) {
+            let n = out.len();
+            let (u, v0, v1, sx, sxn, tau, r) = (&u[..n + 1], &v0[..n], &v1[..n], &sx[..n], &sxn[..n], &tau[..n], &r[..n]);
+            for i in 0..n {
+                let a = (u[i + 1] - u[i]) * idx;
+                let b = (v1[i] - v0[i]) * idy;
+                let t = sx[i] + 0.5 * r[i] * (a - b) + theta * (sxn[i] - sx[i]);
+                out[i] = if tau[i] > 0.0 { t } else { 0.0 };
+            }
+        }
+    }
+
+    crate::multiversion! {
+        /// Trial Λ_xy = Σ_xy + r D_xy + θ(Σ_xy^n − Σ_xy) along a row of nodes where τ > 0 (0
+        /// elsewhere), with D_xy = ½((u1[i] − u0[i])·idy + (v[i + 1] − v[i])·idx): `u0`, `u1` the
+        /// face rows below and above, `v` the row of v-faces from the one left of node 0.
+        pub fn trial_xy / trial_xy_base(u0: &[f64], u1: &[f64], v: &[f64], sy: &[f64], syn: &[f64], tau: &[f64], r: &[f64], idx: f64, idy: f64, theta: f64, out: &mut [f64]) {
+            let n = out.len();
+            let (u0, u1, v, sy, syn, tau, r) = (&u0[..n], &u1[..n], &v[..n + 1], &sy[..n], &syn[..n], &tau[..n], &r[..n]);
+            for i in 0..n {
+                let c = 0.5 * ((u1[i] - u0[i]) * idy + (v[i + 1] - v[i]) * idx);
+                let t = sy[i] + r[i] * c + theta * (syn[i] - sy[i]);
+                out[i] = if tau[i] > 0.0 { t } else { 0.0 };
+            }
+        }
+    }
+
+    crate::multiversion! {
         /// `out[i]` = a[i] · b[i].
         pub fn product / product_base(a: &[f64], b: &[f64], out: &mut [f64]) {
             let n = out.len();
@@ -510,18 +541,21 @@ impl PlasticState {
             let st = self.sigma_xx.stride();
             let n = self.trial_c.nx;
             for_each_interior_row(exec, &mut self.trial_c, |j, row| {
-                let bb = (j + HALO) * st + HALO;
+                let k = (j + HALO) * st + HALO..(j + HALO) * st + HALO + n;
                 let (bu, bv0, bv1) = (base(u, j as isize), base(v, j as isize), base(v, j as isize + 1));
-                for i in 0..n {
-                    let k = bb + i;
-                    row[HALO + i] = if tc[k] > 0.0 {
-                        let a = (us[bu + i + 1] - us[bu + i]) * idx;
-                        let b = (vs[bv1 + i] - vs[bv0 + i]) * idy;
-                        sx[k] + 0.5 * rc[k] * (a - b) + theta * (sxn[k] - sx[k])
-                    } else {
-                        0.0
-                    };
-                }
+                rows::trial_xx(
+                    &us[bu..bu + n + 1],
+                    &vs[bv0..bv0 + n],
+                    &vs[bv1..bv1 + n],
+                    &sx[k.clone()],
+                    &sxn[k.clone()],
+                    &tc[k.clone()],
+                    &rc[k],
+                    idx,
+                    idy,
+                    theta,
+                    &mut row[HALO..HALO + n],
+                );
             });
         }
         self.trial_c.extrapolate_ghosts_constant();
@@ -533,17 +567,33 @@ impl PlasticState {
             let z = self.zero_tangential;
             let held = move |i: usize, j: usize| node_held(&z, i, j, nxn, nyn);
             for_each_interior_row(exec, &mut self.trial_n, |j, row| {
-                let bb = (j + HALO) * st + HALO;
+                let k = (j + HALO) * st + HALO..(j + HALO) * st + HALO + nxn;
                 let jj = j as isize;
                 let (bu0, bu1, bv) = (base(u, jj - 1), base(u, jj), base(v, jj));
-                for i in 0..nxn {
-                    let k = bb + i;
-                    row[HALO + i] = if tn[k] > 0.0 && !held(i, j) {
-                        let c = 0.5 * ((us[bu1 + i] - us[bu0 + i]) * idy + (vs[bv + i] - vs[bv + i - 1]) * idx);
-                        sy[k] + rn[k] * c + theta * (syn[k] - sy[k])
-                    } else {
-                        0.0
-                    };
+                let out = &mut row[HALO..HALO + nxn];
+                rows::trial_xy(
+                    &us[bu0..bu0 + nxn],
+                    &us[bu1..bu1 + nxn],
+                    &vs[bv - 1..bv + nxn],
+                    &sy[k.clone()],
+                    &syn[k.clone()],
+                    &tn[k.clone()],
+                    &rn[k],
+                    idx,
+                    idy,
+                    theta,
+                    out,
+                );
+                // held boundary nodes keep Σ_xy = 0 (the wall's tangential stress): a whole row
+                // at a held bottom or top, the end nodes at a held left or right side
+                if (j == 0 && z[2]) || (j + 1 == nyn && z[3]) {
+                    out.fill(0.0);
+                } else {
+                    for i in [0, nxn - 1] {
+                        if held(i, j) {
+                            out[i] = 0.0;
+                        }
+                    }
                 }
             });
         }
@@ -912,6 +962,14 @@ mod tests {
         assert_eq!(bits(&u1), bits(&u2));
         rows::product(&a, &b0, &mut u1);
         rows::product_base(&a, &b0, &mut u2);
+        assert_eq!(bits(&u1), bits(&u2));
+        let signed_tau = rnd(n, 1.0);
+        rows::trial_xx(&a, &b0, &b1, &old, &b0, &signed_tau, &tau, 3.0, 7.0, 0.8, &mut u1);
+        rows::trial_xx_base(&a, &b0, &b1, &old, &b0, &signed_tau, &tau, 3.0, 7.0, 0.8, &mut u2);
+        assert_eq!(bits(&u1), bits(&u2));
+        assert!(u1.iter().zip(&signed_tau).all(|(t, s)| (*s > 0.0) != (*t == 0.0)), "zero exactly where τ ≤ 0");
+        rows::trial_xy(&b0, &b1, &a, &old, &b1, &signed_tau, &tau, 3.0, 7.0, 0.8, &mut u1);
+        rows::trial_xy_base(&b0, &b1, &a, &old, &b1, &signed_tau, &tau, 3.0, 7.0, 0.8, &mut u2);
         assert_eq!(bits(&u1), bits(&u2));
     }
 
