@@ -297,20 +297,20 @@ impl MomentumSolver {
                 let (i0, i1) = (ri.start, ri.end);
                 // x += α d, r −= α q, z = r / diag, row by row (elementwise: serial == parallel),
                 // with r·z and r·r summed in the same pass (the block order of `dot`)
-                let (a, b) = rows3_dots(exec, st, rj.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), &mut self.block_sums, |j, xr, rr_, zr| {
-                    let base = (j + HALO) * st;
-                    let (mut rz_row, mut rr_row) = (0.0, 0.0);
-                    for c in HALO + i0..HALO + i1 {
-                        xr[c] += alpha * ds[base + c];
-                        let res = rr_[c] - alpha * qs[base + c];
-                        rr_[c] = res;
-                        let zz = res / dg[base + c];
-                        zr[c] = zz;
-                        rz_row += res * zz;
-                        rr_row += res * res;
-                    }
-                    (rz_row, rr_row)
-                });
+                let cols = HALO + i0..HALO + i1;
+                let (a, b) =
+                    rows3_dots(exec, st, rj.clone(), cols.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), &mut self.block_sums, |j, xr, rr_, zr| {
+                        let row = (j + HALO) * st + cols.start..(j + HALO) * st + cols.end;
+                        cg_update_row(
+                            alpha,
+                            &ds[row.clone()],
+                            &qs[row.clone()],
+                            &dg[row],
+                            &mut xr[cols.clone()],
+                            &mut rr_[cols.clone()],
+                            &mut zr[cols.clone()],
+                        );
+                    });
                 rz_new += a;
                 rr += b;
             }
@@ -322,10 +322,8 @@ impl MomentumSolver {
                 let zs = z.slice();
                 let rows = &mut d.slice_mut()[(rj.start + HALO) * st..(rj.end + HALO) * st];
                 exec.for_each_row(rows, st, |k, row| {
-                    let base = (rj.start + k + HALO) * st;
-                    for c in HALO + ri.start..HALO + ri.end {
-                        row[c] = zs[base + c] + beta * row[c];
-                    }
+                    let (base, cols) = ((rj.start + k + HALO) * st, HALO + ri.start..HALO + ri.end);
+                    cg_direction_row(beta, &zs[base + cols.start..base + cols.end], &mut row[cols]);
                 });
             }
             it += 1;
@@ -358,18 +356,24 @@ impl MomentumSolver {
     }
 }
 
+/// Rows whose sums [`rows3_dots`] adds together: independent chains of additions, which the
+/// processor overlaps where one row's sum would wait on each addition.
+const SUM_ROWS: usize = 4;
+
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
-/// with the same stride, in parallel when `exec` says so (rows are whole, ghosts included); `f`
-/// updates the row and returns its sums (r·z, r·r), which are added in row order within blocks
-/// of [`ROW_BLOCK`] rows (into `block_sums`, one entry per block), the blocks then in order: the
-/// summation order of [`dot`] (`Exec::sum_rows`). An `f` that adds each row's products in column
-/// order from 0.0 gives the bits of two `dot` calls after the update, serial or parallel, with
-/// one pass over the rows and one parallel region instead of three.
+/// with the same stride, in parallel when `exec` says so (rows are whole, ghosts included), and
+/// returns (r·z, r·r) over the columns `cols` (raw indices) of the updated rows. Each row's
+/// products are added in column order from 0.0, [`SUM_ROWS`] rows at a time once a block's
+/// rows are updated, the rows' sums in row order within blocks of [`ROW_BLOCK`] rows (into
+/// `block_sums`, one entry per block), the blocks then in order: the summation order of [`dot`]
+/// (`Exec::sum_rows`), so the sums are bit for bit those of two `dot` calls after the update,
+/// serial or parallel, with one pass over the rows and one parallel region instead of three.
 #[allow(clippy::too_many_arguments)]
 fn rows3_dots<F>(
     exec: Exec,
     st: usize,
-    rows: std::ops::Range<usize>,
+    rows: Range<usize>,
+    cols: Range<usize>,
     x: &mut [f64],
     r: &mut [f64],
     z: &mut [f64],
@@ -377,16 +381,34 @@ fn rows3_dots<F>(
     f: F,
 ) -> (f64, f64)
 where
-    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) -> (f64, f64) + Sync + Send,
+    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
 {
     let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
     let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
     let block = |b: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64]| -> (f64, f64) {
-        let (mut rz, mut rr) = (0.0, 0.0);
         for (k, ((xr, rrow), zr)) in xb.chunks_mut(st).zip(rb.chunks_mut(st)).zip(zb.chunks_mut(st)).enumerate() {
-            let (a, b) = f(rows.start + b * ROW_BLOCK + k, xr, rrow, zr);
-            rz += a;
-            rr += b;
+            f(rows.start + b * ROW_BLOCK + k, xr, rrow, zr);
+        }
+        let (rb, zb) = (&*rb, &*zb);
+        let nr = rb.len() / st;
+        fn at<'a>(buf: &'a [f64], k: usize, st: usize, cols: &Range<usize>) -> &'a [f64] {
+            &buf[k * st + cols.start..k * st + cols.end]
+        }
+        let (mut rz, mut rr) = (0.0, 0.0);
+        let mut k = 0;
+        while k < nr {
+            let take = if nr - k >= SUM_ROWS { SUM_ROWS } else { 1 };
+            let mut sums = [(0.0, 0.0); SUM_ROWS];
+            if take == SUM_ROWS {
+                sums = rz_rr::<SUM_ROWS>(std::array::from_fn(|m| at(rb, k + m, st, &cols)), std::array::from_fn(|m| at(zb, k + m, st, &cols)));
+            } else {
+                sums[0] = rz_rr::<1>([at(rb, k, st, &cols)], [at(zb, k, st, &cols)])[0];
+            }
+            for &(a, b) in &sums[..take] {
+                rz += a;
+                rr += b;
+            }
+            k += take;
         }
         (rz, rr)
     };
@@ -411,6 +433,48 @@ where
         rr += b;
     }
     (rz, rr)
+}
+
+/// (Σ r·z, Σ r·r) of `R` pairs of rows of one length, each summed left to right from 0.0, in one
+/// loop over the columns.
+#[inline]
+fn rz_rr<const R: usize>(r: [&[f64]; R], z: [&[f64]; R]) -> [(f64, f64); R] {
+    let n = r[0].len();
+    for m in 0..R {
+        assert!(r[m].len() == n && z[m].len() == n);
+    }
+    let mut s = [(0.0, 0.0); R];
+    for c in 0..n {
+        for m in 0..R {
+            s[m].0 += r[m][c] * z[m][c];
+            s[m].1 += r[m][c] * r[m][c];
+        }
+    }
+    s
+}
+
+crate::multiversion! {
+    /// The CG update of a row: x += α d, r −= α q, z = r / g.
+    fn cg_update_row / cg_update_row_base(alpha: f64, d: &[f64], q: &[f64], g: &[f64], x: &mut [f64], r: &mut [f64], z: &mut [f64]) {
+        let n = x.len();
+        let (d, q, g, r, z) = (&d[..n], &q[..n], &g[..n], &mut r[..n], &mut z[..n]);
+        for i in 0..n {
+            x[i] += alpha * d[i];
+            r[i] -= alpha * q[i];
+            z[i] = r[i] / g[i];
+        }
+    }
+}
+
+crate::multiversion! {
+    /// The new search direction along a row: d = z + β d.
+    fn cg_direction_row / cg_direction_row_base(beta: f64, z: &[f64], d: &mut [f64]) {
+        let n = d.len();
+        let z = &z[..n];
+        for i in 0..n {
+            d[i] = z[i] + beta * d[i];
+        }
+    }
 }
 
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields with
@@ -461,9 +525,10 @@ where
 mod tests {
     use super::*;
 
-    /// The fused update-and-sums pass gives the bits of the update followed by two `dot` calls
-    /// (the CG's r·z and r·r), serially and on a 2-thread pool, on a range of rows that does not
-    /// start at 0 and is not a multiple of the row block.
+    /// The update pass with its sums ([`rows3_dots`]) gives the bits of the update followed by
+    /// two `dot` calls (the CG's r·z and r·r), serially and on a 2-thread pool, on ranges of rows
+    /// that do not start at 0 and leave every remainder of the groups of [`SUM_ROWS`] rows and
+    /// of the row blocks; the row kernels' AVX2 and baseline copies agree bit for bit.
     #[test]
     fn rows3_dots_is_the_update_then_two_dots_bit_for_bit() {
         let grid = Grid::new(97, 45, 1.0, 0.5).unwrap();
@@ -476,49 +541,53 @@ mod tests {
             }
             f
         };
-        let (d, q, dg) = (mk(1), mk(2), mk(3));
-        let (ri, rj) = (1..97usize, 3..44usize);
+        let (d, q) = (mk(1), mk(2));
+        let mut dg = mk(3);
+        dg.slice_mut().iter_mut().for_each(|g| *g += 2.0);
         let alpha = 0.37;
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        for exec in [Exec::SERIAL, Exec::with_threads(2)] {
-            let (mut x1, mut r1, mut z1) = (mk(4), mk(5), mk(6));
-            let (mut x2, mut r2, mut z2) = (x1.clone(), r1.clone(), z1.clone());
-            let st = x1.stride();
-            let (ds, qs, gs) = (d.slice(), q.slice(), dg.slice());
-            let upd = |j: usize, xr: &mut [f64], rr: &mut [f64], zr: &mut [f64]| {
-                let base = (j + HALO) * st;
-                for c in HALO + ri.start..HALO + ri.end {
-                    xr[c] += alpha * ds[base + c];
-                    rr[c] -= alpha * qs[base + c];
-                    zr[c] = rr[c] / (gs[base + c] + 2.0);
-                }
-            };
-            // the solver's form: the update and the row's two sums in one loop
-            let upd_sums = |j: usize, xr: &mut [f64], rr: &mut [f64], zr: &mut [f64]| {
-                let base = (j + HALO) * st;
-                let (mut rz, mut r2) = (0.0, 0.0);
-                for c in HALO + ri.start..HALO + ri.end {
-                    xr[c] += alpha * ds[base + c];
-                    let res = rr[c] - alpha * qs[base + c];
-                    rr[c] = res;
-                    let zz = res / (gs[base + c] + 2.0);
-                    zr[c] = zz;
-                    rz += res * zz;
-                    r2 += res * res;
-                }
-                (rz, r2)
-            };
-            let mut block_sums = vec![(f64::NAN, f64::NAN); rj.len().div_ceil(ROW_BLOCK)];
-            let (fused, reference) = pool.install(|| {
-                let fused = rows3_dots(exec, st, rj.clone(), x1.slice_mut(), r1.slice_mut(), z1.slice_mut(), &mut block_sums, upd_sums);
-                rows3(exec, st, rj.clone(), x2.slice_mut(), r2.slice_mut(), z2.slice_mut(), upd);
-                (fused, (dot(&r2, &z2, &ri, &rj, exec), dot(&r2, &r2, &ri, &rj, exec)))
-            });
-            assert_eq!(fused.0.to_bits(), reference.0.to_bits(), "r·z, {exec:?}");
-            assert_eq!(fused.1.to_bits(), reference.1.to_bits(), "r·r, {exec:?}");
-            assert_eq!(x1.slice(), x2.slice());
-            assert_eq!(r1.slice(), r2.slice());
-            assert_eq!(z1.slice(), z2.slice());
+        for (ri, rj) in [(1..97usize, 3..44usize), (0..98, 0..45), (2..50, 5..6), (1..97, 2..9), (1..96, 1..12), (1..96, 4..14)] {
+            for exec in [Exec::SERIAL, Exec::with_threads(2)] {
+                let (mut x1, mut r1, mut z1) = (mk(4), mk(5), mk(6));
+                let (mut x2, mut r2, mut z2) = (x1.clone(), r1.clone(), z1.clone());
+                let st = x1.stride();
+                let (ds, qs, gs) = (d.slice(), q.slice(), dg.slice());
+                let cols = HALO + ri.start..HALO + ri.end;
+                // the solver's row kernel, and the same arithmetic written out
+                let upd = |j: usize, xr: &mut [f64], rr: &mut [f64], zr: &mut [f64]| {
+                    let row = (j + HALO) * st + cols.start..(j + HALO) * st + cols.end;
+                    cg_update_row(alpha, &ds[row.clone()], &qs[row.clone()], &gs[row], &mut xr[cols.clone()], &mut rr[cols.clone()], &mut zr[cols.clone()]);
+                };
+                let plain = |j: usize, xr: &mut [f64], rr: &mut [f64], zr: &mut [f64]| {
+                    let base = (j + HALO) * st;
+                    for c in cols.clone() {
+                        xr[c] += alpha * ds[base + c];
+                        rr[c] -= alpha * qs[base + c];
+                        zr[c] = rr[c] / gs[base + c];
+                    }
+                };
+                let mut block_sums = vec![(f64::NAN, f64::NAN); rj.len().div_ceil(ROW_BLOCK)];
+                let (fused, reference) = pool.install(|| {
+                    let fused = rows3_dots(exec, st, rj.clone(), cols.clone(), x1.slice_mut(), r1.slice_mut(), z1.slice_mut(), &mut block_sums, upd);
+                    rows3(exec, st, rj.clone(), x2.slice_mut(), r2.slice_mut(), z2.slice_mut(), plain);
+                    (fused, (dot(&r2, &z2, &ri, &rj, exec), dot(&r2, &r2, &ri, &rj, exec)))
+                });
+                assert_eq!(fused.0.to_bits(), reference.0.to_bits(), "r·z, {rj:?}, {exec:?}");
+                assert_eq!(fused.1.to_bits(), reference.1.to_bits(), "r·r, {rj:?}, {exec:?}");
+                assert_eq!(x1.slice(), x2.slice());
+                assert_eq!(r1.slice(), r2.slice());
+                assert_eq!(z1.slice(), z2.slice());
+            }
+        }
+        let (a, b, g) = (mk(7), mk(8), dg.clone());
+        let (mut x1, mut r1, mut z1) = (mk(4), mk(5), mk(6));
+        let (mut x2, mut r2, mut z2) = (x1.clone(), r1.clone(), z1.clone());
+        cg_update_row(0.3, a.slice(), b.slice(), g.slice(), x1.slice_mut(), r1.slice_mut(), z1.slice_mut());
+        cg_update_row_base(0.3, a.slice(), b.slice(), g.slice(), x2.slice_mut(), r2.slice_mut(), z2.slice_mut());
+        cg_direction_row(0.7, z1.slice(), x1.slice_mut());
+        cg_direction_row_base(0.7, z2.slice(), x2.slice_mut());
+        for (p, q) in [(&x1, &x2), (&r1, &r2), (&z1, &z2)] {
+            assert!(p.slice().iter().zip(q.slice()).all(|(a, b)| a.to_bits() == b.to_bits()));
         }
     }
 }
