@@ -85,7 +85,7 @@ fn ranges(grid: &Grid, bc: &BoundaryConditions) -> (Range<usize>, Range<usize>) 
 
 /// Σ a·b over the unknown faces of one component (deterministic block sum; row slices so the
 /// inner loop has no bounds checks): the order of the solver's sums, which compute each row's
-/// part inside the pass that writes the row ([`rows3_sums`], `viscous_helmholtz_dots`).
+/// part inside the pass that writes the row ([`rows3_blocks`], `viscous_helmholtz_dots`).
 #[cfg(test)]
 fn dot(a: &Field, b: &Field, ri: &Range<usize>, rj: &Range<usize>, exec: Exec) -> f64 {
     let (sa, sb, st) = (a.slice(), b.slice(), a.stride());
@@ -234,28 +234,40 @@ impl MomentumSolver {
             }
             let (qs, bs, dg) = (q.slice(), rhs.slice(), diag.slice());
             let (i0, i1) = (HALO + ri.start, HALO + ri.end);
-            rows3_sums(exec, st, 0..nyf, r.slice_mut(), z.slice_mut(), d.slice_mut(), &mut sums[..nyf], |j, rr_, zr, dr| {
-                rr_.fill(0.0);
-                zr.fill(0.0);
-                dr.fill(0.0);
-                if !rj.contains(&j) {
-                    return [0.0; 3];
+            let cols = i0..i1;
+            rows3_blocks(exec, st, 0..nyf, r.slice_mut(), z.slice_mut(), d.slice_mut(), &mut sums[..nyf], |j0, rb, zb, db, sb| {
+                for (k, ((rr_, zr), dr)) in rb.chunks_mut(st).zip(zb.chunks_mut(st)).zip(db.chunks_mut(st)).enumerate() {
+                    rr_.fill(0.0);
+                    zr.fill(0.0);
+                    dr.fill(0.0);
+                    if rj.contains(&(j0 + k)) {
+                        let row = (j0 + k + HALO) * st + cols.start..(j0 + k + HALO) * st + cols.end;
+                        cg_residual_row(&bs[row.clone()], &qs[row.clone()], &dg[row], &mut rr_[cols.clone()], &mut zr[cols.clone()], &mut dr[cols.clone()]);
+                    }
                 }
-                let base = (j + HALO) * st;
-                // the three sums in column order, as three separate folds would add them
-                let (mut bb, mut rr, mut rz) = (0.0, 0.0, 0.0);
-                for c in i0..i1 {
-                    let b = bs[base + c];
-                    let res = b - qs[base + c];
-                    rr_[c] = res;
-                    let zz = res / dg[base + c];
-                    zr[c] = zz;
-                    dr[c] = zz;
-                    bb += b * b;
-                    rr += res * res;
-                    rz += res * zz;
+                // per row, rhs·rhs, r·r and r·z in column order from 0.0, four rows at a time
+                let (rb, zb) = (&*rb, &*zb);
+                let at = |buf: &[f64], k: usize| -> std::ops::Range<usize> {
+                    debug_assert!(buf.len() >= k * st + cols.end);
+                    k * st + cols.start..k * st + cols.end
+                };
+                let b_at = |k: usize| &bs[(j0 + k + HALO) * st + cols.start..(j0 + k + HALO) * st + cols.end];
+                let mut k = 0;
+                while k < sb.len() {
+                    let inside = |m: usize| rj.contains(&(j0 + k + m));
+                    if k + SUM_ROWS <= sb.len() && (0..SUM_ROWS).all(inside) {
+                        let got = sums3::<SUM_ROWS>(
+                            std::array::from_fn(|m| b_at(k + m)),
+                            std::array::from_fn(|m| &rb[at(rb, k + m)]),
+                            std::array::from_fn(|m| &zb[at(zb, k + m)]),
+                        );
+                        sb[k..k + SUM_ROWS].copy_from_slice(&got);
+                        k += SUM_ROWS;
+                    } else {
+                        sb[k] = if inside(0) { sums3::<1>([b_at(k)], [&rb[at(rb, k)]], [&zb[at(zb, k)]])[0] } else { [0.0; 3] };
+                        k += 1;
+                    }
                 }
-                [bb, rr, rz]
             });
             let rj0 = rj.start;
             bnorm2 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][0]);
@@ -477,33 +489,67 @@ crate::multiversion! {
     }
 }
 
-/// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields with
-/// the same stride (rows whole, ghosts included), in parallel when `exec` says so, and stores what
-/// `f` returns for each row in `sums` (one entry per row of `rows`).
+/// Runs `f(j0, block_x, block_r, block_z, block_sums)` over the blocks of [`ROW_BLOCK`] rows of
+/// `rows` (interior indices; `j0` the block's first row) of three fields with the same stride
+/// (rows whole, ghosts included), in parallel when `exec` says so; `block_sums` is the block's
+/// part of `sums` (one entry per row of `rows`).
 #[allow(clippy::too_many_arguments)]
-fn rows3_sums<const K: usize, F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], sums: &mut [[f64; K]], f: F)
+fn rows3_blocks<const K: usize, F>(exec: Exec, st: usize, rows: Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], sums: &mut [[f64; K]], f: F)
 where
-    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) -> [f64; K] + Sync + Send,
+    F: Fn(usize, &mut [f64], &mut [f64], &mut [f64], &mut [[f64; K]]) + Sync + Send,
 {
     let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
     let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
     let sums = &mut sums[..rows.len()];
+    let blk = st * ROW_BLOCK;
     if exec.use_parallel(x.len()) {
         use rayon::prelude::*;
-        x.par_chunks_mut(st)
-            .zip(r.par_chunks_mut(st))
-            .zip(z.par_chunks_mut(st))
-            .zip(sums.par_iter_mut())
+        x.par_chunks_mut(blk)
+            .zip(r.par_chunks_mut(blk))
+            .zip(z.par_chunks_mut(blk))
+            .zip(sums.par_chunks_mut(ROW_BLOCK))
             .enumerate()
-            .for_each(|(k, (((a, b), c), s))| *s = f(rows.start + k, a, b, c));
+            .for_each(|(b, (((a, bb), c), s))| f(rows.start + b * ROW_BLOCK, a, bb, c, s));
     } else {
-        for (k, (((a, b), c), s)) in x.chunks_mut(st).zip(r.chunks_mut(st)).zip(z.chunks_mut(st)).zip(sums.iter_mut()).enumerate() {
-            *s = f(rows.start + k, a, b, c);
+        for (b, (((a, bb), c), s)) in x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).zip(sums.chunks_mut(ROW_BLOCK)).enumerate() {
+            f(rows.start + b * ROW_BLOCK, a, bb, c, s);
         }
     }
 }
 
-/// `rows3_sums` without the sums.
+/// (Σ b·b, Σ r·r, Σ r·z) of `R` triples of rows of one length, each summed left to right from
+/// 0.0, in one loop over the columns.
+#[inline]
+fn sums3<const R: usize>(b: [&[f64]; R], r: [&[f64]; R], z: [&[f64]; R]) -> [[f64; 3]; R] {
+    let n = b[0].len();
+    for m in 0..R {
+        assert!(b[m].len() == n && r[m].len() == n && z[m].len() == n);
+    }
+    let mut s = [[0.0; 3]; R];
+    for c in 0..n {
+        for m in 0..R {
+            s[m][0] += b[m][c] * b[m][c];
+            s[m][1] += r[m][c] * r[m][c];
+            s[m][2] += r[m][c] * z[m][c];
+        }
+    }
+    s
+}
+
+crate::multiversion! {
+    /// The initial residual of a row: r = b − q, z = d = r / g.
+    fn cg_residual_row / cg_residual_row_base(b: &[f64], q: &[f64], g: &[f64], r: &mut [f64], z: &mut [f64], d: &mut [f64]) {
+        let n = r.len();
+        let (b, q, g, z, d) = (&b[..n], &q[..n], &g[..n], &mut z[..n], &mut d[..n]);
+        for i in 0..n {
+            r[i] = b[i] - q[i];
+            z[i] = r[i] / g[i];
+            d[i] = z[i];
+        }
+    }
+}
+
+/// The update of [`rows3_dots`] without the sums.
 #[cfg(test)]
 fn rows3<F>(exec: Exec, st: usize, rows: std::ops::Range<usize>, x: &mut [f64], r: &mut [f64], z: &mut [f64], f: F)
 where
@@ -588,6 +634,42 @@ mod tests {
         cg_direction_row_base(0.7, z2.slice(), x2.slice_mut());
         for (p, q) in [(&x1, &x2), (&r1, &r2), (&z1, &z2)] {
             assert!(p.slice().iter().zip(q.slice()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
+
+    /// The initial residual's row sums four rows at a time ([`sums3`]) are those of separate
+    /// left-to-right folds, and the row kernel's two copies agree bit for bit.
+    #[test]
+    fn initial_residual_sums_are_the_separate_folds_bit_for_bit() {
+        let mut seed = 3u64;
+        let mut row = |n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|_| {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+                })
+                .collect()
+        };
+        let n = 53;
+        let rows: Vec<[Vec<f64>; 3]> = (0..SUM_ROWS).map(|_| [row(n), row(n), row(n)]).collect();
+        let fold = |a: &[f64], b: &[f64]| a.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q);
+        let got =
+            sums3::<SUM_ROWS>(std::array::from_fn(|m| &rows[m][0][..]), std::array::from_fn(|m| &rows[m][1][..]), std::array::from_fn(|m| &rows[m][2][..]));
+        for (m, [b, r, z]) in rows.iter().enumerate() {
+            let want = [fold(b, b), fold(r, r), fold(r, z)];
+            assert_eq!(got[m].map(f64::to_bits), want.map(f64::to_bits));
+            assert_eq!(sums3::<1>([b], [r], [z])[0].map(f64::to_bits), want.map(f64::to_bits));
+        }
+        let (b, q) = (row(n), row(n));
+        let g: Vec<f64> = row(n).iter().map(|x| x + 2.0).collect();
+        let (mut r1, mut z1, mut d1) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let (mut r2, mut z2, mut d2) = (vec![1.0; n], vec![1.0; n], vec![1.0; n]);
+        cg_residual_row(&b, &q, &g, &mut r1, &mut z1, &mut d1);
+        cg_residual_row_base(&b, &q, &g, &mut r2, &mut z2, &mut d2);
+        for i in 0..n {
+            let r = b[i] - q[i];
+            assert_eq!([r1[i], z1[i], d1[i]].map(f64::to_bits), [r, r / g[i], r / g[i]].map(f64::to_bits));
+            assert_eq!([r1[i], z1[i], d1[i]].map(f64::to_bits), [r2[i], z2[i], d2[i]].map(f64::to_bits));
         }
     }
 }
