@@ -99,10 +99,11 @@ fn dot(a: &Field, b: &Field, ri: &Range<usize>, rj: &Range<usize>, exec: Exec) -
 
 /// Σ over the rows `rj` of per-row sums computed elsewhere (`rows[j]` for interior row j):
 /// blocks of `ROW_BLOCK` rows added in order (`Exec::sum_rows`), the order of a dot product
-/// over the unknown faces whatever the number of threads. `cells` is the field's nx·ny.
-fn sum_row_sums(rows: &[f64], rj: &Range<usize>, cells: usize, exec: Exec) -> f64 {
+/// over the unknown faces whatever the number of threads. The few hundred row sums are added
+/// on the calling thread: a parallel region would cost more than the additions.
+fn sum_row_sums(rows: &[f64], rj: &Range<usize>) -> f64 {
     let rj0 = rj.start;
-    exec.sum_rows(rj.len(), cells, |r| rows[r + rj0])
+    Exec::SERIAL.sum_rows(rj.len(), rows.len(), |r| rows[r + rj0])
 }
 
 impl MomentumSolver {
@@ -270,9 +271,10 @@ impl MomentumSolver {
                 }
             });
             let rj0 = rj.start;
-            bnorm2 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][0]);
-            rr0 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][1]);
-            rz0 += exec.sum_rows(rj.len(), cells, |k| sums[k + rj0][2]);
+            // on the calling thread, as in `sum_row_sums`
+            bnorm2 += Exec::SERIAL.sum_rows(rj.len(), cells, |k| sums[k + rj0][0]);
+            rr0 += Exec::SERIAL.sum_rows(rj.len(), cells, |k| sums[k + rj0][1]);
+            rz0 += Exec::SERIAL.sum_rows(rj.len(), cells, |k| sums[k + rj0][2]);
         }
         let bnorm = bnorm2.sqrt();
         let rnorm0 = rr0.sqrt();
@@ -295,8 +297,7 @@ impl MomentumSolver {
             // q = A d with the rows of d·q in the same sweep
             let dots = RowDots { cols_u: ru.clone(), cols_v: 0..sys.grid.nx, rows_u: &mut self.row_dq_u, rows_v: &mut self.row_dq_v };
             viscous_helmholtz_dots(&self.du, &self.dv, sys.eta_c, sys.eta_n, sys.c_u, sys.c_v, sys.grid, &mut self.qu, &mut self.qv, dots, exec);
-            let dq = sum_row_sums(&self.row_dq_u, &(0..sys.grid.ny), self.du.nx * self.du.ny, exec)
-                + sum_row_sums(&self.row_dq_v, &rv, self.dv.nx * self.dv.ny, exec);
+            let dq = sum_row_sums(&self.row_dq_u, &(0..sys.grid.ny)) + sum_row_sums(&self.row_dq_v, &rv);
             let alpha = rz / dq;
             let mut rz_new = 0.0;
             let mut rr = 0.0;
