@@ -1,5 +1,6 @@
-"""The column model the step benchmarks time (stage_profile.py, step_cost.py): built from their
-common command-line arguments and advanced past its first steps.
+"""The column model the step benchmarks time (stage_profile.py, step_cost.py, thread_curve.py):
+built from their common command-line arguments and advanced past its first steps, and the digest
+of its state that they compare between builds or thread counts.
 
 granrs is imported inside the function, so that step_cost.py's worker times the build its
 environment names (its ``--base``)."""
@@ -24,3 +25,21 @@ def warm_column_model(args: argparse.Namespace):
     m = build_model(ColumnCase(**kw))
     m.advance(max_steps=args.warmup)
     return m
+
+
+def state_digest(m) -> str:
+    """The first 16 hex digits of the SHA-256 of u, v, p, Φ and (where the model has it) p_f:
+    equal digests mean the same state bit for bit."""
+    import hashlib
+
+    import numpy as np
+
+    h = hashlib.sha256()
+    for name in ("u", "v", "p", "phi", "pf"):
+        try:
+            a = getattr(m, name)
+        except Exception:  # a field this model does not have (p_f of a dry column)
+            continue
+        if a is not None:
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()[:16]
