@@ -170,7 +170,7 @@ const DOT_ROWS: usize = 4;
 /// Runs `f(j, row)` over the interior rows of `field` like [`for_each_interior_row`]; with
 /// `dots = Some((sums, input, cols))` it then stores in `sums[j]` the dot product of the row's
 /// columns `cols` (interior indices) with the same columns of `input`'s row j (a field of the
-/// same layout), each summed left to right from 0 as [`row_dot`] does: the rows of a block of
+/// same layout), each summed left to right from 0 ([`super::row_sums`]): the rows of a block of
 /// [`ROW_BLOCK`](crate::exec::ROW_BLOCK) are computed first, then their dots, [`DOT_ROWS`] rows
 /// at a time (the same blocks of rows either way).
 fn interior_rows_dots<F>(exec: Exec, field: &mut Field, dots: Option<(&mut [f64], &Field, std::ops::Range<usize>)>, f: F)
@@ -198,12 +198,16 @@ where
         let b_row = |k: usize| &rows[k * stride + c0..][..n];
         let mut k = 0;
         while k + DOT_ROWS <= out.len() {
-            let s = row_dots::<DOT_ROWS>(std::array::from_fn(|m| a_row(k + m)), std::array::from_fn(|m| b_row(k + m)));
-            out[k..k + DOT_ROWS].copy_from_slice(&s);
+            let (a, b): ([&[f64]; DOT_ROWS], [&[f64]; DOT_ROWS]) = (std::array::from_fn(|m| a_row(k + m)), std::array::from_fn(|m| b_row(k + m)));
+            let s = super::row_sums::<DOT_ROWS, 1>(n, |m, c| [a[m][c] * b[m][c]]);
+            for (o, sm) in out[k..k + DOT_ROWS].iter_mut().zip(s) {
+                *o = sm[0];
+            }
             k += DOT_ROWS;
         }
         for (kk, o) in out.iter_mut().enumerate().skip(k) {
-            *o = row_dot(a_row(kk), b_row(kk));
+            let (a, b) = (a_row(kk), b_row(kk));
+            *o = super::row_sums::<1, 1>(n, |_, c| [a[c] * b[c]])[0][0];
         }
     };
     if exec.use_parallel(data.len()) {
@@ -286,28 +290,6 @@ fn viscous_rows(
         let c = cv.map(|(cs, st)| &cs[(j + HALO) * st + HALO..(j + HALO) * st + HALO + n]);
         vy_row(&r, out, c);
     });
-}
-
-/// Σ a_i b_i summed left to right from 0.
-#[inline]
-fn row_dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q)
-}
-
-/// [`row_dot`] of `R` pairs of rows of one length, in one loop over the columns.
-#[inline]
-fn row_dots<const R: usize>(a: [&[f64]; R], b: [&[f64]; R]) -> [f64; R] {
-    let n = a[0].len();
-    for m in 0..R {
-        assert!(a[m].len() == n && b[m].len() == n);
-    }
-    let mut s = [0.0; R];
-    for c in 0..n {
-        for m in 0..R {
-            s[m] += a[m][c] * b[m][c];
-        }
-    }
-    s
 }
 
 /// The rows read by one row of u-faces of [`viscous`] (n = nx + 1 faces): `uc[i + 1]` = u_{i,j}

@@ -27,6 +27,24 @@ pub use kernels::{
 use crate::exec::Exec;
 use crate::grid::{Field, HALO};
 
+/// Left-to-right sums along `R` rows at once: `s[m][k]` = Σ_{c < n} `term(m, c)[k]`, each added
+/// in column order from 0.0 as a fold along one row adds it (the same bits), with the R·K chains
+/// of additions in one loop over the columns, so that the processor overlaps them where one
+/// row's sum would wait on each addition.
+#[inline(always)]
+pub fn row_sums<const R: usize, const K: usize>(n: usize, term: impl Fn(usize, usize) -> [f64; K]) -> [[f64; K]; R] {
+    let mut s = [[0.0; K]; R];
+    for c in 0..n {
+        for (m, sm) in s.iter_mut().enumerate() {
+            let t = term(m, c);
+            for k in 0..K {
+                sm[k] += t[k];
+            }
+        }
+    }
+    s
+}
+
 /// Runs `f(j, row)` over the interior rows j = 0..ny of `field`, where `row` is the full storage
 /// row (ghost columns included; interior column i sits at `row[HALO + i]`).
 pub fn for_each_interior_row<F>(exec: Exec, field: &mut Field, f: F)
@@ -68,6 +86,40 @@ where
     } else {
         for (j, (x, y)) in ra.chunks_mut(stride).zip(rb.chunks_mut(stride)).enumerate() {
             f(j, x, y);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::row_sums;
+
+    /// Sums along four rows at once and along one are those of separate left-to-right folds of
+    /// each row, bit for bit, for one to three products per column.
+    #[test]
+    fn row_sums_are_the_separate_folds_bit_for_bit() {
+        let mut seed = 11u64;
+        let mut row = |n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|_| {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+                })
+                .collect()
+        };
+        let n = 53;
+        let rows: Vec<[Vec<f64>; 3]> = (0..4).map(|_| [row(n), row(n), row(n)]).collect();
+        let fold = |a: &[f64], b: &[f64]| a.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q);
+        let got = row_sums::<4, 3>(n, |m, c| {
+            let [b, r, z] = &rows[m];
+            [b[c] * b[c], r[c] * r[c], r[c] * z[c]]
+        });
+        let dots = row_sums::<4, 1>(n, |m, c| [rows[m][0][c] * rows[m][2][c]]);
+        for (m, [b, r, z]) in rows.iter().enumerate() {
+            let want = [fold(b, b), fold(r, r), fold(r, z)];
+            assert_eq!(got[m].map(f64::to_bits), want.map(f64::to_bits));
+            assert_eq!(row_sums::<1, 2>(n, |_, c| [b[c] * b[c], r[c] * r[c]])[0].map(f64::to_bits), [want[0], want[1]].map(f64::to_bits));
+            assert_eq!(dots[m][0].to_bits(), fold(b, z).to_bits());
         }
     }
 }

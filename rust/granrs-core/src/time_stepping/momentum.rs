@@ -16,7 +16,9 @@
 use crate::error::{Error, Result};
 use crate::exec::{Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
-use crate::operators::{fill_velocity_ghosts, for_each_interior_row, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots};
+use crate::operators::{
+    fill_velocity_ghosts, for_each_interior_row, row_sums, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots,
+};
 use crate::solvers::SolveInfo;
 use std::ops::Range;
 
@@ -257,15 +259,19 @@ impl MomentumSolver {
                 while k < sb.len() {
                     let inside = |m: usize| rj.contains(&(j0 + k + m));
                     if k + SUM_ROWS <= sb.len() && (0..SUM_ROWS).all(inside) {
-                        let got = sums3::<SUM_ROWS>(
-                            std::array::from_fn(|m| b_at(k + m)),
-                            std::array::from_fn(|m| &rb[at(rb, k + m)]),
-                            std::array::from_fn(|m| &zb[at(zb, k + m)]),
-                        );
+                        let b4: [&[f64]; SUM_ROWS] = std::array::from_fn(|m| b_at(k + m));
+                        let r4: [&[f64]; SUM_ROWS] = std::array::from_fn(|m| &rb[at(rb, k + m)]);
+                        let z4: [&[f64]; SUM_ROWS] = std::array::from_fn(|m| &zb[at(zb, k + m)]);
+                        let got = row_sums::<SUM_ROWS, 3>(cols.len(), |m, c| [b4[m][c] * b4[m][c], r4[m][c] * r4[m][c], r4[m][c] * z4[m][c]]);
                         sb[k..k + SUM_ROWS].copy_from_slice(&got);
                         k += SUM_ROWS;
                     } else {
-                        sb[k] = if inside(0) { sums3::<1>([b_at(k)], [&rb[at(rb, k)]], [&zb[at(zb, k)]])[0] } else { [0.0; 3] };
+                        sb[k] = if inside(0) {
+                            let (b1, r1, z1) = (b_at(k), &rb[at(rb, k)], &zb[at(zb, k)]);
+                            row_sums::<1, 3>(cols.len(), |_, c| [b1[c] * b1[c], r1[c] * r1[c], r1[c] * z1[c]])[0]
+                        } else {
+                            [0.0; 3]
+                        };
                         k += 1;
                     }
                 }
@@ -411,13 +417,16 @@ where
         let mut k = 0;
         while k < nr {
             let take = if nr - k >= SUM_ROWS { SUM_ROWS } else { 1 };
-            let mut sums = [(0.0, 0.0); SUM_ROWS];
+            let mut sums = [[0.0; 2]; SUM_ROWS];
             if take == SUM_ROWS {
-                sums = rz_rr::<SUM_ROWS>(std::array::from_fn(|m| at(rb, k + m, st, &cols)), std::array::from_fn(|m| at(zb, k + m, st, &cols)));
+                let (r4, z4): ([&[f64]; SUM_ROWS], [&[f64]; SUM_ROWS]) =
+                    (std::array::from_fn(|m| at(rb, k + m, st, &cols)), std::array::from_fn(|m| at(zb, k + m, st, &cols)));
+                sums = row_sums::<SUM_ROWS, 2>(cols.len(), |m, c| [r4[m][c] * z4[m][c], r4[m][c] * r4[m][c]]);
             } else {
-                sums[0] = rz_rr::<1>([at(rb, k, st, &cols)], [at(zb, k, st, &cols)])[0];
+                let (r1, z1) = (at(rb, k, st, &cols), at(zb, k, st, &cols));
+                sums[0] = row_sums::<1, 2>(cols.len(), |_, c| [r1[c] * z1[c], r1[c] * r1[c]])[0];
             }
-            for &(a, b) in &sums[..take] {
+            for &[a, b] in &sums[..take] {
                 rz += a;
                 rr += b;
             }
@@ -446,24 +455,6 @@ where
         rr += b;
     }
     (rz, rr)
-}
-
-/// (Σ r·z, Σ r·r) of `R` pairs of rows of one length, each summed left to right from 0.0, in one
-/// loop over the columns.
-#[inline]
-fn rz_rr<const R: usize>(r: [&[f64]; R], z: [&[f64]; R]) -> [(f64, f64); R] {
-    let n = r[0].len();
-    for m in 0..R {
-        assert!(r[m].len() == n && z[m].len() == n);
-    }
-    let mut s = [(0.0, 0.0); R];
-    for c in 0..n {
-        for m in 0..R {
-            s[m].0 += r[m][c] * z[m][c];
-            s[m].1 += r[m][c] * r[m][c];
-        }
-    }
-    s
 }
 
 crate::multiversion! {
@@ -516,25 +507,6 @@ where
             f(rows.start + b * ROW_BLOCK, a, bb, c, s);
         }
     }
-}
-
-/// (Σ b·b, Σ r·r, Σ r·z) of `R` triples of rows of one length, each summed left to right from
-/// 0.0, in one loop over the columns.
-#[inline]
-fn sums3<const R: usize>(b: [&[f64]; R], r: [&[f64]; R], z: [&[f64]; R]) -> [[f64; 3]; R] {
-    let n = b[0].len();
-    for m in 0..R {
-        assert!(b[m].len() == n && r[m].len() == n && z[m].len() == n);
-    }
-    let mut s = [[0.0; 3]; R];
-    for c in 0..n {
-        for m in 0..R {
-            s[m][0] += b[m][c] * b[m][c];
-            s[m][1] += r[m][c] * r[m][c];
-            s[m][2] += r[m][c] * z[m][c];
-        }
-    }
-    s
 }
 
 crate::multiversion! {
@@ -638,10 +610,9 @@ mod tests {
         }
     }
 
-    /// The initial residual's row sums four rows at a time ([`sums3`]) are those of separate
-    /// left-to-right folds, and the row kernel's two copies agree bit for bit.
+    /// The initial residual's row kernel: r = b − q, z = d = r / g, in both copies bit for bit.
     #[test]
-    fn initial_residual_sums_are_the_separate_folds_bit_for_bit() {
+    fn initial_residual_row_is_the_plain_arithmetic_bit_for_bit() {
         let mut seed = 3u64;
         let mut row = |n: usize| -> Vec<f64> {
             (0..n)
@@ -652,15 +623,6 @@ mod tests {
                 .collect()
         };
         let n = 53;
-        let rows: Vec<[Vec<f64>; 3]> = (0..SUM_ROWS).map(|_| [row(n), row(n), row(n)]).collect();
-        let fold = |a: &[f64], b: &[f64]| a.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q);
-        let got =
-            sums3::<SUM_ROWS>(std::array::from_fn(|m| &rows[m][0][..]), std::array::from_fn(|m| &rows[m][1][..]), std::array::from_fn(|m| &rows[m][2][..]));
-        for (m, [b, r, z]) in rows.iter().enumerate() {
-            let want = [fold(b, b), fold(r, r), fold(r, z)];
-            assert_eq!(got[m].map(f64::to_bits), want.map(f64::to_bits));
-            assert_eq!(sums3::<1>([b], [r], [z])[0].map(f64::to_bits), want.map(f64::to_bits));
-        }
         let (b, q) = (row(n), row(n));
         let g: Vec<f64> = row(n).iter().map(|x| x + 2.0).collect();
         let (mut r1, mut z1, mut d1) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
