@@ -90,23 +90,30 @@ where
     }
 }
 
+/// Rows of pseudo-random values in [−0.5, 0.5) from `seed` (a linear congruential generator):
+/// the inputs of the row kernels' bit-for-bit tests.
+#[cfg(test)]
+pub(crate) fn random_rows(seed: u64) -> impl FnMut(usize) -> Vec<f64> {
+    let mut s = seed;
+    move |n| {
+        (0..n)
+            .map(|_| {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::row_sums;
+    use super::{random_rows, row_sums};
 
     /// Sums along four rows at once and along one are those of separate left-to-right folds of
     /// each row, bit for bit, for one to three products per column.
     #[test]
     fn row_sums_are_the_separate_folds_bit_for_bit() {
-        let mut seed = 11u64;
-        let mut row = |n: usize| -> Vec<f64> {
-            (0..n)
-                .map(|_| {
-                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                    ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-                })
-                .collect()
-        };
+        let mut row = random_rows(11);
         let n = 53;
         let rows: Vec<[Vec<f64>; 3]> = (0..4).map(|_| [row(n), row(n), row(n)]).collect();
         let fold = |a: &[f64], b: &[f64]| a.iter().zip(b).fold(0.0, |s, (p, q)| s + p * q);

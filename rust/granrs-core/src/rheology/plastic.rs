@@ -924,15 +924,8 @@ mod tests {
     /// anywhere in a row makes the projection's row maximum NaN.
     #[test]
     fn row_kernels_agree_across_instruction_sets_and_propagate_nan() {
-        let mut seed = 7u64;
-        let mut rnd = |n: usize, amp: f64| -> Vec<f64> {
-            (0..n)
-                .map(|_| {
-                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                    amp * (((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5)
-                })
-                .collect()
-        };
+        let mut rows = crate::operators::random_rows(7);
+        let mut rnd = |n: usize, amp: f64| -> Vec<f64> { rows(n).iter().map(|v| amp * v).collect() };
         let n = 37;
         let (a, b0, b1, tau) = (rnd(n + 1, 3.0), rnd(n + 1, 3.0), rnd(n + 1, 3.0), rnd(n, 1.0).iter().map(|t| t.abs()).collect::<Vec<_>>());
         let old = rnd(n, 1.0);

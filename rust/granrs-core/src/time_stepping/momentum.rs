@@ -613,15 +613,7 @@ mod tests {
     /// The initial residual's row kernel: r = b − q, z = d = r / g, in both copies bit for bit.
     #[test]
     fn initial_residual_row_is_the_plain_arithmetic_bit_for_bit() {
-        let mut seed = 3u64;
-        let mut row = |n: usize| -> Vec<f64> {
-            (0..n)
-                .map(|_| {
-                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                    ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-                })
-                .collect()
-        };
+        let mut row = crate::operators::random_rows(3);
         let n = 53;
         let (b, q) = (row(n), row(n));
         let g: Vec<f64> = row(n).iter().map(|x| x + 2.0).collect();
