@@ -163,16 +163,12 @@ pub fn viscous_helmholtz_dots(
     viscous_rows(u, v, eta_c, eta_n, grid, out_u, out_v, Some((c_u, c_v)), Some(dots), exec);
 }
 
-/// Rows whose dot products [`interior_rows_dots`] sums together: independent chains of
-/// additions, which the processor overlaps where one row's sum would wait on each addition.
-const DOT_ROWS: usize = 4;
-
 /// Runs `f(j, row)` over the interior rows of `field` like [`for_each_interior_row`]; with
 /// `dots = Some((sums, input, cols))` it then stores in `sums[j]` the dot product of the row's
 /// columns `cols` (interior indices) with the same columns of `input`'s row j (a field of the
 /// same layout), each summed left to right from 0 ([`super::row_sums`]): the rows of a block of
-/// [`ROW_BLOCK`](crate::exec::ROW_BLOCK) are computed first, then their dots, [`DOT_ROWS`] rows
-/// at a time (the same blocks of rows either way).
+/// [`ROW_BLOCK`](crate::exec::ROW_BLOCK) are computed first, then their dots
+/// ([`super::sums_by_row`]; the same blocks of rows either way).
 fn interior_rows_dots<F>(exec: Exec, field: &mut Field, dots: Option<(&mut [f64], &Field, std::ops::Range<usize>)>, f: F)
 where
     F: Fn(usize, &mut [f64]) + Sync + Send,
@@ -196,18 +192,11 @@ where
         let rows = &*rows;
         let a_row = |k: usize| &inp[(b * ROW_BLOCK + k + HALO) * stride + c0..][..n];
         let b_row = |k: usize| &rows[k * stride + c0..][..n];
-        let mut k = 0;
-        while k + DOT_ROWS <= out.len() {
-            let (a, b): ([&[f64]; DOT_ROWS], [&[f64]; DOT_ROWS]) = (std::array::from_fn(|m| a_row(k + m)), std::array::from_fn(|m| b_row(k + m)));
-            let s = super::row_sums::<DOT_ROWS, 1>(n, |m, c| [a[m][c] * b[m][c]]);
-            for (o, sm) in out[k..k + DOT_ROWS].iter_mut().zip(s) {
-                *o = sm[0];
-            }
-            k += DOT_ROWS;
-        }
-        for (kk, o) in out.iter_mut().enumerate().skip(k) {
-            let (a, b) = (a_row(kk), b_row(kk));
-            *o = super::row_sums::<1, 1>(n, |_, c| [a[c] * b[c]])[0][0];
+        let mut sums = [[0.0; 1]; ROW_BLOCK];
+        let sums = &mut sums[..out.len()];
+        super::sums_by_row(sums, n, |k| [a_row(k), b_row(k)], |[a, b]| [a * b]);
+        for (o, s) in out.iter_mut().zip(sums.iter()) {
+            *o = s[0];
         }
     };
     if exec.use_parallel(data.len()) {

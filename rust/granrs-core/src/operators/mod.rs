@@ -45,6 +45,31 @@ pub fn row_sums<const R: usize, const K: usize>(n: usize, term: impl Fn(usize, u
     s
 }
 
+/// Rows whose sums [`sums_by_row`] adds together in one loop.
+pub const SUM_ROWS: usize = 4;
+
+/// `out[k]` = the left-to-right sums over the columns c < n of `term` at the inputs of row k
+/// (`rows(k)`: P slices of at least n values), by [`row_sums`] on [`SUM_ROWS`] rows at a time and
+/// the remaining rows one by one: the bits of separate folds along each row.
+#[inline(always)]
+pub fn sums_by_row<'a, const P: usize, const K: usize>(
+    out: &mut [[f64; K]],
+    n: usize,
+    rows: impl Fn(usize) -> [&'a [f64]; P],
+    term: impl Fn([f64; P]) -> [f64; K],
+) {
+    let mut k = 0;
+    while k + SUM_ROWS <= out.len() {
+        let ins: [[&[f64]; P]; SUM_ROWS] = std::array::from_fn(|m| rows(k + m).map(|r| &r[..n]));
+        out[k..k + SUM_ROWS].copy_from_slice(&row_sums::<SUM_ROWS, K>(n, |m, c| term(std::array::from_fn(|p| ins[m][p][c]))));
+        k += SUM_ROWS;
+    }
+    for (kk, o) in out.iter_mut().enumerate().skip(k) {
+        let ins = rows(kk).map(|r| &r[..n]);
+        *o = row_sums::<1, K>(n, |_, c| term(std::array::from_fn(|p| ins[p][c])))[0];
+    }
+}
+
 /// Runs `f(j, row)` over the interior rows j = 0..ny of `field`, where `row` is the full storage
 /// row (ghost columns included; interior column i sits at `row[HALO + i]`).
 pub fn for_each_interior_row<F>(exec: Exec, field: &mut Field, f: F)
@@ -107,7 +132,7 @@ pub(crate) fn random_rows(seed: u64) -> impl FnMut(usize) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::{random_rows, row_sums};
+    use super::{random_rows, row_sums, sums_by_row};
 
     /// Sums along four rows at once and along one are those of separate left-to-right folds of
     /// each row, bit for bit, for one to three products per column.
@@ -127,6 +152,13 @@ mod tests {
             assert_eq!(got[m].map(f64::to_bits), want.map(f64::to_bits));
             assert_eq!(row_sums::<1, 2>(n, |_, c| [b[c] * b[c], r[c] * r[c]])[0].map(f64::to_bits), [want[0], want[1]].map(f64::to_bits));
             assert_eq!(dots[m][0].to_bits(), fold(b, z).to_bits());
+        }
+        // seven rows: a group of four, then three one by one; rows longer than n are cut at n
+        let long: Vec<[Vec<f64>; 2]> = (0..7).map(|_| [row(n + 5), row(n + 5)]).collect();
+        let mut out = [[f64::NAN; 2]; 7];
+        sums_by_row(&mut out, n, |k| [&long[k][0][..], &long[k][1][..]], |[a, b]| [a * b, a * a]);
+        for (o, [a, b]) in out.iter().zip(&long) {
+            assert_eq!(o.map(f64::to_bits), [fold(&a[..n], &b[..n]), fold(&a[..n], &a[..n])].map(f64::to_bits));
         }
     }
 }

@@ -17,7 +17,7 @@ use crate::error::{Error, Result};
 use crate::exec::{Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
 use crate::operators::{
-    fill_velocity_ghosts, for_each_interior_row, row_sums, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots,
+    fill_velocity_ghosts, for_each_interior_row, sums_by_row, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots,
 };
 use crate::solvers::SolveInfo;
 use std::ops::Range;
@@ -248,33 +248,20 @@ impl MomentumSolver {
                         cg_residual_row(&bs[row.clone()], &qs[row.clone()], &dg[row], &mut rr_[cols.clone()], &mut zr[cols.clone()], &mut dr[cols.clone()]);
                     }
                 }
-                // per row, rhs·rhs, r·r and r·z in column order from 0.0, four rows at a time
+                // per row, rhs·rhs, r·r and r·z in column order from 0.0 (zero off the rows `rj`)
                 let (rb, zb) = (&*rb, &*zb);
-                let at = |buf: &[f64], k: usize| -> std::ops::Range<usize> {
-                    debug_assert!(buf.len() >= k * st + cols.end);
-                    k * st + cols.start..k * st + cols.end
-                };
-                let b_at = |k: usize| &bs[(j0 + k + HALO) * st + cols.start..(j0 + k + HALO) * st + cols.end];
-                let mut k = 0;
-                while k < sb.len() {
-                    let inside = |m: usize| rj.contains(&(j0 + k + m));
-                    if k + SUM_ROWS <= sb.len() && (0..SUM_ROWS).all(inside) {
-                        let b4: [&[f64]; SUM_ROWS] = std::array::from_fn(|m| b_at(k + m));
-                        let r4: [&[f64]; SUM_ROWS] = std::array::from_fn(|m| &rb[at(rb, k + m)]);
-                        let z4: [&[f64]; SUM_ROWS] = std::array::from_fn(|m| &zb[at(zb, k + m)]);
-                        let got = row_sums::<SUM_ROWS, 3>(cols.len(), |m, c| [b4[m][c] * b4[m][c], r4[m][c] * r4[m][c], r4[m][c] * z4[m][c]]);
-                        sb[k..k + SUM_ROWS].copy_from_slice(&got);
-                        k += SUM_ROWS;
-                    } else {
-                        sb[k] = if inside(0) {
-                            let (b1, r1, z1) = (b_at(k), &rb[at(rb, k)], &zb[at(zb, k)]);
-                            row_sums::<1, 3>(cols.len(), |_, c| [b1[c] * b1[c], r1[c] * r1[c], r1[c] * z1[c]])[0]
-                        } else {
-                            [0.0; 3]
-                        };
-                        k += 1;
-                    }
-                }
+                let (lo, hi) = (rj.start.clamp(j0, j0 + sb.len()) - j0, rj.end.clamp(j0, j0 + sb.len()) - j0);
+                sb[..lo].fill([0.0; 3]);
+                sb[hi..].fill([0.0; 3]);
+                sums_by_row(
+                    &mut sb[lo..hi],
+                    cols.len(),
+                    |k| {
+                        let (g, l) = ((j0 + lo + k + HALO) * st, (lo + k) * st);
+                        [&bs[g + cols.start..g + cols.end], &rb[l + cols.start..l + cols.end], &zb[l + cols.start..l + cols.end]]
+                    },
+                    |[b, r, z]| [b * b, r * r, r * z],
+                );
             });
             let rj0 = rj.start;
             // on the calling thread, as in `sum_row_sums`
@@ -375,14 +362,10 @@ impl MomentumSolver {
     }
 }
 
-/// Rows whose sums [`rows3_dots`] adds together: independent chains of additions, which the
-/// processor overlaps where one row's sum would wait on each addition.
-const SUM_ROWS: usize = 4;
-
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
 /// with the same stride, in parallel when `exec` says so (rows are whole, ghosts included), and
 /// returns (r·z, r·r) over the columns `cols` (raw indices) of the updated rows. Each row's
-/// products are added in column order from 0.0, [`SUM_ROWS`] rows at a time once a block's
+/// products are added in column order from 0.0, [`SUM_ROWS`](crate::operators::SUM_ROWS) rows at a time once a block's
 /// rows are updated, the rows' sums in row order within blocks of [`ROW_BLOCK`] rows (into
 /// `block_sums`, one entry per block), the blocks then in order: the summation order of [`dot`]
 /// (`Exec::sum_rows`), so the sums are bit for bit those of two `dot` calls after the update,
@@ -409,28 +392,13 @@ where
             f(rows.start + b * ROW_BLOCK + k, xr, rrow, zr);
         }
         let (rb, zb) = (&*rb, &*zb);
-        let nr = rb.len() / st;
-        fn at<'a>(buf: &'a [f64], k: usize, st: usize, cols: &Range<usize>) -> &'a [f64] {
-            &buf[k * st + cols.start..k * st + cols.end]
-        }
+        let mut sums = [[0.0; 2]; ROW_BLOCK];
+        let sums = &mut sums[..rb.len() / st];
+        sums_by_row(sums, cols.len(), |k| [&rb[k * st + cols.start..k * st + cols.end], &zb[k * st + cols.start..k * st + cols.end]], |[r, z]| [r * z, r * r]);
         let (mut rz, mut rr) = (0.0, 0.0);
-        let mut k = 0;
-        while k < nr {
-            let take = if nr - k >= SUM_ROWS { SUM_ROWS } else { 1 };
-            let mut sums = [[0.0; 2]; SUM_ROWS];
-            if take == SUM_ROWS {
-                let (r4, z4): ([&[f64]; SUM_ROWS], [&[f64]; SUM_ROWS]) =
-                    (std::array::from_fn(|m| at(rb, k + m, st, &cols)), std::array::from_fn(|m| at(zb, k + m, st, &cols)));
-                sums = row_sums::<SUM_ROWS, 2>(cols.len(), |m, c| [r4[m][c] * z4[m][c], r4[m][c] * r4[m][c]]);
-            } else {
-                let (r1, z1) = (at(rb, k, st, &cols), at(zb, k, st, &cols));
-                sums[0] = row_sums::<1, 2>(cols.len(), |_, c| [r1[c] * z1[c], r1[c] * r1[c]])[0];
-            }
-            for &[a, b] in &sums[..take] {
-                rz += a;
-                rr += b;
-            }
-            k += take;
+        for &[a, b] in sums.iter() {
+            rz += a;
+            rr += b;
         }
         (rz, rr)
     };
@@ -546,7 +514,7 @@ mod tests {
 
     /// The update pass with its sums ([`rows3_dots`]) gives the bits of the update followed by
     /// two `dot` calls (the CG's r·z and r·r), serially and on a 2-thread pool, on ranges of rows
-    /// that do not start at 0 and leave every remainder of the groups of [`SUM_ROWS`] rows and
+    /// that do not start at 0 and leave every remainder of the groups of [`SUM_ROWS`](crate::operators::SUM_ROWS) rows and
     /// of the row blocks; the row kernels' AVX2 and baseline copies agree bit for bit.
     #[test]
     fn rows3_dots_is_the_update_then_two_dots_bit_for_bit() {
