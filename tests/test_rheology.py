@@ -154,6 +154,28 @@ def test_advance_log_reports_picard_iterations_and_increment():
     assert len(sim.history["picard_increment"]) == 2
 
 
+def test_a_picard_cycle_is_broken_within_two_windows_of_each_halving():
+    # The fluidised column at the paper's grid (ny = 256) on the open window of 16 cells: its
+    # 12th step (t = 0.011 s) locks the Picard iteration into a cycle of period 4 (increments
+    # 9.15e-3, 9.36e-3, 3.83e-3, 3.63e-3, repeated to every digit) that comes back after each of
+    # the four halvings of r that break it. The stall test compares the largest increments of
+    # windows of PICARD_STALL_WINDOW = 10 iterations, so each halving comes two windows after
+    # the one before: the fourth by iteration 30 + 3 × 20 = 90. A test on single increments 40
+    # iterations apart sees a cycle of period 4 only from iteration 80 and halves at 80, 120,
+    # 160 and 200 at the earliest (283 iterations in all for this step).
+    from granrs import ActiveRegion
+    from granrs.cases.column import ColumnCase, build_model
+
+    m = build_model(ColumnCase(ny=256, active_region=ActiveRegion(16, sides="open-right-top")))
+    m.advance(max_steps=11)
+    d = m.step()
+    hist = m.picard_history()
+    assert d["picard"]["r_halvings"] >= 1, "the step no longer cycles: pick another"
+    assert d["picard"]["increment"] <= 1e-3  # converged to the column's picard_tol
+    assert d["picard"]["iterations"] < 200, d["picard"]
+    # the cycle itself: increments four iterations apart equal to 1e-3 before the first halving
+    assert np.allclose(hist[10:22], hist[14:26], rtol=1e-3)
+
 # ---- cavity ----------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def cavity16():
