@@ -23,8 +23,18 @@ from pathlib import Path
 
 from column_bench import warm_column_model
 
-STAGES = ("choose_dt", "interface", "properties", "pore_pressure", "rheology", "predictor_setup", "predictor_solves",
-          "projections", "pressure_projection", "diagnostics")
+STAGES = (
+    "choose_dt",
+    "interface",
+    "properties",
+    "pore_pressure",
+    "rheology",
+    "predictor_setup",
+    "predictor_solves",
+    "projections",
+    "pressure_projection",
+    "diagnostics",
+)
 
 
 def profile(m, steps: int, observe: bool = False) -> tuple[float, dict, dict]:
@@ -42,8 +52,11 @@ def profile(m, steps: int, observe: bool = False) -> tuple[float, dict, dict]:
         walls.append(time.perf_counter() - t0)
         for k in STAGES:
             sums[k] += d["stage_seconds"][k]
-        for k, (group, key) in {"picard_iterations": ("picard", "iterations"), "pressure_iterations": ("pressure", "iterations"),
-                                "viscous_iterations": ("viscous", "iterations")}.items():
+        for k, (group, key) in {
+            "picard_iterations": ("picard", "iterations"),
+            "pressure_iterations": ("pressure", "iterations"),
+            "viscous_iterations": ("viscous", "iterations"),
+        }.items():
             iters[k].append(d[group][key])
         if observe:
             t0 = time.perf_counter()
@@ -80,18 +93,30 @@ def main() -> None:
     n = args.steps
     step, rows, medians = profile(m, n, args.observe)
     cells = m.grid.nx * m.grid.ny
-    print(f"column ny = {args.ny} ({m.grid.nx} x {m.grid.ny} = {cells} cells), {args.model}, "
-          f"{'dry' if args.dry else 'fluidised'}, {args.threads} thread(s), steps {args.warmup + 1}-{args.warmup + n}, "
-          f"t = {m.time:.4f} s; medians per step: " + ", ".join(f"{k} {v:g}" for k, v in medians.items()))
+    print(
+        f"column ny = {args.ny} ({m.grid.nx} x {m.grid.ny} = {cells} cells), {args.model}, "
+        f"{'dry' if args.dry else 'fluidised'}, {args.threads} thread(s), steps {args.warmup + 1}-{args.warmup + n}, "
+        f"t = {m.time:.4f} s; medians per step: " + ", ".join(f"{k} {v:g}" for k, v in medians.items())
+    )
     print("| stage | ms per step | share |")
     print("|---|---|---|")
     for k, v in rows.items():
         print(f"| {k} | {v * 1e3:.2f} | {100 * v / step:.1f} % |")
     print(f"| step (binding's wall) | {step * 1e3:.2f} | 100 % |")
     if args.out:
-        Path(args.out).write_text(json.dumps({"args": vars(args), "cells": cells, "s_per_step": step, "stages_s": rows,
-                                              "iterations_median": medians},
-                                             indent=2) + "\n")
+        Path(args.out).write_text(
+            json.dumps(
+                {
+                    "args": vars(args),
+                    "cells": cells,
+                    "s_per_step": step,
+                    "stages_s": rows,
+                    "iterations_median": medians,
+                },
+                indent=2,
+            )
+            + "\n"
+        )
 
 
 if __name__ == "__main__":

@@ -56,14 +56,32 @@ def worker(spec: dict) -> None:
     from column_bench import state_digest, warm_column_model
     from stage_profile import profile
 
-    args = argparse.Namespace(ny=spec["ny"], threads=spec["threads"], model=spec["model"], dry=False,
-                              active_region=spec["active_region"], sides=spec["sides"], warmup=spec["warmup"])
+    args = argparse.Namespace(
+        ny=spec["ny"],
+        threads=spec["threads"],
+        model=spec["model"],
+        dry=False,
+        active_region=spec["active_region"],
+        sides=spec["sides"],
+        warmup=spec["warmup"],
+    )
     t0 = time.perf_counter()
     m = warm_column_model(args)
     setup = time.perf_counter() - t0
     step, rows, medians = profile(m, spec["steps"])
-    print(json.dumps({"s_per_step": step, "stages_s": rows, "iterations_median": medians, "time": m.time,
-                      "setup_and_warmup_s": setup, "digest": state_digest(m)}), flush=True)
+    print(
+        json.dumps(
+            {
+                "s_per_step": step,
+                "stages_s": rows,
+                "iterations_median": medians,
+                "time": m.time,
+                "setup_and_warmup_s": setup,
+                "digest": state_digest(m),
+            }
+        ),
+        flush=True,
+    )
 
 
 def main() -> None:
@@ -93,14 +111,20 @@ def main() -> None:
         for c in args.configs:
             for t in order:
                 spec = dict(CONFIGS[c], ny=args.ny, threads=t, warmup=args.warmup, steps=args.steps)
-                p = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec)],
-                                   capture_output=True, text=True, cwd=here)
+                p = subprocess.run(
+                    [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec)],
+                    capture_output=True,
+                    text=True,
+                    cwd=here,
+                )
                 if p.returncode != 0:
                     raise SystemExit(f"{c}, {t} thread(s), repeat {rep + 1} failed:\n{p.stderr}")
                 r = json.loads(p.stdout.strip().splitlines()[-1])
                 results[c][t].append(r)
-                print(f"{c:9s} threads {t:2d} repeat {rep + 1}: {r['s_per_step'] * 1e3:8.2f} ms/step  digest {r['digest']}",
-                      flush=True)
+                print(
+                    f"{c:9s} threads {t:2d} repeat {rep + 1}: {r['s_per_step'] * 1e3:8.2f} ms/step  digest {r['digest']}",
+                    flush=True,
+                )
 
     rows, failed = [], []
     for c in args.configs:
@@ -108,25 +132,43 @@ def main() -> None:
         if len(digests) != 1:
             failed.append(f"{c}: the state after the timed steps differs between thread counts ({sorted(digests)})")
         base = statistics.median(r["s_per_step"] for r in results[c][args.threads[0]])
-        base_stages = {k: statistics.median(r["stages_s"][k] for r in results[c][args.threads[0]])
-                       for k in results[c][args.threads[0]][0]["stages_s"]}
+        base_stages = {
+            k: statistics.median(r["stages_s"][k] for r in results[c][args.threads[0]])
+            for k in results[c][args.threads[0]][0]["stages_s"]
+        }
         for t in args.threads:
             med = statistics.median(r["s_per_step"] for r in results[c][t])
             stages = {k: statistics.median(r["stages_s"][k] for r in results[c][t]) for k in base_stages}
-            rows.append({"config": c, **CONFIGS[c], "ny": args.ny, "threads": t, "s_per_step": med,
-                         "s_per_step_repeats": [r["s_per_step"] for r in results[c][t]],
-                         "speedup": base / med * args.threads[0], "efficiency": base / med * args.threads[0] / t,
-                         "stages_s": stages,
-                         "stage_speedup": {k: (base_stages[k] / v * args.threads[0] if v > 0 else None) for k, v in stages.items()},
-                         "iterations_median": results[c][t][0]["iterations_median"], "time": results[c][t][0]["time"],
-                         "digest": results[c][t][0]["digest"]})
+            rows.append(
+                {
+                    "config": c,
+                    **CONFIGS[c],
+                    "ny": args.ny,
+                    "threads": t,
+                    "s_per_step": med,
+                    "s_per_step_repeats": [r["s_per_step"] for r in results[c][t]],
+                    "speedup": base / med * args.threads[0],
+                    "efficiency": base / med * args.threads[0] / t,
+                    "stages_s": stages,
+                    "stage_speedup": {
+                        k: (base_stages[k] / v * args.threads[0] if v > 0 else None) for k, v in stages.items()
+                    },
+                    "iterations_median": results[c][t][0]["iterations_median"],
+                    "time": results[c][t][0]["time"],
+                    "digest": results[c][t][0]["digest"],
+                }
+            )
 
-    print(f"\n{cpu_model()}, {os.cpu_count()} logical CPUs; ny = {args.ny}, steps {args.warmup + 1}-{args.warmup + args.steps}, "
-          f"medians of {args.repeats}")
+    print(
+        f"\n{cpu_model()}, {os.cpu_count()} logical CPUs; ny = {args.ny}, steps {args.warmup + 1}-{args.warmup + args.steps}, "
+        f"medians of {args.repeats}"
+    )
     print("| configuration | threads | ms per step | speed-up | efficiency |")
     print("|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['config']} | {r['threads']} | {r['s_per_step'] * 1e3:.2f} | {r['speedup']:.2f} | {r['efficiency']:.2f} |")
+        print(
+            f"| {r['config']} | {r['threads']} | {r['s_per_step'] * 1e3:.2f} | {r['speedup']:.2f} | {r['efficiency']:.2f} |"
+        )
     stages = list(rows[0]["stages_s"])
     for c in args.configs:
         print(f"\n{c}: ms per step by stage (speed-up against {args.threads[0]} thread(s))")
@@ -140,10 +182,17 @@ def main() -> None:
                     cells.append(f"{r['stages_s'][k] * 1e3:.2f}" + (f" ({s:.1f})" if s is not None else ""))
             print(f"| {k} | " + " | ".join(cells) + " |")
     if args.out:
-        Path(args.out).write_text(json.dumps({"machine": {"cpu": cpu_model(), "cpu_count": os.cpu_count(),
-                                                          "platform": platform.platform()},
-                                              "args": {k: v for k, v in vars(args).items() if k != "worker"},
-                                              "rows": rows}, indent=2) + "\n")
+        Path(args.out).write_text(
+            json.dumps(
+                {
+                    "machine": {"cpu": cpu_model(), "cpu_count": os.cpu_count(), "platform": platform.platform()},
+                    "args": {k: v for k, v in vars(args).items() if k != "worker"},
+                    "rows": rows,
+                },
+                indent=2,
+            )
+            + "\n"
+        )
     if failed:
         raise SystemExit("\n".join(failed))
 

@@ -35,16 +35,27 @@ import granrs.model
 def cavity_cost(n: int, threads: int, steps: int, repeats: int) -> dict:
     times = []
     for _ in range(repeats):
-        m = granrs.Model(granrs.Grid(n, n, 1.0, 1.0), granrs.Material(1.0, 1e-3),
-                         bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)), threads=threads)
+        m = granrs.Model(
+            granrs.Grid(n, n, 1.0, 1.0),
+            granrs.Material(1.0, 1e-3),
+            bc=granrs.BoundaryConditions(top=granrs.Velocity(tangential=1.0)),
+            threads=threads,
+        )
         m.advance(max_steps=20)  # warm up: past the BDF1 start and the small first steps
         t0 = time.perf_counter()
         log = m.advance(max_steps=steps)
         times.append((time.perf_counter() - t0) / steps)
     med = statistics.median(times)
-    return {"case": "cavity-re1000", "n": n, "cells": n * n, "threads": threads, "s_per_step": med,
-            "cell_steps_per_s": n * n / med, "pressure_iterations_median": statistics.median(log["pressure_iterations"]),
-            "viscous_iterations_median": statistics.median(log["viscous_iterations"])}
+    return {
+        "case": "cavity-re1000",
+        "n": n,
+        "cells": n * n,
+        "threads": threads,
+        "s_per_step": med,
+        "cell_steps_per_s": n * n / med,
+        "pressure_iterations_median": statistics.median(log["pressure_iterations"]),
+        "viscous_iterations_median": statistics.median(log["viscous_iterations"]),
+    }
 
 
 def column_cost(ny: int, threads: int, steps: int, repeats: int, model: str = "two-phase") -> dict:
@@ -56,23 +67,40 @@ def column_cost(ny: int, threads: int, steps: int, repeats: int, model: str = "t
         try:
             m.advance(max_steps=10)
         except granrs.SimulationError as e:  # recorded, not hidden: a grid the default numerics cannot start
-            return {"case": "column-fluidised", "model": model, "ny": ny, "nx": m.grid.nx, "cells": m.grid.nx * ny, "threads": threads,
-                    "failed": str(e)}
+            return {
+                "case": "column-fluidised",
+                "model": model,
+                "ny": ny,
+                "nx": m.grid.nx,
+                "cells": m.grid.nx * ny,
+                "threads": threads,
+                "failed": str(e),
+            }
         t0 = time.perf_counter()
         log = m.advance(max_steps=steps)
         times.append((time.perf_counter() - t0) / steps)
         its.append(statistics.mean(log["picard_iterations"]))
     med = statistics.median(times)
     cells = m.grid.nx * m.grid.ny
-    return {"case": "column-fluidised", "model": model, "ny": ny, "nx": m.grid.nx, "cells": cells, "threads": threads, "s_per_step": med,
-            "cell_steps_per_s": cells / med, "picard_iterations_mean": statistics.mean(its),
-            "s_per_picard_iteration": med / max(statistics.mean(its), 1.0),
-            "pressure_iterations_median": statistics.median(log["pressure_iterations"]),
-            "viscous_iterations_median": statistics.median(log["viscous_iterations"])}
+    return {
+        "case": "column-fluidised",
+        "model": model,
+        "ny": ny,
+        "nx": m.grid.nx,
+        "cells": cells,
+        "threads": threads,
+        "s_per_step": med,
+        "cell_steps_per_s": cells / med,
+        "picard_iterations_mean": statistics.mean(its),
+        "s_per_picard_iteration": med / max(statistics.mean(its), 1.0),
+        "pressure_iterations_median": statistics.median(log["pressure_iterations"]),
+        "viscous_iterations_median": statistics.median(log["viscous_iterations"]),
+    }
 
 
-def window_cost(ny: int, length: float, model: str, band: int | None, steps: int, repeats: int,
-                sides: str = "walls") -> dict:
+def window_cost(
+    ny: int, length: float, model: str, band: int | None, steps: int, repeats: int, sides: str = "walls"
+) -> dict:
     """Cost per step of the column's steps 11–30 on a channel of `length` m: with the active
     region the cost should follow the granular area (fixed here), not the domain."""
     from granrs import ActiveRegion
@@ -86,9 +114,17 @@ def window_cost(ny: int, length: float, model: str, band: int | None, steps: int
         t0 = time.perf_counter()
         m.advance(max_steps=steps)
         times.append((time.perf_counter() - t0) / steps)
-    return {"case": "column-window", "model": model, "ny": ny, "length_m": length, "nx": m.grid.nx,
-            "cells": m.grid.nx * m.grid.ny, "active_region": band, "active_region_sides": sides if band else None,
-            "s_per_step": statistics.median(times)}
+    return {
+        "case": "column-window",
+        "model": model,
+        "ny": ny,
+        "length_m": length,
+        "nx": m.grid.nx,
+        "cells": m.grid.nx * m.grid.ny,
+        "active_region": band,
+        "active_region_sides": sides if band else None,
+        "s_per_step": statistics.median(times),
+    }
 
 
 def slope(rows: list, key: str) -> float:
@@ -110,23 +146,40 @@ def main() -> None:
     ap.add_argument("--column", action="store_true")
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--ny", type=int, nargs="+", default=[23, 32, 45, 64, 90, 128, 181, 256, 362])
-    ap.add_argument("--model", default="two-phase", choices=["two-phase", "granular"],
-                    help="--column: the 2D model whose step is timed (granular: the granular-only model)")
-    ap.add_argument("--repeats", type=int, default=None, help="--column: repeats per point (default 3 up to ny = 128, else 1)")
-    ap.add_argument("--window", action="store_true",
-                    help="cost per step against the channel length, whole domain and active region")
+    ap.add_argument(
+        "--model",
+        default="two-phase",
+        choices=["two-phase", "granular"],
+        help="--column: the 2D model whose step is timed (granular: the granular-only model)",
+    )
+    ap.add_argument(
+        "--repeats", type=int, default=None, help="--column: repeats per point (default 3 up to ny = 128, else 1)"
+    )
+    ap.add_argument(
+        "--window", action="store_true", help="cost per step against the channel length, whole domain and active region"
+    )
     ap.add_argument("--band", type=int, default=8, help="--window: the active region's band in cells (default 8)")
-    ap.add_argument("--sides", default="walls", choices=granrs.model.ACTIVE_REGION_SIDES,
-                    help="--window: the window's sides (open ones: the two-phase model only)")
+    ap.add_argument(
+        "--sides",
+        default="walls",
+        choices=granrs.model.ACTIVE_REGION_SIDES,
+        help="--window: the window's sides (open ones: the two-phase model only)",
+    )
     args = ap.parse_args()
     if args.window:
         rows = []
         for model in ("two-phase", "granular") if args.sides == "walls" else ("two-phase",):
             for band in (None, args.band):
                 for length in (3.6, 7.2, 14.4):
-                    rows.append(window_cost(64, length, model, band, steps=20, repeats=args.repeats or 3, sides=args.sides))
+                    rows.append(
+                        window_cost(64, length, model, band, steps=20, repeats=args.repeats or 3, sides=args.sides)
+                    )
                     print(json.dumps(rows[-1]), flush=True)
-        out = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()}, "version": info["version"], "rows": rows}
+        out = {
+            "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()},
+            "version": info["version"],
+            "rows": rows,
+        }
         Path(args.out or "benchmarks/window_scaling.json").write_text(json.dumps(out, indent=2) + "\n")
         return
     if args.column:
@@ -143,8 +196,12 @@ def main() -> None:
                 fits[f"slope_s_per_step_{threads}t"] = slope(sel, "s_per_step")
                 fits[f"slope_s_per_picard_iteration_{threads}t"] = slope(sel, "s_per_picard_iteration")
         print(json.dumps(fits))
-        out = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()}, "version": info["version"],
-               "rows": rows, "fits": fits}
+        out = {
+            "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()},
+            "version": info["version"],
+            "rows": rows,
+            "fits": fits,
+        }
         Path(args.out or "benchmarks/column_scaling.json").write_text(json.dumps(out, indent=2) + "\n")
         return
     args.out = args.out or "benchmarks/results.json"
@@ -155,7 +212,11 @@ def main() -> None:
             steps = max(10, int(2e6 / (n * n)))
             rows.append(cavity_cost(n, threads, steps, repeats=3))
             print(json.dumps(rows[-1]))
-    out = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()}, "version": info["version"], "rows": rows}
+    out = {
+        "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform()},
+        "version": info["version"],
+        "rows": rows,
+    }
     Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
 
 

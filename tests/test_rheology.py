@@ -176,6 +176,7 @@ def test_a_picard_cycle_is_broken_within_two_windows_of_each_halving():
     # the cycle itself: increments four iterations apart equal to 1e-3 before the first halving
     assert np.allclose(hist[10:22], hist[14:26], rtol=1e-3)
 
+
 # ---- cavity ----------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def cavity16():
