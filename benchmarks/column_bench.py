@@ -12,7 +12,9 @@ import argparse
 
 def warm_column_model(args: argparse.Namespace):
     """The column's Rust model of ``args`` (ny, threads, model, dry, active_region, sides),
-    advanced by ``args.warmup`` steps. Refuses a debug build."""
+    restored from ``args.restart`` (a run's checkpoint.npz of the same case, if given: the
+    steps then start at a late state of the collapse, with its larger window and iteration
+    counts) and advanced by ``args.warmup`` steps. Refuses a debug build."""
     import granrs
     from granrs import ActiveRegion
     from granrs.cases.column import ColumnCase, build_model
@@ -23,6 +25,10 @@ def warm_column_model(args: argparse.Namespace):
     if args.active_region is not None:
         kw.update(active_region=ActiveRegion(args.active_region, sides=args.sides))
     m = build_model(ColumnCase(**kw))
+    if getattr(args, "restart", None):
+        from granrs.io import restore_checkpoint
+
+        restore_checkpoint(m, args.restart)
     m.advance(max_steps=args.warmup)
     return m
 

@@ -2,7 +2,8 @@
 that every step reports (``Model.step()['stage_seconds']``, models/step.rs).
 
     .venv/bin/python benchmarks/stage_profile.py --ny 64 [--dry] [--model two-phase|granular]
-        [--threads 1] [--warmup 10] [--steps 30] [--active-region B --sides S] [--out FILE.json]
+        [--threads 1] [--warmup 10] [--steps 30] [--active-region B --sides S] [--restart CHECKPOINT]
+        [--out FILE.json]
 
 The column of ``granrs.cases.column`` is built, advanced ``--warmup`` steps, then stepped
 ``--steps`` times one step at a time; the table gives each stage's mean seconds per step and
@@ -85,6 +86,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--active-region", type=int, default=None)
     ap.add_argument("--sides", default="open-right-top")
+    ap.add_argument("--restart", default=None, help="start from this checkpoint.npz of the same case")
     ap.add_argument("--observe", action="store_true", help="also time the run's observation once per step")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()

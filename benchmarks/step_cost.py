@@ -3,7 +3,7 @@ costs per step on the same steps of the same run, and from it an estimate of a w
 
     .venv/bin/python benchmarks/step_cost.py --base DIR [--ny 64 128 256] [--model two-phase granular]
         [--threads 1 2] [--warmup 10] [--steps 20] [--rounds 3] [--active-region 16 --sides open-right-top]
-        [--out benchmarks/step_cost.json]
+        [--restart CHECKPOINT] [--out benchmarks/step_cost.json]
 
 ``DIR`` holds the baseline build's ``granrs`` package (for example the tree of another commit,
 built with ``maturin build --release`` and its wheel unpacked into DIR); the build under test is
@@ -88,6 +88,8 @@ def measure(build: str | None, case: dict, args: argparse.Namespace) -> dict:
         cmd.append("--dry")
     if args.active_region is not None:
         cmd += ["--active-region", str(args.active_region), "--sides", args.sides]
+    if args.restart:
+        cmd += ["--restart", args.restart]
     r = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
     if r.returncode != 0:
         raise SystemExit(f"worker failed ({' '.join(cmd)}):\n{r.stderr}")
@@ -107,6 +109,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--active-region", type=int, default=None)
     ap.add_argument("--sides", default="open-right-top")
+    ap.add_argument("--restart", default=None, help="start from this checkpoint.npz of the same case")
     ap.add_argument("--steps-total", type=int, default=None)
     ap.add_argument("--wall-total", type=float, default=None)
     ap.add_argument("--out", default=None)

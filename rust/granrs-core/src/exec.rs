@@ -2,9 +2,10 @@
 //!
 //! Kernels never decide the thread count themselves: a model owns a `rayon::ThreadPool` of the
 //! user's `threads` and runs its step inside `pool.install`, passing `Exec::parallel(..)` down.
-//! Work is always split into fixed blocks of rows ([`ROW_BLOCK`]), independent of the number of
-//! threads, and reductions add the per-block partial results in block order: one thread and many
-//! threads give bit-identical answers.
+//! Reductions split the work into fixed blocks of rows ([`ROW_BLOCK`]), independent of the
+//! number of threads, and add the per-block partial results in block order; sweeps without a
+//! reduction write each row independently and are split into tasks of [`task_rows`] rows. One
+//! thread and many threads give bit-identical answers.
 
 use rayon::prelude::*;
 
@@ -19,6 +20,21 @@ const STACK_BLOCKS: usize = 512;
 /// Below this many cells a kernel runs serially even when parallel execution is allowed:
 /// the rayon overhead would dominate.
 pub const PARALLEL_MIN_CELLS: usize = 4096;
+
+/// Cells per parallel task of a sweep without reduction ([`Exec::for_each_row`],
+/// [`Exec::max_each_row`]): a task is [`ROW_BLOCK`] rows, or fewer rows of at least this many
+/// cells when the rows are long. An active window of a few dozen rows of 2 000 cells then still
+/// splits into some thirty tasks that balance the threads, where blocks of eight rows would
+/// leave one thread a block more than the other. Such sweeps write each row independently of
+/// the others, so the split does not change a bit of the result.
+pub const TASK_CELLS: usize = 4096;
+
+/// Rows per task of a sweep without reduction over rows of `stride` values: between 1 and
+/// [`ROW_BLOCK`], at least [`TASK_CELLS`] cells where the rows allow it.
+#[inline]
+pub fn task_rows(stride: usize) -> usize {
+    TASK_CELLS.div_ceil(stride.max(1)).clamp(1, ROW_BLOCK)
+}
 
 /// How a kernel runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,9 +65,10 @@ impl Exec {
         F: Fn(usize, &mut [f64]) + Sync + Send,
     {
         if self.use_parallel(data.len()) {
-            data.par_chunks_mut(stride * ROW_BLOCK).enumerate().for_each(|(b, block)| {
+            let rows = task_rows(stride);
+            data.par_chunks_mut(stride * rows).enumerate().for_each(|(b, block)| {
                 for (r, row) in block.chunks_mut(stride).enumerate() {
-                    f(b * ROW_BLOCK + r, row);
+                    f(b * rows + r, row);
                 }
             });
         } else {
@@ -69,9 +86,10 @@ impl Exec {
         F: Fn(usize, &mut [f64]) -> f64 + Sync + Send,
     {
         if self.use_parallel(data.len()) {
-            data.par_chunks_mut(stride * ROW_BLOCK)
+            let rows = task_rows(stride);
+            data.par_chunks_mut(stride * rows)
                 .enumerate()
-                .map(|(b, block)| block.chunks_mut(stride).enumerate().fold(f64::NEG_INFINITY, |m, (r, row)| max_nan(m, f(b * ROW_BLOCK + r, row))))
+                .map(|(b, block)| block.chunks_mut(stride).enumerate().fold(f64::NEG_INFINITY, |m, (r, row)| max_nan(m, f(b * rows + r, row))))
                 .reduce(|| f64::NEG_INFINITY, max_nan)
         } else {
             data.chunks_mut(stride).enumerate().fold(f64::NEG_INFINITY, |m, (r, row)| max_nan(m, f(r, row)))

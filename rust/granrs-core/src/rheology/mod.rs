@@ -71,6 +71,25 @@ pub enum RheologyLaw {
     },
 }
 
+/// A law's yield stress against the pressure: `constant` (Bingham), or `slope` · p⁺ (the
+/// friction coefficient tan α of Drucker–Prager, μ_s of μ(I)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct YieldStress {
+    constant: f64,
+    slope: Option<f64>,
+}
+
+impl YieldStress {
+    /// The yield stress at pressure `p` [Pa].
+    #[inline]
+    pub fn at(&self, p: f64) -> f64 {
+        match self.slope {
+            Some(s) => s * p.max(0.0),
+            None => self.constant,
+        }
+    }
+}
+
 impl RheologyLaw {
     /// Name used in Python and the docs.
     pub fn name(&self) -> &'static str {
@@ -95,11 +114,19 @@ impl RheologyLaw {
     /// Yield stress of the pure dense phase at pressure `p` (before the H_ε(Φ) factor).
     #[inline]
     pub fn yield_stress(&self, p: f64) -> f64 {
+        self.yield_stress_fn().at(p)
+    }
+
+    /// The law's yield stress as a function of the pressure with its constant (tan α of
+    /// Drucker–Prager) evaluated once, for loops over cells: the values of
+    /// [`RheologyLaw::yield_stress`] bit for bit.
+    #[inline]
+    pub fn yield_stress_fn(&self) -> YieldStress {
         match *self {
-            RheologyLaw::Newtonian => 0.0,
-            RheologyLaw::Bingham { yield_stress } => yield_stress,
-            RheologyLaw::DruckerPrager { friction_angle } => friction_angle.to_radians().tan() * p.max(0.0),
-            RheologyLaw::MuI { mu_s, .. } => mu_s * p.max(0.0),
+            RheologyLaw::Newtonian => YieldStress { constant: 0.0, slope: None },
+            RheologyLaw::Bingham { yield_stress } => YieldStress { constant: yield_stress, slope: None },
+            RheologyLaw::DruckerPrager { friction_angle } => YieldStress { constant: 0.0, slope: Some(friction_angle.to_radians().tan()) },
+            RheologyLaw::MuI { mu_s, .. } => YieldStress { constant: 0.0, slope: Some(mu_s) },
         }
     }
 

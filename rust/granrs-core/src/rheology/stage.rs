@@ -187,6 +187,7 @@ impl RheologyState {
         cell_to_node(input.p, &mut self.p_n, exec);
         cell_to_node(input.phi, &mut self.phi_n, exec);
         let law = rc.law;
+        let yield_stress = law.yield_stress_fn();
         let iy = rc.interface_yield;
         let hv = |phi: f64| if two_phase { heaviside(iy.shift(phi, eps), eps) } else { 1.0 };
         // the pressure the yield stress reads: p, or p − p_s (YieldPressure::SurfaceAir)
@@ -203,7 +204,7 @@ impl RheologyState {
             for_each_interior_row(exec, tau, |j, row| {
                 let b = (j + HALO) * st + HALO;
                 for i in 0..n {
-                    row[HALO + i] = law.yield_stress(ps[b + i] - p_s) * hv(fs[b + i]);
+                    row[HALO + i] = yield_stress.at(ps[b + i] - p_s) * hv(fs[b + i]);
                 }
             });
         }
@@ -232,7 +233,7 @@ impl RheologyState {
             let treatment = rc.treatment;
             let eta = |d: f64, p: f64, phi: f64| {
                 let p = p - p_s;
-                let tau = law.yield_stress(p);
+                let tau = yield_stress.at(p);
                 let ed = dense_viscosity + law.extra_viscosity(d, p) + treatment.regularised_viscosity(tau, d, dense_viscosity);
                 if two_phase {
                     let h = heaviside(phi, eps);

@@ -12,6 +12,7 @@ use super::par;
 use super::{SolveInfo, SolverSettings};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
+use crate::operators::sums_by_row;
 
 /// Name used in errors.
 pub(crate) const SOLVER: &str = "multigrid-preconditioned CG";
@@ -29,8 +30,6 @@ pub(crate) struct CgWork {
     pub d: Vec<f64>,
     /// A d.
     pub q: Vec<f64>,
-    /// Per-block partial sums.
-    pub partials: Vec<[f64; 2]>,
     /// Per-block partial sums (single component).
     pub partials1: Vec<[f64; 1]>,
 }
@@ -39,32 +38,28 @@ impl CgWork {
     /// Work arrays for an `nx × ny` grid.
     pub fn new(nx: usize, ny: usize) -> Self {
         let n = nx * ny;
-        CgWork {
-            rhs: vec![0.0; n],
-            r: vec![0.0; n],
-            z: vec![0.0; n],
-            d: vec![0.0; n],
-            q: vec![0.0; n],
-            partials: vec![[0.0; 2]; par::n_blocks(ny)],
-            partials1: vec![[0.0; 1]; par::n_blocks(ny)],
-        }
+        CgWork { rhs: vec![0.0; n], r: vec![0.0; n], z: vec![0.0; n], d: vec![0.0; n], q: vec![0.0; n], partials1: vec![[0.0; 1]; par::n_blocks(ny)] }
     }
 }
 
-/// Deterministic dot product of two row-major arrays with rows of length `nx`.
+/// Deterministic dot product of two row-major arrays with rows of length `nx`: each row's
+/// products added left to right, the rows in order within blocks of
+/// [`ROW_BLOCK`](crate::exec::ROW_BLOCK) rows, the blocks in order ([`par::sum_row_blocks`];
+/// four rows' sums in one loop by [`sums_by_row`]).
 pub(crate) fn dot(exec: Exec, a: &[f64], b: &[f64], nx: usize, partials: &mut [[f64; 1]]) -> f64 {
     let ny = a.len() / nx;
-    let [s] = par::sum_rows(exec, ny, a.len(), partials, |j| {
-        let (ra, rb) = (&a[j * nx..(j + 1) * nx], &b[j * nx..(j + 1) * nx]);
-        [ra.iter().zip(rb).map(|(x, y)| x * y).sum()]
+    let [s] = par::sum_row_blocks(exec, ny, a.len(), partials, |j0, out| {
+        sums_by_row(out, nx, |k| [&a[(j0 + k) * nx..], &b[(j0 + k) * nx..]], |[x, y]| [x * y]);
     });
     s
 }
 
-/// Deterministic sum of a row-major array with rows of length `nx`.
+/// Deterministic sum of a row-major array with rows of length `nx` (the order of [`dot`]).
 pub(crate) fn sum(exec: Exec, a: &[f64], nx: usize, partials: &mut [[f64; 1]]) -> f64 {
     let ny = a.len() / nx;
-    let [s] = par::sum_rows(exec, ny, a.len(), partials, |j| [a[j * nx..(j + 1) * nx].iter().sum()]);
+    let [s] = par::sum_row_blocks(exec, ny, a.len(), partials, |j0, out| {
+        sums_by_row(out, nx, |k| [&a[(j0 + k) * nx..]], |[x]| [x]);
+    });
     s
 }
 
@@ -97,17 +92,15 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
     let mut iterations = 0;
     while iterations < max_iterations {
         iterations += 1;
-        // q = A d and d·q in one pass.
+        // q = A d and d·q in one pass over each block of rows.
         let level = &mg.levels[0];
         let d = &w.d;
-        let [dq, _] = par::rows_sum(exec, &mut w.q, nx, &mut w.partials, |j, row| {
-            let dr = &d[j * nx..(j + 1) * nx];
-            let mut s = 0.0;
-            level.stencil_row(j, d, |i, v| {
-                row[i] = v;
-                s += dr[i] * v;
-            });
-            [s, 0.0]
+        let [dq] = par::write_row_blocks(exec, &mut w.q, nx, &mut w.partials1, |j0, qb, out| {
+            for (k, row) in qb.chunks_mut(nx).enumerate() {
+                level.apply_row(j0 + k, d, row);
+            }
+            let qb = &*qb;
+            sums_by_row(out, nx, |k| [&d[(j0 + k) * nx..], &qb[k * nx..]], |[dv, qv]| [dv * qv]);
         });
         if !(dq > 0.0 && dq.is_finite()) {
             return Err(Error::SolverFailure {
@@ -116,18 +109,13 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
             });
         }
         let alpha = rho / dq;
-        // x += α d, r −= α q, and ‖r‖² in one pass.
+        // x += α d, r −= α q, and ‖r‖² in one pass over each block of rows.
         let (d, q) = (&w.d, &w.q);
-        let rr = rows_update(exec, x, &mut w.r, nx, &mut w.partials, |j, xr, rrow| {
-            let (dr, qr) = (&d[j * nx..(j + 1) * nx], &q[j * nx..(j + 1) * nx]);
-            let mut s = 0.0;
-            for i in 0..xr.len() {
-                xr[i] += alpha * dr[i];
-                let r = rrow[i] - alpha * qr[i];
-                rrow[i] = r;
-                s += r * r;
-            }
-            s
+        let [rr] = par::write2_row_blocks(exec, x, &mut w.r, nx, &mut w.partials1, |j0, xb, rb, out| {
+            let span = j0 * nx..j0 * nx + xb.len();
+            update_rows(alpha, &d[span.clone()], &q[span], xb, rb);
+            let rb = &*rb;
+            sums_by_row(out, nx, |k| [&rb[k * nx..]], |[r]| [r * r]);
         });
         rel = rr.sqrt() / bnorm;
         if !rel.is_finite() {
@@ -181,33 +169,43 @@ fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec, 
     }
 }
 
-/// Runs `f(j, a_row, b_row)` on every row of two arrays and returns the deterministic sum of its
-/// results (per-block partial sums added in block order).
-fn rows_update<F>(exec: Exec, a: &mut [f64], b: &mut [f64], nx: usize, partials: &mut [[f64; 2]], f: F) -> f64
-where
-    F: Fn(usize, &mut [f64], &mut [f64]) -> f64 + Sync + Send,
-{
-    use rayon::prelude::*;
-    let rows = crate::exec::ROW_BLOCK * nx;
-    let nb = par::n_blocks(a.len() / nx);
-    let partials = &mut partials[..nb];
-    let block = |blk: usize, ca: &mut [f64], cb: &mut [f64]| -> f64 {
-        let mut s = 0.0;
-        for (r, (ra, rb)) in ca.chunks_mut(nx).zip(cb.chunks_mut(nx)).enumerate() {
-            s += f(blk * crate::exec::ROW_BLOCK + r, ra, rb);
-        }
-        s
-    };
-    if exec.use_parallel(a.len()) {
-        a.par_chunks_mut(rows)
-            .zip(b.par_chunks_mut(rows))
-            .zip(partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(blk, ((ca, cb), out))| out[0] = block(blk, ca, cb));
-    } else {
-        for (blk, ((ca, cb), out)) in a.chunks_mut(rows).zip(b.chunks_mut(rows)).zip(partials.iter_mut()).enumerate() {
-            out[0] = block(blk, ca, cb);
+crate::multiversion! {
+    /// The CG update of a block of rows: x += α d, r −= α q.
+    fn update_rows / update_rows_base(alpha: f64, d: &[f64], q: &[f64], x: &mut [f64], r: &mut [f64]) {
+        let n = x.len();
+        let (d, q, r) = (&d[..n], &q[..n], &mut r[..n]);
+        for i in 0..n {
+            x[i] += alpha * d[i];
+            r[i] -= alpha * q[i];
         }
     }
-    partials.iter().map(|p| p[0]).fold(0.0, |acc, v| acc + v)
+}
+
+#[cfg(test)]
+mod tests {
+    //! The dot product by blocks of rows against its definition, bit for bit.
+    use super::*;
+    use crate::exec::ROW_BLOCK;
+
+    /// Each row's products added left to right from 0, the rows of a block in order from 0, the
+    /// blocks in order from 0.
+    fn dot_by_definition(a: &[f64], b: &[f64], nx: usize) -> f64 {
+        let rows: Vec<f64> = a.chunks(nx).zip(b.chunks(nx)).map(|(x, y)| x.iter().zip(y).fold(0.0, |s, (p, q)| s + p * q)).collect();
+        rows.chunks(ROW_BLOCK).map(|blk| blk.iter().fold(0.0, |s, v| s + v)).fold(0.0, |s, v| s + v)
+    }
+
+    #[test]
+    fn dot_is_its_definition_bit_for_bit_on_one_and_two_threads() {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        for (nx, ny) in [(1, 1), (3, 5), (257, 23), (130, 64)] {
+            let wave = |k: usize, f: f64| (f * k as f64).sin() * 10f64.powi((k % 7) as i32 - 3);
+            let a: Vec<f64> = (0..nx * ny).map(|k| wave(k, 0.77)).collect();
+            let b: Vec<f64> = (0..nx * ny).map(|k| wave(k, 1.31)).collect();
+            let want = dot_by_definition(&a, &b, nx);
+            let mut partials = vec![[0.0]; par::n_blocks(ny)];
+            assert_eq!(dot(Exec::SERIAL, &a, &b, nx, &mut partials).to_bits(), want.to_bits(), "{nx} x {ny}");
+            let par = pool.install(|| dot(Exec::with_threads(2), &a, &b, nx, &mut partials));
+            assert_eq!(par.to_bits(), want.to_bits(), "{nx} x {ny}, two threads");
+        }
+    }
 }

@@ -187,13 +187,29 @@ impl Level {
         emit(i, dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i]);
     }
 
-    /// r = b − A x.
+    /// r = b − A x (the values of [`Level::stencil_row`], row by row by [`Level::residual_range`]).
     pub fn residual(&self, x: &[f64], b: &[f64], r: &mut [f64], exec: Exec) {
         let nx = self.nx;
-        exec.for_each_row(r, nx, |j, row| {
-            let br = &b[j * nx..(j + 1) * nx];
-            self.stencil_row(j, x, |i, v| row[i] = br[i] - v)
-        });
+        exec.for_each_row(r, nx, |j, row| self.residual_range(j, x, b, 0, nx, row));
+    }
+
+    /// (A p) on row `j` into `out` (nx values): the values of [`Level::stencil_row`] bit for bit,
+    /// the interior cells by a vectorised kernel on contiguous slices.
+    pub fn apply_row(&self, j: usize, p: &[f64], out: &mut [f64]) {
+        let nx = self.nx;
+        debug_assert!(out.len() == nx);
+        let row = self.row_views(j, p);
+        let StencilRow { pc, ps, pn, cxr, cys, cyn, dg } = row;
+        if nx == 1 {
+            out[0] = dg[0] * pc[0] - cys[0] * ps[0] - cyn[0] * pn[0];
+            return;
+        }
+        out[0] = dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0];
+        if nx > 2 {
+            apply_span(&mut out[1..nx - 1], &row, 1);
+        }
+        let i = nx - 1;
+        out[i] = dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i];
     }
 
     /// One red–black Gauss–Seidel sweep: a half-sweep over the cells of colour `first`
@@ -204,8 +220,8 @@ impl Level {
     /// half-sweep starts from x = 0 (x need not be initialised).
     ///
     /// Both half-sweeps are fused to read the arrays once: serially as a wavefront (colour
-    /// `first` on row j, then the other colour on row j − 1); in parallel by blocks of
-    /// [`SMOOTH_BLOCK`] rows, each doing colour `first` on all its rows and the other colour on
+    /// `first` on row j, then the other colour on row j − 1); in parallel by the blocks of
+    /// [`smooth_blocks`] (at most [`SMOOTH_BLOCK`] rows), each doing colour `first` on all its rows and the other colour on
     /// its interior rows, then, after all blocks are done, the other colour on the first and last
     /// row of every block (they depend on the neighbouring blocks).
     pub fn smooth(&self, x: &mut [f64], b: &[f64], first: usize, from_zero: bool, exec: Exec) {
@@ -226,8 +242,9 @@ impl Level {
             }
             return;
         }
+        let blocks = smooth_blocks(ny, rayon::current_num_threads());
         // Phase A: colour `first` on every row of the block, the other colour on its interior rows.
-        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| {
+        par::for_balanced_blocks(exec, ny, nx * ny, blocks, |rows| {
             // SAFETY: this block writes colour `first` in its rows and the other colour in its
             // interior rows (start+1 ..= end−2). Other blocks read, in this phase, only the other
             // colour of this block's first and last rows, which nobody writes in this phase; the
@@ -243,7 +260,7 @@ impl Level {
             }
         });
         // Phase B: the other colour on the first and last row of every block.
-        par::for_blocks_of(exec, ny, nx * ny, SMOOTH_BLOCK, |rows| {
+        par::for_balanced_blocks(exec, ny, nx * ny, blocks, |rows| {
             // SAFETY: blocks write the other colour in their own first and last rows and read
             // only colour `first`, which nobody writes in this phase.
             unsafe {
@@ -391,12 +408,38 @@ crate::multiversion! {
     }
 }
 
+crate::multiversion! {
+    /// (A p) on the interior cells first ≤ i < first + out.len() of one row (1 ≤ first,
+    /// first + out.len() < nx): ((((d·pc − cw·pw) − ce·pe) − cs·ps) − cn·pn), the operations of
+    /// [`Level::stencil_row`] in its order.
+    fn apply_span / apply_span_base(out: &mut [f64], row: &StencilRow<'_>, first: usize) {
+        let (s, e) = (first, first + out.len());
+        let (d, cw, ce) = (&row.dg[s..e], &row.cxr[s..e], &row.cxr[s + 1..e + 1]);
+        let (pw, pc, pe) = (&row.pc[s - 1..e - 1], &row.pc[s..e], &row.pc[s + 1..e + 1]);
+        let (cs, ps, cn, pn) = (&row.cys[s..e], &row.ps[s..e], &row.cyn[s..e], &row.pn[s..e]);
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = d[k] * pc[k] - cw[k] * pw[k] - ce[k] * pe[k] - cs[k] * ps[k] - cn[k] * pn[k];
+        }
+    }
+}
+
 /// Fine cells per chunk of the restriction (two stack buffers of 2 KiB).
 const RESTRICT_CHUNK: usize = 256;
 
-/// Rows per block of the parallel red–black sweep (the smoother needs no reduction, so its block
-/// size only trades parallelism against the boundary rows of phase B).
+/// Most rows per block of the parallel red–black sweep. The smoother needs no reduction and its
+/// result does not depend on the blocks, so their size only trades parallelism against the
+/// boundary rows of phase B, which a second pass visits ([`smooth_blocks`]).
 pub(crate) const SMOOTH_BLOCK: usize = 16;
+
+/// The number of blocks of the parallel red–black sweep over `ny` rows on `threads` threads: a
+/// multiple of the threads, with at most [`SMOOTH_BLOCK`] rows each, so that every thread gets
+/// the same number of rows to within one per block. An active window of 65 rows on two threads
+/// makes 6 blocks of 10–11 rows (blocks of 16 rows would make 5, three for one thread and two
+/// for the other); the full grid of 256 rows makes 16 blocks of 16.
+pub(crate) fn smooth_blocks(ny: usize, threads: usize) -> usize {
+    let threads = threads.max(1);
+    threads * ny.div_ceil(threads * SMOOTH_BLOCK).max(1)
+}
 
 #[cfg(test)]
 mod tests {
@@ -472,6 +515,26 @@ mod tests {
                 assert_eq!(bits(&out), bits(&row[lo..hi]), "row {j}, cells {lo}..{hi}");
             }
         }
+    }
+
+    #[test]
+    fn apply_row_matches_the_stencil_on_every_row_length() {
+        for nx in [1, 2, 3, 37] {
+            let (level, _, x) = case(nx, 5);
+            for j in 0..5 {
+                let mut want = vec![0.0; nx];
+                level.stencil_row(j, &x, |i, v| want[i] = v);
+                let mut got = vec![f64::NAN; nx];
+                level.apply_row(j, &x, &mut got);
+                assert_eq!(bits(&got), bits(&want), "nx {nx}, row {j}");
+            }
+        }
+        let (level, _, x) = case(300, 3);
+        let row = level.row_views(1, &x);
+        let (mut a, mut c) = (vec![0.0; 298], vec![0.0; 298]);
+        apply_span(&mut a, &row, 1);
+        apply_span_base(&mut c, &row, 1);
+        assert_eq!(bits(&a), bits(&c));
     }
 
     #[test]

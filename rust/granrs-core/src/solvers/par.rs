@@ -1,10 +1,11 @@
 //! Row-block execution helpers of the pressure solvers.
 //!
-//! Every kernel of the solvers works on fixed blocks of [`ROW_BLOCK`] rows, whatever the number
-//! of threads, and every reduction adds per-block partial sums in block order into a buffer that
-//! was allocated once: one thread and many threads give bit-identical results, and `solve`
-//! allocates nothing. These helpers complement [`Exec::for_each_row`] (which they mirror) with
-//! reductions that also write, and with an index-only loop for the red–black smoother.
+//! Every reduction of the solvers works on fixed blocks of [`ROW_BLOCK`] rows, whatever the
+//! number of threads, and adds per-block partial sums in block order into a buffer that was
+//! allocated once: one thread and many threads give bit-identical results, and `solve`
+//! allocates nothing. These helpers complement [`Exec::for_each_row`] with reductions (also over
+//! passes that write) and with an index-only loop over balanced blocks for the red–black
+//! smoother, whose result does not depend on its blocks.
 
 use rayon::prelude::*;
 
@@ -16,56 +17,20 @@ pub(crate) fn n_blocks(nrows: usize) -> usize {
     nrows.div_ceil(ROW_BLOCK)
 }
 
-/// Runs `f(rows)` on every block of `block_rows` rows of `0..nrows`, in parallel when `exec`
-/// allows it for a grid of `cells` cells. Blocks are disjoint.
-pub(crate) fn for_blocks_of<F>(exec: Exec, nrows: usize, cells: usize, block_rows: usize, f: F)
+/// Runs `f(rows)` on `nblocks` disjoint blocks of consecutive rows that cover `0..nrows` (their
+/// sizes differ by at most one row), in parallel when `exec` allows it for a grid of `cells`
+/// cells.
+pub(crate) fn for_balanced_blocks<F>(exec: Exec, nrows: usize, cells: usize, nblocks: usize, f: F)
 where
     F: Fn(std::ops::Range<usize>) + Sync + Send,
 {
-    let nb = nrows.div_ceil(block_rows);
-    let block = |b: usize| b * block_rows..((b + 1) * block_rows).min(nrows);
+    let nb = nblocks.clamp(1, nrows.max(1));
+    let block = |b: usize| b * nrows / nb..(b + 1) * nrows / nb;
     if exec.use_parallel(cells) {
         (0..nb).into_par_iter().for_each(|b| f(block(b)));
     } else {
         (0..nb).for_each(|b| f(block(b)));
     }
-}
-
-/// Runs `f(row_index, row)` on every row of `data` (rows of length `stride`) and returns the
-/// deterministic sum of the values `f` returns: per-block partial sums are stored in `partials`
-/// (length ≥ number of blocks) and added in block order. Each component of the returned array is
-/// reduced the same way.
-pub(crate) fn rows_sum<const K: usize, F>(exec: Exec, data: &mut [f64], stride: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
-where
-    F: Fn(usize, &mut [f64]) -> [f64; K] + Sync + Send,
-{
-    let nrows = data.len() / stride;
-    let nb = n_blocks(nrows);
-    let partials = &mut partials[..nb];
-    let block = |b: usize, chunk: &mut [f64]| -> [f64; K] {
-        let mut s = [0.0; K];
-        for (r, row) in chunk.chunks_mut(stride).enumerate() {
-            let v = f(b * ROW_BLOCK + r, row);
-            for c in 0..K {
-                s[c] += v[c];
-            }
-        }
-        s
-    };
-    if exec.use_parallel(data.len()) {
-        data.par_chunks_mut(stride * ROW_BLOCK).zip(partials.par_iter_mut()).enumerate().for_each(|(b, (chunk, out))| *out = block(b, chunk));
-    } else {
-        for (b, (chunk, out)) in data.chunks_mut(stride * ROW_BLOCK).zip(partials.iter_mut()).enumerate() {
-            *out = block(b, chunk);
-        }
-    }
-    let mut total = [0.0; K];
-    for p in partials.iter() {
-        for c in 0..K {
-            total[c] += p[c];
-        }
-    }
-    total
 }
 
 /// Deterministic sum over rows `0..nrows` of `f(row)` (nothing written), with the same block
@@ -97,6 +62,101 @@ where
     for p in partials.iter() {
         for c in 0..K {
             total[c] += p[c];
+        }
+    }
+    total
+}
+
+/// The sum of [`sum_rows`] with the rows' sums made a block at a time: `f(j0, sums)` writes the
+/// sums of rows j0 .. j0 + sums.len() (each as [`sum_rows`]'s `f(j)` would return it;
+/// [`crate::operators::sums_by_row`] makes them four rows at a time with the bits of one fold
+/// per row); each block adds its rows' sums in row order from 0 and the blocks are added in block
+/// order, so that the result has the bits of [`sum_rows`] with the same rows' sums.
+pub(crate) fn sum_row_blocks<const K: usize, F>(exec: Exec, nrows: usize, cells: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
+where
+    F: Fn(usize, &mut [[f64; K]]) + Sync + Send,
+{
+    let nb = n_blocks(nrows);
+    let partials = &mut partials[..nb];
+    let block = |b: usize| -> [f64; K] {
+        let j0 = b * ROW_BLOCK;
+        let mut sums = [[0.0; K]; ROW_BLOCK];
+        let sums = &mut sums[..(nrows - j0).min(ROW_BLOCK)];
+        f(j0, sums);
+        add_in_order(sums)
+    };
+    if exec.use_parallel(cells) {
+        partials.par_iter_mut().enumerate().for_each(|(b, out)| *out = block(b));
+    } else {
+        for (b, out) in partials.iter_mut().enumerate() {
+            *out = block(b);
+        }
+    }
+    add_in_order(partials)
+}
+
+/// [`sum_row_blocks`] over a pass that writes a row-major array (rows of `nx` values): `f(j0,
+/// rows, sums)` writes the block's rows (from row j0) and their sums.
+pub(crate) fn write_row_blocks<const K: usize, F>(exec: Exec, a: &mut [f64], nx: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
+where
+    F: Fn(usize, &mut [f64], &mut [[f64; K]]) + Sync + Send,
+{
+    let nb = n_blocks(a.len() / nx);
+    let partials = &mut partials[..nb];
+    let chunk = ROW_BLOCK * nx;
+    let block = |blk: usize, ca: &mut [f64]| -> [f64; K] {
+        let mut sums = [[0.0; K]; ROW_BLOCK];
+        let sums = &mut sums[..ca.len() / nx];
+        f(blk * ROW_BLOCK, ca, sums);
+        add_in_order(sums)
+    };
+    if exec.use_parallel(a.len()) {
+        a.par_chunks_mut(chunk).zip(partials.par_iter_mut()).enumerate().for_each(|(blk, (ca, out))| *out = block(blk, ca));
+    } else {
+        for (blk, (ca, out)) in a.chunks_mut(chunk).zip(partials.iter_mut()).enumerate() {
+            *out = block(blk, ca);
+        }
+    }
+    add_in_order(partials)
+}
+
+/// [`sum_row_blocks`] over a pass that writes two row-major arrays (rows of `nx` values): `f(j0,
+/// a_rows, b_rows, sums)` writes the block's rows of `a` and `b` (from row j0) and their sums.
+pub(crate) fn write2_row_blocks<const K: usize, F>(exec: Exec, a: &mut [f64], b: &mut [f64], nx: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
+where
+    F: Fn(usize, &mut [f64], &mut [f64], &mut [[f64; K]]) + Sync + Send,
+{
+    let nrows = a.len() / nx;
+    let nb = n_blocks(nrows);
+    let partials = &mut partials[..nb];
+    let chunk = ROW_BLOCK * nx;
+    let block = |blk: usize, ca: &mut [f64], cb: &mut [f64]| -> [f64; K] {
+        let mut sums = [[0.0; K]; ROW_BLOCK];
+        let sums = &mut sums[..ca.len() / nx];
+        f(blk * ROW_BLOCK, ca, cb, sums);
+        add_in_order(sums)
+    };
+    if exec.use_parallel(a.len()) {
+        a.par_chunks_mut(chunk)
+            .zip(b.par_chunks_mut(chunk))
+            .zip(partials.par_iter_mut())
+            .enumerate()
+            .for_each(|(blk, ((ca, cb), out))| *out = block(blk, ca, cb));
+    } else {
+        for (blk, ((ca, cb), out)) in a.chunks_mut(chunk).zip(b.chunks_mut(chunk)).zip(partials.iter_mut()).enumerate() {
+            *out = block(blk, ca, cb);
+        }
+    }
+    add_in_order(partials)
+}
+
+/// The sum of `values` added in their order from 0.
+#[inline]
+fn add_in_order<const K: usize>(values: &[[f64; K]]) -> [f64; K] {
+    let mut total = [0.0; K];
+    for v in values {
+        for c in 0..K {
+            total[c] += v[c];
         }
     }
     total
