@@ -78,6 +78,16 @@ impl Exec {
         }
     }
 
+    /// `dst` = `src` (equal lengths), in tasks of [`TASK_CELLS`] values on the pool when large.
+    pub fn copy(self, dst: &mut [f64], src: &[f64]) {
+        assert_eq!(dst.len(), src.len(), "Exec::copy: lengths differ");
+        if self.use_parallel(dst.len()) {
+            dst.par_chunks_mut(TASK_CELLS).zip(src.par_chunks(TASK_CELLS)).for_each(|(d, s)| d.copy_from_slice(s));
+        } else {
+            dst.copy_from_slice(src);
+        }
+    }
+
     /// Runs `f(row_index, row)` on every row, as [`Exec::for_each_row`], and returns the largest
     /// of the values `f` returns (NaN propagates). A maximum is exact, so the result does not
     /// depend on the order of the rows or on the number of threads.

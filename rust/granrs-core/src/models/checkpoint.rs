@@ -23,11 +23,17 @@ impl TwoPhaseModel {
 
     /// [`TwoPhaseModel::checkpoint`] into `out`, reusing its buffers when it already holds a
     /// checkpoint of this model (no allocation then: the snapshot of every step with retries).
+    /// The copies run on the model's threads.
     pub fn checkpoint_into(&self, out: &mut Vec<StateEntry>) {
+        let exec = self.exec();
+        std::sync::Arc::clone(&self.pool).install(|| self.state_into(out, exec));
+    }
+
+    fn state_into(&self, out: &mut Vec<StateEntry>, exec: crate::exec::Exec) {
         let mut k = 0usize;
         let mut f = |name: &str, data: &[f64]| {
             match out.get_mut(k) {
-                Some((n, d)) if n == name && d.len() == data.len() => d.copy_from_slice(data),
+                Some((n, d)) if n == name && d.len() == data.len() => exec.copy(d, data),
                 Some(e) => *e = (name.to_string(), data.to_vec()),
                 None => out.push((name.to_string(), data.to_vec())),
             }

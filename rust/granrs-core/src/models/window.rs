@@ -67,6 +67,7 @@
 use super::active_region::{ActiveRegion, WindowSides};
 use super::two_phase::{ModelConfig, PressureGauge, TwoPhaseModel};
 use crate::error::{Error, Result};
+use crate::exec::Exec;
 use crate::grid::{Field, Grid, PressureBc, Side, VelocityBc, WindowState, HALO};
 use crate::time_stepping::StepInfo;
 use ndarray::s;
@@ -79,9 +80,11 @@ fn copy_block(src: &Field, dst: &mut Field) {
 }
 
 /// Copies `win`'s interior (low ghosts included) into the same block of `full`.
-fn copy_back(win: &Field, full: &mut Field) {
+fn copy_back(win: &Field, full: &mut Field, exec: Exec) {
     let (rows, cols) = (HALO + win.ny, HALO + win.nx);
-    full.data.slice_mut(s![0..rows, 0..cols]).assign(&win.data.slice(s![0..rows, 0..cols]));
+    let (ws, fs) = (win.data.dim().1, full.data.dim().1);
+    let src = win.slice();
+    exec.for_each_row(&mut full.slice_mut()[..rows * fs], fs, |j, row| row[..cols].copy_from_slice(&src[j * ws..j * ws + cols]));
 }
 
 /// Sets `f` to zero outside the interior block of a window of `nxw × nyw` cells.
@@ -179,7 +182,8 @@ impl TwoPhaseModel {
         let w = self.window.as_mut().expect("built above");
         w.time_to_land = self.time_to_land;
         let out = w.step_accepted();
-        self.copy_from_window();
+        let (pool, exec) = (std::sync::Arc::clone(&self.pool), self.exec());
+        pool.install(|| self.copy_from_window(exec));
         out
     }
 
@@ -247,16 +251,17 @@ impl TwoPhaseModel {
     }
 
     /// Copies the window's state (and its last step's diagnostics) back into this model.
-    fn copy_from_window(&mut self) {
+    /// The copies run on the model's threads (`exec`, inside its pool).
+    fn copy_from_window(&mut self, exec: Exec) {
         let w = self.window.take().expect("a window");
         for (src, dst) in flow_state(&w).into_iter().zip(flow_state_mut(self)) {
-            copy_back(src, dst);
+            copy_back(src, dst, exec);
         }
         let nx = self.config.grid.nx;
         copy_flat(w.pressure_increment(), w.config.grid.nx, self.pressure_increment_mut(), nx);
-        room_back(w.pore.as_ref(), self.pore.as_mut());
-        room_back(w.rheology.as_ref(), self.rheology.as_mut());
-        room_back(Some(&w.properties), Some(&mut self.properties));
+        room_back(w.pore.as_ref(), self.pore.as_mut(), exec);
+        room_back(w.rheology.as_ref(), self.rheology.as_mut(), exec);
+        room_back(Some(&w.properties), Some(&mut self.properties), exec);
         copy_clock(&w, self);
         self.properties.invalidate();
         self.pressure.density_changed();
@@ -292,13 +297,13 @@ fn crop_room<T: WindowState>(src: Option<&T>, dst: Option<&mut T>) {
 }
 
 /// A room's state and shown fields from the window's `win` back into the whole model's `full`.
-fn room_back<T: WindowState>(win: Option<&T>, full: Option<&mut T>) {
+fn room_back<T: WindowState>(win: Option<&T>, full: Option<&mut T>, exec: Exec) {
     if let (Some(a), Some(b)) = (win, full) {
         for (s, d) in a.state_fields().into_iter().zip(b.state_fields_mut()) {
-            copy_back(s, d);
+            copy_back(s, d, exec);
         }
         for (s, d) in a.shown_fields().into_iter().zip(b.shown_fields_mut()) {
-            copy_back(s, d);
+            copy_back(s, d, exec);
         }
         b.copy_other_state(a, true);
     }
