@@ -317,8 +317,7 @@ impl Redistancer {
         // stencil past the reach) the far field below overwrites whatever the iterations did
         // (it keeps only d ≤ τ − 2h). On the column at ny = 256 this is ~10 % of the domain.
         let tau = st.iterations as f64 * st.cfl * h;
-        let has_interface = sweep_distance(phi, &self.sub, grid, &mut self.dist);
-        let reach = if has_interface { tau + 3.0 * h } else { f64::INFINITY };
+        let reach = if sweep_distance(phi, &self.sub, grid, &mut self.dist) { tau + 3.0 * h } else { f64::INFINITY };
         let ctx = Ctx { phi0: &self.phi0, sub: &self.sub, frozen: &self.frozen, dist: &self.dist, reach, grid, cfl: st.cfl, band };
         let (phi1, phi2) = (&mut self.phi1, &mut self.phi2);
         for it in 0..st.iterations {
@@ -362,7 +361,7 @@ impl Redistancer {
         // phase's recirculation carries near-zero values of Φ from beside the interface to the far
         // field (seen under the lid of the column's channel), where transport noise flips their
         // sign into spurious granular droplets (+6–8 % dense area at ny = 32 by t = 3 s).
-        let far = if has_interface { self.far_field(phi, grid, (tau - 2.0 * h).max(h)) } else { 0 };
+        let far = self.far_field(phi, grid, (tau - 2.0 * h).max(h));
         phi.extrapolate_ghosts_linear();
         let prev = &self.prev;
         let (ps, qs, sp) = (phi.slice(), prev.slice(), phi.stride());
@@ -389,16 +388,11 @@ impl Redistancer {
     /// Sets Φ = sign(Φ⁰)·d where the fast-sweeping distance d to the interface cells (those next
     /// to a sign change of Φ⁰, at their current |Φ|) exceeds `keep`; returns how many cells.
     /// First-order Godunov update of |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice.
-    /// The sweep depends only on the interface cells' |Φ|: where the pseudo-time iterations left
-    /// every one of them as it was when `dist` was swept (the frozen cells of the closest-point
-    /// treatment), `dist` is that same distance and is used as it is.
     fn far_field(&mut self, phi: &mut Field, grid: &Grid, keep: f64) -> usize {
-        let d = if interface_unchanged(phi, &self.sub, &self.dist, grid) {
-            &self.dist
-        } else {
-            sweep_distance(phi, &self.sub, grid, &mut self.phi1);
-            &self.phi1
-        };
+        let d = &mut self.phi1;
+        if !sweep_distance(phi, &self.sub, grid, d) {
+            return 0;
+        }
         let mut count = 0;
         let st = phi.stride();
         let (ds, p0, ps) = (d.slice(), self.phi0.slice(), phi.slice_mut());
@@ -861,19 +855,6 @@ impl Ctx<'_> {
             }
         }
     }
-}
-
-/// Whether every interface cell (a finite sub-cell distance) still has |Φ| = d, the value
-/// [`sweep_distance`] gave it in `d`.
-fn interface_unchanged(phi: &Field, sub: &[Field; 4], d: &Field, grid: &Grid) -> bool {
-    let st = d.stride();
-    let [s0, s1, s2, s3] = [0, 1, 2, 3].map(|m| sub[m].slice());
-    let (ps, ds) = (phi.slice(), d.slice());
-    (0..grid.ny).all(|j| {
-        let b = (j + HALO) * st + HALO;
-        (b..b + grid.nx)
-            .all(|c| !(s0[c].is_finite() || s1[c].is_finite() || s2[c].is_finite() || s3[c].is_finite()) || ps[c].abs().to_bits() == ds[c].to_bits())
-    })
 }
 
 /// d ← the first-order distance to the interface cells (those with a finite sub-cell distance,
