@@ -26,8 +26,8 @@ pub mod stage;
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, PressureBc, Side, HALO};
-use crate::operators::{divergence, for_each_interior_row, max_speed, unknown_face_range};
-use crate::solvers::{PoissonSolver, SolveInfo, SolverSettings};
+use crate::operators::{divergence, for_each_interior_row, max_speed, sums_by_row, unknown_face_range};
+use crate::solvers::{par, PoissonSolver, SolveInfo, SolverSettings};
 
 pub use stage::{PressureStage, ProjectionInputs};
 
@@ -114,6 +114,19 @@ pub struct PressureProjection {
     work: Vec<f64>,
     div: Field,
     dp_field: Field,
+    /// Per-block partial sums of the norms (allocated once).
+    partials: Vec<[f64; 1]>,
+}
+
+/// Σ term(a_i, b_i) over two row-major arrays with rows of `nx` values, each row left to right,
+/// the rows and their blocks in order ([`par::sum_row_blocks`]: the same on any number of
+/// threads).
+fn row_sum(exec: Exec, nx: usize, partials: &mut [[f64; 1]], [a, b]: [&[f64]; 2], term: impl Fn([f64; 2]) -> f64 + Sync + Send) -> f64 {
+    let ny = a.len() / nx;
+    let [s] = par::sum_row_blocks(exec, ny, a.len(), partials, |j0, out| {
+        sums_by_row(out, nx, |k| [&a[(j0 + k) * nx..], &b[(j0 + k) * nx..]], |t| [term(t)]);
+    });
+    s
 }
 
 impl PressureProjection {
@@ -129,6 +142,7 @@ impl PressureProjection {
             dp: vec![0.0; n],
             work: vec![0.0; n],
             div: Field::zeros(grid, crate::Location::Centre),
+            partials: vec![[0.0]; par::n_blocks(grid.ny)],
             dp_field: Field::zeros(grid, crate::Location::Centre),
         })
     }
@@ -169,10 +183,14 @@ impl PressureProjection {
         let nx = grid.nx;
         divergence(u, v, grid, &mut self.div, exec);
         let scale = 1.0 / dt_over_a0;
-        for j in 0..grid.ny {
-            for i in 0..nx {
-                self.rhs[j * nx + i] = scale * self.div.at(i as isize, j as isize);
-            }
+        {
+            let (ds, st) = (self.div.slice(), self.div.stride());
+            exec.for_each_row(&mut self.rhs, nx, |j, row| {
+                let b = (j + HALO) * st + HALO;
+                for (r, d) in row.iter_mut().zip(&ds[b..b + nx]) {
+                    *r = scale * d;
+                }
+            });
         }
         // Round-off floor: when div ũ is below 1e-13 of the velocity scale over the cell size,
         // ũ is already divergence-free to machine precision and there is nothing to project
@@ -180,7 +198,7 @@ impl PressureProjection {
         let (umax, vmax) = max_speed(u, v, exec);
         let vel_scale = umax.max(vmax).max(f64::MIN_POSITIVE);
         let floor = 1e-13 * vel_scale / grid.h() * scale * (grid.cells() as f64).sqrt();
-        let rhs_norm = self.rhs.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let rhs_norm = row_sum(exec, nx, &mut self.partials, [&self.rhs, &self.rhs], |[f, _]| f * f).sqrt();
         if rhs_norm <= floor {
             return Ok(SolveInfo { iterations: 0, residual: 0.0, initial_residual: 0.0, rhs_mean_removed: 0.0 });
         }
@@ -197,7 +215,7 @@ impl PressureProjection {
         // increment, e.g. the pressure initialisation, it would leave a residual far above a
         // small right-hand side and a round-off floor the relative tolerance cannot pass).
         self.solver.apply(&self.dp, &mut self.work, exec);
-        let warm = self.rhs.iter().zip(&self.work).map(|(f, l)| (f - l) * (f - l)).sum::<f64>().sqrt();
+        let warm = row_sum(exec, nx, &mut self.partials, [&self.rhs, &self.work], |[f, l]| (f - l) * (f - l)).sqrt();
         if !(warm < rhs_norm) {
             self.dp.fill(0.0);
         }
