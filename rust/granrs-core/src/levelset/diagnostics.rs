@@ -71,6 +71,24 @@ impl<'a> Dual<'a> {
         }
     }
 
+    /// The values at dual nodes (a0 + k, b), k < out.len() (a0 + out.len() ≤ nx + 2): those of
+    /// [`Dual::value`], the interior nodes read from the row of Φ.
+    fn row(&self, b: usize, a0: usize, out: &mut [f64]) {
+        if b == 0 || b == self.ny + 1 {
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = self.value(a0 + k, b);
+            }
+            return;
+        }
+        let (p, nx) = (self.phi, self.nx);
+        let start = (b - 1 + crate::grid::HALO) * p.stride() + crate::grid::HALO;
+        let r = &p.slice()[start..start + nx];
+        for (k, o) in out.iter_mut().enumerate() {
+            let a = a0 + k;
+            *o = if (1..=nx).contains(&a) { r[a - 1] } else { self.value(a, b) };
+        }
+    }
+
     /// Position of dual node a along an axis of n cells of size d starting at o.
     #[inline]
     fn pos(a: usize, n: usize, o: f64, d: f64) -> f64 {
@@ -121,18 +139,28 @@ pub fn dense_area(phi: &Field, grid: &Grid, exec: Exec) -> f64 {
     exec.sum_rows(ny + 1, grid.cells(), |b| {
         let hy = Dual::pos(b + 1, ny, grid.y0, grid.dy) - Dual::pos(b, ny, grid.y0, grid.dy);
         let mut s = 0.0;
+        // the dual rows b and b + 1 a chunk of nodes at a time (the values of `Dual::value`);
         // the right corners of a dual cell are the left corners of the next one
-        let (mut f00, mut f01) = (d.value(0, b), d.value(0, b + 1));
-        for a in 0..=nx {
-            let hx = Dual::pos(a + 1, nx, grid.x0, grid.dx) - Dual::pos(a, nx, grid.x0, grid.dx);
-            let (f10, f11) = (d.value(a + 1, b), d.value(a + 1, b + 1));
-            let fraction = quad_fraction(f00, f10, f01, f11);
-            s += fraction * hx * hy;
-            (f00, f01) = (f10, f11);
+        let (mut lo, mut hi) = ([0.0; AREA_CHUNK + 1], [0.0; AREA_CHUNK + 1]);
+        let mut a0 = 0;
+        while a0 <= nx {
+            let m = AREA_CHUNK.min(nx + 1 - a0);
+            d.row(b, a0, &mut lo[..=m]);
+            d.row(b + 1, a0, &mut hi[..=m]);
+            for k in 0..m {
+                let a = a0 + k;
+                let hx = Dual::pos(a + 1, nx, grid.x0, grid.dx) - Dual::pos(a, nx, grid.x0, grid.dx);
+                let fraction = quad_fraction(lo[k], lo[k + 1], hi[k], hi[k + 1]);
+                s += fraction * hx * hy;
+            }
+            a0 += m;
         }
         s
     })
 }
+
+/// Dual cells per chunk of a row of [`dense_area`] (two stack buffers of 2 KiB).
+const AREA_CHUNK: usize = 256;
 
 /// Area of the dense phase with the bicubic refinement of the cut dual cells (`sub` sub-cells
 /// per side, clamped to [1, 16]; see the module docs).

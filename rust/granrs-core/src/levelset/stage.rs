@@ -95,7 +95,9 @@ impl Interface {
             return;
         }
         let eps = 1.5 * grid.h();
-        let length: f64 = phi.interior().iter().map(|&p| super::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
+        let (ps, st, nx) = (phi.slice(), phi.stride(), phi.nx);
+        let rows = (0..phi.ny).map(|j| &ps[(j + HALO) * st + HALO..(j + HALO) * st + HALO + nx]);
+        let length: f64 = rows.flat_map(|r| r.iter()).map(|&p| super::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
         if length <= 0.0 {
             return;
         }
