@@ -14,7 +14,9 @@ def warm_column_model(args: argparse.Namespace):
     """The column's Rust model of ``args`` (ny, threads, model, dry, active_region, sides),
     restored from ``args.restart`` (a run's checkpoint.npz of the same case, if given: the
     steps then start at a late state of the collapse, with its larger window and iteration
-    counts) and advanced by ``args.warmup`` steps. Refuses a debug build."""
+    counts), or advanced to ``args.at_time`` (a checkpoint of that state is kept in
+    ``args.cache`` and restored by the next call with the same case and time), then advanced by
+    ``args.warmup`` steps. Refuses a debug build."""
     import granrs
     from granrs import ActiveRegion
     from granrs.cases.column import ColumnCase, build_model
@@ -29,6 +31,8 @@ def warm_column_model(args: argparse.Namespace):
         from granrs.io import restore_checkpoint
 
         restore_checkpoint(m, args.restart)
+    elif getattr(args, "at_time", None):
+        at_time(m, kw, args)
     m.advance(max_steps=args.warmup)
     return m
 
@@ -49,3 +53,24 @@ def state_digest(m) -> str:
         if a is not None:
             h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()[:16]
+
+
+def at_time(m, kw: dict, args: argparse.Namespace) -> None:
+    """Advances ``m`` to ``args.at_time`` s, or restores it there from the checkpoint that an
+    earlier call left in ``args.cache`` (a folder; none: always advance). The checkpoint's name
+    holds the case's settings and the time; the thread count does not change the state."""
+    from pathlib import Path
+
+    from granrs.io import restore_checkpoint, save_checkpoint
+
+    key = "_".join(f"{k}-{v.band if k == 'active_region' else v}" for k, v in sorted(kw.items()) if k != "threads")
+    if "active_region" in kw:
+        key += f"-{kw['active_region'].sides}"
+    path = Path(args.cache) / f"column_{key}_t{args.at_time:g}.npz" if getattr(args, "cache", None) else None
+    if path is not None and path.exists():
+        restore_checkpoint(m, path)
+        return
+    m.advance(t_end=args.at_time)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_checkpoint(m, path)

@@ -87,6 +87,8 @@ def main() -> None:
     ap.add_argument("--active-region", type=int, default=None)
     ap.add_argument("--sides", default="open-right-top")
     ap.add_argument("--restart", default=None, help="start from this checkpoint.npz of the same case")
+    ap.add_argument("--at-time", type=float, default=None, help="start at this time of the run (s)")
+    ap.add_argument("--cache", default=None, help="folder keeping the state at --at-time between calls")
     ap.add_argument("--observe", action="store_true", help="also time the run's observation once per step")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
@@ -95,6 +97,7 @@ def main() -> None:
     n = args.steps
     step, rows, medians = profile(m, n, args.observe)
     cells = m.grid.nx * m.grid.ny
+    window = m.active_window
     print(
         f"column ny = {args.ny} ({m.grid.nx} x {m.grid.ny} = {cells} cells), {args.model}, "
         f"{'dry' if args.dry else 'fluidised'}, {args.threads} thread(s), steps {args.warmup + 1}-{args.warmup + n}, "
@@ -111,6 +114,8 @@ def main() -> None:
                 {
                     "args": vars(args),
                     "cells": cells,
+                    "window": list(window) if window else None,
+                    "time_s": m.time,
                     "s_per_step": step,
                     "stages_s": rows,
                     "iterations_median": medians,

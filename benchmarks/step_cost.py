@@ -90,6 +90,8 @@ def measure(build: str | None, case: dict, args: argparse.Namespace) -> dict:
         cmd += ["--active-region", str(args.active_region), "--sides", args.sides]
     if args.restart:
         cmd += ["--restart", args.restart]
+    if args.at_time is not None:
+        cmd += ["--at-time", str(args.at_time)] + (["--cache", args.cache] if args.cache else [])
     r = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
     if r.returncode != 0:
         raise SystemExit(f"worker failed ({' '.join(cmd)}):\n{r.stderr}")
@@ -110,6 +112,8 @@ def main() -> None:
     ap.add_argument("--active-region", type=int, default=None)
     ap.add_argument("--sides", default="open-right-top")
     ap.add_argument("--restart", default=None, help="start from this checkpoint.npz of the same case")
+    ap.add_argument("--at-time", type=float, default=None, help="start at this time of the run (s)")
+    ap.add_argument("--cache", default=None, help="folder keeping the state at --at-time between calls")
     ap.add_argument("--steps-total", type=int, default=None)
     ap.add_argument("--wall-total", type=float, default=None)
     ap.add_argument("--out", default=None)

@@ -147,7 +147,7 @@ impl TwoPhaseModel {
     fn step_pooled(&mut self) -> Result<StepInfo> {
         let exec = self.exec();
         let pool = std::sync::Arc::clone(&self.pool);
-        pool.install(|| self.step_stages(exec))
+        pool.install(|| crate::exec::with_active_workers(|| self.step_stages(exec)))
     }
 
     fn step_stages(&mut self, exec: Exec) -> Result<StepInfo> {
