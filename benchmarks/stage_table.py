@@ -62,9 +62,12 @@ def main() -> None:
     results = []
     for ny in args.ny:
         for dry in (False, True):
-            runs = {t: profile(ny, dry, t, args) for t in args.threads}
+            # the most threads first: the first call of a case advances it to --at-time
+            runs = {t: profile(ny, dry, t, args) for t in sorted(args.threads, reverse=True)}
+            runs = {t: runs[t] for t in sorted(runs)}
             results.append({"ny": ny, "dry": dry, "runs": {str(t): r for t, r in runs.items()}})
-            one = runs[args.threads[0]]
+            lo = min(runs)
+            one = runs[lo]
             wx, wy = one["window"] or (None, None)
             cells = wx * wy if wx else one["cells"]
             pass_s = {"L3": cells * 8 / (args.l3_gib_s * 2**30), "DRAM": cells * 8 / (args.dram_gib_s * 2**30)}
@@ -73,18 +76,22 @@ def main() -> None:
                 f"\n### ny = {ny}, {state}, t = {one['time_s']:.2f} s, window {wx} x {wy} ({cells} cells); "
                 f"medians per step: " + ", ".join(f"{k} {v:g}" for k, v in one["iterations_median"].items())
             )
-            head = " | ".join(f"{t} thread{'s' if t > 1 else ''} (ms)" for t in args.threads)
-            print(f"| stage | {head} | share ({args.threads[0]} thr.) | speed-up | passes at L3 / DRAM bandwidth ({args.threads[0]} thr.) |")
-            print("|---|" + "---|" * len(args.threads) + "---|---|---|")
+            head = " | ".join(f"{t} thread{'s' if t > 1 else ''} (ms)" for t in runs)
+            print(f"| stage | {head} | share ({lo} thr.) | speed-up | passes at L3 / DRAM bandwidth ({lo} thr.) |")
+            print("|---|" + "---|" * len(runs) + "---|---|---|")
             for k in (*STAGES, "binding"):
-                v = [runs[t]["stages_s"][k] for t in args.threads]
+                v = [runs[t]["stages_s"][k] for t in runs]
                 speed = f"{v[0] / v[-1]:.2f}" if v[-1] > 0 else "—"
                 cols = " | ".join(f"{x * 1e3:.2f}" for x in v)
                 share = 100 * v[0] / one["s_per_step"]
-                print(f"| {k} | {cols} | {share:.1f} % | {speed} | {v[0] / pass_s['L3']:.0f} / {v[0] / pass_s['DRAM']:.0f} |")
-            steps = [runs[t]["s_per_step"] for t in args.threads]
+                print(
+                    f"| {k} | {cols} | {share:.1f} % | {speed} | {v[0] / pass_s['L3']:.0f} / {v[0] / pass_s['DRAM']:.0f} |"
+                )
+            steps = [runs[t]["s_per_step"] for t in runs]
             cols = " | ".join(f"**{x * 1e3:.2f}**" for x in steps)
-            print(f"| **step** | {cols} | 100 % | {steps[0] / steps[-1]:.2f} | {steps[0] / pass_s['L3']:.0f} / {steps[0] / pass_s['DRAM']:.0f} |")
+            print(
+                f"| **step** | {cols} | 100 % | {steps[0] / steps[-1]:.2f} | {steps[0] / pass_s['L3']:.0f} / {steps[0] / pass_s['DRAM']:.0f} |"
+            )
     if args.out:
         Path(args.out).write_text(json.dumps({"args": vars(args), "results": results}, indent=2) + "\n")
 

@@ -149,7 +149,15 @@ pub const MODEL_OPTIONS: &[OptionSpec] = &[
         &["implicit", "explicit"],
         "the viscous term: implicit (CG solve) or explicit (stable for δt below the viscous limit)",
     ),
-    options::int("model", "threads", 1, 1, 1024, "threads", "size of the Rust thread pool (results are identical for any value)"),
+    options::int(
+        "model",
+        "threads",
+        1,
+        1,
+        1024,
+        "threads",
+        "size of the Rust thread pool, at most the free cores: its threads wait actively for work during a step (results are identical for any value)",
+    ),
     options::boolean("model", "convection", true, "whether ρ(u·∇)u is included (false: unsteady Stokes equations)"),
     options::choice(
         "model",

@@ -1,0 +1,96 @@
+"""Whole runs of the paper's reference case and of the granular-only rung for two builds of
+granrs, one after the other on the same machine: their wall times, step counts and run-outs,
+and the ratio of the wall times.
+
+    .venv/bin/python benchmarks/reference_runs.py --base DIR [--new DIR] [--cases reference granular]
+        [--threads 2] [--ny 256] [--out FILE.json]
+
+``DIR`` holds a build's ``granrs`` package (a wheel of another commit, built with ``maturin build
+--release`` and unpacked into DIR); ``--new`` likewise, or the build ``import granrs`` finds
+(``make install``). The cases (``granrs run column``, fluidised, to t = 3 s):
+
+* ``reference``: the paper's grid, ny = 256 (2048 × 256 cells), the two-phase model on the open
+  active window (``--active-region 16 --active-region-sides open-right-top``);
+* ``granular``: the granular-only model at ny = 256 on the whole domain (``--model granular``).
+
+Each run is a process of its own, the base build first; the table gives ``wall_s`` of each run's
+summary.json (the time inside the run, without the start-up and the plots) and the process's
+wall time. Both builds must reach the same step count and run-out (the column's answer bit for
+bit); a difference is reported.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+CASES = {
+    "reference": ["--active-region", "16", "--active-region-sides", "open-right-top"],
+    "granular": ["--model", "granular"],
+}
+
+
+def run(build: str | None, case: str, args: argparse.Namespace, out: Path) -> dict:
+    env = dict(os.environ)
+    if build:
+        env["PYTHONPATH"] = build + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    cmd = [sys.executable, "-m", "granrs.cli", "run", "column", "--ny", str(args.ny), "--threads", str(args.threads)]
+    cmd += CASES[case] + ["--quiet", "--out", str(out)]
+    t0 = time.perf_counter()
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    if r.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr}")
+    s = json.loads((out / "summary.json").read_text())
+    return {
+        "wall_s": s["wall_s"],
+        "process_wall_s": wall,
+        "steps": s["steps"],
+        "runout_m": s["runout_m"],
+        "stop_reason": s["stop_reason"],
+        "load_average": os.getloadavg()[0],
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--base", required=True, help="directory holding the baseline build's granrs package")
+    ap.add_argument("--new", default=None, help="directory holding the build under test (default: import granrs)")
+    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--ny", type=int, default=256)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for case in args.cases:
+            res = {}
+            for name, build in (("base", args.base), ("new", args.new)):
+                res[name] = run(build, case, args, Path(tmp) / f"{case}-{name}")
+                print(json.dumps({"case": case, "build": name, **res[name]}), flush=True)
+            same = (res["base"]["steps"], res["base"]["runout_m"]) == (res["new"]["steps"], res["new"]["runout_m"])
+            rows.append(
+                {"case": case, **res, "ratio": res["new"]["wall_s"] / res["base"]["wall_s"], "same_answer": same}
+            )
+    print(
+        f"\n| case (ny = {args.ny}, {args.threads} threads) | steps | run-out (m) | base wall_s | new wall_s | new/base | same answer |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        b, n = r["base"], r["new"]
+        print(
+            f"| {r['case']} | {n['steps']} | {n['runout_m']:.4f} | {b['wall_s']:.0f} s ({b['wall_s'] / 60:.1f} min) | "
+            f"{n['wall_s']:.0f} s ({n['wall_s'] / 60:.1f} min) | {r['ratio']:.3f} | {r['same_answer']} |"
+        )
+    if args.out:
+        Path(args.out).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
