@@ -123,6 +123,31 @@ def test_picard_failure_names_where_and_is_retaken_then_undone():
             _cavity(step_retries=bad)
 
 
+def test_a_column_step_past_the_cfl_guard_is_retaken_not_fatal():
+    # the dry column at ny = 16 with C_cfl = 0.9 (above the 0.81 of the stability map's guard):
+    # the released column accelerates through a step chosen from the speeds before it, and its
+    # 5th step ends at CFL 1.11 > cfl_abort = 1. Without retries that stops the run; with the
+    # default 3 the step is retaken with δt halved and every accepted step keeps the guard.
+    from granrs.cases.column import build_model
+
+    def column(**time):
+        return build_model(ColumnCase(ny=16, fluidised=False, time=granrs.TimeStepping(cfl=0.9, **time)))
+
+    m = column(step_retries=0)
+    with pytest.raises(SimulationError, match=r"CFL number .* exceeds the limit cfl_abort = 1 ") as info:
+        m.advance(t_end=0.3)
+    assert "retaken" not in str(info.value) and info.value.location is not None
+    assert m.step_count == info.value.step - 1
+    log = column().advance(t_end=0.3)
+    assert np.count_nonzero(log["step_retries"]) >= 1
+    assert np.max(log["cfl"]) <= 1.0
+    # a guard no halving meets: reported with its retries, the model at its last accepted state
+    m = column(cfl_abort=0.01, step_retries=1)
+    with pytest.raises(SimulationError, match=r"CFL number .* \(the step was retaken 1 times with δt halved"):
+        m.advance(t_end=0.3)
+    assert (m.step_count, m.time) == (0, 0.0)
+
+
 # ---- explicit pore-pressure diffusion -------------------------------------------------------
 def test_explicit_pore_pressure_past_its_limit_is_detected_and_names_the_limit():
     # 2 × h²/(4κ): the checkerboard grows by |1 − 4| = 3 per step; the 1e-9 seed excites it at once

@@ -34,6 +34,13 @@ pub enum Error {
     #[error("simulation stopped at step {step}, t = {time:.6e} s: {what}")]
     PicardNotConverged { what: String, step: u64, time: f64 },
 
+    /// The advective CFL number after a step exceeded `TimeConfig::cfl_abort`: the flow
+    /// accelerated through a δt chosen from the speeds before the step. A step with retries is
+    /// retaken with δt halved on this error, as on [`Error::PicardNotConverged`]; the step that
+    /// fails for good reports it as [`Error::Simulation`] ([`Error::into_reported`]).
+    #[error("simulation stopped at step {step}, t = {time:.6e} s: {what}{}", location.map(|(i, j)| format!(" at cell (i={i}, j={j})")).unwrap_or_default())]
+    CflExceeded { what: String, step: u64, time: f64, location: Option<(usize, usize)> },
+
     /// A linear solver failed during a step: the solver's own error ([`Error::NotConverged`] or
     /// [`Error::SolverFailure`]) with the step and time (Python: `granrs.SolverError`).
     #[error("simulation stopped at step {step}, t = {time:.6e} s: {source}")]
@@ -58,13 +65,21 @@ impl Error {
         }
     }
 
-    /// The error as a step reports it: a Picard non-convergence becomes [`Error::Simulation`]
-    /// (the same message), every other error is unchanged.
+    /// The error as a step reports it: a Picard non-convergence or a CFL number above the limit
+    /// becomes [`Error::Simulation`] (the same message), every other error is unchanged.
     pub fn into_reported(self) -> Self {
         match self {
             Error::PicardNotConverged { what, step, time } => Error::Simulation { what, step, time, location: None },
+            Error::CflExceeded { what, step, time, location } => Error::Simulation { what, step, time, location },
             other => other,
         }
+    }
+
+    /// Whether a step that failed with this error is retaken with δt halved (with the adaptive
+    /// rule and retries left, `TimeConfig::step_retries`): a Picard non-convergence or a CFL
+    /// number above `cfl_abort`.
+    pub fn retakes_step(&self) -> bool {
+        matches!(self, Error::PicardNotConverged { .. } | Error::CflExceeded { .. })
     }
 }
 

@@ -1,5 +1,6 @@
 //! Rejected steps (`TimeConfig::step_retries`, time_stepping/clock.rs): a step whose Picard
-//! iteration does not converge is undone and retaken with δt halved.
+//! iteration does not converge, or whose CFL number ends above `cfl_abort`, is undone and retaken
+//! with δt halved.
 
 use granrs_core::models::TwoPhaseModel;
 use granrs_core::Error;
@@ -84,4 +85,67 @@ fn a_step_that_fails_at_every_step_size_is_reported_and_undone() {
         Err(Error::Simulation { what, .. }) => assert!(what.contains("after 2 iterations") && !what.contains("retaken"), "{what}"),
         other => panic!("expected the Picard failure, got {other:?}"),
     }
+}
+
+/// The channel with a Picard cap it always meets, an adaptive δt at C_cfl = 1 growing 2× per step
+/// and the guard `cfl_abort` = `guard`. The flow accelerates from rest through each step: the CFL
+/// number after the step is 0.01, 0.06, 0.28, 0.995 in the first four steps, and 0.95–0.99 after.
+fn guarded_channel(guard: f64, retries: usize) -> TwoPhaseModel {
+    let mut cfg = bingham_channel(1000, retries, None);
+    cfg.time.cfl = 1.0;
+    cfg.time.max_growth = 2.0;
+    cfg.time.cfl_abort = guard;
+    TwoPhaseModel::new(cfg).unwrap()
+}
+
+/// A step whose CFL number ends above `cfl_abort` is retaken with δt halved, like a Picard
+/// failure: every accepted step keeps the guard, the retaken step is the step a model without
+/// retries takes at that δt, and without retries the same step stops the run with the CFL error.
+#[test]
+fn a_step_past_the_cfl_guard_is_retaken_with_half_the_step() {
+    // the 4th step ends at CFL 0.995 (guard lifted): a guard of 0.98 refuses it
+    let guard = 0.98;
+    let mut a = guarded_channel(guard, 3);
+    let mut retried = None;
+    for n in 0..20 {
+        let s = a.step().unwrap();
+        assert!(s.cfl <= guard, "step {n}: CFL {} above the guard", s.cfl);
+        if s.retries > 0 {
+            retried = Some((n, s));
+            break;
+        }
+    }
+    let (n, s) = retried.expect("a step was retaken");
+    assert!((a.dt_ceiling - s.dt * granrs_core::time_stepping::DT_CEILING_RECOVERY).abs() < 1e-15 * s.dt);
+    let mut b = guarded_channel(guard, 0);
+    for _ in 0..n {
+        b.step().unwrap();
+    }
+    let before = b.checkpoint();
+    match b.step() {
+        Err(Error::Simulation { what, location, .. }) => {
+            assert!(what.starts_with("CFL number") && what.contains(&format!("cfl_abort = {guard}")) && !what.contains("retaken"), "{what}");
+            assert!(location.is_some());
+        }
+        other => panic!("expected the CFL error, got {other:?}"),
+    }
+    assert_eq!(b.step_count as usize, n, "the refused step was not undone");
+    let mut c = guarded_channel(guard, 0);
+    c.restore(&before).unwrap();
+    c.dt_ceiling = s.dt;
+    let sc = c.step().unwrap();
+    assert_eq!(sc.dt.to_bits(), s.dt.to_bits());
+    assert_eq!(c.u.slice(), a.u.slice());
+    assert_eq!(c.v.slice(), a.v.slice());
+    assert_eq!(c.time.to_bits(), a.time.to_bits());
+    // a guard no halving meets: reported with its retries, the model at its last accepted step
+    let mut d = guarded_channel(1e-6, 2);
+    match d.step() {
+        Err(Error::Simulation { what, step, .. }) => {
+            assert_eq!(step, 1);
+            assert!(what.starts_with("CFL number") && what.ends_with("(the step was retaken 2 times with δt halved each time)"), "{what}");
+        }
+        other => panic!("expected the CFL error, got {other:?}"),
+    }
+    assert_eq!((d.step_count, d.time), (0, 0.0));
 }

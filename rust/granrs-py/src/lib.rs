@@ -47,7 +47,9 @@ fn to_py(e: Error) -> PyErr {
         Error::InvalidParameter { .. } | Error::Shape { .. } => ParameterError::new_err(e.to_string()),
         Error::NotConverged { .. } | Error::SolverFailure { .. } => SolverError::new_err(e.to_string()),
         Error::SolverInStep { step, time, .. } => with_place(SolverError::new_err(e.to_string()), *step, *time, None),
-        Error::Simulation { step, time, location, .. } => with_place(SimulationError::new_err(e.to_string()), *step, *time, *location),
+        Error::Simulation { step, time, location, .. } | Error::CflExceeded { step, time, location, .. } => {
+            with_place(SimulationError::new_err(e.to_string()), *step, *time, *location)
+        }
         Error::PicardNotConverged { step, time, .. } => with_place(SimulationError::new_err(e.to_string()), *step, *time, None),
     }
 }

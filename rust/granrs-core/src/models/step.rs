@@ -51,11 +51,13 @@
 //! measured over the granular cells.
 //!
 //! Before the stages the state is copied; a step that fails is undone from that copy, so after
-//! any error the model is bit for bit at its last accepted state. A step whose Picard iteration
-//! does not converge ([`Error::PicardNotConverged`]) is rejected and retaken with δt halved
-//! (`TimeConfig::step_retries`, `time_stepping/clock.rs`). Stage 7 refuses a step that blew up:
-//! a non-finite u, v, p, Φ or p_f, a CFL number above `cfl_abort`, or (adaptive δt) the next
-//! CFL step below the floor of [`SPEED_BOUND`] (the step collapsing).
+//! any error the model is bit for bit at its last accepted state. Stage 7 refuses a step that
+//! blew up: a non-finite u, v, p, Φ or p_f, a CFL number above `cfl_abort`, or (adaptive δt)
+//! the next CFL step below the floor of [`SPEED_BOUND`] (the step collapsing). With the
+//! adaptive rule a step whose Picard iteration does not converge ([`Error::PicardNotConverged`])
+//! or whose CFL number ends above `cfl_abort` ([`Error::CflExceeded`]: the flow accelerated
+//! through a δt chosen from the speeds before the step) is rejected and retaken with δt halved
+//! (`TimeConfig::step_retries`, `time_stepping/clock.rs`); a fixed δt is never changed.
 //!
 //! With `ModelConfig::active_region` the step first sizes the window around the dense phase and
 //! runs these same stages on it (`models/window.rs`).
@@ -83,8 +85,8 @@ const FROZEN_FACE: f64 = 1e8;
 
 impl TwoPhaseModel {
     /// Advances the model by one step (stages in the order of this file's header).
-    /// With the adaptive rule, a step whose Picard iteration does not converge is rejected and
-    /// retaken with δt halved, at most `TimeConfig::step_retries` times (the window of an active
+    /// With the adaptive rule, a step whose Picard iteration does not converge or whose CFL
+    /// number ends above `cfl_abort` is rejected and retaken with δt halved, at most `TimeConfig::step_retries` times (the window of an active
     /// region does this itself). A step that fails for good leaves the model bit for bit in its
     /// state before the step (the last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
@@ -118,7 +120,7 @@ impl TwoPhaseModel {
                     self.dt_ceiling *= crate::time_stepping::DT_CEILING_RECOVERY;
                     return Ok(info);
                 }
-                Err(e @ Error::PicardNotConverged { .. }) if attempt < retries => {
+                Err(e) if e.retakes_step() && attempt < retries => {
                     drop(e);
                     self.undo_step(land)?;
                     self.dt_ceiling = 0.5 * self.dt_attempt;
@@ -527,7 +529,7 @@ impl TwoPhaseModel {
         if cfl > cfg.time.cfl_abort {
             let (fu, fv) = (self.u.max_abs_with_location(), self.v.max_abs_with_location());
             let loc = if fu.0 / g.dx >= fv.0 / g.dy { fu.1 } else { fv.1 };
-            return Err(Error::Simulation {
+            return Err(Error::CflExceeded {
                 what: format!(
                     "CFL number {cfl:.3} exceeds the limit cfl_abort = {} (δt = {dt:.3e} s, max|u| = {umax:.3e}, max|v| = {vmax:.3e} m/s)",
                     cfg.time.cfl_abort

@@ -13,8 +13,10 @@
 //! and the second-order extrapolation u* = (1+ω) u^n − ω u^{n−1}. ω = 1 gives the paper's 3/2, 2, 1/2.
 //!
 //! **Rejected steps.** With the adaptive rule, a step whose Picard iteration (eq. 12) does not
-//! converge is rejected: the state before it is restored, a ceiling δt_max' = δt/2 is set and the
-//! step is taken again (at most `step_retries` times). The ceiling then recovers by the factor
+//! converge, or whose advective CFL number after the step exceeds `cfl_abort` (the rule chose δt
+//! from the speeds before the step, and the flow accelerated through it), is rejected: the state
+//! before it is restored, a ceiling δt_max' = δt/2 is set and the step is taken again (at most
+//! `step_retries` times). The ceiling then recovers by the factor
 //! [`DT_CEILING_RECOVERY`] per accepted step, so a run settles near the largest step its
 //! bi-projection handles instead of failing there (the column at ny = 256 failed at step 7 with
 //! δt = 1.19 ms and ran with δt ≤ 0.5 ms).
@@ -33,10 +35,12 @@ pub struct TimeConfig {
     pub max_dt: f64,
     /// Largest ratio δt_n/δt_{n−1}.
     pub max_growth: f64,
-    /// A run stops with an error when the advective CFL number exceeds this.
+    /// A run stops with an error when the advective CFL number after a step exceeds this (with
+    /// the adaptive rule, once the step's retries are spent).
     pub cfl_abort: f64,
-    /// Rejections of one step (Picard non-convergence → δt halved and the step retaken) before
-    /// the run stops; 0: none. Only with the adaptive rule (a fixed δt is never changed).
+    /// Rejections of one step (Picard non-convergence or CFL above `cfl_abort` → δt halved and
+    /// the step retaken) before the run stops; 0: none. Only with the adaptive rule (a fixed δt
+    /// is never changed).
     pub step_retries: usize,
 }
 
@@ -48,7 +52,7 @@ pub const TIME_OPTIONS: &[OptionSpec] = &[
         .off_by_default(),
     options::float("time", "max_dt", f64::INFINITY, 0.0, f64::INFINITY, "s", "largest step of the adaptive rule").open(true, false),
     options::float("time", "max_growth", 1.2, 1.0, 2.4, "1", "largest ratio δt_n/δt_{n−1} (variable-step BDF2 is zero-stable below 1 + √2)"),
-    options::float("time", "cfl_abort", 1.0, 1e-6, 100.0, "1", "the run stops with an error when the advective CFL number exceeds this"),
+    options::float("time", "cfl_abort", 1.0, 1e-6, 100.0, "1", "the run stops with an error when the advective CFL number after a step exceeds this (adaptive δt: once step_retries retakes with δt halved are spent)"),
     options::int(
         "time",
         "step_retries",
@@ -56,7 +60,7 @@ pub const TIME_OPTIONS: &[OptionSpec] = &[
         0,
         20,
         "1",
-        "rejections of a step whose Picard iteration does not converge (retaken with δt halved); 0: stop at once",
+        "rejections of a step whose Picard iteration does not converge or whose CFL number ends above cfl_abort (retaken with δt halved; adaptive δt only); 0: stop at once",
     ),
 ];
 
