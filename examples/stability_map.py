@@ -455,7 +455,7 @@ def plot(summary: list, rows: list, path: Path) -> None:
                     f"CFL {s['largest_stable_cfl']:.2g}",
                     (s["h_m"], s["largest_stable_dt_s"]),
                     textcoords="offset points",
-                    xytext=(7, 5 if "lifted" in method else (-11 if "no retries" in method else 14)),
+                    xytext=(7, 5) if "lifted" in method else ((7, -11) if "no retries" in method else (-40, -14)),
                     fontsize=7,
                     color=colour,
                 )
@@ -562,7 +562,11 @@ def main(argv=None) -> int:
         "--quick", action="store_true", help="1 bisection step per edge instead of 3 (a check of the script)"
     )
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from an existing CSV")
-    ap.add_argument("--families", default="heap,pore,column", help="comma-separated subset of heap,pore,column")
+    ap.add_argument(
+        "--families",
+        default="heap,pore,column",
+        help="comma-separated subset of heap,pore,column (an existing CSV keeps the other families' rows)",
+    )
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -583,6 +587,9 @@ def main(argv=None) -> int:
         if "column" in fams:
             print("(c) fluidised column", flush=True)
             column_family([16, 32], [0.25, 0.5, 0.75, 1.0, 1.5, 2.0], k, rows)
+        if csv_path.exists() and fams != {"heap", "pore", "column"}:
+            kept = [r for r in read_rows(csv_path) if r["family"] not in fams]
+            rows = kept + rows
         with open(csv_path, "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=FIELDS)
             w.writeheader()
