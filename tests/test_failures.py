@@ -9,7 +9,7 @@ import pytest
 
 import granrs
 from granrs import BiProjection, DruckerPrager, Simulation, SimulationError, Variants
-from granrs.cases.column import ColumnCase, run_column
+from granrs.cases.column import ColumnCase, build_model, run_column
 from granrs.validation import run_case
 from granrs.validation.pore_pressure import pore_diffusion_error
 from granrs.validation.rheology import REST_SPEED, creep_verdict, run_heap
@@ -128,8 +128,6 @@ def test_a_column_step_past_the_cfl_guard_is_retaken_not_fatal():
     # the released column accelerates through a step chosen from the speeds before it, and its
     # 5th step ends at CFL 1.11 > cfl_abort = 1. Without retries that stops the run; with the
     # default 3 the step is retaken with δt halved and every accepted step keeps the guard.
-    from granrs.cases.column import build_model
-
     def column(**time):
         return build_model(ColumnCase(ny=16, fluidised=False, time=granrs.TimeStepping(cfl=0.9, **time)))
 

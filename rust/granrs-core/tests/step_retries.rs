@@ -2,7 +2,8 @@
 //! iteration does not converge, or whose CFL number ends above `cfl_abort`, is undone and retaken
 //! with δt halved.
 
-use granrs_core::models::TwoPhaseModel;
+use granrs_core::models::{StateEntry, TwoPhaseModel};
+use granrs_core::time_stepping::{StepInfo, DT_CEILING_RECOVERY};
 use granrs_core::Error;
 
 #[path = "common/channel.rs"]
@@ -20,42 +21,33 @@ fn accelerating_channel(cap: usize, retries: usize, fixed_dt: Option<f64>) -> Tw
     TwoPhaseModel::new(cfg).unwrap()
 }
 
-/// A step that fails only at the larger δt is retaken at half of it, and the retaken step is
-/// bit for bit the step a model without retries takes when given that δt.
-#[test]
-fn a_rejected_step_is_retaken_with_half_the_step() {
-    // without a cap the 4th step (δt = 0.251) needs 96 iterations, the others 19–34: a cap of 60
-    // rejects it, and the retaken step at δt = 0.125 converges
-    let mut a = accelerating_channel(60, 3, None);
-    let mut dts = Vec::new();
-    let mut retried = None;
-    for n in 0..8 {
+/// Steps `a` until a step is retaken (at most `max` steps, `each` sees every step): that step's
+/// index and its report. The ceiling it leaves is half the rejected δt, grown once by the
+/// recovery factor.
+fn first_retaken_step(a: &mut TwoPhaseModel, max: usize, mut each: impl FnMut(usize, &StepInfo)) -> (usize, StepInfo) {
+    for n in 0..max {
         let s = a.step().unwrap();
-        dts.push(s.dt);
+        each(n, &s);
         if s.retries > 0 {
-            retried = Some((n, s));
-            break;
+            assert!((a.dt_ceiling - s.dt * DT_CEILING_RECOVERY).abs() < 1e-15 * s.dt);
+            return (n, s);
         }
     }
-    let (n, s) = retried.expect("a step was retaken");
-    assert_eq!(s.retries, 1);
-    assert!(s.picard_iterations <= 60);
-    // the ceiling is half the rejected δt, grown once by the recovery factor
-    assert!((a.dt_ceiling - s.dt * granrs_core::time_stepping::DT_CEILING_RECOVERY).abs() < 1e-15 * s.dt);
-    assert!(s.dt < 0.6 * 2.0 * dts[n - 1], "δt {} after {}", s.dt, dts[n - 1]);
-    // the same history without retries: the same steps, then that step fails at the full δt
-    let mut b = accelerating_channel(60, 0, None);
+    panic!("no step was retaken in {max} steps");
+}
+
+/// Steps `b` (a model without retries) `n` times, then the state before its step n + 1.
+fn state_after(b: &mut TwoPhaseModel, n: usize) -> Vec<StateEntry> {
     for _ in 0..n {
         b.step().unwrap();
     }
-    let before = b.checkpoint();
-    match b.step() {
-        Err(Error::Simulation { what, .. }) => assert!(what.starts_with("Picard iteration") && !what.contains("retaken"), "{what}"),
-        other => panic!("expected the Picard failure, got {other:?}"),
-    }
-    // given the halved step, a model without retries takes exactly the retaken step
-    let mut c = accelerating_channel(60, 0, None);
-    c.restore(&before).unwrap();
+    b.checkpoint()
+}
+
+/// Given the halved step `s.dt` from the state `before`, the model `c` without retries takes
+/// exactly the step `a` retook: the same δt, u, v, p, Σ and clock, bit for bit.
+fn assert_takes_the_retaken_step(mut c: TwoPhaseModel, before: &[StateEntry], s: &StepInfo, a: &TwoPhaseModel) {
+    c.restore(before).unwrap();
     c.dt_ceiling = s.dt;
     let sc = c.step().unwrap();
     assert_eq!(sc.dt.to_bits(), s.dt.to_bits());
@@ -64,6 +56,29 @@ fn a_rejected_step_is_retaken_with_half_the_step() {
     assert_eq!(c.p.slice(), a.p.slice());
     assert_eq!(c.plastic_tensor().unwrap().1.slice(), a.plastic_tensor().unwrap().1.slice());
     assert_eq!(c.time.to_bits(), a.time.to_bits());
+}
+
+/// A step that fails only at the larger δt is retaken at half of it, and the retaken step is
+/// bit for bit the step a model without retries takes when given that δt.
+#[test]
+fn a_rejected_step_is_retaken_with_half_the_step() {
+    // without a cap the 4th step (δt = 0.251) needs 96 iterations, the others 19–34: a cap of 60
+    // rejects it, and the retaken step at δt = 0.125 converges
+    let mut a = accelerating_channel(60, 3, None);
+    let mut dts = Vec::new();
+    let (n, s) = first_retaken_step(&mut a, 8, |_, s| dts.push(s.dt));
+    assert_eq!(s.retries, 1);
+    assert!(s.picard_iterations <= 60);
+    assert!(s.dt < 0.6 * 2.0 * dts[n - 1], "δt {} after {}", s.dt, dts[n - 1]);
+    // the same history without retries: the same steps, then that step fails at the full δt
+    let mut b = accelerating_channel(60, 0, None);
+    let before = state_after(&mut b, n);
+    match b.step() {
+        Err(Error::Simulation { what, .. }) => assert!(what.starts_with("Picard iteration") && !what.contains("retaken"), "{what}"),
+        other => panic!("expected the Picard failure, got {other:?}"),
+    }
+    // given the halved step, a model without retries takes exactly the retaken step
+    assert_takes_the_retaken_step(accelerating_channel(60, 0, None), &before, &s, &a);
 }
 
 /// When every attempt fails, the error says how often the step was retaken and the model is left
@@ -106,22 +121,9 @@ fn a_step_past_the_cfl_guard_is_retaken_with_half_the_step() {
     // the 4th step ends at CFL 0.995 (guard lifted): a guard of 0.98 refuses it
     let guard = 0.98;
     let mut a = guarded_channel(guard, 3);
-    let mut retried = None;
-    for n in 0..20 {
-        let s = a.step().unwrap();
-        assert!(s.cfl <= guard, "step {n}: CFL {} above the guard", s.cfl);
-        if s.retries > 0 {
-            retried = Some((n, s));
-            break;
-        }
-    }
-    let (n, s) = retried.expect("a step was retaken");
-    assert!((a.dt_ceiling - s.dt * granrs_core::time_stepping::DT_CEILING_RECOVERY).abs() < 1e-15 * s.dt);
+    let (n, s) = first_retaken_step(&mut a, 20, |n, s| assert!(s.cfl <= guard, "step {n}: CFL {} above the guard", s.cfl));
     let mut b = guarded_channel(guard, 0);
-    for _ in 0..n {
-        b.step().unwrap();
-    }
-    let before = b.checkpoint();
+    let before = state_after(&mut b, n);
     match b.step() {
         Err(Error::Simulation { what, location, .. }) => {
             assert!(what.starts_with("CFL number") && what.contains(&format!("cfl_abort = {guard}")) && !what.contains("retaken"), "{what}");
@@ -130,14 +132,7 @@ fn a_step_past_the_cfl_guard_is_retaken_with_half_the_step() {
         other => panic!("expected the CFL error, got {other:?}"),
     }
     assert_eq!(b.step_count as usize, n, "the refused step was not undone");
-    let mut c = guarded_channel(guard, 0);
-    c.restore(&before).unwrap();
-    c.dt_ceiling = s.dt;
-    let sc = c.step().unwrap();
-    assert_eq!(sc.dt.to_bits(), s.dt.to_bits());
-    assert_eq!(c.u.slice(), a.u.slice());
-    assert_eq!(c.v.slice(), a.v.slice());
-    assert_eq!(c.time.to_bits(), a.time.to_bits());
+    assert_takes_the_retaken_step(guarded_channel(guard, 0), &before, &s, &a);
     // a guard no halving meets: reported with its retries, the model at its last accepted step
     let mut d = guarded_channel(1e-6, 2);
     match d.step() {

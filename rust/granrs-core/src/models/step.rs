@@ -86,9 +86,10 @@ const FROZEN_FACE: f64 = 1e8;
 impl TwoPhaseModel {
     /// Advances the model by one step (stages in the order of this file's header).
     /// With the adaptive rule, a step whose Picard iteration does not converge or whose CFL
-    /// number ends above `cfl_abort` is rejected and retaken with δt halved, at most `TimeConfig::step_retries` times (the window of an active
-    /// region does this itself). A step that fails for good leaves the model bit for bit in its
-    /// state before the step (the last accepted one).
+    /// number ends above `cfl_abort` is rejected and retaken with δt halved, at most
+    /// `TimeConfig::step_retries` times (the window of an active region does this itself). A
+    /// step that fails for good leaves the model bit for bit in its state before the step (the
+    /// last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
         let mut info = self.step_accepted()?;
         let start = Instant::now();
