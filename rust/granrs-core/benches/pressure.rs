@@ -13,6 +13,14 @@
 //! coarse Cholesky), serially and on a 2-thread pool. Throughput is reported in fine cells per
 //! second ("elem/s" = cell updates per second of the whole operation).
 //!
+//! `free_surface_window_1792x72`: the granular-only model's free-surface system on the active
+//! window of the paper's grid late in the collapse (h = 1.95 mm, the grains a fifth of the
+//! window's cells: a deposit 0.1 m deep at the back wall thinning to 2 cells at x = 3 m):
+//! faces with air on either side carry β = 0, air cells the trivial row p = 0 (σ = 1), grains
+//! beside the air the ghost-fluid Dirichlet term 2β/h² (the surface half-way between the
+//! centres). One MGCG solve to 1e-8 with the cycle and the CG vectors on the rows' spans (the
+//! default) and on whole rows (`PoissonSolver::set_cycle_spans(false)`): the same iterates.
+//!
 //! Run: `cargo bench -p granrs-core --bench pressure`.
 
 use std::hint::black_box;
@@ -145,5 +153,85 @@ fn pressure(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, pressure);
+/// The free-surface system of `free_surface_window_1792x72` (module header).
+struct FreeSurface {
+    nx: usize,
+    ny: usize,
+    h: f64,
+    bx: Vec<f64>,
+    by: Vec<f64>,
+    sigma: Vec<f64>,
+    /// The right-hand side: on the grains, zero in the air.
+    f: Vec<f64>,
+}
+
+fn free_surface_window() -> FreeSurface {
+    let (nx, ny, h) = (1792, 72, 3.5 / 1792.0);
+    let depth = |x: f64| if x < 3.0 { 0.1 * (-1.6 * x).exp() + 2.0 * h } else { 0.0 };
+    let grain = |i: usize, j: usize| (j as f64 + 0.5) * h < depth((i as f64 + 0.5) * h);
+    let g: Vec<bool> = (0..nx * ny).map(|k| grain(k % nx, k / nx)).collect();
+    let mut bx = vec![0.0; ny * (nx + 1)];
+    let mut by = vec![0.0; (ny + 1) * nx];
+    let mut sigma: Vec<f64> = g.iter().map(|&x| if x { 0.0 } else { 1.0 }).collect();
+    let beta = 1.0 / 1450.0;
+    for j in 0..ny {
+        for i in 0..nx {
+            if !g[j * nx + i] {
+                continue;
+            }
+            // the four neighbours: a grain couples, air adds the Dirichlet term
+            for (di, dj, face) in [(-1i64, 0i64, j * (nx + 1) + i), (1, 0, j * (nx + 1) + i + 1), (0, -1, j * nx + i), (0, 1, (j + 1) * nx + i)] {
+                let (ni, nj) = (i as i64 + di, j as i64 + dj);
+                if ni < 0 || nj < 0 || ni >= nx as i64 || nj >= ny as i64 {
+                    continue; // a wall: no flux
+                }
+                if g[nj as usize * nx + ni as usize] {
+                    if di != 0 {
+                        bx[face] = beta;
+                    } else {
+                        by[face] = beta;
+                    }
+                } else {
+                    sigma[j * nx + i] += 2.0 * beta / (h * h);
+                }
+            }
+        }
+    }
+    let f = (0..nx * ny).map(|k| if g[k] { ((k % nx) as f64 * 0.013).sin() + ((k / nx) as f64 * 0.21).cos() } else { 0.0 }).collect();
+    FreeSurface { nx, ny, h, bx, by, sigma, f }
+}
+
+fn free_surface(c: &mut Criterion) {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    let FreeSurface { nx, ny, h, bx, by, sigma, f } = free_surface_window();
+    let grains = sigma.iter().filter(|&&s| s != 1.0).count();
+    let mut group = c.benchmark_group("free_surface_window_1792x72");
+    group.sample_size(20).measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_secs(1));
+    group.throughput(Throughput::Elements((nx * ny) as u64));
+    for (label, threads) in [("serial", 1usize), ("2threads", 2)] {
+        let exec = Exec::with_threads(threads);
+        let run = |f: &mut (dyn FnMut() + Send)| if threads > 1 { pool.install(f) } else { f() };
+        for (name, spans) in [("spans", true), ("whole_rows", false)] {
+            let mut s = PoissonSolver::new_shifted(nx, ny, h, h, [PressureBc::Neumann; 4], SolverSettings::default()).unwrap();
+            s.set_cycle_spans(spans);
+            s.set_coefficients_with_shift(&bx, &by, &sigma, exec).unwrap();
+            let mut p = vec![0.0; nx * ny];
+            let info = s.solve(&f, &mut p, exec).unwrap();
+            if threads == 1 {
+                println!("free surface, {name}: {grains} grains of {} cells, {} iterations, relative residual {:.2e}", nx * ny, info.iterations, info.residual);
+            }
+            group.bench_function(format!("solve_W(2,2)_to_1e-8_{name}/{label}"), |b| {
+                b.iter(|| {
+                    run(&mut || {
+                        p.iter_mut().for_each(|v| *v = 0.0);
+                        black_box(s.solve(&f, &mut p, exec).unwrap());
+                    })
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, pressure, free_surface);
 criterion_main!(benches);

@@ -7,6 +7,9 @@
 //!    front and shrinks as the column falls, the dense phase never comes within band/2 cells of
 //!    its sides, and the dense area is conserved.
 //! 3. Configurations a window cannot serve are refused with the parameter named.
+//!    `advance`, which copies the window's state into the whole-domain fields once when it
+//!    returns (and before a rebuild), leaves the state of as many calls of `step` bit for bit,
+//!    through the window's growths and shrinks.
 //! 4. A window with an open right side (outflow at the air's hydrostatic pressure) lets the air
 //!    the front pushes leave, and follows the whole-domain step far more closely than a window
 //!    of walls; so does a window whose top is open too (with backflow stabilisation).
@@ -92,6 +95,46 @@ fn the_window_follows_the_collapse_and_keeps_its_band() {
     // mass correction on the window: the dense area is the initial one (the secant method's
     // tolerance, 1e-10 relative, doc of `mass_correction`)
     assert!(((m.dense_area() - area0) / area0).abs() < 1e-8, "area {} vs {}", m.dense_area(), area0);
+}
+
+#[test]
+fn advance_copies_the_window_back_once_and_leaves_the_state_of_as_many_steps() {
+    let (nx, ny) = (128, 32);
+    let ar = Some(ActiveRegion { band: 4, align: 4, sides: WindowSides::Walls });
+    let (mut stepped, mut advanced) = (column(nx, ny, ar), column(nx, ny, ar));
+    let mut windows = Vec::new();
+    for _ in 0..120 {
+        stepped.step().unwrap();
+        if windows.last() != stepped.active_window().as_ref() {
+            windows.push(stepped.active_window().unwrap());
+        }
+    }
+    assert!(windows.len() >= 3, "the window must be rebuilt within the steps: {windows:?}");
+    // 120 steps in calls of 50, 1 and 69: the copy happens at each return and each rebuild
+    for n in [50, 1, 69] {
+        let (log, err) = advanced.advance(None, Some(n));
+        assert!(err.is_none() && log.len() == n as usize);
+    }
+    assert_eq!(advanced.active_window(), stepped.active_window());
+    let pairs = [
+        (&stepped.u, &advanced.u),
+        (&stepped.v, &advanced.v),
+        (&stepped.p, &advanced.p),
+        (&stepped.phi, &advanced.phi),
+        (&stepped.u_prev, &advanced.u_prev),
+        (&stepped.v_prev, &advanced.v_prev),
+    ];
+    for (k, (a, b)) in pairs.into_iter().enumerate() {
+        assert!(a.interior() == b.interior(), "field {k} differs");
+    }
+    assert!(stepped.plastic_tensor().unwrap().0.interior() == advanced.plastic_tensor().unwrap().0.interior());
+    assert_eq!(stepped.time.to_bits(), advanced.time.to_bits());
+    assert_eq!(stepped.step_count, advanced.step_count);
+    // landing on a time: the last step is shortened to it
+    let t = advanced.time + 0.01;
+    let (_, err) = advanced.advance(Some(t), None);
+    assert!(err.is_none());
+    assert!((advanced.time - t).abs() <= 1e-12 * t, "time {} vs {t}", advanced.time);
 }
 
 #[test]

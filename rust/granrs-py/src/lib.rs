@@ -604,28 +604,7 @@ impl PyModel {
             }
         }
         let inner = &mut self.inner;
-        let (log, err) = py.detach(|| {
-            let mut log: Vec<StepInfo> = Vec::new();
-            let limit = max_steps.unwrap_or(u64::MAX);
-            let mut n = 0;
-            while n < limit {
-                if let Some(t) = t_end {
-                    let remaining = t - inner.time;
-                    if remaining <= 1e-12 * t.abs().max(1e-300) {
-                        break;
-                    }
-                    // land on t_end: a fixed step is shortened; the adaptive one is capped
-                    inner.set_time_to_land(Some(remaining));
-                }
-                match inner.step() {
-                    Ok(s) => log.push(s),
-                    Err(e) => return (log, Some(e)),
-                }
-                n += 1;
-            }
-            inner.set_time_to_land(None);
-            (log, None)
-        });
+        let (log, err) = py.detach(|| inner.advance(t_end, max_steps));
         let d = PyDict::new(py);
         d.set_item("time", log.iter().map(|s| s.time).collect::<Vec<_>>())?;
         d.set_item("dt", log.iter().map(|s| s.dt).collect::<Vec<_>>())?;

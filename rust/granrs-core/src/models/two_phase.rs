@@ -536,6 +536,12 @@ pub struct TwoPhaseModel {
     /// The active window's model (with [`ModelConfig::active_region`]; None until the first step
     /// and after the state was changed from outside, when it is rebuilt from this model's state).
     pub(crate) window: Option<Box<TwoPhaseModel>>,
+    /// Whether this model's fields lag the window's state: within
+    /// [`TwoPhaseModel::advance`] the window's state is copied back once, at the end, not
+    /// after every step (the clock is copied after every step).
+    pub(crate) window_ahead: bool,
+    /// Whether the window's steps leave the copy back to the end of [`TwoPhaseModel::advance`].
+    pub(crate) defer_window_copy: bool,
     /// Ceiling on δt lowered by a rejected step (`TimeConfig::step_retries`), recovering by
     /// [`crate::time_stepping::DT_CEILING_RECOVERY`] per accepted step (∞: none).
     pub dt_ceiling: f64,
@@ -594,6 +600,8 @@ impl TwoPhaseModel {
             time_to_land: None,
             reference_area: 0.0,
             window: None,
+            window_ahead: false,
+            defer_window_copy: false,
             dt_ceiling: f64::INFINITY,
             dt_attempt: 0.0,
             step_snapshot: Vec::new(),
@@ -613,6 +621,39 @@ impl TwoPhaseModel {
 
     pub(crate) fn pressure_increment_mut(&mut self) -> &mut [f64] {
         self.pressure.increment_mut()
+    }
+
+    /// Takes steps until the time `t_end` (the steps land on it: [`TwoPhaseModel::set_time_to_land`])
+    /// or until `max_steps` steps (None: no limit; at least one of the two must be given).
+    /// Returns the diagnostics of the steps taken and the error that stopped the run, if one did:
+    /// the model is then at its last accepted state. With an active region the whole-domain
+    /// fields are copied from the window once, when the call returns, not after every step.
+    pub fn advance(&mut self, t_end: Option<f64>, max_steps: Option<u64>) -> (Vec<StepInfo>, Option<Error>) {
+        let mut log = Vec::new();
+        let limit = max_steps.unwrap_or(u64::MAX);
+        self.defer_window_copy = true;
+        let mut err = None;
+        while (log.len() as u64) < limit {
+            if let Some(t) = t_end {
+                let remaining = t - self.time;
+                if remaining <= 1e-12 * t.abs().max(1e-300) {
+                    break;
+                }
+                // land on t_end: a fixed step is shortened; the adaptive one is capped
+                self.set_time_to_land(Some(remaining));
+            }
+            match self.step() {
+                Ok(s) => log.push(s),
+                Err(e) => {
+                    err = Some(e);
+                    break;
+                }
+            }
+        }
+        self.defer_window_copy = false;
+        self.sync_from_window();
+        self.set_time_to_land(None);
+        (log, err)
     }
 
     /// Makes the next steps land exactly on a target time `remaining` ahead: a step longer than

@@ -42,9 +42,11 @@
 //!
 //! **State transfer.** W is a [`TwoPhaseModel`] of its own. Its whole state (fields with ghost
 //! layers, BDF2 history, Σ, s, p_f and its history, the pressure increment, the clock) is copied
-//! from this model's when W is built; after every step W's interior (boundary faces and nodes
-//! included) is copied back, so this model's fields — and the zero-copy views Python holds on
-//! them — are the whole-domain state at all times. On a shrink the velocity and its history
+//! from this model's when W is built; W's interior (boundary faces and nodes included) is copied
+//! back after every [`TwoPhaseModel::step`], and once at the end of
+//! [`TwoPhaseModel::advance`] (the steps within it copy only the clock, and the copy is made
+//! before W is rebuilt), so this model's fields — and the zero-copy views Python holds on
+//! them — are the whole-domain state whenever a call returns. On a shrink the velocity and its history
 //! outside the new W are set to zero (the light phase at rest); the faces of W's new sides are
 //! walls, and the divergence their old flux leaves in W's edge cells is removed by the next
 //! projection. On a growth the cells that join W are at rest, consistent with the wall they
@@ -177,14 +179,32 @@ impl TwoPhaseModel {
             }
         };
         if rebuild {
+            self.sync_from_window();
             self.build_window(round(need_x + ar.band, gx).max(2), round(need_y + ar.band, gy).max(2), ar)?;
         }
         let w = self.window.as_mut().expect("built above");
         w.time_to_land = self.time_to_land;
         let out = w.step_accepted();
-        let (pool, exec) = (std::sync::Arc::clone(&self.pool), self.exec());
-        pool.install(|| self.copy_from_window(exec));
+        if self.defer_window_copy {
+            let w = self.window.take().expect("built above");
+            copy_clock(&w, self);
+            self.window = Some(w);
+            self.window_ahead = true;
+        } else {
+            self.window_ahead = true;
+            self.sync_from_window();
+        }
         out
+    }
+
+    /// Copies the window's state into this model's fields where they lag it (after the steps
+    /// of [`TwoPhaseModel::advance`]).
+    pub(crate) fn sync_from_window(&mut self) {
+        if self.window_ahead && self.window.is_some() {
+            let (pool, exec) = (std::sync::Arc::clone(&self.pool), self.exec());
+            pool.install(|| self.copy_from_window(exec));
+        }
+        self.window_ahead = false;
     }
 
     /// Builds the window of nxw × nyw cells from this model's state.

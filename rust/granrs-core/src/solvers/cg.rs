@@ -7,12 +7,13 @@
 //! solve; in practice the true residual is reported). Every reduction is a deterministic sum over
 //! fixed blocks of rows ([`super::par`]), so the iterates do not depend on the number of threads.
 
+use super::level::Level;
 use super::multigrid::Multigrid;
 use super::par;
 use super::{SolveInfo, SolverSettings};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
-use crate::operators::sums_by_row;
+use crate::operators::{row_sums, sums_by_row};
 
 /// Name used in errors.
 pub(crate) const SOLVER: &str = "multigrid-preconditioned CG";
@@ -87,7 +88,16 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
     if rel <= rtol {
         return Ok(SolveInfo { iterations: 0, residual: rel, initial_residual, rhs_mean_removed: 0.0 });
     }
-    let mut rho = precondition(mg, w, singular, exec, 0)?;
+    // Where b and the initial x are zero outside the spans of the fine level (isolated cells),
+    // so are every residual, preconditioned residual and direction below: their coupling to
+    // the other cells is zero. The cycle may then skip those cells (Multigrid::precondition).
+    let spans = mg.spans_admit(&[&w.rhs, x]);
+    let exec = mg.levels[0].exec_for(exec, spans);
+    if spans {
+        // q is written on the spans only below; outside them it is A d = 0
+        mg.levels[0].fill_outside_spans(&mut w.q, exec);
+    }
+    let mut rho = precondition(mg, w, singular, spans, exec, 0)?;
     w.d.copy_from_slice(&w.z);
     let mut iterations = 0;
     while iterations < max_iterations {
@@ -97,10 +107,14 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
         let d = &w.d;
         let [dq] = par::write_row_blocks(exec, &mut w.q, nx, &mut w.partials1, |j0, qb, out| {
             for (k, row) in qb.chunks_mut(nx).enumerate() {
-                level.apply_row(j0 + k, d, row);
+                let (lo, hi) = level.span(j0 + k, spans);
+                if lo == 0 && hi == nx {
+                    level.apply_row(j0 + k, d, row);
+                } else {
+                    level.apply_range(j0 + k, d, lo, hi, &mut row[lo..hi]);
+                }
             }
-            let qb = &*qb;
-            sums_by_row(out, nx, |k| [&d[(j0 + k) * nx..], &qb[k * nx..]], |[dv, qv]| [dv * qv]);
+            row_dots(out, level, j0, spans, |k| [&d[(j0 + k) * nx..], &qb[k * nx..]]);
         });
         if !(dq > 0.0 && dq.is_finite()) {
             return Err(Error::SolverFailure {
@@ -112,10 +126,13 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
         // x += α d, r −= α q, and ‖r‖² in one pass over each block of rows.
         let (d, q) = (&w.d, &w.q);
         let [rr] = par::write2_row_blocks(exec, x, &mut w.r, nx, &mut w.partials1, |j0, xb, rb, out| {
-            let span = j0 * nx..j0 * nx + xb.len();
-            update_rows(alpha, &d[span.clone()], &q[span], xb, rb);
+            for k in 0..xb.len() / nx {
+                let (lo, hi) = level.span(j0 + k, spans);
+                let (row, at) = (k * nx..k * nx + hi, (j0 + k) * nx);
+                update_rows(alpha, &d[at + lo..at + hi], &q[at + lo..at + hi], &mut xb[row.start + lo..row.end], &mut rb[row.start + lo..row.end]);
+            }
             let rb = &*rb;
-            sums_by_row(out, nx, |k| [&rb[k * nx..]], |[r]| [r * r]);
+            row_dots(out, level, j0, spans, |k| [&rb[k * nx..], &rb[k * nx..]]);
         });
         rel = rr.sqrt() / bnorm;
         if !rel.is_finite() {
@@ -132,17 +149,18 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
                 return Ok(SolveInfo { iterations, residual: rel, initial_residual, rhs_mean_removed: 0.0 });
             }
             // Restart from the true residual.
-            rho = precondition(mg, w, singular, exec, iterations)?;
+            rho = precondition(mg, w, singular, spans, exec, iterations)?;
             w.d.copy_from_slice(&w.z);
             continue;
         }
-        let rho_new = precondition(mg, w, singular, exec, iterations)?;
+        let rho_new = precondition(mg, w, singular, spans, exec, iterations)?;
         let beta = rho_new / rho;
         rho = rho_new;
-        let z = &w.z;
+        let (z, level) = (&w.z, &mg.levels[0]);
         exec.for_each_row(&mut w.d, nx, |j, row| {
-            let zr = &z[j * nx..(j + 1) * nx];
-            for (dv, zv) in row.iter_mut().zip(zr) {
+            let (lo, hi) = level.span(j, spans);
+            let zr = &z[j * nx + lo..j * nx + hi];
+            for (dv, zv) in row[lo..hi].iter_mut().zip(zr) {
                 *dv = zv + beta * *dv;
             }
         });
@@ -152,13 +170,16 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
 
 /// z = M r (one multigrid cycle, projected onto zero mean in the singular case); returns r·z,
 /// or an error if it is not positive (M not positive definite: CG would break down).
-fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec, iteration: usize) -> Result<f64> {
+fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, spans: bool, exec: Exec, iteration: usize) -> Result<f64> {
     let nx = mg.levels[0].nx;
-    mg.precondition(&w.r, &mut w.z, exec);
+    mg.precondition_on_spans(&w.r, &mut w.z, spans, exec);
     if singular {
         remove_mean(exec, &mut w.z, nx, &mut w.partials1);
     }
-    let rho = dot(exec, &w.r, &w.z, nx, &mut w.partials1);
+    let (level, r, z) = (&mg.levels[0], &w.r, &w.z);
+    let [rho] = par::sum_row_blocks(exec, level.ny, r.len(), &mut w.partials1, |j0, out| {
+        row_dots(out, level, j0, spans, |k| [&r[(j0 + k) * nx..], &z[(j0 + k) * nx..]]);
+    });
     if rho > 0.0 && rho.is_finite() {
         Ok(rho)
     } else {
@@ -166,6 +187,23 @@ fn precondition(mg: &mut Multigrid, w: &mut CgWork, singular: bool, exec: Exec, 
             solver: SOLVER.to_string(),
             message: format!("breakdown at iteration {iteration}: rᵀMr = {rho:e} (the multigrid preconditioner is not positive definite)"),
         })
+    }
+}
+
+/// `out[k]` = the products a·b of row j0 + k (`rows(k)` = [a, b] from the row's first cell)
+/// added left to right from 0: over the whole rows ([`sums_by_row`]), or over the rows' spans
+/// when `spans`. Outside the spans the products are ±0 (a and b are zero there), which leave a
+/// left-to-right sum from +0 unchanged: both give the same bits.
+#[inline(always)]
+fn row_dots<'a>(out: &mut [[f64; 1]], level: &Level, j0: usize, spans: bool, rows: impl Fn(usize) -> [&'a [f64]; 2]) {
+    if !spans {
+        sums_by_row(out, level.nx, rows, |[a, b]| [a * b]);
+        return;
+    }
+    for (k, o) in out.iter_mut().enumerate() {
+        let (lo, hi) = level.spans[j0 + k];
+        let [a, b] = rows(k);
+        *o = row_sums::<1, 1>(hi - lo, |_, c| [a[lo + c] * b[lo + c]])[0];
     }
 }
 

@@ -51,6 +51,14 @@ pub(crate) struct Level {
     pub inv_diag: Vec<f64>,
     /// A row of zeros standing for the missing rows beyond the bottom and top boundaries.
     zeros: Vec<f64>,
+    /// The span of each row, `spans[j] = (lo, hi)`: every cell of row j outside the columns
+    /// lo..hi is isolated, its four couplings zero, and (on a coarse level) is the parent of no
+    /// cell in a span of the finer level ([`Level::set_spans`]); (0, 0) for a row without
+    /// such cells.
+    pub spans: Vec<(usize, usize)>,
+    /// Work of the rows for the smoother's blocks: `span_work[j]` = Σ_{k<j} (span length of
+    /// row k + [`ROW_OVERHEAD`]), ny + 1 values.
+    span_work: Vec<usize>,
 }
 
 impl Level {
@@ -70,7 +78,84 @@ impl Level {
             diag: vec![0.0; nx * ny],
             inv_diag: vec![0.0; nx * ny],
             zeros: vec![0.0; nx],
+            spans: vec![(0, nx); ny],
+            span_work: (0..=ny).map(|j| j * (nx + ROW_OVERHEAD)).collect(),
         }
+    }
+
+    /// Sets the rows' spans from the couplings and, on a coarse level, from the spans of the
+    /// finer level `fine` (a coarse cell whose children lie in a span is in its row's span).
+    ///
+    /// **Why the cycle may skip the rest.** A cell outside the spans has no coupling to any
+    /// other cell, so that its equation is d x = b alone; where b = 0 there (checked by
+    /// [`Level::zero_outside_spans`]'s callers for the fine level; the restricted residual of
+    /// cells whose children are all outside the spans is 0) the cycle leaves it at ±0: the
+    /// smoother sets it to (b + 0·neighbours)/d, its residual is 0, and a correction prolonged
+    /// into it is undone by the next sweep. Its value enters the other cells' updates only
+    /// multiplied by a zero coupling. The cycle restricted to the spans, with zeros outside them,
+    /// therefore computes the same values bit for bit (up to the sign of a zero) with the work
+    /// of the spans only: the granular-only model's air cells and the pore pressure's cells
+    /// outside the grains are such isolated cells (a trivial row p = 0).
+    pub fn set_spans(&mut self, fine: Option<&Level>) {
+        let (nx, ny) = (self.nx, self.ny);
+        let (cx, cy) = (&self.cx, &self.cy);
+        let coupled =
+            |j: usize, i: usize| cx[j * (nx + 1) + i] != 0.0 || cx[j * (nx + 1) + i + 1] != 0.0 || cy[j * nx + i] != 0.0 || cy[(j + 1) * nx + i] != 0.0;
+        for j in 0..ny {
+            let (mut lo, mut hi) = (nx, 0);
+            if let Some(i) = (0..nx).find(|&i| coupled(j, i)) {
+                lo = i;
+                hi = (i..nx).rev().find(|&i| coupled(j, i)).map_or(i, |k| k) + 1;
+            }
+            if let Some(f) = fine {
+                for jf in [2 * j, 2 * j + 1] {
+                    let (a, b) = f.spans[jf];
+                    if a < b {
+                        lo = lo.min(a / 2);
+                        hi = hi.max(b.div_ceil(2));
+                    }
+                }
+            }
+            self.spans[j] = if lo < hi { (lo, hi) } else { (0, 0) };
+            self.span_work[j + 1] = self.span_work[j] + self.spans[j].1 - self.spans[j].0 + ROW_OVERHEAD;
+        }
+    }
+
+    /// The execution policy for a sweep over this level: `exec`, but serial when the sweep
+    /// works on the spans and they hold too few cells for threads to pay
+    /// ([`Exec::use_parallel`]; the results do not depend on it).
+    pub fn exec_for(&self, exec: Exec, spans: bool) -> Exec {
+        if spans && !exec.use_parallel(self.span_work[self.ny]) {
+            Exec::SERIAL
+        } else {
+            exec
+        }
+    }
+
+    /// The columns of row `j` the cycle works on: its span when `on`, else the whole row.
+    #[inline(always)]
+    pub fn span(&self, j: usize, on: bool) -> (usize, usize) {
+        if on {
+            self.spans[j]
+        } else {
+            (0, self.nx)
+        }
+    }
+
+    /// Whether `v` (a field of this level) is zero outside the spans (−0 counts as zero).
+    pub fn zero_outside_spans(&self, v: &[f64]) -> bool {
+        let nx = self.nx;
+        v.chunks(nx).zip(&self.spans).all(|(row, &(lo, hi))| row[..lo].iter().all(|&x| x == 0.0) && row[hi..].iter().all(|&x| x == 0.0))
+    }
+
+    /// Sets `v` (a field of this level) to zero outside the spans.
+    pub fn fill_outside_spans(&self, v: &mut [f64], exec: Exec) {
+        let nx = self.nx;
+        exec.for_each_row(v, nx, |j, row| {
+            let (lo, hi) = self.spans[j];
+            row[..lo].fill(0.0);
+            row[hi..].fill(0.0);
+        });
     }
 
     /// Number of cells.
@@ -212,6 +297,34 @@ impl Level {
         out[i] = dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i];
     }
 
+    /// (A p) on the cells lo ≤ i < hi of row `j` into `out` (hi − lo values): the values of
+    /// [`Level::apply_row`] bit for bit.
+    pub fn apply_range(&self, j: usize, p: &[f64], lo: usize, hi: usize, out: &mut [f64]) {
+        let nx = self.nx;
+        debug_assert!(lo <= hi && hi <= nx && out.len() == hi - lo);
+        if lo == hi {
+            return;
+        }
+        let row = self.row_views(j, p);
+        let StencilRow { pc, ps, pn, cxr, cys, cyn, dg } = row;
+        if nx == 1 {
+            out[0] = dg[0] * pc[0] - cys[0] * ps[0] - cyn[0] * pn[0];
+            return;
+        }
+        let first = lo.max(1);
+        let last = hi.min(nx - 1);
+        if lo == 0 {
+            out[0] = dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0];
+        }
+        if last > first {
+            apply_span(&mut out[first - lo..last - lo], &row, first);
+        }
+        if hi == nx {
+            let i = nx - 1;
+            out[i - lo] = dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i];
+        }
+    }
+
     /// One red–black Gauss–Seidel sweep: a half-sweep over the cells of colour `first`
     /// ((i + j) mod 2 == first), then one over the other colour. A half-sweep sets
     /// x_ij = (b_ij + Σ couplings × neighbours) / d_ij; the neighbours of a cell all have the other
@@ -224,7 +337,11 @@ impl Level {
     /// [`smooth_blocks`] (at most [`SMOOTH_BLOCK`] rows), each doing colour `first` on all its rows and the other colour on
     /// its interior rows, then, after all blocks are done, the other colour on the first and last
     /// row of every block (they depend on the neighbouring blocks).
-    pub fn smooth(&self, x: &mut [f64], b: &[f64], first: usize, from_zero: bool, exec: Exec) {
+    ///
+    /// With `spans` the sweep updates only the cells of the rows' spans ([`Level::set_spans`];
+    /// the others must hold zeros and see b = 0), and the blocks hold equal work rather than
+    /// equal rows.
+    pub fn smooth(&self, x: &mut [f64], b: &[f64], first: usize, from_zero: bool, spans: bool, exec: Exec) {
         let (nx, ny) = (self.nx, self.ny);
         assert!(x.len() == nx * ny && b.len() == nx * ny);
         let second = 1 - first;
@@ -233,18 +350,19 @@ impl Level {
             // SAFETY: single thread; all indices are in bounds (see `half_sweep_row`).
             unsafe {
                 for j in 0..ny {
-                    self.half_sweep_row(ptr.get(), b, j, first, from_zero);
+                    self.half_sweep_row(ptr.get(), b, j, first, from_zero, spans);
                     if j > 0 {
-                        self.half_sweep_row(ptr.get(), b, j - 1, second, false);
+                        self.half_sweep_row(ptr.get(), b, j - 1, second, false, spans);
                     }
                 }
-                self.half_sweep_row(ptr.get(), b, ny - 1, second, false);
+                self.half_sweep_row(ptr.get(), b, ny - 1, second, false, spans);
             }
             return;
         }
         let blocks = smooth_blocks(ny, rayon::current_num_threads());
+        let work = if spans { Some(&self.span_work[..]) } else { None };
         // Phase A: colour `first` on every row of the block, the other colour on its interior rows.
-        par::for_balanced_blocks(exec, ny, nx * ny, blocks, |rows| {
+        par::for_balanced_blocks(exec, ny, nx * ny, blocks, work, |rows| {
             // SAFETY: this block writes colour `first` in its rows and the other colour in its
             // interior rows (start+1 ..= end−2). Other blocks read, in this phase, only the other
             // colour of this block's first and last rows, which nobody writes in this phase; the
@@ -252,28 +370,32 @@ impl Level {
             // block writes. Row and column indices are in bounds (see `half_sweep_row`).
             unsafe {
                 for j in rows.clone() {
-                    self.half_sweep_row(ptr.get(), b, j, first, from_zero);
+                    self.half_sweep_row(ptr.get(), b, j, first, from_zero, spans);
                     if j >= rows.start + 2 {
-                        self.half_sweep_row(ptr.get(), b, j - 1, second, false);
+                        self.half_sweep_row(ptr.get(), b, j - 1, second, false, spans);
                     }
                 }
             }
         });
         // Phase B: the other colour on the first and last row of every block.
-        par::for_balanced_blocks(exec, ny, nx * ny, blocks, |rows| {
+        par::for_balanced_blocks(exec, ny, nx * ny, blocks, work, |rows| {
+            if rows.is_empty() {
+                return;
+            }
             // SAFETY: blocks write the other colour in their own first and last rows and read
             // only colour `first`, which nobody writes in this phase.
             unsafe {
-                self.half_sweep_row(ptr.get(), b, rows.start, second, false);
+                self.half_sweep_row(ptr.get(), b, rows.start, second, false, spans);
                 if rows.end - 1 > rows.start {
-                    self.half_sweep_row(ptr.get(), b, rows.end - 1, second, false);
+                    self.half_sweep_row(ptr.get(), b, rows.end - 1, second, false, spans);
                 }
             }
         });
     }
 
     /// Gauss–Seidel update of the cells of colour `colour` in row `j` of the buffer at `base`
-    /// (nx·ny values); with `from_zero`, x = b/d (the other colour taken as 0).
+    /// (nx·ny values), in the row's span when `spans` (else the whole row); with `from_zero`,
+    /// x = b/d (the other colour taken as 0).
     ///
     /// # Safety
     /// `base` must point to nx·ny values; no other thread may write the cells of the other colour
@@ -281,14 +403,16 @@ impl Level {
     /// call. Indices: rows j±1 are read only when they exist (the zero row stands in otherwise),
     /// columns i±1 only when 0 ≤ i±1 < nx. No reference to the buffer is created.
     #[inline(always)]
-    unsafe fn half_sweep_row(&self, base: *mut f64, b: &[f64], j: usize, colour: usize, from_zero: bool) {
+    unsafe fn half_sweep_row(&self, base: *mut f64, b: &[f64], j: usize, colour: usize, from_zero: bool, spans: bool) {
         let (nx, ny) = (self.nx, self.ny);
-        let start = (colour + j) % 2;
+        let (lo, hi) = self.span(j, spans);
+        // the first cell of the colour at or after lo: (i + j) mod 2 == colour
+        let start = lo + (colour + j + lo) % 2;
         let br = &b[j * nx..(j + 1) * nx];
         let inv = &self.inv_diag[j * nx..(j + 1) * nx];
         let pc = base.add(j * nx);
         if from_zero {
-            for i in (start..nx).step_by(2) {
+            for i in (start..hi).step_by(2) {
                 *pc.add(i) = br[i] * inv[i];
             }
             return;
@@ -306,10 +430,11 @@ impl Level {
             let vertical = *cys.add(i) * *ps.add(i) + *cyn.add(i) * *pn.add(i);
             (horizontal + vertical) * *inv.add(i)
         };
+        if start >= hi {
+            return;
+        }
         if nx == 1 {
-            if start == 0 {
-                *pc = update(0, 0.0, 0.0);
-            }
+            *pc = update(0, 0.0, 0.0);
             return;
         }
         let mut i = start;
@@ -317,11 +442,12 @@ impl Level {
             *pc = update(0, 0.0, *pc.add(1));
             i = 2;
         }
-        while i < nx - 1 {
+        let end = hi.min(nx - 1);
+        while i < end {
             *pc.add(i) = update(i, *pc.add(i - 1), *pc.add(i + 1));
             i += 2;
         }
-        if i == nx - 1 {
+        if i == nx - 1 && i < hi {
             *pc.add(i) = update(i, *pc.add(i - 1), 0.0);
         }
     }
@@ -331,14 +457,19 @@ impl Level {
     /// [`RESTRICT_CHUNK`] / 2 coarse cells: the residual of the two fine rows under the chunk goes
     /// to buffers on the stack ([`Level::residual_range`]), then each coarse cell adds its four
     /// children in the order (2i, 2j), (2i+1, 2j), (2i, 2j+1), (2i+1, 2j+1), starting from 0.
-    pub fn restrict_residual(&self, x: &[f64], b: &[f64], coarse_b: &mut [f64], exec: Exec) {
+    /// With `coarse` (the coarse level, whose spans cover the parents of this level's spans)
+    /// only the coarse cells in its spans are computed, and the others are set to 0.
+    pub fn restrict_residual(&self, x: &[f64], b: &[f64], coarse_b: &mut [f64], coarse: Option<&Level>, exec: Exec) {
         let (nx, ncx) = (self.nx, self.nx / 2);
         debug_assert!(nx % 2 == 0 && self.ny % 2 == 0 && coarse_b.len() == ncx * (self.ny / 2));
         const CHUNK: usize = RESTRICT_CHUNK / 2;
         exec.for_each_row(coarse_b, ncx, |jc, row| {
+            let (clo, chi) = coarse.map_or((0, ncx), |c| c.spans[jc]);
+            row[..clo].fill(0.0);
+            row[chi.max(clo)..].fill(0.0);
             let (mut r0, mut r1) = ([0.0; RESTRICT_CHUNK], [0.0; RESTRICT_CHUNK]);
-            for (c, out) in row.chunks_mut(CHUNK).enumerate() {
-                let (lo, hi) = (2 * c * CHUNK, 2 * (c * CHUNK + out.len()));
+            for (c, out) in row[clo..chi.max(clo)].chunks_mut(CHUNK).enumerate() {
+                let (lo, hi) = (2 * (clo + c * CHUNK), 2 * (clo + c * CHUNK + out.len()));
                 let (r0, r1) = (&mut r0[..hi - lo], &mut r1[..hi - lo]);
                 self.residual_range(2 * jc, x, b, lo, hi, r0);
                 self.residual_range(2 * jc + 1, x, b, lo, hi, r1);
@@ -423,6 +554,9 @@ crate::multiversion! {
     }
 }
 
+/// The work of a row's loop beyond its span's cells, in cells, for the smoother's blocks.
+const ROW_OVERHEAD: usize = 8;
+
 /// Fine cells per chunk of the restriction (two stack buffers of 2 KiB).
 const RESTRICT_CHUNK: usize = 256;
 
@@ -497,7 +631,7 @@ mod tests {
             let expected = bits(&restrict_by_cells(&level, &x, &b));
             for exec in [Exec::SERIAL, Exec::with_threads(2)] {
                 let mut out = vec![f64::NAN; expected.len()];
-                pool.install(|| level.restrict_residual(&x, &b, &mut out, exec));
+                pool.install(|| level.restrict_residual(&x, &b, &mut out, None, exec));
                 assert_eq!(bits(&out), expected, "{nx}×{ny}, {exec:?}");
             }
         }

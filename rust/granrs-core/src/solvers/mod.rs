@@ -413,6 +413,13 @@ impl PoissonSolver {
         Ok(())
     }
 
+    /// Lets the multigrid cycle skip the isolated cells outside the rows' spans (`true`, the
+    /// default: the same iterates, up to the sign of a zero) or not (`false`: every cell; for
+    /// benchmarks and tests of that equality).
+    pub fn set_cycle_spans(&mut self, on: bool) {
+        self.mg.spans_enabled = on;
+    }
+
     /// Whether every side is Neumann (p defined up to a constant; solutions have zero mean).
     pub fn is_singular(&self) -> bool {
         self.singular

@@ -17,15 +17,28 @@ pub(crate) fn n_blocks(nrows: usize) -> usize {
     nrows.div_ceil(ROW_BLOCK)
 }
 
-/// Runs `f(rows)` on `nblocks` disjoint blocks of consecutive rows that cover `0..nrows` (their
-/// sizes differ by at most one row), in parallel when `exec` allows it for a grid of `cells`
-/// cells.
-pub(crate) fn for_balanced_blocks<F>(exec: Exec, nrows: usize, cells: usize, nblocks: usize, f: F)
+/// Runs `f(rows)` on `nblocks` disjoint blocks of consecutive rows that cover `0..nrows`, in
+/// parallel when `exec` allows it for a grid of `cells` cells. Without `work` the blocks' sizes
+/// differ by at most one row; with `work` (nrows + 1 non-decreasing prefix sums of the rows'
+/// work, from 0) block b ends at the first row whose prefix reaches (b + 1)/nblocks of the
+/// total, so that the blocks hold equal work (a block may then be empty).
+pub(crate) fn for_balanced_blocks<F>(exec: Exec, nrows: usize, cells: usize, nblocks: usize, work: Option<&[usize]>, f: F)
 where
     F: Fn(std::ops::Range<usize>) + Sync + Send,
 {
     let nb = nblocks.clamp(1, nrows.max(1));
-    let block = |b: usize| b * nrows / nb..(b + 1) * nrows / nb;
+    let end = |b: usize| match work {
+        None => b * nrows / nb,
+        Some(w) => {
+            let target = b * w[nrows] / nb;
+            if b == nb {
+                nrows
+            } else {
+                w[..=nrows].partition_point(|&v| v < target).min(nrows)
+            }
+        }
+    };
+    let block = |b: usize| end(b)..end(b + 1);
     if exec.use_parallel(cells) {
         (0..nb).into_par_iter().for_each(|b| f(block(b)));
     } else {
