@@ -96,12 +96,13 @@ impl Level {
     /// therefore computes the same values bit for bit (up to the sign of a zero) with the work
     /// of the spans only: the granular-only model's air cells and the pore pressure's cells
     /// outside the grains are such isolated cells (a trivial row p = 0).
-    pub fn set_spans(&mut self, fine: Option<&Level>) {
+    pub fn set_spans(&mut self, fine: Option<&Level>, exec: Exec) {
+        use rayon::prelude::*;
         let (nx, ny) = (self.nx, self.ny);
         let (cx, cy) = (&self.cx, &self.cy);
         let coupled =
             |j: usize, i: usize| cx[j * (nx + 1) + i] != 0.0 || cx[j * (nx + 1) + i + 1] != 0.0 || cy[j * nx + i] != 0.0 || cy[(j + 1) * nx + i] != 0.0;
-        for j in 0..ny {
+        let row_span = |j: usize| -> (usize, usize) {
             let (mut lo, mut hi) = (nx, 0);
             if let Some(i) = (0..nx).find(|&i| coupled(j, i)) {
                 lo = i;
@@ -116,7 +117,18 @@ impl Level {
                     }
                 }
             }
-            self.spans[j] = if lo < hi { (lo, hi) } else { (0, 0) };
+            if lo < hi {
+                (lo, hi)
+            } else {
+                (0, 0)
+            }
+        };
+        if exec.use_parallel(nx * ny) {
+            self.spans.par_iter_mut().enumerate().for_each(|(j, s)| *s = row_span(j));
+        } else {
+            self.spans.iter_mut().enumerate().for_each(|(j, s)| *s = row_span(j));
+        }
+        for j in 0..ny {
             self.span_work[j + 1] = self.span_work[j] + self.spans[j].1 - self.spans[j].0 + ROW_OVERHEAD;
         }
     }

@@ -300,8 +300,8 @@ impl PoissonSolver {
         let (nx, ny) = (self.nx, self.ny);
         check_len("beta_x", beta_x.len(), &[ny, nx + 1])?;
         check_len("beta_y", beta_y.len(), &[ny + 1, nx])?;
-        check_coefficients("beta_x", beta_x, nx + 1)?;
-        check_coefficients("beta_y", beta_y, nx)?;
+        check_coefficients("beta_x", beta_x, nx + 1, exec)?;
+        check_coefficients("beta_y", beta_y, nx, exec)?;
         self.ready = false;
         self.mg.set_coefficients(beta_x, beta_y, exec)?;
         self.ready = true;
@@ -319,11 +319,9 @@ impl PoissonSolver {
         check_len("beta_x", beta_x.len(), &[ny, nx + 1])?;
         check_len("beta_y", beta_y.len(), &[ny + 1, nx])?;
         check_len("shift", shift.len(), &[ny, nx])?;
-        check_non_negative_array("beta_x", beta_x, nx + 1)?;
-        check_non_negative_array("beta_y", beta_y, nx)?;
-        if let Some(k) = shift.iter().position(|s| !(s.is_finite() && *s >= 0.0)) {
-            return Err(Error::param("shift", format!("{} at cell (i={}, j={})", shift[k], k % nx, k / nx), "finite values >= 0"));
-        }
+        check_non_negative_array("beta_x", beta_x, nx + 1, exec)?;
+        check_non_negative_array("beta_y", beta_y, nx, exec)?;
+        check_non_negative_array("shift", shift, nx, exec)?;
         if self.bc.iter().all(|&b| b == PressureBc::Neumann) && shift.iter().all(|&s| s == 0.0) {
             return Err(Error::param("shift", "0 everywhere", "positive somewhere when every side is Neumann (else singular)"));
         }
@@ -347,8 +345,8 @@ impl PoissonSolver {
                 message: "the last set_coefficients failed; set valid coefficients before solving".to_string(),
             });
         }
-        check_finite_array("f", f, nx)?;
-        check_finite_array("p", p, nx)?;
+        check_finite_array("f", f, nx, exec)?;
+        check_finite_array("p", p, nx, exec)?;
         // b = −f (A = −L), projected onto zero mean in the singular case.
         let rhs = &mut self.work.rhs;
         exec.for_each_row(rhs, nx, |j, row| {
@@ -471,8 +469,12 @@ fn check_len(name: &str, len: usize, shape: &[usize]) -> Result<()> {
 /// Checks `ok(v)` for every value of a row-major array with rows of `stride`; the error names the
 /// array, the row and column of the first failure, and `allowed`. A branch-free pass runs first
 /// (it vectorises: these checks run on every solve), the search for the position only on failure.
-fn check_array(name: &str, v: &[f64], stride: usize, ok: impl Fn(f64) -> bool, allowed: &str) -> Result<()> {
-    if v.iter().fold(true, |all, &x| all & ok(x)) {
+/// Large arrays are checked by blocks of rows on the threads of `exec`.
+fn check_array(name: &str, v: &[f64], stride: usize, ok: impl Fn(f64) -> bool + Sync, allowed: &str, exec: Exec) -> Result<()> {
+    use rayon::prelude::*;
+    let block_ok = |c: &[f64]| c.iter().fold(true, |all, &x| all & ok(x));
+    let all_ok = if exec.use_parallel(v.len()) { v.par_chunks(crate::exec::TASK_CELLS).all(block_ok) } else { block_ok(v) };
+    if all_ok {
         return Ok(());
     }
     match v.iter().position(|&x| !ok(x)) {
@@ -482,8 +484,9 @@ fn check_array(name: &str, v: &[f64], stride: usize, ok: impl Fn(f64) -> bool, a
 }
 
 /// Checks that every coefficient is finite and > 0; the error names the array and the face.
-fn check_coefficients(name: &str, beta: &[f64], stride: usize) -> Result<()> {
-    check_array(name, beta, stride, |b| b > 0.0 && b < f64::INFINITY, "a finite number > 0 (β = 1/ρ on every face)")
+#[allow(clippy::manual_range_contains)] // branch-free, as `check_non_negative_array`
+fn check_coefficients(name: &str, beta: &[f64], stride: usize, exec: Exec) -> Result<()> {
+    check_array(name, beta, stride, |b| (b > 0.0) & (b < f64::INFINITY), "a finite number > 0 (β = 1/ρ on every face)", exec)
 }
 
 /// A shifted system (L_β − σ) x = rhs on `nx × ny` cells with its coefficient and work arrays
@@ -522,14 +525,16 @@ impl ShiftedSystem {
 }
 
 /// Checks that every coefficient is finite and ≥ 0 (a shifted operator may decouple cells).
-fn check_non_negative_array(name: &str, beta: &[f64], stride: usize) -> Result<()> {
+// `&` rather than `Range::contains` (`&&`): no branch per value, so that the pass vectorises
+#[allow(clippy::manual_range_contains)]
+fn check_non_negative_array(name: &str, beta: &[f64], stride: usize, exec: Exec) -> Result<()> {
     // NaN fails both comparisons
-    check_array(name, beta, stride, |b| (0.0..f64::INFINITY).contains(&b), "a finite number >= 0")
+    check_array(name, beta, stride, |b| (b >= 0.0) & (b < f64::INFINITY), "a finite number >= 0", exec)
 }
 
 /// Checks that every value is finite; the error names the array and the cell.
-fn check_finite_array(name: &str, v: &[f64], stride: usize) -> Result<()> {
-    check_array(name, v, stride, |x| x.abs() < f64::INFINITY, "a finite number")
+fn check_finite_array(name: &str, v: &[f64], stride: usize, exec: Exec) -> Result<()> {
+    check_array(name, v, stride, |x| x.abs() < f64::INFINITY, "a finite number", exec)
 }
 
 impl PoissonSolver {

@@ -148,12 +148,12 @@ impl Multigrid {
         self.levels[0].beta_x.copy_from_slice(beta_x);
         self.levels[0].beta_y.copy_from_slice(beta_y);
         self.levels[0].update_stencil(exec);
-        self.levels[0].set_spans(None);
+        self.levels[0].set_spans(None, exec);
         for l in 1..self.levels.len() {
             let (fine, coarse) = self.levels.split_at_mut(l);
             coarse[0].coarsen_coefficients(&fine[l - 1], exec);
             coarse[0].update_stencil(exec);
-            coarse[0].set_spans(Some(&fine[l - 1]));
+            coarse[0].set_spans(Some(&fine[l - 1]), exec);
         }
         let last = self.levels.len() - 1;
         self.coarse.factorize(&self.levels[last])
