@@ -466,7 +466,10 @@ fn the_cycle_on_the_spans_of_a_free_surface_gives_the_whole_rows_iterates() {
         let (got, info) = free_surface_solve(nx, ny, &g, true, Exec::SERIAL);
         assert_eq!(info, want_info, "{nx}×{ny}, source in the air");
         assert!(got == want, "{nx}×{ny}, source in the air: solutions differ");
-        assert!((f64::from_bits(got[air]) + g[air]).abs() < 1e-6, "{nx}×{ny}: the air cell holds p = −b/σ");
+        // the air cell's equation −σ p = b stands alone (σ = 1): its error is its residual,
+        // at most the solve's ‖r‖ ≤ rtol ‖b‖
+        let bound = SolverSettings::default().rtol * norm(&g);
+        assert!((f64::from_bits(got[air]) + g[air]).abs() <= bound, "{nx}×{ny}: the air cell holds p = −b/σ");
     }
 }
 

@@ -91,6 +91,15 @@ impl TwoPhaseModel {
     /// step that fails for good leaves the model bit for bit in its state before the step (the
     /// last accepted one).
     pub fn step(&mut self) -> Result<StepInfo> {
+        let out = self.step_leaving_window();
+        self.sync_from_window();
+        out
+    }
+
+    /// [`TwoPhaseModel::step`] that leaves an active window's fields in the window (this
+    /// model's fields lag until [`TwoPhaseModel::sync_from_window`]); the steps of
+    /// [`TwoPhaseModel::advance`].
+    pub(crate) fn step_leaving_window(&mut self) -> Result<StepInfo> {
         let mut info = self.step_accepted()?;
         let start = Instant::now();
         self.account_energy(info.dt);

@@ -536,12 +536,10 @@ pub struct TwoPhaseModel {
     /// The active window's model (with [`ModelConfig::active_region`]; None until the first step
     /// and after the state was changed from outside, when it is rebuilt from this model's state).
     pub(crate) window: Option<Box<TwoPhaseModel>>,
-    /// Whether this model's fields lag the window's state: within
-    /// [`TwoPhaseModel::advance`] the window's state is copied back once, at the end, not
-    /// after every step (the clock is copied after every step).
+    /// Whether this model's fields lag the window's state: a window's step copies back only
+    /// the clock, and the fields follow when the call returns (within
+    /// [`TwoPhaseModel::advance`], once at its end).
     pub(crate) window_ahead: bool,
-    /// Whether the window's steps leave the copy back to the end of [`TwoPhaseModel::advance`].
-    pub(crate) defer_window_copy: bool,
     /// Ceiling on δt lowered by a rejected step (`TimeConfig::step_retries`), recovering by
     /// [`crate::time_stepping::DT_CEILING_RECOVERY`] per accepted step (∞: none).
     pub dt_ceiling: f64,
@@ -601,7 +599,6 @@ impl TwoPhaseModel {
             reference_area: 0.0,
             window: None,
             window_ahead: false,
-            defer_window_copy: false,
             dt_ceiling: f64::INFINITY,
             dt_attempt: 0.0,
             step_snapshot: Vec::new(),
@@ -631,7 +628,6 @@ impl TwoPhaseModel {
     pub fn advance(&mut self, t_end: Option<f64>, max_steps: Option<u64>) -> (Vec<StepInfo>, Option<Error>) {
         let mut log = Vec::new();
         let limit = max_steps.unwrap_or(u64::MAX);
-        self.defer_window_copy = true;
         let mut err = None;
         while (log.len() as u64) < limit {
             if let Some(t) = t_end {
@@ -642,7 +638,7 @@ impl TwoPhaseModel {
                 // land on t_end: a fixed step is shortened; the adaptive one is capped
                 self.set_time_to_land(Some(remaining));
             }
-            match self.step() {
+            match self.step_leaving_window() {
                 Ok(s) => log.push(s),
                 Err(e) => {
                     err = Some(e);
@@ -650,7 +646,6 @@ impl TwoPhaseModel {
                 }
             }
         }
-        self.defer_window_copy = false;
         self.sync_from_window();
         self.set_time_to_land(None);
         (log, err)

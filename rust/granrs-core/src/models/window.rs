@@ -185,20 +185,16 @@ impl TwoPhaseModel {
         let w = self.window.as_mut().expect("built above");
         w.time_to_land = self.time_to_land;
         let out = w.step_accepted();
-        if self.defer_window_copy {
-            let w = self.window.take().expect("built above");
-            copy_clock(&w, self);
-            self.window = Some(w);
-            self.window_ahead = true;
-        } else {
-            self.window_ahead = true;
-            self.sync_from_window();
-        }
+        // the clock now; the fields when a call returns (`TwoPhaseModel::sync_from_window`)
+        let w = self.window.take().expect("built above");
+        copy_clock(&w, self);
+        self.window = Some(w);
+        self.window_ahead = true;
         out
     }
 
-    /// Copies the window's state into this model's fields where they lag it (after the steps
-    /// of [`TwoPhaseModel::advance`]).
+    /// Copies the window's state into this model's fields where they lag it: after a step
+    /// ([`TwoPhaseModel::step`]), at the end of [`TwoPhaseModel::advance`], before a rebuild.
     pub(crate) fn sync_from_window(&mut self) {
         if self.window_ahead && self.window.is_some() {
             let (pool, exec) = (std::sync::Arc::clone(&self.pool), self.exec());

@@ -108,11 +108,7 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
         let [dq] = par::write_row_blocks(exec, &mut w.q, nx, &mut w.partials1, |j0, qb, out| {
             for (k, row) in qb.chunks_mut(nx).enumerate() {
                 let (lo, hi) = level.span(j0 + k, spans);
-                if lo == 0 && hi == nx {
-                    level.apply_row(j0 + k, d, row);
-                } else {
-                    level.apply_range(j0 + k, d, lo, hi, &mut row[lo..hi]);
-                }
+                level.apply_range(j0 + k, d, lo, hi, &mut row[lo..hi]);
             }
             row_dots(out, level, j0, spans, |k| [&d[(j0 + k) * nx..], &qb[k * nx..]]);
         });
@@ -128,8 +124,8 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
         let [rr] = par::write2_row_blocks(exec, x, &mut w.r, nx, &mut w.partials1, |j0, xb, rb, out| {
             for k in 0..xb.len() / nx {
                 let (lo, hi) = level.span(j0 + k, spans);
-                let (row, at) = (k * nx..k * nx + hi, (j0 + k) * nx);
-                update_rows(alpha, &d[at + lo..at + hi], &q[at + lo..at + hi], &mut xb[row.start + lo..row.end], &mut rb[row.start + lo..row.end]);
+                let (grid, block) = ((j0 + k) * nx, k * nx);
+                update_rows(alpha, &d[grid + lo..grid + hi], &q[grid + lo..grid + hi], &mut xb[block + lo..block + hi], &mut rb[block + lo..block + hi]);
             }
             let rb = &*rb;
             row_dots(out, level, j0, spans, |k| [&rb[k * nx..], &rb[k * nx..]]);

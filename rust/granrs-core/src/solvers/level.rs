@@ -290,27 +290,8 @@ impl Level {
         exec.for_each_row(r, nx, |j, row| self.residual_range(j, x, b, 0, nx, row));
     }
 
-    /// (A p) on row `j` into `out` (nx values): the values of [`Level::stencil_row`] bit for bit,
-    /// the interior cells by a vectorised kernel on contiguous slices.
-    pub fn apply_row(&self, j: usize, p: &[f64], out: &mut [f64]) {
-        let nx = self.nx;
-        debug_assert!(out.len() == nx);
-        let row = self.row_views(j, p);
-        let StencilRow { pc, ps, pn, cxr, cys, cyn, dg } = row;
-        if nx == 1 {
-            out[0] = dg[0] * pc[0] - cys[0] * ps[0] - cyn[0] * pn[0];
-            return;
-        }
-        out[0] = dg[0] * pc[0] - cxr[1] * pc[1] - cys[0] * ps[0] - cyn[0] * pn[0];
-        if nx > 2 {
-            apply_span(&mut out[1..nx - 1], &row, 1);
-        }
-        let i = nx - 1;
-        out[i] = dg[i] * pc[i] - cxr[i] * pc[i - 1] - cys[i] * ps[i] - cyn[i] * pn[i];
-    }
-
     /// (A p) on the cells lo ≤ i < hi of row `j` into `out` (hi − lo values): the values of
-    /// [`Level::apply_row`] bit for bit.
+    /// [`Level::stencil_row`] bit for bit, the interior cells by the vectorised [`apply_span`].
     pub fn apply_range(&self, j: usize, p: &[f64], lo: usize, hi: usize, out: &mut [f64]) {
         let nx = self.nx;
         debug_assert!(lo <= hi && hi <= nx && out.len() == hi - lo);
@@ -478,9 +459,9 @@ impl Level {
         exec.for_each_row(coarse_b, ncx, |jc, row| {
             let (clo, chi) = coarse.map_or((0, ncx), |c| c.spans[jc]);
             row[..clo].fill(0.0);
-            row[chi.max(clo)..].fill(0.0);
+            row[chi..].fill(0.0);
             let (mut r0, mut r1) = ([0.0; RESTRICT_CHUNK], [0.0; RESTRICT_CHUNK]);
-            for (c, out) in row[clo..chi.max(clo)].chunks_mut(CHUNK).enumerate() {
+            for (c, out) in row[clo..chi].chunks_mut(CHUNK).enumerate() {
                 let (lo, hi) = (2 * (clo + c * CHUNK), 2 * (clo + c * CHUNK + out.len()));
                 let (r0, r1) = (&mut r0[..hi - lo], &mut r1[..hi - lo]);
                 self.residual_range(2 * jc, x, b, lo, hi, r0);
@@ -664,15 +645,22 @@ mod tests {
     }
 
     #[test]
-    fn apply_row_matches_the_stencil_on_every_row_length() {
+    fn apply_range_matches_the_stencil_on_every_row_length() {
         for nx in [1, 2, 3, 37] {
             let (level, _, x) = case(nx, 5);
             for j in 0..5 {
                 let mut want = vec![0.0; nx];
                 level.stencil_row(j, &x, |i, v| want[i] = v);
                 let mut got = vec![f64::NAN; nx];
-                level.apply_row(j, &x, &mut got);
+                level.apply_range(j, &x, 0, nx, &mut got);
                 assert_eq!(bits(&got), bits(&want), "nx {nx}, row {j}");
+                // the cuts of a row's span
+                for (lo, hi) in [(0, 1), (nx - 1, nx), (nx / 2, nx), (1.min(nx), nx / 2), (nx / 3, nx / 3)] {
+                    let (lo, hi) = (lo.min(hi), hi.max(lo));
+                    let mut got = vec![f64::NAN; hi - lo];
+                    level.apply_range(j, &x, lo, hi, &mut got);
+                    assert_eq!(bits(&got), bits(&want[lo..hi]), "nx {nx}, row {j}, cells {lo}..{hi}");
+                }
             }
         }
         let (level, _, x) = case(300, 3);

@@ -243,15 +243,8 @@ fn prolong_add(ncx: usize, xc: &[f64], fine: &Level, xf: &mut [f64], spans: bool
     exec.for_each_row(xf, fine.nx, |jf, row| {
         let c = &xc[(jf / 2) * ncx..(jf / 2 + 1) * ncx];
         let (lo, hi) = fine.span(jf, spans);
-        if lo == 0 && hi == row.len() {
-            for (pair, v) in row.chunks_exact_mut(2).zip(c) {
-                pair[0] += v;
-                pair[1] += v;
-            }
-        } else {
-            for (i, v) in row[lo..hi].iter_mut().enumerate() {
-                *v += c[(lo + i) / 2];
-            }
+        for (i, v) in row[lo..hi].iter_mut().enumerate() {
+            *v += c[(lo + i) / 2];
         }
     });
 }
