@@ -3,7 +3,7 @@ granrs, one after the other on the same machine: their wall times, step counts a
 and the ratio of the wall times.
 
     .venv/bin/python benchmarks/reference_runs.py [--base DIR] [--new DIR]
-        [--cases reference granular granular-window] [--threads 2] [--ny 256] [--out FILE.json]
+        [--cases reference granular granular-window reference-cfl-light] [--threads 2] [--ny 256] [--out FILE.json]
 
 ``DIR`` holds a build's ``granrs`` package (a wheel of another commit, built with ``maturin build
 --release`` and unpacked into DIR); ``--new`` likewise, or the build ``import granrs`` finds
@@ -13,7 +13,10 @@ and the ratio of the wall times.
   active window (``--active-region 16 --active-region-sides open-right-top``);
 * ``granular``: the granular-only model at ny = 256 on the whole domain (``--model granular``);
 * ``granular-window``: the granular-only model on the active window of walls with a band of 16
-  cells (``--model granular --active-region 16``).
+  cells (``--model granular --active-region 16``);
+* ``reference-cfl-light``: the reference case with the air more than 6 cells from the grains
+  held to a CFL number of 0.9 instead of 0.5 (``--cfl-light 0.9``, ``time.cfl_light``; the grains
+  and the interface keep 0.5).
 
 Each run is a process of its own, the base build first; the table gives ``wall_s`` of each run's
 summary.json (the time inside the run, without the start-up and the plots) and the process's
@@ -38,7 +41,20 @@ CASES = {
     "reference": ["--active-region", "16", "--active-region-sides", "open-right-top"],
     "granular": ["--model", "granular"],
     "granular-window": ["--model", "granular", "--active-region", "16"],
+    "reference-cfl-light": ["--active-region", "16", "--active-region-sides", "open-right-top", "--cfl-light", "0.9"],
 }
+
+#: The observables of summary.json each row keeps (granrs.observables; docs/validation.md).
+OBSERVABLES = (
+    "front_h20mm_m",
+    "front_h5mm_m",
+    "q50_m",
+    "q90_m",
+    "q95_m",
+    "centre_of_mass_travel_m",
+    "h_back_wall_m",
+    "h_gate_m",
+)
 
 
 def run(build: str | None, case: str, args: argparse.Namespace, out: Path) -> dict:
@@ -61,6 +77,7 @@ def run(build: str | None, case: str, args: argparse.Namespace, out: Path) -> di
         "runout_m": s["runout_m"],
         "stop_reason": s["stop_reason"],
         "load_average": os.getloadavg()[0],
+        "observables": {k: (s.get("observables") or {}).get(k) for k in OBSERVABLES},
     }
 
 

@@ -388,6 +388,19 @@ def test_with_options_puts_each_option_into_the_object_that_holds_it():
         ColumnCase().with_options(theta=1.5)
 
 
+def test_the_clocks_options_are_checked_together_in_rust():
+    """TimeConfig::validate's rule across options (time_stepping/clock.rs): a CFL number for
+    the light phase above cfl_abort, which would have every step it sets rejected, is refused
+    when the object is made, whichever of the two is set; within it, it is kept."""
+    for kw in ({"cfl_light": 1.5}, {"cfl_light": 0.9, "cfl_abort": 0.8}):
+        with pytest.raises(ParameterError, match=r"`time.cfl_light` = .*at most time.cfl_abort"):
+            granrs.TimeStepping(**kw)
+    with pytest.raises(ParameterError, match=r"`time.cfl_light` = 1.5"):
+        ColumnCase().with_options(cfl_light=1.5)
+    assert granrs.TimeStepping(cfl_light=0.9).cfl_light == 0.9
+    assert ColumnCase().with_options(cfl_light=0.8, cfl_abort=0.8).time.cfl_light == 0.8
+
+
 def test_the_depth_averaged_binding_takes_one_configuration_object():
     from granrs.depth_averaged import DepthAveragedModel
 

@@ -83,6 +83,11 @@ CLI_BAD = [
     (["run", "column", "--threads", "0"], "`--threads` = '0': allowed an integer in [1, 1024]"),
     (["run", "column", "--cfl", "0"], "`--cfl` = '0': allowed a number in [1e-06, 2]"),
     (["run", "column", "--cfl", "2.5"], "`--cfl` = '2.5': allowed a number in [1e-06, 2]"),
+    (["run", "column", "--cfl-light", "0"], "`--cfl-light` = '0': allowed a number in (1e-06, 2]"),
+    (
+        ["run", "column", "--cfl-light", "1.5"],
+        "`time.cfl_light` = 1.5: allowed None or a number in (1e-6, 2] (dimensionless) and at most time.cfl_abort = 1",
+    ),
     (["run", "column", "--t-end", "-1"], "`--t-end` = '-1': allowed a number in [1e-06, 10000]"),
     (["run", "column", "--aspect-ratio", "50"], "`--aspect-ratio` = '50': allowed a number in [0.1, 20]"),
     (["run", "column", "--width", "0"], "`--width` = '0': allowed a number in [0.001, 10]"),

@@ -119,6 +119,7 @@ _COLUMN_OPTIONS = (
     "t_end",
     "rheology",
     "cfl",
+    "cfl_light",
     "length",
     "compare_with",
     "threads",
@@ -139,6 +140,7 @@ _COLUMN_KEYS = {
     "ny": "grid.ny",
     "t_end": "time.t_end",
     "cfl": "time.cfl",
+    "cfl_light": "time.cfl_light",
     "rheology": "rheology.law",
     "friction_angle": "rheology.friction_angle",
     "threads": "numerics.threads",
@@ -250,6 +252,7 @@ def _run(args, parser) -> int:
                 ("--channel-width", args.channel_width),
                 ("--rheology", args.rheology),
                 ("--cfl", args.cfl),
+                ("--cfl-light", args.cfl_light),
                 ("--threads", args.threads),
             ):
                 if v is not None and v != parser.get_default(flag[2:].replace("-", "_")):
@@ -453,6 +456,12 @@ def main(argv=None) -> int:
         "surface at p = 0) or the depth-averaged one (docs/howto/choosing-a-model.md)",
     )
     r.add_argument("--cfl", type=_key_type("--cfl", "time.cfl"), help="CFL number (column; time.cfl)")
+    r.add_argument(
+        "--cfl-light",
+        dest="cfl_light",
+        type=_key_type("--cfl-light", "time.cfl_light"),
+        help="CFL number of the air more than 6 cells from the grains, which keep --cfl (column; time.cfl_light)",
+    )
     r.add_argument(
         "--active-region",
         dest="active_region",

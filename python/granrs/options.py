@@ -87,9 +87,17 @@ def _doc(title: str, fields: list[tuple[str, OptionInfo]]) -> str:
     return "\n".join(lines)
 
 
-def _options_class(cls_name: str, title: str, fields: list[tuple[str, OptionInfo]], module: str = __name__):
+def _options_class(
+    cls_name: str,
+    title: str,
+    fields: list[tuple[str, OptionInfo]],
+    module: str = __name__,
+    room_name: Optional[str] = None,
+):
     """A frozen dataclass whose fields are ``fields`` (name, option), with the schema's defaults,
-    each value checked in Rust on construction (ParameterError names the field)."""
+    each value checked in Rust on construction (ParameterError names the field), and with
+    ``room_name`` the values checked together by the rules of that room's Rust struct
+    (``granrs._granrs.check_room``)."""
     specs = dict(fields)
     ordered = sorted(fields, key=lambda f: f[1].required, reverse=True)  # required ones first
 
@@ -97,6 +105,8 @@ def _options_class(cls_name: str, title: str, fields: list[tuple[str, OptionInfo
         for name, s in specs.items():
             value = getattr(self, name)
             object.__setattr__(self, name, s.check(value, name))
+        if room_name is not None:
+            _granrs.check_room(room_name, {specs[n].key: getattr(self, n) for n in specs})
 
     def options(self) -> dict:
         """The values by their schema keys."""
@@ -128,6 +138,7 @@ TimeStepping: Any = _options_class(
     "The simulation's clock: how δt is chosen (Rust TimeConfig).",
     [(s.key, s) for s in room("time")],
     "granrs",
+    room_name="time",
 )
 
 #: The numerics of the bi-projection (paper eq. 12) and of how the yield stress is imposed.

@@ -10,7 +10,7 @@ use granrs_core::options::{self, Kind, OptionMap, OptionSpec, Value};
 use granrs_core::pore_pressure::PorePressureConfig;
 use granrs_core::rheology::{RheologyLaw, COULOMB_OPTIONS, SIDE_WALL_OPTIONS};
 use granrs_core::solvers::SolveInfo;
-use granrs_core::time_stepping::StepInfo;
+use granrs_core::time_stepping::{StepInfo, TimeConfig};
 use granrs_core::walls::side::SideWalls;
 use granrs_core::Error;
 use numpy::{PyArray2, PyReadonlyArray2};
@@ -434,6 +434,22 @@ fn check_option<'py>(py: Python<'py>, key: &str, value: &Bound<'py, PyAny>, room
     from_value(py, &v)
 }
 
+/// Checks the options of one room together, by the cross-field rules of its struct's
+/// `validate` beyond each option's own range (the clock: `cfl_light` at most `cfl_abort`):
+/// ParameterError naming the offending key; rooms without such rules pass.
+#[pyfunction]
+fn check_room(room: &str, values: &Bound<'_, PyAny>) -> PyResult<()> {
+    let map = option_map(Some(values), room)?;
+    match room {
+        "time" => {
+            let mut c = TimeConfig::default();
+            options::apply(&mut c, &map).map_err(to_py)?;
+            c.validate().map_err(to_py)
+        }
+        _ => Ok(()),
+    }
+}
+
 #[pymethods]
 impl PyModel {
     /// Builds a model from its configuration object (see `build_config`).
@@ -723,6 +739,7 @@ fn _granrs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(levelset_validation, m)?)?;
     m.add_function(wrap_pyfunction!(schema, m)?)?;
     m.add_function(wrap_pyfunction!(check_option, m)?)?;
+    m.add_function(wrap_pyfunction!(check_room, m)?)?;
     m.add("__version__", granrs_core::VERSION)?;
     m.add("ParameterError", m.py().get_type::<ParameterError>())?;
     m.add("SolverError", m.py().get_type::<SolverError>())?;

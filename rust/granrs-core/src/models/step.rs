@@ -68,12 +68,13 @@ use crate::exec::Exec;
 use crate::grid::{Field, HALO};
 use crate::levelset::TransportVelocity;
 use crate::operators::{
-    convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed, BcMode,
+    convection, convection_weno5, divergence_max_abs, fill_velocity_ghosts, for_each_interior_row, for_each_interior_row2, gradient, max_speed,
+    max_speed_where, BcMode,
 };
 use crate::projection::{fill_pressure_ghosts, ProjectionInputs};
 use crate::rheology::PicardInfo;
 use crate::solvers::SolveInfo;
-use crate::time_stepping::clock::{bdf_coefficients, stable_dt, SPEED_BOUND};
+use crate::time_stepping::clock::{bdf_coefficients, stable_dt, LIGHT_CFL_BAND, SPEED_BOUND};
 use crate::time_stepping::momentum::ViscousScheme;
 use crate::time_stepping::{StageSeconds, StepInfo};
 use std::time::Instant;
@@ -269,18 +270,15 @@ impl TwoPhaseModel {
         }
     }
 
-    /// Stage 1: the time step.
-    fn choose_dt(&mut self, exec: Exec) -> Result<f64> {
+    /// The adaptive rule's step at the current speeds, before the caps (`max_dt`, the growth
+    /// factor, a rejected step's ceiling, landing on t_end): `stable_dt` with C_cfl at the
+    /// largest speeds, prescribed boundary speeds included; with `cfl_light` (and a light phase
+    /// beside a dense one), the smaller of `stable_dt` with C_cfl at the largest speeds on the
+    /// faces next to a cell with Φ > −LIGHT_CFL_BAND·h and `stable_dt` with `cfl_light` at the
+    /// largest speeds everywhere (time_stepping/clock.rs).
+    pub fn cfl_dt(&self, exec: Exec) -> f64 {
         let cfg = &self.config;
         let g = &cfg.grid;
-        let land = |dt: f64| match self.time_to_land {
-            Some(r) if r <= dt * (1.0 + 1e-9) => r,
-            Some(r) if r < 2.0 * dt => 0.5 * r,
-            _ => dt,
-        };
-        if let Some(dt) = cfg.time.fixed_dt {
-            return Ok(land(dt));
-        }
         let (mut umax, mut vmax) = max_speed(&self.u, &self.v, exec);
         // prescribed boundary speeds (a lid drives a fluid at rest)
         for side in crate::grid::Side::ALL {
@@ -305,7 +303,27 @@ impl TwoPhaseModel {
             0.0
         };
         let gmag = (cfg.gravity[0].powi(2) + cfg.gravity[1].powi(2)).sqrt();
-        let mut dt = stable_dt(cfg.time.cfl, umax, vmax, g.dx, g.dy, gmag, nu).min(cfg.time.max_dt);
+        match (cfg.time.cfl_light, cfg.light.is_some() && !cfg.free_surface) {
+            (Some(cfl_light), true) => {
+                let (ud, vd) = max_speed_where(&self.u, &self.v, &self.phi, -LIGHT_CFL_BAND * g.h(), exec);
+                stable_dt(cfg.time.cfl, ud, vd, g.dx, g.dy, gmag, nu).min(stable_dt(cfl_light, umax, vmax, g.dx, g.dy, gmag, nu))
+            }
+            _ => stable_dt(cfg.time.cfl, umax, vmax, g.dx, g.dy, gmag, nu),
+        }
+    }
+
+    /// Stage 1: the time step.
+    fn choose_dt(&mut self, exec: Exec) -> Result<f64> {
+        let cfg = &self.config;
+        let land = |dt: f64| match self.time_to_land {
+            Some(r) if r <= dt * (1.0 + 1e-9) => r,
+            Some(r) if r < 2.0 * dt => 0.5 * r,
+            _ => dt,
+        };
+        if let Some(dt) = cfg.time.fixed_dt {
+            return Ok(land(dt));
+        }
+        let mut dt = self.cfl_dt(exec).min(cfg.time.max_dt);
         match self.dt_prev {
             Some(prev) => dt = dt.min(prev * cfg.time.max_growth),
             // start from a tenth of the stable step: an impulsive start (a column released from

@@ -557,6 +557,48 @@ pub fn max_speed(u: &Field, v: &Field, exec: Exec) -> (f64, f64) {
     (exec.max_rows(u.ny, u.nx * u.ny, |j| row_max(u, j)), exec.max_rows(v.ny, v.nx * v.ny, |j| row_max(v, j)))
 }
 
+/// Largest |u| over the XFace points and |v| over the YFace points next to a cell with Φ > `level`
+/// (either of the face's two cells; the faces of the domain's sides look at their one interior
+/// cell), as (max |u|, max |v|); 0 where no face qualifies, NaN propagates.
+pub fn max_speed_where(u: &Field, v: &Field, phi: &Field, level: f64, exec: Exec) -> (f64, f64) {
+    let (nx, ny) = (phi.nx, phi.ny);
+    let (us, vs, ps) = (u.slice(), v.slice(), phi.slice());
+    let umax = exec.max_rows(ny, (nx + 1) * ny, |j| {
+        let (bu, bp) = (base(u, j as isize), base(phi, j as isize));
+        let (mut m, mut nan) = (0.0f64, false);
+        for i in 0..=nx {
+            if (i > 0 && ps[bp + i - 1] > level) || (i < nx && ps[bp + i] > level) {
+                let a = us[bu + i].abs();
+                nan |= a.is_nan();
+                m = m.max(a);
+            }
+        }
+        if nan {
+            f64::NAN
+        } else {
+            m
+        }
+    });
+    let vmax = exec.max_rows(ny + 1, nx * (ny + 1), |j| {
+        let bv = base(v, j as isize);
+        let (below, above) = (base(phi, j as isize - 1), base(phi, j as isize));
+        let (mut m, mut nan) = (0.0f64, false);
+        for i in 0..nx {
+            if (j > 0 && ps[below + i] > level) || (j < ny && ps[above + i] > level) {
+                let a = vs[bv + i].abs();
+                nan |= a.is_nan();
+                m = m.max(a);
+            }
+        }
+        if nan {
+            f64::NAN
+        } else {
+            m
+        }
+    });
+    (umax, vmax)
+}
+
 crate::multiversion! {
     /// The largest |a| of a row (0 for an empty row), NaN when any value is NaN (f64::max would
     /// drop it when a finite value follows). A maximum is exact: four running maxima in one

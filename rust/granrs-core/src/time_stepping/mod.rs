@@ -5,6 +5,6 @@ pub mod clock;
 pub mod momentum;
 mod step_info;
 
-pub use clock::{bdf_coefficients, stable_dt, TimeConfig, DT_CEILING_RECOVERY, SPEED_BOUND};
+pub use clock::{bdf_coefficients, stable_dt, TimeConfig, DT_CEILING_RECOVERY, LIGHT_CFL_BAND, SPEED_BOUND};
 pub use momentum::{MomentumSolver, ViscousScheme};
 pub use step_info::{StageSeconds, StepInfo};
