@@ -40,27 +40,31 @@ fn rule(m: &TwoPhaseModel, cfl_light: Option<f64>, dense: (f64, f64), all: (f64,
 #[test]
 fn the_light_phase_away_from_the_grains_keeps_its_own_cfl_number() {
     let h = 0.45 / NY as f64;
+    let band = -LIGHT_CFL_BAND * h;
+    // Φ beside the column (x < 0.1 m below its top, y < 0.2 m) is minus the distance to its side
+    let (beside, above) = (|i: usize| -((i as f64 + 0.5) * h - 0.1), |j: usize| -((j as f64 + 0.5) * h - 0.2));
+    // the faces at the band's edge: only their inner cell lies within it
+    assert!(beside(9) > band && beside(10) < band && above(12) > band && above(13) < band);
     for cfl_light in [None, Some(0.9)] {
         let mut m = column(cfl_light);
-        // Φ at the centre of cell (i, j) beside the column: −(x_i − 0.1) for j below its top
-        let phi = |i: usize| -((i as f64 + 0.5) * h - 0.1);
-        assert!(phi(6) > -LIGHT_CFL_BAND * h && phi(11) < -LIGHT_CFL_BAND * h);
         m.u.set(2, 3, 0.3); // inside the grains
         m.v.set(1, 5, -0.2);
         m.u.set(40, 12, 2.0); // in the air, 1 m from the grains
-        let all = (2.0, 0.2);
         for exec in [Exec::SERIAL, Exec::with_threads(2)] {
-            assert_eq!(m.cfl_dt(exec).to_bits(), rule(&m, cfl_light, (0.3, 0.2), all).to_bits(), "{cfl_light:?}");
+            assert_eq!(m.cfl_dt(exec).to_bits(), rule(&m, cfl_light, (0.3, 0.2), (2.0, 0.2)).to_bits(), "{cfl_light:?}");
         }
-        // the face between cells 6 and 7 lies within the band: C_cfl holds it; 11|12 beyond it
-        m.u.set(12, 3, 1.5);
-        m.u.set(7, 3, -1.0);
+        // u between cells 9 and 10 of row 3, v between rows 12 and 13 of column 1: within the
+        // band by their inner cell; the next faces out lie beyond it
+        m.u.set(10, 3, -1.0);
+        m.u.set(11, 3, 1.5);
+        m.v.set(1, 13, 0.8);
+        m.v.set(1, 14, -1.2);
         for exec in [Exec::SERIAL, Exec::with_threads(2)] {
-            assert_eq!(m.cfl_dt(exec).to_bits(), rule(&m, cfl_light, (1.0, 0.2), all).to_bits(), "{cfl_light:?}");
+            assert_eq!(m.cfl_dt(exec).to_bits(), rule(&m, cfl_light, (1.0, 0.8), (2.0, 1.2)).to_bits(), "{cfl_light:?}");
         }
         if cfl_light.is_some() {
             // the air sets the step: 2 m/s at 0.9 against 1 m/s at 0.5
-            assert!(m.cfl_dt(Exec::SERIAL) > rule(&m, None, (0.0, 0.0), all) * 1.6);
+            assert!(m.cfl_dt(Exec::SERIAL) > rule(&m, None, (0.0, 0.0), (2.0, 1.2)) * 1.4);
         }
     }
 }
