@@ -564,39 +564,32 @@ pub fn max_speed_where(u: &Field, v: &Field, phi: &Field, level: f64, exec: Exec
     let (nx, ny) = (phi.nx, phi.ny);
     let (us, vs, ps) = (u.slice(), v.slice(), phi.slice());
     let umax = exec.max_rows(ny, (nx + 1) * ny, |j| {
-        let (bu, bp) = (base(u, j as isize), base(phi, j as isize));
-        let (mut m, mut nan) = (0.0f64, false);
-        for i in 0..=nx {
-            if (i > 0 && ps[bp + i - 1] > level) || (i < nx && ps[bp + i] > level) {
-                let a = us[bu + i].abs();
-                nan |= a.is_nan();
-                m = m.max(a);
-            }
-        }
-        if nan {
-            f64::NAN
-        } else {
-            m
-        }
+        let bp = base(phi, j as isize);
+        let near = |i: usize| (i > 0 && ps[bp + i - 1] > level) || (i < nx && ps[bp + i] > level);
+        max_abs_where(&us[base(u, j as isize)..][..=nx], near)
     });
     let vmax = exec.max_rows(ny + 1, nx * (ny + 1), |j| {
-        let bv = base(v, j as isize);
         let (below, above) = (base(phi, j as isize - 1), base(phi, j as isize));
-        let (mut m, mut nan) = (0.0f64, false);
-        for i in 0..nx {
-            if (j > 0 && ps[below + i] > level) || (j < ny && ps[above + i] > level) {
-                let a = vs[bv + i].abs();
-                nan |= a.is_nan();
-                m = m.max(a);
-            }
-        }
-        if nan {
-            f64::NAN
-        } else {
-            m
-        }
+        let near = |i: usize| (j > 0 && ps[below + i] > level) || (j < ny && ps[above + i] > level);
+        max_abs_where(&vs[base(v, j as isize)..][..nx], near)
     });
     (umax, vmax)
+}
+
+/// The largest |row[i]| over the i where `near(i)` (0 for none), NaN when any of them is NaN.
+fn max_abs_where(row: &[f64], near: impl Fn(usize) -> bool) -> f64 {
+    let (mut m, mut nan) = (0.0f64, false);
+    for (i, &x) in row.iter().enumerate() {
+        if near(i) {
+            nan |= x.is_nan();
+            m = m.max(x.abs());
+        }
+    }
+    if nan {
+        f64::NAN
+    } else {
+        m
+    }
 }
 
 crate::multiversion! {
