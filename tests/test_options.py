@@ -398,6 +398,8 @@ def test_the_clocks_options_are_checked_together_in_rust():
     with pytest.raises(ParameterError, match=r"`time.cfl_light` = 1.5"):
         ColumnCase().with_options(cfl_light=1.5)
     assert granrs.TimeStepping(cfl_light=0.9).cfl_light == 0.9
+    with pytest.raises(ParameterError, match=r"`room` = rheology: allowed 'time'"):
+        granrs._granrs.check_room("rheology", {})
     assert ColumnCase().with_options(cfl_light=0.8, cfl_abort=0.8).time.cfl_light == 0.8
 
 

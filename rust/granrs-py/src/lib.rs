@@ -435,8 +435,8 @@ fn check_option<'py>(py: Python<'py>, key: &str, value: &Bound<'py, PyAny>, room
 }
 
 /// Checks the options of one room together, by the cross-field rules of its struct's
-/// `validate` beyond each option's own range (the clock: `cfl_light` at most `cfl_abort`):
-/// ParameterError naming the offending key; rooms without such rules pass.
+/// `validate` beyond each option's own range (the clock, "time": `cfl_light` at most
+/// `cfl_abort`): ParameterError naming the offending key, or the room when it has no such rules.
 #[pyfunction]
 fn check_room(room: &str, values: &Bound<'_, PyAny>) -> PyResult<()> {
     let map = option_map(Some(values), room)?;
@@ -446,7 +446,7 @@ fn check_room(room: &str, values: &Bound<'_, PyAny>) -> PyResult<()> {
             options::apply(&mut c, &map).map_err(to_py)?;
             c.validate().map_err(to_py)
         }
-        _ => Ok(()),
+        _ => Err(param_err("room", room, "'time' (the room whose options have rules across each other)")),
     }
 }
 
