@@ -3,7 +3,7 @@ that every step reports (``Model.step()['stage_seconds']``, models/step.rs).
 
     .venv/bin/python benchmarks/stage_profile.py --ny 64 [--dry] [--model two-phase|granular]
         [--threads 1] [--warmup 10] [--steps 30] [--active-region B --sides S] [--restart CHECKPOINT]
-        [--out FILE.json]
+        [--speeds] [--out FILE.json]
 
 The column of ``granrs.cases.column`` is built, advanced ``--warmup`` steps, then stepped
 ``--steps`` times one step at a time; the table gives each stage's mean seconds per step and
@@ -76,6 +76,21 @@ def profile(m, steps: int, observe: bool = False) -> tuple[float, dict, dict]:
     return step, rows, {k: statistics.median(v) for k, v in iters.items() if v}
 
 
+def largest_speeds(m) -> str:
+    """Where the flow is fastest: what sets the adaptive step (time_stepping/clock.rs)."""
+    import numpy as np
+
+    uc, vc = m.centre_velocity()
+    speed = np.hypot(uc, vc)
+    j, i = np.unravel_index(int(np.argmax(speed)), speed.shape)
+    grains = m.phi > 0
+    in_grains = float(speed[grains].max()) if grains.any() else 0.0
+    return (
+        f"t = {m.time:.4f} s: largest speed {speed[j, i]:.3f} m/s at cell ({i}, {j}), Φ/h = {m.phi[j, i] / m.grid.dy:.1f}; "
+        f"largest in the grains {in_grains:.3f} m/s"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ny", type=int, default=64)
@@ -90,10 +105,17 @@ def main() -> None:
     ap.add_argument("--at-time", type=float, default=None, help="start at this time of the run (s)")
     ap.add_argument("--cache", default=None, help="folder keeping the state at --at-time between calls")
     ap.add_argument("--observe", action="store_true", help="also time the run's observation once per step")
+    ap.add_argument(
+        "--speeds",
+        action="store_true",
+        help="first print the largest cell-centre speed, its cell and Φ/h there, and the largest in the grains (Φ > 0)",
+    )
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
 
     m = warm_column_model(args)
+    if args.speeds:
+        print(largest_speeds(m))
     n = args.steps
     step, rows, medians = profile(m, n, args.observe)
     cells = m.grid.nx * m.grid.ny
