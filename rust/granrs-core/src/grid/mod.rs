@@ -249,24 +249,22 @@ impl Field {
     pub fn extrapolate_ghosts_constant(&mut self) {
         let (nx, ny) = (self.nx as isize, self.ny as isize);
         let g = HALO as isize;
+        // on the raw storage (k(i, j): the flat index of point (i, j), ghosts included)
+        let st = self.stride() as isize;
+        let k = |i: isize, j: isize| ((j + g) * st + i + g) as usize;
+        let s = self.slice_mut();
         for j in 0..ny {
-            let (left, right) = (self.at(0, j), self.at(nx - 1, j));
-            for k in 1..=g {
-                let a = self.idx(-k, j);
-                let b = self.idx(nx - 1 + k, j);
-                let s = self.slice_mut();
-                s[a] = left;
-                s[b] = right;
+            let (left, right) = (s[k(0, j)], s[k(nx - 1, j)]);
+            for m in 1..=g {
+                s[k(-m, j)] = left;
+                s[k(nx - 1 + m, j)] = right;
             }
         }
         for i in -g..nx + g {
-            let (bot, top) = (self.at(i, 0), self.at(i, ny - 1));
-            for k in 1..=g {
-                let a = self.idx(i, -k);
-                let b = self.idx(i, ny - 1 + k);
-                let s = self.slice_mut();
-                s[a] = bot;
-                s[b] = top;
+            let (bot, top) = (s[k(i, 0)], s[k(i, ny - 1)]);
+            for m in 1..=g {
+                s[k(i, -m)] = bot;
+                s[k(i, ny - 1 + m)] = top;
             }
         }
     }
@@ -276,26 +274,23 @@ impl Field {
     pub fn extrapolate_ghosts_linear(&mut self) {
         let (nx, ny) = (self.nx as isize, self.ny as isize);
         let g = HALO as isize;
+        let st = self.stride() as isize;
+        let k = |i: isize, j: isize| ((j + g) * st + i + g) as usize;
+        let s = self.slice_mut();
         for j in 0..ny {
-            let (l0, l1) = (self.at(0, j), self.at(1, j));
-            let (r0, r1) = (self.at(nx - 1, j), self.at(nx - 2, j));
-            for k in 1..=g {
-                let a = self.idx(-k, j);
-                let b = self.idx(nx - 1 + k, j);
-                let s = self.slice_mut();
-                s[a] = l0 + k as f64 * (l0 - l1);
-                s[b] = r0 + k as f64 * (r0 - r1);
+            let (l0, l1) = (s[k(0, j)], s[k(1, j)]);
+            let (r0, r1) = (s[k(nx - 1, j)], s[k(nx - 2, j)]);
+            for m in 1..=g {
+                s[k(-m, j)] = l0 + m as f64 * (l0 - l1);
+                s[k(nx - 1 + m, j)] = r0 + m as f64 * (r0 - r1);
             }
         }
         for i in -g..nx + g {
-            let (b0, b1) = (self.at(i, 0), self.at(i, 1));
-            let (t0, t1) = (self.at(i, ny - 1), self.at(i, ny - 2));
-            for k in 1..=g {
-                let a = self.idx(i, -k);
-                let b = self.idx(i, ny - 1 + k);
-                let s = self.slice_mut();
-                s[a] = b0 + k as f64 * (b0 - b1);
-                s[b] = t0 + k as f64 * (t0 - t1);
+            let (b0, b1) = (s[k(i, 0)], s[k(i, 1)]);
+            let (t0, t1) = (s[k(i, ny - 1)], s[k(i, ny - 2)]);
+            for m in 1..=g {
+                s[k(i, -m)] = b0 + m as f64 * (b0 - b1);
+                s[k(i, ny - 1 + m)] = t0 + m as f64 * (t0 - t1);
             }
         }
     }

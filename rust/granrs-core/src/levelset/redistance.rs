@@ -279,6 +279,8 @@ pub struct Redistancer {
     /// iterations only touch cells within the band they can reach (τ + 3h), the far field sets
     /// the rest.
     dist: Field,
+    /// Which cells are interface cells (fast sweeping's scratch, one per storage point).
+    interface: Vec<bool>,
 }
 
 impl Redistancer {
@@ -286,7 +288,8 @@ impl Redistancer {
     pub fn new(grid: &Grid, settings: RedistanceSettings) -> Result<Self> {
         settings.validate()?;
         let z = || Field::zeros(grid, Location::Centre);
-        Ok(Redistancer { settings, phi0: z(), phi1: z(), phi2: z(), prev: z(), sub: [z(), z(), z(), z()], frozen: z(), dist: z() })
+        let interface = vec![false; z().slice().len()];
+        Ok(Redistancer { settings, phi0: z(), phi1: z(), phi2: z(), prev: z(), sub: [z(), z(), z(), z()], frozen: z(), dist: z(), interface })
     }
 
     /// The settings in use.
@@ -301,7 +304,7 @@ impl Redistancer {
         let st = self.settings;
         let h = grid.h();
         phi.extrapolate_ghosts_linear();
-        self.phi0.assign(phi);
+        exec.copy(self.phi0.slice_mut(), phi.slice());
         let interface_cells = self.find_interface(grid, exec);
 
         let band = st.band.map_or(f64::INFINITY, |b| b * h);
@@ -317,12 +320,12 @@ impl Redistancer {
         // stencil past the reach) the far field below overwrites whatever the iterations did
         // (it keeps only d ≤ τ − 2h). On the column at ny = 256 this is ~10 % of the domain.
         let tau = st.iterations as f64 * st.cfl * h;
-        let reach = if sweep_distance(phi, &self.sub, grid, &mut self.dist) { tau + 3.0 * h } else { f64::INFINITY };
+        let reach = if sweep_distance(phi, &self.sub, grid, &mut self.dist, &mut self.interface) { tau + 3.0 * h } else { f64::INFINITY };
         let ctx = Ctx { phi0: &self.phi0, sub: &self.sub, frozen: &self.frozen, dist: &self.dist, reach, grid, cfl: st.cfl, band };
         let (phi1, phi2) = (&mut self.phi1, &mut self.phi2);
         for it in 0..st.iterations {
             if it + 1 == st.iterations {
-                self.prev.assign(phi);
+                exec.copy(self.prev.slice_mut(), phi.slice());
             }
             phi.extrapolate_ghosts_linear();
             ctx.stage(phi1, Base::None, 0.0, 1.0, phi, exec);
@@ -390,7 +393,7 @@ impl Redistancer {
     /// First-order Godunov update of |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice.
     fn far_field(&mut self, phi: &mut Field, grid: &Grid, keep: f64) -> usize {
         let d = &mut self.phi1;
-        if !sweep_distance(phi, &self.sub, grid, d) {
+        if !sweep_distance(phi, &self.sub, grid, d, &mut self.interface) {
             return 0;
         }
         let mut count = 0;
@@ -861,10 +864,14 @@ impl Ctx<'_> {
 /// at their current |Φ|) by fast sweeping (Zhao 2005, *Math. Comp.* 74): Godunov update of
 /// |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice. Returns false (d = ∞) when there
 /// is no interface.
-fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field) -> bool {
-    // on the raw slices (Φ, the sub-cell distances and d are cell fields of one shape); the
-    // arithmetic and the visiting order are those of the per-element version, so d is the same
-    // bit for bit
+///
+/// Each sweep visits the rows in its order and, along a row, the cells in its order; a cell's
+/// update reads its neighbour before it in the row and the row before it (already updated) and
+/// the others (not yet). The rows are taken [`SWEEP_ROWS`] at a time along a wavefront: row
+/// r of a group runs one cell behind row r − 1, so that the group's rows update cells that do
+/// not neighbour each other at the same time (independent chains the processor overlaps) while
+/// every update reads exactly the values of the row-after-row order: the same d, bit for bit.
+fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field, interface: &mut [bool]) -> bool {
     let (nx, ny) = (grid.nx, grid.ny);
     let (dx, dy) = (grid.dx, grid.dy);
     let st = d.stride();
@@ -874,6 +881,7 @@ fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field) -> 
     let at_interface = |c: usize| s0[c].is_finite() || s1[c].is_finite() || s2[c].is_finite() || s3[c].is_finite();
     let ps = phi.slice();
     let mut any = false;
+    assert_eq!(interface.len(), ps.len(), "sweep_distance: the interface mask has the field's storage size");
     {
         let ds = d.slice_mut();
         for j in 0..ny {
@@ -881,50 +889,107 @@ fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field) -> 
                 let c = k(i, j);
                 let f = at_interface(c);
                 any |= f;
+                interface[c] = f;
                 ds[c] = if f { ps[c].abs() } else { f64::INFINITY };
             }
         }
     }
+    let interface = &*interface;
     if !any {
         return false;
     }
     let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
     let ds = d.slice_mut();
+    // Godunov update of |∇d| = 1 at cell (i, j) from the smaller neighbour on each axis (∞ outside)
+    let update = |ds: &mut [f64], i: usize, j: usize| {
+        let c = k(i, j);
+        if interface[c] {
+            return;
+        }
+        let a = (if i > 0 { ds[c - 1] } else { f64::INFINITY }).min(if i + 1 < nx { ds[c + 1] } else { f64::INFINITY });
+        let b = (if j > 0 { ds[c - st] } else { f64::INFINITY }).min(if j + 1 < ny { ds[c + st] } else { f64::INFINITY });
+        if !a.is_finite() && !b.is_finite() {
+            return;
+        }
+        let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
+        let one_axis = lo + hlo;
+        // ((d − a)/dx)² + ((d − b)/dy)² = 1, computed always and taken where it applies (a
+        // selection, not a branch the processor would mispredict half of the time)
+        let (qa, qb) = (wa + wb, -2.0 * (wa * a + wb * b));
+        let qc = wa * a * a + wb * b * b - 1.0;
+        let disc = qb * qb - 4.0 * qa * qc;
+        let two_axes = (-qb + disc.sqrt()) / (2.0 * qa);
+        let new = if one_axis > hi && disc >= 0.0 { two_axes } else { one_axis };
+        let old = ds[c];
+        ds[c] = if new < old { new } else { old };
+    };
+    for _ in 0..2 {
+        for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
+            let mut jj0 = 0;
+            while jj0 < ny {
+                let rows = SWEEP_ROWS.min(ny - jj0);
+                // wavefront t: row r of the group at its cell t − r (in the sweep's order)
+                for t in 0..nx + rows - 1 {
+                    for r in 0..rows {
+                        if t >= r && t - r < nx {
+                            let (ii, jj) = (t - r, jj0 + r);
+                            update(ds, if rx { nx - 1 - ii } else { ii }, if ry { ny - 1 - jj } else { jj });
+                        }
+                    }
+                }
+                jj0 += rows;
+            }
+        }
+    }
+    true
+}
+
+/// Rows of one wavefront of [`sweep_distance`].
+const SWEEP_ROWS: usize = 4;
+
+/// [`sweep_distance`] point by point, row after row, with the branching Godunov update (the
+/// reference its wavefront order and branch-free selection are tested against bit for bit).
+#[cfg(test)]
+fn sweep_distance_reference(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field) -> bool {
+    let (nx, ny) = (grid.nx as isize, grid.ny as isize);
+    let (dx, dy) = (grid.dx, grid.dy);
+    let interface = |i: isize, j: isize| sub.iter().any(|f| f.at(i, j).is_finite());
+    let mut any = false;
+    for j in 0..ny {
+        for i in 0..nx {
+            any |= interface(i, j);
+            d.set(i as usize, j as usize, if interface(i, j) { phi.at(i, j).abs() } else { f64::INFINITY });
+        }
+    }
+    let get = |d: &Field, i: isize, j: isize| if (0..nx).contains(&i) && (0..ny).contains(&j) { d.at(i, j) } else { f64::INFINITY };
     for _ in 0..2 {
         for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
             for jj in 0..ny {
-                let j = if ry { ny - 1 - jj } else { jj };
                 for ii in 0..nx {
-                    let i = if rx { nx - 1 - ii } else { ii };
-                    let c = k(i, j);
-                    if at_interface(c) {
-                        continue;
-                    }
-                    // Godunov update of |∇d| = 1 from the smaller neighbour on each axis (∞ outside)
-                    let a = (if i > 0 { ds[c - 1] } else { f64::INFINITY }).min(if i + 1 < nx { ds[c + 1] } else { f64::INFINITY });
-                    let b = (if j > 0 { ds[c - st] } else { f64::INFINITY }).min(if j + 1 < ny { ds[c + st] } else { f64::INFINITY });
-                    if !a.is_finite() && !b.is_finite() {
+                    let (i, j) = (if rx { nx - 1 - ii } else { ii }, if ry { ny - 1 - jj } else { jj });
+                    let a = get(d, i - 1, j).min(get(d, i + 1, j));
+                    let b = get(d, i, j - 1).min(get(d, i, j + 1));
+                    if interface(i, j) || (!a.is_finite() && !b.is_finite()) {
                         continue;
                     }
                     let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
                     let mut new = lo + hlo;
                     if new > hi {
-                        // ((d − a)/dx)² + ((d − b)/dy)² = 1
-                        let (qa, qb) = (wa + wb, -2.0 * (wa * a + wb * b));
-                        let qc = wa * a * a + wb * b * b - 1.0;
+                        let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
+                        let (qa, qb, qc) = (wa + wb, -2.0 * (wa * a + wb * b), wa * a * a + wb * b * b - 1.0);
                         let disc = qb * qb - 4.0 * qa * qc;
                         if disc >= 0.0 {
                             new = (-qb + disc.sqrt()) / (2.0 * qa);
                         }
                     }
-                    if new < ds[c] {
-                        ds[c] = new;
+                    if new < d.at(i, j) {
+                        d.set(i as usize, j as usize, new);
                     }
                 }
             }
         }
     }
-    true
+    any
 }
 
 #[cfg(test)]
@@ -949,6 +1014,47 @@ mod tests {
         phi
     }
 
+    /// The wavefront order of the fast sweeping gives the distances of the row-after-row order
+    /// bit for bit: on the column (film, corner, noise) and on a circle, with dx ≠ dy and row
+    /// counts that leave every remainder of the wavefront's groups; and the distances are not
+    /// trivially equal (most cells are reached, some by the two-axis update).
+    #[test]
+    fn fast_sweeping_in_wavefronts_is_the_row_by_row_sweep_bit_for_bit() {
+        for (nx, ny, lx, ly) in [(90, 37, 1.5, 0.6), (64, 64, 1.0, 1.0), (33, 42, 1.0, 0.9), (17, 5, 1.0, 0.3)] {
+            let grid = Grid::new(nx, ny, lx, ly).unwrap();
+            let circle = {
+                let mut f = Field::zeros(&grid, Location::Centre);
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let (x, y) = ((i as f64 + 0.5) * grid.dx, (j as f64 + 0.5) * grid.dy);
+                        f.set(i, j, 0.2 * ly - ((x - 0.4 * lx).powi(2) + (y - 0.5 * ly).powi(2)).sqrt());
+                    }
+                }
+                f
+            };
+            for (name, mut phi) in [("column", column_phi(&grid)), ("circle", circle)] {
+                let mut rd = Redistancer::new(&grid, RedistanceSettings::default()).unwrap();
+                phi.extrapolate_ghosts_linear();
+                rd.phi0.assign(&phi);
+                rd.find_interface(&grid, Exec::SERIAL);
+                let (mut got, mut want) = (Field::zeros(&grid, Location::Centre), Field::zeros(&grid, Location::Centre));
+                assert!(sweep_distance(&phi, &rd.sub, &grid, &mut got, &mut rd.interface));
+                assert!(sweep_distance_reference(&phi, &rd.sub, &grid, &mut want));
+                let (mut reached, mut differ) = (0, 0);
+                for j in 0..ny as isize {
+                    for i in 0..nx as isize {
+                        let (a, b) = (got.at(i, j), want.at(i, j));
+                        assert_eq!(a.to_bits(), b.to_bits(), "{name} {nx}x{ny}: cell ({i}, {j}): {a} != {b}");
+                        reached += a.is_finite() as usize;
+                        differ += (a != phi.at(i, j).abs()) as usize;
+                    }
+                }
+                assert_eq!(reached, nx * ny, "{name} {nx}x{ny}: every cell reached");
+                assert!(differ > nx * ny / 2, "{name} {nx}x{ny}: the sweeps set most cells ({differ})");
+            }
+        }
+    }
+
     #[test]
     fn the_row_kernel_is_the_cell_by_cell_stage_bit_for_bit() {
         let grid = Grid::new(61, 37, 1.0, 0.6).unwrap();
@@ -965,7 +1071,7 @@ mod tests {
                 *p = f
             }
         });
-        assert!(sweep_distance(&phi, &rd.sub, &grid, &mut rd.dist));
+        assert!(sweep_distance(&phi, &rd.sub, &grid, &mut rd.dist, &mut rd.interface));
         // a reach that leaves cells out, and a source that is not Φ⁰ (a stage in the middle of
         // the iterations)
         let reach = 6.0 * grid.h();

@@ -62,10 +62,13 @@ impl Interface {
     ) -> Result<()> {
         let half = vel.half;
         for (x, xn, xm) in [(&mut *vel.out_u, vel.u, vel.u_prev), (&mut *vel.out_v, vel.v, vel.v_prev)] {
-            let (ns, ms) = (xn.slice(), xm.slice());
-            for (k, o) in x.slice_mut().iter_mut().enumerate() {
-                *o = (1.0 + half) * ns[k] - half * ms[k];
-            }
+            let (ns, ms, st) = (xn.slice(), xm.slice(), x.stride());
+            exec.for_each_row(x.slice_mut(), st, |r, row| {
+                for (i, o) in row.iter_mut().enumerate() {
+                    let k = r * st + i;
+                    *o = (1.0 + half) * ns[k] - half * ms[k];
+                }
+            });
         }
         fill_velocity_ghosts(vel.out_u, vel.out_v, bc, grid, BcMode::Full);
         if let Some(ext) = self.extension.as_mut() {

@@ -570,7 +570,7 @@ impl TwoPhaseModel {
         // the other fields of the state (a NaN there does not always reach u within the step)
         let pf = self.pore.as_ref().map(|pore| &pore.pf);
         for (name, f) in [("p", Some(&self.p)), ("phi", Some(&self.phi)), ("pf", pf)] {
-            if let Some(loc) = f.and_then(first_non_finite) {
+            if let Some(loc) = f.and_then(|f| first_non_finite(f, exec)) {
                 return Err(Error::Simulation {
                     what: format!("non-finite {name} (NaN or inf) after the step (blow-up)"),
                     step: self.step_count + 1,
@@ -601,7 +601,7 @@ impl TwoPhaseModel {
             }
         }
         let divergence = if cfg.free_surface {
-            crate::projection::free_surface::divergence_max_abs_granular(&self.u, &self.v, &self.phi, g)
+            crate::projection::free_surface::divergence_max_abs_granular(&self.u, &self.v, &self.phi, g, exec)
         } else {
             divergence_max_abs(&self.u, &self.v, g, exec)
         };
@@ -647,12 +647,23 @@ fn dt_floor(cfg: &ModelConfig) -> Option<(f64, f64)> {
     (u_ref > 0.0).then(|| (stable_dt(cfg.time.cfl, u_bound, u_bound, g.dx, g.dy, gmag, 0.0), u_ref))
 }
 
-/// The first interior cell (i, j) of `f` holding NaN or inf, if any.
-fn first_non_finite(f: &Field) -> Option<(usize, usize)> {
-    let a = f.interior();
-    if a.iter().all(|x| x.is_finite()) {
+/// The first interior cell (i, j) of `f` holding NaN or inf, if any (the rows checked on the
+/// threads of `exec`, the cell searched for only when one holds such a value).
+fn first_non_finite(f: &Field, exec: Exec) -> Option<(usize, usize)> {
+    let (s, st, nx) = (f.slice(), f.stride(), f.nx);
+    let bad = exec.max_rows(f.ny, nx * f.ny, |j| {
+        let b = (j + HALO) * st + HALO;
+        let finite = s[b..b + nx].iter().fold(true, |all, x| all & x.is_finite());
+        if finite {
+            0.0
+        } else {
+            1.0
+        }
+    });
+    if bad == 0.0 {
         return None;
     }
+    let a = f.interior();
     a.indexed_iter().find(|(_, x)| !x.is_finite()).map(|((j, i), _)| (i, j))
 }
 
@@ -689,7 +700,7 @@ pub(crate) fn pressure_gradient(
         (p, Some(pore)) => {
             pore.pf.extrapolate_ghosts_constant();
             match p {
-                Some(p) => ptot.assign(p),
+                Some(p) => exec.copy(ptot.slice_mut(), p.slice()),
                 None => ptot.fill(0.0),
             }
             let (st, n, pfs) = (ptot.stride(), ptot.nx, pore.pf.slice());

@@ -103,6 +103,38 @@ fn wrap_y(f: &mut Field, n: isize, faces: bool) {
     }
 }
 
+/// The normal velocity on a boundary face and its ghosts along one grid line: `at(m)` is the
+/// flat index of the line's point m, `face` the boundary face, `inward` the direction into the
+/// domain (±1). With a prescribed value w the face takes w and the ghost at distance m the odd
+/// reflection 2w − (the point at distance m inside); without one the ghosts copy the face.
+fn normal_ghosts(s: &mut [f64], at: impl Fn(isize) -> usize, face: isize, inward: isize, value: Option<f64>) {
+    let g = HALO as isize;
+    match value {
+        Some(w) => {
+            s[at(face)] = w;
+            for m in 1..=g {
+                s[at(face - inward * m)] = 2.0 * w - s[at(face + inward * m)];
+            }
+        }
+        None => {
+            let w = s[at(face)];
+            for m in 1..=g {
+                s[at(face - inward * m)] = w;
+            }
+        }
+    }
+}
+
+/// The tangential velocity's ghosts along one grid line of `n` interior points (`at(m)`: the
+/// flat index of point m): the ghost at distance m beyond each end is a·(its mirror point) + c,
+/// with (a, c) = `lo` at the start and `hi` at the end.
+fn tangential_ghosts(s: &mut [f64], at: impl Fn(isize) -> usize, n: isize, lo: (f64, f64), hi: (f64, f64)) {
+    for m in 1..=HALO as isize {
+        s[at(-m)] = lo.0 * s[at(m - 1)] + lo.1;
+        s[at(n - 1 + m)] = hi.0 * s[at(n - m)] + hi.1;
+    }
+}
+
 fn fill_velocity_ghosts_walls(u: &mut Field, v: &mut Field, bc: &BoundaryConditions, grid: &Grid, mode: BcMode) {
     let (nx, ny) = (grid.nx as isize, grid.ny as isize);
     let g = HALO as isize;
@@ -114,101 +146,35 @@ fn fill_velocity_ghosts_walls(u: &mut Field, v: &mut Field, bc: &BoundaryConditi
     let normal = |b: VelocityBc| if hom { 0.0 } else { b.normal_inflow().unwrap_or(0.0) };
 
     // ---- u: normal on left/right, tangential on bottom/top ----
+    // on the raw storage: k(i, j) is the flat index of point (i, j), ghosts included
     let (bl, br, bb, bt) = (bc.get(Side::Left), bc.get(Side::Right), bc.get(Side::Bottom), bc.get(Side::Top));
-    for j in 0..ny {
-        // left boundary face i = 0
-        if !bl.normal_is_unknown() {
-            let w = normal(bl);
-            let k0 = u.idx(0, j);
-            u.slice_mut()[k0] = w;
-            for k in 1..=g {
-                let val = 2.0 * w - u.at(k, j);
-                let kk = u.idx(-k, j);
-                u.slice_mut()[kk] = val;
-            }
-        } else {
-            let w = u.at(0, j);
-            for k in 1..=g {
-                let kk = u.idx(-k, j);
-                u.slice_mut()[kk] = w;
-            }
+    {
+        let st = u.stride() as isize;
+        let k = |i: isize, j: isize| ((j + g) * st + i + g) as usize;
+        let s = u.slice_mut();
+        for j in 0..ny {
+            // left boundary face i = 0; right boundary face i = nx (inflow into the domain is −x)
+            normal_ghosts(s, |i| k(i, j), 0, 1, (!bl.normal_is_unknown()).then(|| normal(bl)));
+            normal_ghosts(s, |i| k(i, j), nx, -1, (!br.normal_is_unknown()).then(|| -normal(br)));
         }
-        // right boundary face i = nx (inflow into the domain is −x)
-        if !br.normal_is_unknown() {
-            let w = -normal(br);
-            let k0 = u.idx(nx, j);
-            u.slice_mut()[k0] = w;
-            for k in 1..=g {
-                let val = 2.0 * w - u.at(nx - k, j);
-                let kk = u.idx(nx + k, j);
-                u.slice_mut()[kk] = val;
-            }
-        } else {
-            let w = u.at(nx, j);
-            for k in 1..=g {
-                let kk = u.idx(nx + k, j);
-                u.slice_mut()[kk] = w;
-            }
-        }
-    }
-    let (ab, cb) = data(bb, grid.dy);
-    let (at, ct) = data(bt, grid.dy);
-    for i in -g..=nx + g {
-        for k in 1..=g {
-            let lo = ab * u.at(i, k - 1) + cb;
-            let hi = at * u.at(i, ny - k) + ct;
-            let (a, b) = (u.idx(i, -k), u.idx(i, ny - 1 + k));
-            let s = u.slice_mut();
-            s[a] = lo;
-            s[b] = hi;
+        let (lo, hi) = (data(bb, grid.dy), data(bt, grid.dy));
+        for i in -g..=nx + g {
+            tangential_ghosts(s, |j| k(i, j), ny, lo, hi);
         }
     }
 
     // ---- v: normal on bottom/top, tangential on left/right ----
-    for i in 0..nx {
-        if !bb.normal_is_unknown() {
-            let w = normal(bb);
-            let k0 = v.idx(i, 0);
-            v.slice_mut()[k0] = w;
-            for k in 1..=g {
-                let val = 2.0 * w - v.at(i, k);
-                let kk = v.idx(i, -k);
-                v.slice_mut()[kk] = val;
-            }
-        } else {
-            let w = v.at(i, 0);
-            for k in 1..=g {
-                let kk = v.idx(i, -k);
-                v.slice_mut()[kk] = w;
-            }
+    {
+        let st = v.stride() as isize;
+        let k = |i: isize, j: isize| ((j + g) * st + i + g) as usize;
+        let s = v.slice_mut();
+        for i in 0..nx {
+            normal_ghosts(s, |j| k(i, j), 0, 1, (!bb.normal_is_unknown()).then(|| normal(bb)));
+            normal_ghosts(s, |j| k(i, j), ny, -1, (!bt.normal_is_unknown()).then(|| -normal(bt)));
         }
-        if !bt.normal_is_unknown() {
-            let w = -normal(bt);
-            let k0 = v.idx(i, ny);
-            v.slice_mut()[k0] = w;
-            for k in 1..=g {
-                let val = 2.0 * w - v.at(i, ny - k);
-                let kk = v.idx(i, ny + k);
-                v.slice_mut()[kk] = val;
-            }
-        } else {
-            let w = v.at(i, ny);
-            for k in 1..=g {
-                let kk = v.idx(i, ny + k);
-                v.slice_mut()[kk] = w;
-            }
-        }
-    }
-    let (al, cl) = data(bl, grid.dx);
-    let (ar, cr) = data(br, grid.dx);
-    for j in -g..=ny + g {
-        for k in 1..=g {
-            let lo = al * v.at(k - 1, j) + cl;
-            let hi = ar * v.at(nx - k, j) + cr;
-            let (a, b) = (v.idx(-k, j), v.idx(nx - 1 + k, j));
-            let s = v.slice_mut();
-            s[a] = lo;
-            s[b] = hi;
+        let (lo, hi) = (data(bl, grid.dx), data(br, grid.dx));
+        for j in -g..=ny + g {
+            tangential_ghosts(s, |i| k(i, j), nx, lo, hi);
         }
     }
 }

@@ -548,6 +548,15 @@ pub fn cell_to_node(c: &Field, out: &mut Field, exec: Exec) {
     });
 }
 
+/// Largest |value| over the interior points of `f` (0 for a field of zeros, NaN when any is
+/// NaN): [`Field::max_abs`] row by row on the threads of `exec`, the same value.
+pub fn max_abs(f: &Field, exec: Exec) -> f64 {
+    exec.max_rows(f.ny, f.nx * f.ny, |j| {
+        let b = base(f, j as isize);
+        row_max_abs(&f.slice()[b..b + f.nx])
+    })
+}
+
 /// Largest |u| over XFace points and |v| over YFace points, as (max |u|, max |v|) (NaN propagates).
 pub fn max_speed(u: &Field, v: &Field, exec: Exec) -> (f64, f64) {
     let row_max = |f: &Field, j: usize| {

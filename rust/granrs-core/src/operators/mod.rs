@@ -20,7 +20,7 @@ pub mod weno5;
 
 pub use ghosts::{fill_velocity_ghosts, periodic_pair, unknown_face_range, BcMode};
 pub use kernels::{
-    cell_to_face_x, cell_to_face_y, cell_to_node, convection, convection_weno5, divergence, divergence_max_abs, gradient, max_speed, max_speed_where,
+    cell_to_face_x, cell_to_face_y, cell_to_node, convection, convection_weno5, divergence, divergence_max_abs, gradient, max_abs, max_speed, max_speed_where,
     strain_rate, strain_rate_norm_centre, viscous, viscous_helmholtz, viscous_helmholtz_dots, RowDots,
 };
 

@@ -402,7 +402,7 @@ impl PorePressure {
     /// History: p^{n−1} ← p^n, p^n ← the new values in `x`, A^{n−1} ← A^n.
     fn commit(&mut self, exec: Exec) {
         let nx = self.pf.nx;
-        self.pf_prev.assign(&self.pf);
+        exec.copy(self.pf_prev.slice_mut(), self.pf.slice());
         std::mem::swap(&mut self.adv, &mut self.adv_prev);
         let xs = &self.sys.x;
         for_each_interior_row(exec, &mut self.pf, |j, row| {

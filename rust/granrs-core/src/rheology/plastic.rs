@@ -317,12 +317,13 @@ impl PlasticState {
         }
     }
 
-    /// Start of a step: Σ^n ← Σ (the iteration starts from Σ^{n+1,0} = Σ^n).
-    pub fn begin_step(&mut self) {
-        self.sigma_xx_n.assign(&self.sigma_xx);
-        self.sigma_xy_n.assign(&self.sigma_xy);
+    /// Start of a step: Σ^n ← Σ (the iteration starts from Σ^{n+1,0} = Σ^n); copies on the
+    /// threads of `exec`.
+    pub fn begin_step(&mut self, exec: Exec) {
+        exec.copy(self.sigma_xx_n.slice_mut(), self.sigma_xx.slice());
+        exec.copy(self.sigma_xy_n.slice_mut(), self.sigma_xy.slice());
         if let Some(cs) = self.centred.as_mut() {
-            cs.sigma_n.assign(&cs.sigma);
+            exec.copy(cs.sigma_n.slice_mut(), cs.sigma.slice());
         }
     }
 

@@ -209,7 +209,7 @@ impl RheologyState {
             });
         }
         self.plastic.tau_c.extrapolate_ghosts_constant();
-        self.plastic.tau_max = self.plastic.tau_c.max_abs().max(self.plastic.tau_n.max_abs());
+        self.plastic.tau_max = crate::operators::max_abs(&self.plastic.tau_c, exec).max(crate::operators::max_abs(&self.plastic.tau_n, exec));
         // lagged viscosity of variable-viscosity laws, from D(u^n)
         if rc.variable_viscosity() {
             strain_rate(input.u, input.v, grid, &mut self.dxx, &mut self.dyy, &mut self.dxy, exec);
@@ -297,7 +297,7 @@ impl RheologyState {
         exec: Exec,
     ) -> Result<(SolveInfo, PicardInfo)> {
         let rc = *rc;
-        self.plastic.begin_step();
+        self.plastic.begin_step(exec);
         self.walls.begin_step();
         if let Some(sw) = self.side_walls.as_mut() {
             sw.begin_step();
@@ -321,8 +321,8 @@ impl RheologyState {
             if self.projection {
                 self.plastic.add_force(grid, Some((rhs_u, rhs_v)), &mut self.rhs_u, &mut self.rhs_v, exec);
             } else {
-                self.rhs_u.assign(rhs_u);
-                self.rhs_v.assign(rhs_v);
+                exec.copy(self.rhs_u.slice_mut(), rhs_u.slice());
+                exec.copy(self.rhs_v.slice_mut(), rhs_v.slice());
             }
             self.walls.add_force(&mut self.rhs_u, &mut self.rhs_v, grid);
             if let Some(sw) = self.side_walls.as_ref() {
@@ -382,7 +382,7 @@ impl RheologyState {
                     .max(self.walls.anchor_distance())
                     .max(self.side_walls.as_ref().map_or(0.0, |sw| sw.anchor_distance(exec)));
                 if moved > rc.picard_tol {
-                    self.plastic.begin_step();
+                    self.plastic.begin_step(exec);
                     self.walls.begin_step();
                     if let Some(sw) = self.side_walls.as_mut() {
                         sw.begin_step();

@@ -91,7 +91,7 @@ pub(crate) fn pcg(mg: &mut Multigrid, w: &mut CgWork, x: &mut [f64], bnorm: f64,
     // Where b and the initial x are zero outside the spans of the fine level (isolated cells),
     // so are every residual, preconditioned residual and direction below: their coupling to
     // the other cells is zero. The cycle may then skip those cells (Multigrid::precondition).
-    let spans = mg.spans_admit(&[&w.rhs, x]);
+    let spans = mg.spans_admit(&[&w.rhs, x], exec);
     let exec = mg.levels[0].exec_for(exec, spans);
     if spans {
         // q is written on the spans only below; outside them it is A d = 0

@@ -154,10 +154,20 @@ impl Level {
         }
     }
 
-    /// Whether `v` (a field of this level) is zero outside the spans (−0 counts as zero).
-    pub fn zero_outside_spans(&self, v: &[f64]) -> bool {
+    /// Whether `v` (a field of this level) is zero outside the spans (−0 counts as zero); the
+    /// rows are looked at on the threads of `exec`.
+    pub fn zero_outside_spans(&self, v: &[f64], exec: Exec) -> bool {
         let nx = self.nx;
-        v.chunks(nx).zip(&self.spans).all(|(row, &(lo, hi))| row[..lo].iter().all(|&x| x == 0.0) && row[hi..].iter().all(|&x| x == 0.0))
+        let nonzero = exec.max_rows(self.ny, self.cells(), |j| {
+            let (row, (lo, hi)) = (&v[j * nx..(j + 1) * nx], self.spans[j]);
+            let zero = row[..lo].iter().chain(&row[hi..]).fold(true, |all, &x| all & (x == 0.0));
+            if zero {
+                0.0
+            } else {
+                1.0
+            }
+        });
+        nonzero == 0.0
     }
 
     /// Sets `v` (a field of this level) to zero outside the spans.

@@ -142,11 +142,12 @@ impl Multigrid {
 
     /// Same, with a diagonal shift σ on the fine level (None: keep the current one).
     pub fn set_coefficients_with_shift(&mut self, beta_x: &[f64], beta_y: &[f64], shift: Option<&[f64]>, exec: Exec) -> Result<()> {
+        let l0 = &mut self.levels[0];
         if let Some(s) = shift {
-            self.levels[0].shift.copy_from_slice(s);
+            exec.copy(&mut l0.shift, s);
         }
-        self.levels[0].beta_x.copy_from_slice(beta_x);
-        self.levels[0].beta_y.copy_from_slice(beta_y);
+        exec.copy(&mut l0.beta_x, beta_x);
+        exec.copy(&mut l0.beta_y, beta_y);
         self.levels[0].update_stencil(exec);
         self.levels[0].set_spans(None, exec);
         for l in 1..self.levels.len() {
@@ -184,14 +185,14 @@ impl Multigrid {
     /// outside them: the same values bit for bit, up to the sign of a zero, with the work of
     /// the cells that are not isolated.
     pub fn precondition(&mut self, b: &[f64], x: &mut [f64], exec: Exec) {
-        let spans = self.spans_admit(&[b]);
+        let spans = self.spans_admit(&[b], exec);
         self.precondition_on_spans(b, x, spans, exec);
     }
 
     /// Whether the cycle may work on the spans for a right-hand side that is zero where each of
     /// `vectors` is (not in the singular case, whose coarse solve shifts every cell).
-    pub fn spans_admit(&self, vectors: &[&[f64]]) -> bool {
-        self.spans_enabled && !self.singular && self.levels.len() > 1 && vectors.iter().all(|v| self.levels[0].zero_outside_spans(v))
+    pub fn spans_admit(&self, vectors: &[&[f64]], exec: Exec) -> bool {
+        self.spans_enabled && !self.singular && self.levels.len() > 1 && vectors.iter().all(|v| self.levels[0].zero_outside_spans(v, exec))
     }
 
     /// [`Multigrid::precondition`] with the choice of the spans made by the caller (`spans`
