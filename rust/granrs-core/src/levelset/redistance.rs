@@ -288,7 +288,7 @@ impl Redistancer {
     pub fn new(grid: &Grid, settings: RedistanceSettings) -> Result<Self> {
         settings.validate()?;
         let z = || Field::zeros(grid, Location::Centre);
-        let interface = vec![false; z().slice().len()];
+        let interface = vec![false; Field::zeros(grid, Location::Centre).slice().len()];
         Ok(Redistancer { settings, phi0: z(), phi1: z(), phi2: z(), prev: z(), sub: [z(), z(), z(), z()], frozen: z(), dist: z(), interface })
     }
 
@@ -865,12 +865,8 @@ impl Ctx<'_> {
 /// |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice. Returns false (d = ∞) when there
 /// is no interface.
 ///
-/// Each sweep visits the rows in its order and, along a row, the cells in its order; a cell's
-/// update reads its neighbour before it in the row and the row before it (already updated) and
-/// the others (not yet). The rows are taken [`SWEEP_ROWS`] at a time along a wavefront: row
-/// r of a group runs one cell behind row r − 1, so that the group's rows update cells that do
-/// not neighbour each other at the same time (independent chains the processor overlaps) while
-/// every update reads exactly the values of the row-after-row order: the same d, bit for bit.
+/// `interface` (scratch of the field's storage size) receives which cells are interface cells:
+/// the sweeps read one byte per cell for it instead of the four sub-cell distances.
 fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field, interface: &mut [bool]) -> bool {
     let (nx, ny) = (grid.nx, grid.ny);
     let (dx, dy) = (grid.dx, grid.dy);
@@ -925,30 +921,18 @@ fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field, int
     };
     for _ in 0..2 {
         for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
-            let mut jj0 = 0;
-            while jj0 < ny {
-                let rows = SWEEP_ROWS.min(ny - jj0);
-                // wavefront t: row r of the group at its cell t − r (in the sweep's order)
-                for t in 0..nx + rows - 1 {
-                    for r in 0..rows {
-                        if t >= r && t - r < nx {
-                            let (ii, jj) = (t - r, jj0 + r);
-                            update(ds, if rx { nx - 1 - ii } else { ii }, if ry { ny - 1 - jj } else { jj });
-                        }
-                    }
+            for jj in 0..ny {
+                for ii in 0..nx {
+                    update(ds, if rx { nx - 1 - ii } else { ii }, if ry { ny - 1 - jj } else { jj });
                 }
-                jj0 += rows;
             }
         }
     }
     true
 }
 
-/// Rows of one wavefront of [`sweep_distance`].
-const SWEEP_ROWS: usize = 4;
-
-/// [`sweep_distance`] point by point, row after row, with the branching Godunov update (the
-/// reference its wavefront order and branch-free selection are tested against bit for bit).
+/// [`sweep_distance`] point by point, with the four sub-cell distances and the branching Godunov
+/// update (the reference its mask and branch-free selection are tested against bit for bit).
 #[cfg(test)]
 fn sweep_distance_reference(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field) -> bool {
     let (nx, ny) = (grid.nx as isize, grid.ny as isize);
@@ -1014,12 +998,12 @@ mod tests {
         phi
     }
 
-    /// The wavefront order of the fast sweeping gives the distances of the row-after-row order
-    /// bit for bit: on the column (film, corner, noise) and on a circle, with dx ≠ dy and row
-    /// counts that leave every remainder of the wavefront's groups; and the distances are not
+    /// The fast sweeping on the interface mask with the branch-free selection of the Godunov
+    /// update gives the distances of the point-by-point, branching sweep bit for bit: on the
+    /// column (film, corner, noise) and on a circle, with dx ≠ dy; and the distances are not
     /// trivially equal (most cells are reached, some by the two-axis update).
     #[test]
-    fn fast_sweeping_in_wavefronts_is_the_row_by_row_sweep_bit_for_bit() {
+    fn fast_sweeping_on_the_mask_is_the_branching_sweep_bit_for_bit() {
         for (nx, ny, lx, ly) in [(90, 37, 1.5, 0.6), (64, 64, 1.0, 1.0), (33, 42, 1.0, 0.9), (17, 5, 1.0, 0.3)] {
             let grid = Grid::new(nx, ny, lx, ly).unwrap();
             let circle = {
