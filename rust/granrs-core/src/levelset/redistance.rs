@@ -68,6 +68,7 @@ use super::weno5::window;
 use super::weno5::{weno5_minus, weno5_plus};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::grid::{Field, Grid, Location, HALO};
 use crate::options::{self, Configurable, OptionSpec, Value};
 
@@ -311,16 +312,20 @@ impl Redistancer {
         let (closest_point_cells, kink_cells) = self.freeze_interface(grid, exec);
         // The frozen cells start (and stay) at their frozen values.
         let fz = self.frozen.slice();
-        phi.slice_mut().iter_mut().zip(fz).for_each(|(p, &f)| {
-            if f.is_finite() {
-                *p = f
-            }
+        count_each_interior_row(phi, grid, exec, |b, row| {
+            let n = row.len();
+            row.iter_mut().zip(&fz[b..b + n]).for_each(|(p, &f)| {
+                if f.is_finite() {
+                    *p = f
+                }
+            });
+            0
         });
         // Only cells the pseudo time can reach are iterated: beyond τ + 3h (three cells of WENO
         // stencil past the reach) the far field below overwrites whatever the iterations did
         // (it keeps only d ≤ τ − 2h). On the column at ny = 256 this is ~10 % of the domain.
         let tau = st.iterations as f64 * st.cfl * h;
-        let reach = if sweep_distance(phi, &self.sub, grid, &mut self.dist, &mut self.interface) { tau + 3.0 * h } else { f64::INFINITY };
+        let reach = if sweep_distance(phi, &self.sub, grid, &mut self.dist, &mut self.interface, exec) { tau + 3.0 * h } else { f64::INFINITY };
         let ctx = Ctx { phi0: &self.phi0, sub: &self.sub, frozen: &self.frozen, dist: &self.dist, reach, grid, cfl: st.cfl, band };
         let (phi1, phi2) = (&mut self.phi1, &mut self.phi2);
         for it in 0..st.iterations {
@@ -337,13 +342,12 @@ impl Redistancer {
         // Guard: φ_τ = S(Φ⁰)(1 − |∇φ|) changes |φ| at rate ≤ 1 outward and cannot cross zero
         // (the zero set is frozen), so |Φ| ≤ |Φ⁰| + τ and sign Φ = sign Φ⁰ hold exactly for the
         // continuous equation; cells outside are reset into that range.
-        let mut clamped = 0usize;
-        {
-            let st = phi.stride();
-            let (p0, ps) = (self.phi0.slice(), phi.slice_mut());
-            for j in 0..grid.ny {
-                for c in (j + HALO) * st + HALO..(j + HALO) * st + HALO + grid.nx {
-                    let (f0, v) = (p0[c], ps[c]);
+        let clamped = {
+            let p0 = self.phi0.slice();
+            count_each_interior_row(phi, grid, exec, |b, row| {
+                let mut clamped = 0;
+                for (i, p) in row.iter_mut().enumerate() {
+                    let (f0, v) = (p0[b + i], *p);
                     let bound = f0.abs() + tau;
                     let fixed = if v * f0 < 0.0 {
                         f0
@@ -353,18 +357,19 @@ impl Redistancer {
                         v
                     };
                     if fixed != v {
-                        ps[c] = fixed;
+                        *p = fixed;
                         clamped += 1;
                     }
                 }
-            }
-        }
+                clamped
+            })
+        };
         // Far field: beyond the band the pseudo time reached (τ − 2h), Φ becomes ±(first-order
         // distance to the interface cells) by fast sweeping (Zhao 2005). Without it the light
         // phase's recirculation carries near-zero values of Φ from beside the interface to the far
         // field (seen under the lid of the column's channel), where transport noise flips their
         // sign into spurious granular droplets (+6–8 % dense area at ny = 32 by t = 3 s).
-        let far = self.far_field(phi, grid, (tau - 2.0 * h).max(h));
+        let far = self.far_field(phi, grid, (tau - 2.0 * h).max(h), exec);
         phi.extrapolate_ghosts_linear();
         let prev = &self.prev;
         let (ps, qs, sp) = (phi.slice(), prev.slice(), phi.stride());
@@ -391,26 +396,26 @@ impl Redistancer {
     /// Sets Φ = sign(Φ⁰)·d where the fast-sweeping distance d to the interface cells (those next
     /// to a sign change of Φ⁰, at their current |Φ|) exceeds `keep`; returns how many cells.
     /// First-order Godunov update of |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice.
-    fn far_field(&mut self, phi: &mut Field, grid: &Grid, keep: f64) -> usize {
+    fn far_field(&mut self, phi: &mut Field, grid: &Grid, keep: f64, exec: Exec) -> usize {
         let d = &mut self.phi1;
-        if !sweep_distance(phi, &self.sub, grid, d, &mut self.interface) {
+        if !sweep_distance(phi, &self.sub, grid, d, &mut self.interface, exec) {
             return 0;
         }
-        let mut count = 0;
-        let st = phi.stride();
-        let (ds, p0, ps) = (d.slice(), self.phi0.slice(), phi.slice_mut());
-        for j in 0..grid.ny {
-            for c in (j + HALO) * st + HALO..(j + HALO) * st + HALO + grid.nx {
+        let (ds, p0) = (d.slice(), self.phi0.slice());
+        count_each_interior_row(phi, grid, exec, |b, row| {
+            let mut count = 0;
+            for (i, p) in row.iter_mut().enumerate() {
+                let c = b + i;
                 let dist = ds[c];
                 if dist.is_finite() && dist > keep {
                     let s = p0[c];
-                    let s = if s != 0.0 { s.signum() } else { ps[c].signum() };
-                    ps[c] = s * dist;
+                    let s = if s != 0.0 { s.signum() } else { p.signum() };
+                    *p = s * dist;
                     count += 1;
                 }
             }
-        }
-        count
+            count
+        })
     }
 
     /// [`InterfaceTreatment::ClosestPoint`]: fills `frozen` with ±(distance to the bicubic zero
@@ -860,6 +865,24 @@ impl Ctx<'_> {
     }
 }
 
+/// Runs `f(b, row)` on the interior cells of every row of `field` (`b`: the storage index of
+/// the row's first interior cell) and returns the sum of the counts `f` returns; rows on the
+/// pool when `exec` allows (each row written by one task: serial == parallel).
+fn count_each_interior_row<F>(field: &mut Field, grid: &Grid, exec: Exec, f: F) -> usize
+where
+    F: Fn(usize, &mut [f64]) -> usize + Sync + Send,
+{
+    let (nx, ny, st) = (grid.nx, grid.ny, field.stride());
+    let rows = &mut field.slice_mut()[HALO * st..(HALO + ny) * st];
+    let row = |(j, r): (usize, &mut [f64])| f((j + HALO) * st + HALO, &mut r[HALO..HALO + nx]);
+    if exec.use_parallel(nx * ny) {
+        use rayon::prelude::*;
+        rows.par_chunks_mut(st).enumerate().map(row).sum()
+    } else {
+        rows.chunks_mut(st).enumerate().map(row).sum()
+    }
+}
+
 /// d ← the first-order distance to the interface cells (those with a finite sub-cell distance,
 /// at their current |Φ|) by fast sweeping (Zhao 2005, *Math. Comp.* 74): Godunov update of
 /// |∇d| = 1 with dx ≠ dy allowed, four sweep orderings, twice. Returns false (d = ∞) when there
@@ -867,46 +890,103 @@ impl Ctx<'_> {
 ///
 /// `interface` (scratch of the field's storage size) receives which cells are interface cells:
 /// the sweeps read one byte per cell for it instead of the four sub-cell distances.
-fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field, interface: &mut [bool]) -> bool {
+///
+/// On several threads each sweep is pipelined over strips of columns ([`sweep_strips`]) and
+/// gives the serial sweep's distances bit for bit.
+fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field, interface: &mut [bool], exec: Exec) -> bool {
+    let strips = if exec.use_parallel(grid.cells()) { (grid.nx / SWEEP_STRIP_MIN_COLUMNS).clamp(1, rayon::current_num_threads()) } else { 1 };
+    sweep_distance_in_strips(phi, sub, grid, d, interface, exec, strips)
+}
+
+/// [`sweep_distance`] with each sweep pipelined over `strips` strips of columns.
+fn sweep_distance_in_strips(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field, interface: &mut [bool], exec: Exec, strips: usize) -> bool {
     let (nx, ny) = (grid.nx, grid.ny);
-    let (dx, dy) = (grid.dx, grid.dy);
     let st = d.stride();
     debug_assert!(phi.stride() == st && sub.iter().all(|f| f.stride() == st));
-    let k = |i: usize, j: usize| (j + HALO) * st + i + HALO;
     let [s0, s1, s2, s3] = [0, 1, 2, 3].map(|m| sub[m].slice());
-    let at_interface = |c: usize| s0[c].is_finite() || s1[c].is_finite() || s2[c].is_finite() || s3[c].is_finite();
     let ps = phi.slice();
-    let mut any = false;
     assert_eq!(interface.len(), ps.len(), "sweep_distance: the interface mask has the field's storage size");
-    {
-        let ds = d.slice_mut();
-        for j in 0..ny {
+    // the interface mask and the initial distances, row by row (elementwise: serial == parallel)
+    let (ds, mask) = (d.slice_mut(), &mut interface[..]);
+    let any = {
+        let rows_d = &mut ds[HALO * st..(HALO + ny) * st];
+        let rows_m = &mut mask[HALO * st..(HALO + ny) * st];
+        let init = |j: usize, drow: &mut [f64], mrow: &mut [bool]| -> bool {
+            let b = (j + HALO) * st + HALO;
+            let mut any = false;
             for i in 0..nx {
-                let c = k(i, j);
-                let f = at_interface(c);
+                let c = b + i;
+                let f = s0[c].is_finite() || s1[c].is_finite() || s2[c].is_finite() || s3[c].is_finite();
                 any |= f;
-                interface[c] = f;
-                ds[c] = if f { ps[c].abs() } else { f64::INFINITY };
+                mrow[HALO + i] = f;
+                drow[HALO + i] = if f { ps[c].abs() } else { f64::INFINITY };
             }
+            any
+        };
+        if exec.use_parallel(nx * ny) {
+            use rayon::prelude::*;
+            rows_d.par_chunks_mut(st).zip(rows_m.par_chunks_mut(st)).enumerate().map(|(j, (dr, mr))| init(j, dr, mr)).reduce(|| false, |a, b| a | b)
+        } else {
+            rows_d.chunks_mut(st).zip(rows_m.chunks_mut(st)).enumerate().fold(false, |a, (j, (dr, mr))| init(j, dr, mr) | a)
         }
-    }
-    let interface = &*interface;
+    };
     if !any {
         return false;
     }
-    let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
-    let ds = d.slice_mut();
-    // Godunov update of |∇d| = 1 at cell (i, j) from the smaller neighbour on each axis (∞ outside)
-    let update = |ds: &mut [f64], i: usize, j: usize| {
-        let c = k(i, j);
-        if interface[c] {
+    let sweeper = Sweeper { ds: SharedCells(ds.as_mut_ptr(), ds.len()), interface: &*mask, nx, ny, st, dx: grid.dx, dy: grid.dy };
+    for _ in 0..2 {
+        for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
+            sweep_strips(&sweeper, rx, ry, strips);
+        }
+    }
+    true
+}
+
+/// Narrowest strip of columns a pipelined sweep gives a thread ([`sweep_strips`]).
+const SWEEP_STRIP_MIN_COLUMNS: usize = 128;
+
+/// The distances of [`sweep_distance`], shared by the strips of a pipelined sweep.
+#[derive(Clone, Copy)]
+struct SharedCells(*mut f64, usize);
+
+// SAFETY: the strips of a sweep read and write disjoint cells at any one time; the order of
+// their accesses is that of the serial sweep, enforced by the rows' progress counters
+// (`sweep_strips`).
+unsafe impl Send for SharedCells {}
+unsafe impl Sync for SharedCells {}
+
+/// One fast-sweeping ordering over the cells, its constant data.
+struct Sweeper<'a> {
+    ds: SharedCells,
+    interface: &'a [bool],
+    nx: usize,
+    ny: usize,
+    st: usize,
+    dx: f64,
+    dy: f64,
+}
+
+impl Sweeper<'_> {
+    /// Godunov update of |∇d| = 1 at cell (i, j) from the smaller neighbour on each axis (∞
+    /// outside), in place.
+    #[inline(always)]
+    fn update(&self, i: usize, j: usize) {
+        let (nx, ny, st) = (self.nx, self.ny, self.st);
+        let c = (j + HALO) * st + i + HALO;
+        if self.interface[c] {
             return;
         }
-        let a = (if i > 0 { ds[c - 1] } else { f64::INFINITY }).min(if i + 1 < nx { ds[c + 1] } else { f64::INFINITY });
-        let b = (if j > 0 { ds[c - st] } else { f64::INFINITY }).min(if j + 1 < ny { ds[c + st] } else { f64::INFINITY });
+        debug_assert!(c + st < self.ds.1 && c >= st);
+        // SAFETY: c ± 1 and c ± st lie inside the field's storage (one halo layer at least);
+        // no other strip writes them now (`sweep_strips`).
+        let get = |k: usize| unsafe { *self.ds.0.add(k) };
+        let a = (if i > 0 { get(c - 1) } else { f64::INFINITY }).min(if i + 1 < nx { get(c + 1) } else { f64::INFINITY });
+        let b = (if j > 0 { get(c - st) } else { f64::INFINITY }).min(if j + 1 < ny { get(c + st) } else { f64::INFINITY });
         if !a.is_finite() && !b.is_finite() {
             return;
         }
+        let (dx, dy) = (self.dx, self.dy);
+        let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
         let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
         let one_axis = lo + hlo;
         // ((d − a)/dx)² + ((d − b)/dy)² = 1, computed always and taken where it applies (a
@@ -916,19 +996,60 @@ fn sweep_distance(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut Field, int
         let disc = qb * qb - 4.0 * qa * qc;
         let two_axes = (-qb + disc.sqrt()) / (2.0 * qa);
         let new = if one_axis > hi && disc >= 0.0 { two_axes } else { one_axis };
-        let old = ds[c];
-        ds[c] = if new < old { new } else { old };
-    };
-    for _ in 0..2 {
-        for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
-            for jj in 0..ny {
-                for ii in 0..nx {
-                    update(ds, if rx { nx - 1 - ii } else { ii }, if ry { ny - 1 - jj } else { jj });
+        let old = get(c);
+        // SAFETY: as above; this strip owns cell c
+        unsafe { *self.ds.0.add(c) = if new < old { new } else { old } };
+    }
+
+    /// The cells of visiting positions `ii ∈ cols` of every row in the ordering (rx, ry): row by
+    /// row, each row once `before` (the strip visited just before in each row) has finished it,
+    /// and `done` counts this strip's finished rows.
+    fn strip(&self, rx: bool, ry: bool, cols: std::ops::Range<usize>, before: Option<&AtomicUsize>, done: &AtomicUsize) {
+        let (nx, ny) = (self.nx, self.ny);
+        for jj in 0..ny {
+            if let Some(b) = before {
+                while b.load(Ordering::Acquire) <= jj {
+                    std::hint::spin_loop();
                 }
             }
+            let j = if ry { ny - 1 - jj } else { jj };
+            for ii in cols.clone() {
+                self.update(if rx { nx - 1 - ii } else { ii }, j);
+            }
+            done.store(jj + 1, Ordering::Release);
         }
     }
-    true
+}
+
+/// One sweep ordering (rx, ry) over `strips` strips of columns, counted in visiting order, each
+/// on a task of the pool (`rayon::join`, the earlier strip on the calling thread).
+///
+/// Why this is the serial sweep bit for bit: in the serial order the update of the cell at
+/// visiting position (ii, jj) reads its neighbours ii − 1 and jj − 1 after their update in this
+/// sweep and ii + 1 and jj + 1 before it. Strip s enters row jj only once strip s − 1 has
+/// finished row jj (its counter), so the one cell of strip s − 1 it reads in that row is
+/// updated; strip s − 1 reads strip s's first cell of row jj while strip s has not entered row
+/// jj, so that cell is not updated yet; rows jj ± 1 are read within the strip. A strip waits
+/// only on the strip before it, which runs (or has run) on the thread that started the strip's
+/// task, so the pipeline cannot stall, whatever the number of threads.
+fn sweep_strips(sw: &Sweeper<'_>, rx: bool, ry: bool, strips: usize) {
+    let nx = sw.nx;
+    let strips = strips.clamp(1, nx.max(1));
+    let counters: Vec<AtomicUsize> = (0..strips).map(|_| AtomicUsize::new(0)).collect();
+    let cols = |s: usize| s * nx / strips..(s + 1) * nx / strips;
+    fn run(sw: &Sweeper<'_>, rx: bool, ry: bool, s: usize, counters: &[AtomicUsize], cols: &(dyn Fn(usize) -> std::ops::Range<usize> + Sync)) {
+        let before = s.checked_sub(1).map(|b| &counters[b]);
+        if s + 1 == counters.len() {
+            sw.strip(rx, ry, cols(s), before, &counters[s]);
+        } else {
+            rayon::join(|| sw.strip(rx, ry, cols(s), before, &counters[s]), || run(sw, rx, ry, s + 1, counters, cols));
+        }
+    }
+    if strips == 1 {
+        sw.strip(rx, ry, 0..nx, None, &counters[0]);
+    } else {
+        run(sw, rx, ry, 0, &counters, &cols);
+    }
 }
 
 /// [`sweep_distance`] point by point, with the four sub-cell distances and the branching Godunov
@@ -1022,7 +1143,7 @@ mod tests {
                 rd.phi0.assign(&phi);
                 rd.find_interface(&grid, Exec::SERIAL);
                 let (mut got, mut want) = (Field::zeros(&grid, Location::Centre), Field::zeros(&grid, Location::Centre));
-                assert!(sweep_distance(&phi, &rd.sub, &grid, &mut got, &mut rd.interface));
+                assert!(sweep_distance(&phi, &rd.sub, &grid, &mut got, &mut rd.interface, Exec::SERIAL));
                 assert!(sweep_distance_reference(&phi, &rd.sub, &grid, &mut want));
                 let (mut reached, mut differ) = (0, 0);
                 for j in 0..ny as isize {
@@ -1037,6 +1158,51 @@ mod tests {
                 assert!(differ > nx * ny / 2, "{name} {nx}x{ny}: the sweeps set most cells ({differ})");
             }
         }
+    }
+
+    /// The sweeps pipelined over strips of columns give the serial sweep's distances bit for
+    /// bit, whatever the number of strips and of threads (strips more than threads included,
+    /// and strips of one column), and `sweep_distance` on a pool uses strips on a wide grid.
+    #[test]
+    fn the_sweeps_in_strips_are_the_serial_sweeps_bit_for_bit() {
+        for (nx, ny, lx, ly) in [(300, 37, 1.5, 0.6), (61, 24, 1.0, 0.5), (7, 9, 1.0, 0.9)] {
+            let grid = Grid::new(nx, ny, lx, ly).unwrap();
+            let mut phi = column_phi(&grid);
+            phi.extrapolate_ghosts_linear();
+            let mut rd = Redistancer::new(&grid, RedistanceSettings::default()).unwrap();
+            rd.phi0.assign(&phi);
+            rd.find_interface(&grid, Exec::SERIAL);
+            let mut want = Field::zeros(&grid, Location::Centre);
+            assert!(sweep_distance(&phi, &rd.sub, &grid, &mut want, &mut rd.interface, Exec::SERIAL));
+            for threads in [1, 2, 4] {
+                let pool = crate::exec::build_pool(threads).unwrap();
+                for strips in [1, 2, 3, 5, nx] {
+                    let mut got = Field::zeros(&grid, Location::Centre);
+                    let exec = Exec::with_threads(threads);
+                    assert!(pool.install(|| sweep_distance_in_strips(&phi, &rd.sub, &grid, &mut got, &mut rd.interface, exec, strips)));
+                    for k in 0..got.slice().len() {
+                        let (a, b) = (got.slice()[k], want.slice()[k]);
+                        assert_eq!(a.to_bits(), b.to_bits(), "{nx}x{ny}, {threads} threads, {strips} strips: storage cell {k}: {a} != {b}");
+                    }
+                }
+                let mut got = Field::zeros(&grid, Location::Centre);
+                assert!(pool.install(|| sweep_distance(&phi, &rd.sub, &grid, &mut got, &mut rd.interface, Exec::with_threads(threads))));
+                assert!(got.slice().iter().zip(want.slice()).all(|(a, b)| a.to_bits() == b.to_bits()), "{nx}x{ny}, {threads} threads");
+            }
+        }
+        // a strip of columns that reads stale values (no wait on the strip before) would differ:
+        // the test's grid makes the sweeps carry distances across the strips' borders
+        let grid = Grid::new(300, 37, 1.5, 0.6).unwrap();
+        let mut phi = column_phi(&grid);
+        phi.extrapolate_ghosts_linear();
+        let mut rd = Redistancer::new(&grid, RedistanceSettings::default()).unwrap();
+        rd.phi0.assign(&phi);
+        rd.find_interface(&grid, Exec::SERIAL);
+        let mut d = Field::zeros(&grid, Location::Centre);
+        assert!(sweep_distance(&phi, &rd.sub, &grid, &mut d, &mut rd.interface, Exec::SERIAL));
+        let st = d.stride();
+        let border = (HALO + 18) * st + HALO + 150;
+        assert!(d.slice()[border].is_finite() && d.slice()[border] != phi.slice()[border].abs(), "the border cell is set by the sweeps");
     }
 
     #[test]
@@ -1055,7 +1221,7 @@ mod tests {
                 *p = f
             }
         });
-        assert!(sweep_distance(&phi, &rd.sub, &grid, &mut rd.dist, &mut rd.interface));
+        assert!(sweep_distance(&phi, &rd.sub, &grid, &mut rd.dist, &mut rd.interface, Exec::SERIAL));
         // a reach that leaves cells out, and a source that is not Φ⁰ (a stage in the middle of
         // the iterations)
         let reach = 6.0 * grid.h();
