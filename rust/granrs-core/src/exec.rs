@@ -2,8 +2,8 @@
 //!
 //! Kernels never decide the thread count themselves: a model owns a `rayon::ThreadPool` of the
 //! user's `threads` and runs its step inside `pool.install`, passing `Exec::parallel(..)` down.
-//! Reductions split the work into fixed blocks of rows ([`ROW_BLOCK`]), independent of the
-//! number of threads, and add the per-block partial results in block order; sweeps without a
+//! Reductions add their rows' values in fixed blocks of rows ([`ROW_BLOCK`]), independent of
+//! the number of threads, and the blocks' sums in block order; sweeps without a
 //! reduction write each row independently and are split into tasks of [`task_rows`] rows. One
 //! thread and many threads give bit-identical answers.
 
@@ -13,9 +13,8 @@ use rayon::prelude::*;
 /// deterministic.
 pub const ROW_BLOCK: usize = 8;
 
-/// Blocks whose partial sums [`Exec::sum_rows`] keeps on the stack (rows up to
-/// `STACK_BLOCKS × ROW_BLOCK` = 4096).
-const STACK_BLOCKS: usize = 512;
+/// Rows whose values [`Exec::sum_rows`] keeps on the stack (32 KiB).
+const STACK_ROWS: usize = 4096;
 
 /// Below this many cells a kernel runs serially even when parallel execution is allowed:
 /// the rayon overhead would dominate.
@@ -106,39 +105,51 @@ impl Exec {
         }
     }
 
-    /// Deterministic sum over rows `0..nrows` of `f(row)`: partial sums per block of
-    /// [`ROW_BLOCK`] rows, added in block order.
+    /// Deterministic sum over rows `0..nrows` of `f(row)`: the rows' values of each block of
+    /// [`ROW_BLOCK`] rows added in order from 0, then the blocks' sums in order from 0. On the
+    /// pool the rows' values are made in tasks of [`task_rows`] rows (equal shares for the
+    /// threads whatever the blocks), kept on the stack up to [`STACK_ROWS`] rows.
     pub fn sum_rows<F>(self, nrows: usize, cells: usize, f: F) -> f64
     where
         F: Fn(usize) -> f64 + Sync + Send,
     {
-        let nblocks = nrows.div_ceil(ROW_BLOCK);
-        let block = |b: usize| -> f64 {
-            let mut s = 0.0;
-            for r in b * ROW_BLOCK..((b + 1) * ROW_BLOCK).min(nrows) {
-                s += f(r);
+        let add_by_blocks = |values: &[f64]| -> f64 {
+            let mut total = 0.0;
+            for block in values.chunks(ROW_BLOCK) {
+                let mut s = 0.0;
+                for v in block {
+                    s += v;
+                }
+                total += s;
             }
-            s
+            total
         };
         if self.use_parallel(cells) {
-            // the blocks' partial sums on the stack (no allocation per call) up to
-            // STACK_BLOCKS blocks, then on the heap; added in block order either way
-            let mut stack = [0.0f64; STACK_BLOCKS];
+            let mut stack = [0.0f64; STACK_ROWS];
             let mut heap = Vec::new();
-            let partial: &mut [f64] = if nblocks <= STACK_BLOCKS {
-                &mut stack[..nblocks]
+            let values: &mut [f64] = if nrows <= STACK_ROWS {
+                &mut stack[..nrows]
             } else {
-                heap.resize(nblocks, 0.0);
+                heap.resize(nrows, 0.0);
                 &mut heap
             };
-            partial.par_iter_mut().enumerate().for_each(|(b, p)| *p = block(b));
-            partial.iter().sum()
+            let rows = task_rows(cells / nrows.max(1));
+            values.par_chunks_mut(rows).enumerate().for_each(|(t, out)| {
+                for (k, o) in out.iter_mut().enumerate() {
+                    *o = f(t * rows + k);
+                }
+            });
+            add_by_blocks(values)
         } else {
-            let mut s = 0.0;
-            for b in 0..nblocks {
-                s += block(b);
+            let mut total = 0.0;
+            for b in 0..nrows.div_ceil(ROW_BLOCK) {
+                let mut s = 0.0;
+                for r in b * ROW_BLOCK..((b + 1) * ROW_BLOCK).min(nrows) {
+                    s += f(r);
+                }
+                total += s;
             }
-            s
+            total
         }
     }
 

@@ -6,7 +6,7 @@ use crate::exec::Exec;
 use crate::grid::{Field, Side, HALO};
 use crate::levelset::heaviside;
 use crate::operators::{fill_velocity_ghosts, periodic_pair, BcMode};
-use crate::solvers::par::{n_blocks, sum_rows};
+use crate::solvers::par::{partials_len, sum_rows};
 
 impl TwoPhaseModel {
     /// Kinetic energy ½ Σ ρ_face u² h² over the solved faces, and the potential energy
@@ -15,8 +15,8 @@ impl TwoPhaseModel {
         let g = &self.config.grid;
         let exec = self.exec();
         let (nx, ny) = (g.nx, g.ny);
-        if partials.len() < n_blocks(ny + 1) {
-            partials.resize(n_blocks(ny + 1), [0.0; 4]);
+        if partials.len() < partials_len(ny + 1) {
+            partials.resize(partials_len(ny + 1), [0.0; 4]);
         }
         let (ps, us, vs) = (self.phi.slice(), self.u.slice(), self.v.slice());
         let (gx, gy) = (self.config.gravity[0], self.config.gravity[1]);
@@ -79,8 +79,8 @@ impl TwoPhaseModel {
         let exec: Exec = self.exec();
         let (nx, ny) = (g.nx, g.ny);
         fill_velocity_ghosts(&mut self.u, &mut self.v, &self.config.bc, &g, BcMode::Full);
-        if partials.len() < n_blocks(ny + 1) {
-            partials.resize(n_blocks(ny + 1), [0.0; 4]);
+        if partials.len() < partials_len(ny + 1) {
+            partials.resize(partials_len(ny + 1), [0.0; 4]);
         }
         let (gx, gy) = (self.config.gravity[0], self.config.gravity[1]);
         let rho_ref = self.config.reference_density();

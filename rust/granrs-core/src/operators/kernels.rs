@@ -166,14 +166,14 @@ pub fn viscous_helmholtz_dots(
 /// Runs `f(j, row)` over the interior rows of `field` like [`for_each_interior_row`]; with
 /// `dots = Some((sums, input, cols))` it then stores in `sums[j]` the dot product of the row's
 /// columns `cols` (interior indices) with the same columns of `input`'s row j (a field of the
-/// same layout), each summed left to right from 0 ([`super::row_sums`]): the rows of a block of
-/// [`ROW_BLOCK`](crate::exec::ROW_BLOCK) are computed first, then their dots
-/// ([`super::sums_by_row`]; the same blocks of rows either way).
+/// same layout), each summed left to right from 0 ([`super::row_sums`]): the rows of a task of
+/// at most [`ROW_BLOCK`](crate::exec::ROW_BLOCK) rows are computed first, then their dots
+/// ([`super::sums_by_row`]; each row's dot has the same bits whatever the task).
 fn interior_rows_dots<F>(exec: Exec, field: &mut Field, dots: Option<(&mut [f64], &Field, std::ops::Range<usize>)>, f: F)
 where
     F: Fn(usize, &mut [f64]) + Sync + Send,
 {
-    use crate::exec::ROW_BLOCK;
+    use crate::exec::{task_rows, ROW_BLOCK};
     use rayon::prelude::*;
     let Some((sums, input, cols)) = dots else {
         for_each_interior_row(exec, field, f);
@@ -185,12 +185,12 @@ where
     let inp = input.slice();
     let data = &mut field.slice_mut()[HALO * stride..(HALO + ny) * stride];
     let (c0, n) = (HALO + cols.start, cols.len());
-    let block = |b: usize, rows: &mut [f64], out: &mut [f64]| {
+    let block = |j0: usize, rows: &mut [f64], out: &mut [f64]| {
         for (r, row) in rows.chunks_mut(stride).enumerate() {
-            f(b * ROW_BLOCK + r, row);
+            f(j0 + r, row);
         }
         let rows = &*rows;
-        let a_row = |k: usize| &inp[(b * ROW_BLOCK + k + HALO) * stride + c0..][..n];
+        let a_row = |k: usize| &inp[(j0 + k + HALO) * stride + c0..][..n];
         let b_row = |k: usize| &rows[k * stride + c0..][..n];
         let mut sums = [[0.0; 1]; ROW_BLOCK];
         let sums = &mut sums[..out.len()];
@@ -200,10 +200,11 @@ where
         }
     };
     if exec.use_parallel(data.len()) {
-        data.par_chunks_mut(stride * ROW_BLOCK).zip(sums.par_chunks_mut(ROW_BLOCK)).enumerate().for_each(|(b, (rows, out))| block(b, rows, out));
+        let rows = task_rows(stride);
+        data.par_chunks_mut(stride * rows).zip(sums.par_chunks_mut(rows)).enumerate().for_each(|(t, (r, out))| block(t * rows, r, out));
     } else {
         for (b, (rows, out)) in data.chunks_mut(stride * ROW_BLOCK).zip(sums.chunks_mut(ROW_BLOCK)).enumerate() {
-            block(b, rows, out);
+            block(b * ROW_BLOCK, rows, out);
         }
     }
 }
@@ -696,7 +697,14 @@ mod tests {
     /// a separate left-to-right pass over the chosen columns, serially and on two threads.
     #[test]
     fn viscous_helmholtz_dots_are_the_operator_then_the_row_sums_bit_for_bit() {
-        let grid = Grid::new(67, 41, 1.3, 0.7).unwrap();
+        // rows short enough for tasks of eight rows, and long enough for tasks of two
+        for (nx, ny, lx) in [(67, 41, 1.3), (1900, 21, 38.0)] {
+            viscous_helmholtz_dots_case(&Grid::new(nx, ny, lx, 0.7).unwrap());
+        }
+    }
+
+    fn viscous_helmholtz_dots_case(grid: &Grid) {
+        let grid = grid.clone();
         let (u, v) = (random(&grid, Location::XFace, 11), random(&grid, Location::YFace, 12));
         let (ec, en) = (random(&grid, Location::Centre, 13), random(&grid, Location::Node, 14));
         let (cu, cv) = (random(&grid, Location::XFace, 15), random(&grid, Location::YFace, 16));

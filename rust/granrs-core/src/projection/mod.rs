@@ -142,7 +142,7 @@ impl PressureProjection {
             dp: vec![0.0; n],
             work: vec![0.0; n],
             div: Field::zeros(grid, crate::Location::Centre),
-            partials: vec![[0.0]; par::n_blocks(grid.ny)],
+            partials: vec![[0.0]; par::partials_len(grid.ny)],
             dp_field: Field::zeros(grid, crate::Location::Centre),
         })
     }

@@ -26,7 +26,7 @@ use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
 use crate::levelset::heaviside;
 use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate, strain_rate_norm_centre, BcMode};
-use crate::solvers::par::{n_blocks, sum_rows};
+use crate::solvers::par::{partials_len, sum_rows};
 use crate::solvers::SolveInfo;
 use crate::walls::side::SideWallFriction;
 use crate::walls::{default_r_wall, CoulombWalls, NormalStress};
@@ -130,7 +130,7 @@ impl RheologyState {
             r: 0.0,
             r_wall: 0.0,
             p_surface: 0.0,
-            surface_partials: vec![[0.0; 2]; n_blocks(grid.ny)],
+            surface_partials: vec![[0.0; 2]; partials_len(grid.ny)],
             anderson,
         })
     }
@@ -452,7 +452,7 @@ fn base(f: &Field, j: isize) -> usize {
 /// Mean pressure of the air on the granular surface (`YieldPressure::SurfaceAir`): the average of
 /// p over the cells with −ε − h ≤ Φ < −ε (one layer of air cells just outside the smoothed band,
 /// Φ a distance), equal weights; 0 when there is none. A fixed-order row-block reduction
-/// ([`crate::solvers::par::sum_rows`], `partials` ≥ its number of blocks), so serial and parallel
+/// ([`crate::solvers::par::sum_rows`], `partials` one per row at least), so serial and parallel
 /// runs agree bit for bit.
 pub(crate) fn surface_air_pressure(p: &Field, phi: &Field, eps: f64, h: f64, partials: &mut [[f64; 2]], exec: Exec) -> f64 {
     let (nx, ny) = (p.nx, p.ny);

@@ -39,7 +39,7 @@ impl CgWork {
     /// Work arrays for an `nx × ny` grid.
     pub fn new(nx: usize, ny: usize) -> Self {
         let n = nx * ny;
-        CgWork { rhs: vec![0.0; n], r: vec![0.0; n], z: vec![0.0; n], d: vec![0.0; n], q: vec![0.0; n], partials1: vec![[0.0; 1]; par::n_blocks(ny)] }
+        CgWork { rhs: vec![0.0; n], r: vec![0.0; n], z: vec![0.0; n], d: vec![0.0; n], q: vec![0.0; n], partials1: vec![[0.0; 1]; par::partials_len(ny)] }
     }
 }
 
@@ -231,12 +231,12 @@ mod tests {
     #[test]
     fn dot_is_its_definition_bit_for_bit_on_one_and_two_threads() {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        for (nx, ny) in [(1, 1), (3, 5), (257, 23), (130, 64)] {
+        for (nx, ny) in [(1, 1), (3, 5), (257, 23), (130, 64), (2000, 37), (1500, 3)] {
             let wave = |k: usize, f: f64| (f * k as f64).sin() * 10f64.powi((k % 7) as i32 - 3);
             let a: Vec<f64> = (0..nx * ny).map(|k| wave(k, 0.77)).collect();
             let b: Vec<f64> = (0..nx * ny).map(|k| wave(k, 1.31)).collect();
             let want = dot_by_definition(&a, &b, nx);
-            let mut partials = vec![[0.0]; par::n_blocks(ny)];
+            let mut partials = vec![[0.0]; par::partials_len(ny)];
             assert_eq!(dot(Exec::SERIAL, &a, &b, nx, &mut partials).to_bits(), want.to_bits(), "{nx} x {ny}");
             let par = pool.install(|| dot(Exec::with_threads(2), &a, &b, nx, &mut partials));
             assert_eq!(par.to_bits(), want.to_bits(), "{nx} x {ny}, two threads");

@@ -109,7 +109,7 @@ impl Multigrid {
         let bs = levels.iter().enumerate().map(|(l, lv)| vec![0.0; if l == 0 { 0 } else { lv.cells() }]).collect();
         let last = &levels[nl - 1];
         let coarse = DirectSolver::new(last.nx, last.ny, singular)?;
-        let partials = vec![[0.0]; par::n_blocks(last.ny)];
+        let partials = vec![[0.0]; par::partials_len(last.ny)];
         let coarse_rhs = vec![0.0; last.cells()];
         Ok(Multigrid {
             levels,

@@ -1,20 +1,29 @@
 //! Row-block execution helpers of the pressure solvers.
 //!
-//! Every reduction of the solvers works on fixed blocks of [`ROW_BLOCK`] rows, whatever the
-//! number of threads, and adds per-block partial sums in block order into a buffer that was
-//! allocated once: one thread and many threads give bit-identical results, and `solve`
-//! allocates nothing. These helpers complement [`Exec::for_each_row`] with reductions (also over
-//! passes that write) and with an index-only loop over balanced blocks for the red–black
-//! smoother, whose result does not depend on its blocks.
+//! Every reduction of the solvers adds its rows' sums in fixed blocks of [`ROW_BLOCK`] rows,
+//! whatever the number of threads: each block's rows in order from 0, then the blocks in order
+//! from 0. The rows' sums themselves are made on the pool in tasks of [`task_rows`] rows (a few
+//! thousand cells each, so that the threads get equal shares of a window a few dozen rows high)
+//! into a buffer of one partial per row that was allocated once ([`partials_len`]); the blocks
+//! are added afterwards on the calling thread. One thread and many threads give bit-identical
+//! results, and `solve` allocates nothing. These helpers complement [`Exec::for_each_row`] with
+//! reductions (also over passes that write) and with an index-only loop over balanced blocks for
+//! the red–black smoother, whose result does not depend on its blocks.
 
 use rayon::prelude::*;
 
-use crate::exec::{Exec, ROW_BLOCK};
+use crate::exec::{task_rows, Exec, ROW_BLOCK};
 
-/// Number of row blocks of a grid with `nrows` rows.
+/// Length of the partials buffer of a reduction over `nrows` rows: one partial per row.
 #[inline]
-pub(crate) fn n_blocks(nrows: usize) -> usize {
-    nrows.div_ceil(ROW_BLOCK)
+pub(crate) fn partials_len(nrows: usize) -> usize {
+    nrows
+}
+
+/// Rows per task of a reduction over `nrows` rows holding `cells` values in all.
+#[inline]
+fn reduction_rows(nrows: usize, cells: usize) -> usize {
+    task_rows(cells / nrows.max(1))
 }
 
 /// Runs `f(rows)` on `nblocks` disjoint blocks of consecutive rows that cover `0..nrows`, in
@@ -46,130 +55,106 @@ where
     }
 }
 
-/// Deterministic sum over rows `0..nrows` of `f(row)` (nothing written), with the same block
-/// structure as [`rows_sum`].
+/// Deterministic sum over rows `0..nrows` of `f(row)` (nothing written): the rows' values in
+/// `partials` (one per row), added by [`add_by_blocks`].
 pub(crate) fn sum_rows<const K: usize, F>(exec: Exec, nrows: usize, cells: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
 where
     F: Fn(usize) -> [f64; K] + Sync + Send,
 {
-    let nb = n_blocks(nrows);
-    let partials = &mut partials[..nb];
-    let block = |b: usize| -> [f64; K] {
-        let mut s = [0.0; K];
-        for r in b * ROW_BLOCK..((b + 1) * ROW_BLOCK).min(nrows) {
-            let v = f(r);
-            for c in 0..K {
-                s[c] += v[c];
-            }
-        }
-        s
-    };
+    let partials = &mut partials[..nrows];
     if exec.use_parallel(cells) {
-        partials.par_iter_mut().enumerate().for_each(|(b, out)| *out = block(b));
+        let rows = reduction_rows(nrows, cells);
+        partials.par_chunks_mut(rows).enumerate().for_each(|(t, out)| {
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = f(t * rows + k);
+            }
+        });
     } else {
-        for (b, out) in partials.iter_mut().enumerate() {
-            *out = block(b);
+        for (j, o) in partials.iter_mut().enumerate() {
+            *o = f(j);
         }
     }
-    let mut total = [0.0; K];
-    for p in partials.iter() {
-        for c in 0..K {
-            total[c] += p[c];
-        }
-    }
-    total
+    add_by_blocks(partials)
 }
 
-/// The sum of [`sum_rows`] with the rows' sums made a block at a time: `f(j0, sums)` writes the
-/// sums of rows j0 .. j0 + sums.len() (each as [`sum_rows`]'s `f(j)` would return it;
-/// [`crate::operators::sums_by_row`] makes them four rows at a time with the bits of one fold
-/// per row); each block adds its rows' sums in row order from 0 and the blocks are added in block
-/// order, so that the result has the bits of [`sum_rows`] with the same rows' sums.
+/// The sum of [`sum_rows`] with the rows' sums made a few rows at a time: `f(j0, sums)` writes
+/// the sums of rows j0 .. j0 + sums.len() (at most [`ROW_BLOCK`] rows; each as [`sum_rows`]'s
+/// `f(j)` would return it: [`crate::operators::sums_by_row`] makes them four rows at a time with
+/// the bits of one fold per row), and they are added by [`add_by_blocks`], so that the result
+/// has the bits of [`sum_rows`] with the same rows' sums.
 pub(crate) fn sum_row_blocks<const K: usize, F>(exec: Exec, nrows: usize, cells: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
 where
     F: Fn(usize, &mut [[f64; K]]) + Sync + Send,
 {
-    let nb = n_blocks(nrows);
-    let partials = &mut partials[..nb];
-    let block = |b: usize| -> [f64; K] {
-        let j0 = b * ROW_BLOCK;
-        let mut sums = [[0.0; K]; ROW_BLOCK];
-        let sums = &mut sums[..(nrows - j0).min(ROW_BLOCK)];
-        f(j0, sums);
-        add_in_order(sums)
-    };
+    let partials = &mut partials[..nrows];
     if exec.use_parallel(cells) {
-        partials.par_iter_mut().enumerate().for_each(|(b, out)| *out = block(b));
+        let rows = reduction_rows(nrows, cells);
+        partials.par_chunks_mut(rows).enumerate().for_each(|(t, out)| f(t * rows, out));
     } else {
-        for (b, out) in partials.iter_mut().enumerate() {
-            *out = block(b);
+        for (b, out) in partials.chunks_mut(ROW_BLOCK).enumerate() {
+            f(b * ROW_BLOCK, out);
         }
     }
-    add_in_order(partials)
+    add_by_blocks(partials)
 }
 
 /// [`sum_row_blocks`] over a pass that writes a row-major array (rows of `nx` values): `f(j0,
-/// rows, sums)` writes the block's rows (from row j0) and their sums.
+/// rows, sums)` writes the rows from row j0 (at most [`ROW_BLOCK`]) and their sums.
 pub(crate) fn write_row_blocks<const K: usize, F>(exec: Exec, a: &mut [f64], nx: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
 where
     F: Fn(usize, &mut [f64], &mut [[f64; K]]) + Sync + Send,
 {
-    let nb = n_blocks(a.len() / nx);
-    let partials = &mut partials[..nb];
-    let chunk = ROW_BLOCK * nx;
-    let block = |blk: usize, ca: &mut [f64]| -> [f64; K] {
-        let mut sums = [[0.0; K]; ROW_BLOCK];
-        let sums = &mut sums[..ca.len() / nx];
-        f(blk * ROW_BLOCK, ca, sums);
-        add_in_order(sums)
-    };
+    let nrows = a.len() / nx;
+    let partials = &mut partials[..nrows];
     if exec.use_parallel(a.len()) {
-        a.par_chunks_mut(chunk).zip(partials.par_iter_mut()).enumerate().for_each(|(blk, (ca, out))| *out = block(blk, ca));
+        let rows = reduction_rows(nrows, a.len());
+        a.par_chunks_mut(rows * nx).zip(partials.par_chunks_mut(rows)).enumerate().for_each(|(t, (ca, out))| f(t * rows, ca, out));
     } else {
-        for (blk, (ca, out)) in a.chunks_mut(chunk).zip(partials.iter_mut()).enumerate() {
-            *out = block(blk, ca);
+        for (b, (ca, out)) in a.chunks_mut(ROW_BLOCK * nx).zip(partials.chunks_mut(ROW_BLOCK)).enumerate() {
+            f(b * ROW_BLOCK, ca, out);
         }
     }
-    add_in_order(partials)
+    add_by_blocks(partials)
 }
 
 /// [`sum_row_blocks`] over a pass that writes two row-major arrays (rows of `nx` values): `f(j0,
-/// a_rows, b_rows, sums)` writes the block's rows of `a` and `b` (from row j0) and their sums.
+/// a_rows, b_rows, sums)` writes the rows of `a` and `b` from row j0 (at most [`ROW_BLOCK`]) and
+/// their sums.
 pub(crate) fn write2_row_blocks<const K: usize, F>(exec: Exec, a: &mut [f64], b: &mut [f64], nx: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
 where
     F: Fn(usize, &mut [f64], &mut [f64], &mut [[f64; K]]) + Sync + Send,
 {
     let nrows = a.len() / nx;
-    let nb = n_blocks(nrows);
-    let partials = &mut partials[..nb];
-    let chunk = ROW_BLOCK * nx;
-    let block = |blk: usize, ca: &mut [f64], cb: &mut [f64]| -> [f64; K] {
-        let mut sums = [[0.0; K]; ROW_BLOCK];
-        let sums = &mut sums[..ca.len() / nx];
-        f(blk * ROW_BLOCK, ca, cb, sums);
-        add_in_order(sums)
-    };
+    let partials = &mut partials[..nrows];
     if exec.use_parallel(a.len()) {
-        a.par_chunks_mut(chunk)
-            .zip(b.par_chunks_mut(chunk))
-            .zip(partials.par_iter_mut())
+        let rows = reduction_rows(nrows, a.len());
+        a.par_chunks_mut(rows * nx)
+            .zip(b.par_chunks_mut(rows * nx))
+            .zip(partials.par_chunks_mut(rows))
             .enumerate()
-            .for_each(|(blk, ((ca, cb), out))| *out = block(blk, ca, cb));
+            .for_each(|(t, ((ca, cb), out))| f(t * rows, ca, cb, out));
     } else {
-        for (blk, ((ca, cb), out)) in a.chunks_mut(chunk).zip(b.chunks_mut(chunk)).zip(partials.iter_mut()).enumerate() {
-            *out = block(blk, ca, cb);
+        for (blk, ((ca, cb), out)) in a.chunks_mut(ROW_BLOCK * nx).zip(b.chunks_mut(ROW_BLOCK * nx)).zip(partials.chunks_mut(ROW_BLOCK)).enumerate() {
+            f(blk * ROW_BLOCK, ca, cb, out);
         }
     }
-    add_in_order(partials)
+    add_by_blocks(partials)
 }
 
-/// The sum of `values` added in their order from 0.
+/// The sum of the rows' values: those of each block of [`ROW_BLOCK`] rows added in order from
+/// 0, then the blocks' sums in order from 0 (the reductions' fixed order).
 #[inline]
-fn add_in_order<const K: usize>(values: &[[f64; K]]) -> [f64; K] {
+pub(crate) fn add_by_blocks<const K: usize>(rows: &[[f64; K]]) -> [f64; K] {
     let mut total = [0.0; K];
-    for v in values {
+    for block in rows.chunks(ROW_BLOCK) {
+        let mut s = [0.0; K];
+        for v in block {
+            for c in 0..K {
+                s[c] += v[c];
+            }
+        }
         for c in 0..K {
-            total[c] += v[c];
+            total[c] += s[c];
         }
     }
     total
@@ -194,3 +179,67 @@ impl SharedMut {
 unsafe impl Send for SharedMut {}
 // SAFETY: as for `Send`: concurrent uses touch disjoint or read-only locations.
 unsafe impl Sync for SharedMut {}
+
+#[cfg(test)]
+mod tests {
+    //! The reductions against their definition, bit for bit, on rows short enough for blocks of
+    //! eight rows per task and long enough for tasks of one to three rows.
+    use super::*;
+
+    /// Each row's values added left to right from 0, the rows of each block of [`ROW_BLOCK`]
+    /// rows in order from 0, the blocks in order from 0.
+    fn by_definition(a: &[f64], nx: usize, term: impl Fn(f64) -> f64) -> f64 {
+        let rows: Vec<f64> = a.chunks(nx).map(|r| r.iter().fold(0.0, |s, &x| s + term(x))).collect();
+        rows.chunks(ROW_BLOCK).map(|blk| blk.iter().fold(0.0, |s, v| s + v)).fold(0.0, |s, v| s + v)
+    }
+
+    #[test]
+    fn the_reductions_are_their_definition_bit_for_bit_whatever_the_tasks() {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        for (nx, ny) in [(5, 1), (70, 13), (700, 37), (3000, 19), (1500, 3)] {
+            let wave = |k: usize| (0.77 * k as f64).sin() * 10f64.powi((k % 7) as i32 - 3 + ((k / nx) % 5) as i32 * 4 - 8);
+            let a: Vec<f64> = (0..nx * ny).map(wave).collect();
+            let (want_sum, want_sq) = (by_definition(&a, nx, |x| x), by_definition(&a, nx, |x| x * x));
+            for exec in [Exec::SERIAL, Exec::with_threads(2)] {
+                let mut partials = vec![[f64::NAN; 1]; partials_len(ny)];
+                let mut partials2 = vec![[f64::NAN; 2]; partials_len(ny)];
+                let got = pool.install(|| {
+                    let [s1] = sum_rows(exec, ny, nx * ny, &mut partials, |j| [a[j * nx..(j + 1) * nx].iter().fold(0.0, |s, &x| s + x)]);
+                    let [s2] = sum_row_blocks(exec, ny, nx * ny, &mut partials, |j0, out| {
+                        for (k, o) in out.iter_mut().enumerate() {
+                            *o = [a[(j0 + k) * nx..(j0 + k + 1) * nx].iter().fold(0.0, |s, &x| s + x)];
+                        }
+                    });
+                    let mut w = a.clone();
+                    let [s3] = write_row_blocks(exec, &mut w, nx, &mut partials, |j0, rows, out| {
+                        for (k, (row, o)) in rows.chunks_mut(nx).zip(out.iter_mut()).enumerate() {
+                            assert_eq!(row, &a[(j0 + k) * nx..(j0 + k + 1) * nx], "the task's rows start at row j0");
+                            row.iter_mut().for_each(|x| *x *= *x);
+                            *o = [row.iter().fold(0.0, |s, &x| s + x)];
+                        }
+                    });
+                    let (mut w1, mut w2) = (a.clone(), a.clone());
+                    let [s4, s5] = write2_row_blocks(exec, &mut w1, &mut w2, nx, &mut partials2, |_, r1, r2, out| {
+                        for ((x, y), o) in r1.chunks_mut(nx).zip(r2.chunks_mut(nx)).zip(out.iter_mut()) {
+                            y.iter_mut().for_each(|v| *v *= *v);
+                            *o = [x.iter().fold(0.0, |s, &v| s + v), y.iter().fold(0.0, |s, &v| s + v)];
+                        }
+                    });
+                    let s6 = exec.sum_rows(ny, nx * ny, |j| a[j * nx..(j + 1) * nx].iter().fold(0.0, |s, &x| s + x));
+                    [s1, s2, s3, s4, s5, s6]
+                });
+                let want = [want_sum, want_sum, want_sq, want_sum, want_sq, want_sum];
+                for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                    assert_eq!(g.to_bits(), w.to_bits(), "reduction {k}, {nx} x {ny}, {exec:?}: {g} != {w}");
+                }
+            }
+        }
+        // the check can fail: the rows' sums added in tasks of three rows, then the tasks in
+        // order, differ from the definition (rows whose sums span sixteen orders of magnitude)
+        let (nx, ny) = (700, 37);
+        let a: Vec<f64> = (0..nx * ny).map(|k| (0.77 * k as f64).sin() * 10f64.powi(((k / nx) % 5) as i32 * 4 - 8)).collect();
+        let rows: Vec<f64> = a.chunks(nx).map(|r| r.iter().fold(0.0, |s, &x| s + x)).collect();
+        let by_tasks = rows.chunks(3).map(|t| t.iter().fold(0.0, |s, v| s + v)).fold(0.0, |s, v| s + v);
+        assert_ne!(by_tasks.to_bits(), by_definition(&a, nx, |x| x).to_bits());
+    }
+}

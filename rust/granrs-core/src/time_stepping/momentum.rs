@@ -14,7 +14,7 @@
 //! δt ≲ ρh²/(4η), see `clock.rs`).
 
 use crate::error::{Error, Result};
-use crate::exec::{Exec, ROW_BLOCK};
+use crate::exec::{task_rows, Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
 use crate::operators::{
     fill_velocity_ghosts, for_each_interior_row, sums_by_row, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots,
@@ -73,8 +73,8 @@ pub struct MomentumSolver {
     /// Per-row sums of the initial residual pass (rhs·rhs, r·r, r·z) on u and v rows.
     row_init_u: Vec<[f64; 3]>,
     row_init_v: Vec<[f64; 3]>,
-    /// Per-block sums (r·z, r·r) of the update pass ([`rows3_dots`]).
-    block_sums: Vec<(f64, f64)>,
+    /// Per-row sums (r·z, r·r) of the update pass ([`rows3_dots`]).
+    row_sums: Vec<(f64, f64)>,
     /// Relative residual tolerance ‖rhs − Aũ‖/‖rhs‖.
     pub rtol: f64,
     /// Iteration cap; reaching it is an error.
@@ -128,7 +128,7 @@ impl MomentumSolver {
             row_dq_v: vec![0.0; grid.ny + 1],
             row_init_u: vec![[0.0; 3]; grid.ny],
             row_init_v: vec![[0.0; 3]; grid.ny + 1],
-            block_sums: vec![(0.0, 0.0); (grid.ny + 1).div_ceil(ROW_BLOCK)],
+            row_sums: vec![(0.0, 0.0); grid.ny + 1],
             rtol: 1e-10,
             max_iterations: 2000,
         }
@@ -305,7 +305,7 @@ impl MomentumSolver {
                 // with r·z and r·r summed in the same pass (the block order of `dot`)
                 let cols = HALO + i0..HALO + i1;
                 let (a, b) =
-                    rows3_dots(exec, st, rj.clone(), cols.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), &mut self.block_sums, |j, xr, rr_, zr| {
+                    rows3_dots(exec, st, rj.clone(), cols.clone(), x.slice_mut(), r.slice_mut(), z.slice_mut(), &mut self.row_sums, |j, xr, rr_, zr| {
                         let row = (j + HALO) * st + cols.start..(j + HALO) * st + cols.end;
                         cg_update_row(
                             alpha,
@@ -365,11 +365,12 @@ impl MomentumSolver {
 /// Runs `f(j, row_x, row_r, row_z)` over the rows `rows` (interior indices) of three fields
 /// with the same stride, in parallel when `exec` says so (rows are whole, ghosts included), and
 /// returns (r·z, r·r) over the columns `cols` (raw indices) of the updated rows. Each row's
-/// products are added in column order from 0.0, [`SUM_ROWS`](crate::operators::SUM_ROWS) rows at a time once a block's
-/// rows are updated, the rows' sums in row order within blocks of [`ROW_BLOCK`] rows (into
-/// `block_sums`, one entry per block), the blocks then in order: the summation order of [`dot`]
-/// (`Exec::sum_rows`), so the sums are bit for bit those of two `dot` calls after the update,
-/// serial or parallel, with one pass over the rows and one parallel region instead of three.
+/// products are added in column order from 0.0, [`SUM_ROWS`](crate::operators::SUM_ROWS) rows at a time once a task's
+/// rows are updated (tasks of at most [`ROW_BLOCK`] rows, into `row_sums`, one entry per row),
+/// then the rows' sums in row order within blocks of [`ROW_BLOCK`] rows, the blocks in order:
+/// the summation order of [`dot`] (`Exec::sum_rows`), so the sums are bit for bit those of two
+/// `dot` calls after the update, serial or parallel, with one pass over the rows and one
+/// parallel region instead of three.
 #[allow(clippy::too_many_arguments)]
 fn rows3_dots<F>(
     exec: Exec,
@@ -379,7 +380,7 @@ fn rows3_dots<F>(
     x: &mut [f64],
     r: &mut [f64],
     z: &mut [f64],
-    block_sums: &mut [(f64, f64)],
+    row_sums: &mut [(f64, f64)],
     f: F,
 ) -> (f64, f64)
 where
@@ -387,38 +388,44 @@ where
 {
     let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
     let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
-    let block = |b: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64]| -> (f64, f64) {
+    // each row's (r·z, r·r), the rows of a task written first
+    let task = |j0: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64], out: &mut [(f64, f64)]| {
         for (k, ((xr, rrow), zr)) in xb.chunks_mut(st).zip(rb.chunks_mut(st)).zip(zb.chunks_mut(st)).enumerate() {
-            f(rows.start + b * ROW_BLOCK + k, xr, rrow, zr);
+            f(rows.start + j0 + k, xr, rrow, zr);
         }
         let (rb, zb) = (&*rb, &*zb);
         let mut sums = [[0.0; 2]; ROW_BLOCK];
-        let sums = &mut sums[..rb.len() / st];
+        let sums = &mut sums[..out.len()];
         sums_by_row(sums, cols.len(), |k| [&rb[k * st + cols.start..k * st + cols.end], &zb[k * st + cols.start..k * st + cols.end]], |[r, z]| [r * z, r * r]);
-        let (mut rz, mut rr) = (0.0, 0.0);
-        for &[a, b] in sums.iter() {
-            rz += a;
-            rr += b;
+        for (o, &[a, b]) in out.iter_mut().zip(sums.iter()) {
+            *o = (a, b);
         }
-        (rz, rr)
     };
-    let blk = st * ROW_BLOCK;
-    let sums = &mut block_sums[..rows.len().div_ceil(ROW_BLOCK)];
+    let sums = &mut row_sums[..rows.len()];
     if exec.use_parallel(x.len()) {
         use rayon::prelude::*;
+        let n = task_rows(st);
+        let blk = st * n;
         x.par_chunks_mut(blk)
             .zip(r.par_chunks_mut(blk))
             .zip(z.par_chunks_mut(blk))
-            .zip(sums.par_iter_mut())
+            .zip(sums.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(b, (((xb, rb), zb), out))| *out = block(b, xb, rb, zb));
+            .for_each(|(t, (((xb, rb), zb), out))| task(t * n, xb, rb, zb, out));
     } else {
-        for (b, (((xb, rb), zb), out)) in x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).zip(sums.iter_mut()).enumerate() {
-            *out = block(b, xb, rb, zb);
+        let blk = st * ROW_BLOCK;
+        for (b, (((xb, rb), zb), out)) in x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).zip(sums.chunks_mut(ROW_BLOCK)).enumerate() {
+            task(b * ROW_BLOCK, xb, rb, zb, out);
         }
     }
+    // the rows' sums in blocks of ROW_BLOCK rows from the first row, then the blocks
     let (mut rz, mut rr) = (0.0, 0.0);
-    for &(a, b) in sums.iter() {
+    for block in sums.chunks(ROW_BLOCK) {
+        let (mut a, mut b) = (0.0, 0.0);
+        for &(x, y) in block {
+            a += x;
+            b += y;
+        }
         rz += a;
         rr += b;
     }
@@ -449,7 +456,7 @@ crate::multiversion! {
     }
 }
 
-/// Runs `f(j0, block_x, block_r, block_z, block_sums)` over the blocks of [`ROW_BLOCK`] rows of
+/// Runs `f(j0, block_x, block_r, block_z, block_sums)` over blocks of at most [`ROW_BLOCK`] rows of
 /// `rows` (interior indices; `j0` the block's first row) of three fields with the same stride
 /// (rows whole, ghosts included), in parallel when `exec` says so; `block_sums` is the block's
 /// part of `sums` (one entry per row of `rows`).
@@ -461,16 +468,18 @@ where
     let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
     let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
     let sums = &mut sums[..rows.len()];
-    let blk = st * ROW_BLOCK;
     if exec.use_parallel(x.len()) {
         use rayon::prelude::*;
+        let n = task_rows(st);
+        let blk = st * n;
         x.par_chunks_mut(blk)
             .zip(r.par_chunks_mut(blk))
             .zip(z.par_chunks_mut(blk))
-            .zip(sums.par_chunks_mut(ROW_BLOCK))
+            .zip(sums.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(b, (((a, bb), c), s))| f(rows.start + b * ROW_BLOCK, a, bb, c, s));
+            .for_each(|(t, (((a, bb), c), s))| f(rows.start + t * n, a, bb, c, s));
     } else {
+        let blk = st * ROW_BLOCK;
         for (b, (((a, bb), c), s)) in x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).zip(sums.chunks_mut(ROW_BLOCK)).enumerate() {
             f(rows.start + b * ROW_BLOCK, a, bb, c, s);
         }
@@ -518,7 +527,17 @@ mod tests {
     /// of the row blocks; the row kernels' AVX2 and baseline copies agree bit for bit.
     #[test]
     fn rows3_dots_is_the_update_then_two_dots_bit_for_bit() {
-        let grid = Grid::new(97, 45, 1.0, 0.5).unwrap();
+        // rows short enough for tasks of eight rows, and long enough for tasks of three
+        for (nx, cases) in [
+            (97usize, vec![(1..97usize, 3..44usize), (0..98, 0..45), (2..50, 5..6), (1..97, 2..9), (1..96, 1..12), (1..96, 4..14)]),
+            (1500, vec![(1..1500, 0..45), (0..1501, 2..43), (3..1400, 4..9)]),
+        ] {
+            rows3_dots_case(nx, &cases);
+        }
+    }
+
+    fn rows3_dots_case(nx: usize, cases: &[(Range<usize>, Range<usize>)]) {
+        let grid = Grid::new(nx, 45, nx as f64 / 97.0, 0.5).unwrap();
         let mk = |seed: u64| {
             let mut f = Field::zeros(&grid, Location::XFace);
             let mut s = seed;
@@ -533,7 +552,7 @@ mod tests {
         dg.slice_mut().iter_mut().for_each(|g| *g += 2.0);
         let alpha = 0.37;
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        for (ri, rj) in [(1..97usize, 3..44usize), (0..98, 0..45), (2..50, 5..6), (1..97, 2..9), (1..96, 1..12), (1..96, 4..14)] {
+        for (ri, rj) in cases.iter().cloned() {
             for exec in [Exec::SERIAL, Exec::with_threads(2)] {
                 let (mut x1, mut r1, mut z1) = (mk(4), mk(5), mk(6));
                 let (mut x2, mut r2, mut z2) = (x1.clone(), r1.clone(), z1.clone());
@@ -553,9 +572,9 @@ mod tests {
                         zr[c] = rr[c] / gs[base + c];
                     }
                 };
-                let mut block_sums = vec![(f64::NAN, f64::NAN); rj.len().div_ceil(ROW_BLOCK)];
+                let mut row_sums = vec![(f64::NAN, f64::NAN); rj.len()];
                 let (fused, reference) = pool.install(|| {
-                    let fused = rows3_dots(exec, st, rj.clone(), cols.clone(), x1.slice_mut(), r1.slice_mut(), z1.slice_mut(), &mut block_sums, upd);
+                    let fused = rows3_dots(exec, st, rj.clone(), cols.clone(), x1.slice_mut(), r1.slice_mut(), z1.slice_mut(), &mut row_sums, upd);
                     rows3(exec, st, rj.clone(), x2.slice_mut(), r2.slice_mut(), z2.slice_mut(), plain);
                     (fused, (dot(&r2, &z2, &ri, &rj, exec), dot(&r2, &r2, &ri, &rj, exec)))
                 });
