@@ -68,9 +68,9 @@ use super::weno5::window;
 use super::weno5::{weno5_minus, weno5_plus};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::grid::{Field, Grid, Location, HALO};
 use crate::options::{self, Configurable, OptionSpec, Value};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Kink detector of [`InterfaceTreatment::ClosestPoint`]: max |undivided second difference| of
 /// Φ⁰ over 5 × 5 cells above `KINK_RATIO` × |undivided gradient| marks a kink.
