@@ -13,6 +13,25 @@ use rayon::prelude::*;
 /// deterministic.
 pub const ROW_BLOCK: usize = 8;
 
+/// The sum of the rows' values in the reductions' fixed order: those of each block of
+/// [`ROW_BLOCK`] rows added in order from 0, then the blocks' sums in order from 0.
+#[inline]
+pub fn add_by_blocks<const K: usize>(rows: &[[f64; K]]) -> [f64; K] {
+    let mut total = [0.0; K];
+    for block in rows.chunks(ROW_BLOCK) {
+        let mut s = [0.0; K];
+        for v in block {
+            for c in 0..K {
+                s[c] += v[c];
+            }
+        }
+        for c in 0..K {
+            total[c] += s[c];
+        }
+    }
+    total
+}
+
 /// Rows whose values [`Exec::sum_rows`] keeps on the stack (32 KiB).
 const STACK_ROWS: usize = 4096;
 
@@ -113,33 +132,22 @@ impl Exec {
     where
         F: Fn(usize) -> f64 + Sync + Send,
     {
-        let add_by_blocks = |values: &[f64]| -> f64 {
-            let mut total = 0.0;
-            for block in values.chunks(ROW_BLOCK) {
-                let mut s = 0.0;
-                for v in block {
-                    s += v;
-                }
-                total += s;
-            }
-            total
-        };
         if self.use_parallel(cells) {
-            let mut stack = [0.0f64; STACK_ROWS];
+            let mut stack = [[0.0f64; 1]; STACK_ROWS];
             let mut heap = Vec::new();
-            let values: &mut [f64] = if nrows <= STACK_ROWS {
+            let values: &mut [[f64; 1]] = if nrows <= STACK_ROWS {
                 &mut stack[..nrows]
             } else {
-                heap.resize(nrows, 0.0);
+                heap.resize(nrows, [0.0]);
                 &mut heap
             };
             let rows = task_rows(cells / nrows.max(1));
             values.par_chunks_mut(rows).enumerate().for_each(|(t, out)| {
                 for (k, o) in out.iter_mut().enumerate() {
-                    *o = f(t * rows + k);
+                    *o = [f(t * rows + k)];
                 }
             });
-            add_by_blocks(values)
+            add_by_blocks(values)[0]
         } else {
             let mut total = 0.0;
             for b in 0..nrows.div_ceil(ROW_BLOCK) {

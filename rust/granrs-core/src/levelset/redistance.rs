@@ -69,7 +69,9 @@ use super::weno5::{weno5_minus, weno5_plus};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{Field, Grid, Location, HALO};
+use crate::operators::for_each_interior_row;
 use crate::options::{self, Configurable, OptionSpec, Value};
+use crate::solvers::par::SharedMut;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Kink detector of [`InterfaceTreatment::ClosestPoint`]: max |undivided second difference| of
@@ -312,14 +314,14 @@ impl Redistancer {
         let (closest_point_cells, kink_cells) = self.freeze_interface(grid, exec);
         // The frozen cells start (and stay) at their frozen values.
         let fz = self.frozen.slice();
-        count_each_interior_row(phi, grid, exec, |b, row| {
-            let n = row.len();
-            row.iter_mut().zip(&fz[b..b + n]).for_each(|(p, &f)| {
+        let stride = phi.stride();
+        for_each_interior_row(exec, phi, |j, row| {
+            let b = (j + HALO) * stride;
+            row[HALO..HALO + grid.nx].iter_mut().zip(&fz[b + HALO..b + HALO + grid.nx]).for_each(|(p, &f)| {
                 if f.is_finite() {
                     *p = f
                 }
             });
-            0
         });
         // Only cells the pseudo time can reach are iterated: beyond τ + 3h (three cells of WENO
         // stencil past the reach) the far field below overwrites whatever the iterations did
@@ -933,7 +935,8 @@ fn sweep_distance_in_strips(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut 
     if !any {
         return false;
     }
-    let sweeper = Sweeper { ds: SharedCells(ds.as_mut_ptr(), ds.len()), interface: &*mask, nx, ny, st, dx: grid.dx, dy: grid.dy };
+    let (dx, dy) = (grid.dx, grid.dy);
+    let sweeper = Sweeper { ds: SharedMut(ds.as_mut_ptr()), interface: &*mask, nx, ny, st, dx, dy, wa: 1.0 / (dx * dx), wb: 1.0 / (dy * dy) };
     for _ in 0..2 {
         for (rx, ry) in [(false, false), (true, false), (false, true), (true, true)] {
             sweep_strips(&sweeper, rx, ry, strips);
@@ -945,25 +948,25 @@ fn sweep_distance_in_strips(phi: &Field, sub: &[Field; 4], grid: &Grid, d: &mut 
 /// Narrowest strip of columns a pipelined sweep gives a thread ([`sweep_strips`]).
 const SWEEP_STRIP_MIN_COLUMNS: usize = 128;
 
-/// The distances of [`sweep_distance`], shared by the strips of a pipelined sweep.
-#[derive(Clone, Copy)]
-struct SharedCells(*mut f64, usize);
-
-// SAFETY: the strips of a sweep read and write disjoint cells at any one time; the order of
-// their accesses is that of the serial sweep, enforced by the rows' progress counters
-// (`sweep_strips`).
-unsafe impl Send for SharedCells {}
-unsafe impl Sync for SharedCells {}
+/// Most strips of a pipelined sweep (their progress counters live on the stack).
+const SWEEP_MAX_STRIPS: usize = 64;
 
 /// One fast-sweeping ordering over the cells, its constant data.
+///
+/// The strips of a sweep share the distances through `ds`: they read and write disjoint cells
+/// at any one time, in the order of the serial sweep, which the rows' progress counters enforce
+/// ([`sweep_strips`]).
 struct Sweeper<'a> {
-    ds: SharedCells,
+    ds: SharedMut,
     interface: &'a [bool],
     nx: usize,
     ny: usize,
     st: usize,
     dx: f64,
     dy: f64,
+    /// 1/dx² and 1/dy².
+    wa: f64,
+    wb: f64,
 }
 
 impl Sweeper<'_> {
@@ -976,17 +979,15 @@ impl Sweeper<'_> {
         if self.interface[c] {
             return;
         }
-        debug_assert!(c + st < self.ds.1 && c >= st);
         // SAFETY: c ± 1 and c ± st lie inside the field's storage (one halo layer at least);
         // no other strip writes them now (`sweep_strips`).
-        let get = |k: usize| unsafe { *self.ds.0.add(k) };
+        let get = |k: usize| unsafe { *self.ds.get().add(k) };
         let a = (if i > 0 { get(c - 1) } else { f64::INFINITY }).min(if i + 1 < nx { get(c + 1) } else { f64::INFINITY });
         let b = (if j > 0 { get(c - st) } else { f64::INFINITY }).min(if j + 1 < ny { get(c + st) } else { f64::INFINITY });
         if !a.is_finite() && !b.is_finite() {
             return;
         }
-        let (dx, dy) = (self.dx, self.dy);
-        let (wa, wb) = (1.0 / (dx * dx), 1.0 / (dy * dy));
+        let (dx, dy, wa, wb) = (self.dx, self.dy, self.wa, self.wb);
         let (lo, hi, hlo) = if a + dx <= b + dy { (a, b, dx) } else { (b, a, dy) };
         let one_axis = lo + hlo;
         // ((d − a)/dx)² + ((d − b)/dy)² = 1, computed always and taken where it applies (a
@@ -998,7 +999,7 @@ impl Sweeper<'_> {
         let new = if one_axis > hi && disc >= 0.0 { two_axes } else { one_axis };
         let old = get(c);
         // SAFETY: as above; this strip owns cell c
-        unsafe { *self.ds.0.add(c) = if new < old { new } else { old } };
+        unsafe { *self.ds.get().add(c) = if new < old { new } else { old } };
     }
 
     /// The cells of visiting positions `ii ∈ cols` of every row in the ordering (rx, ry): row by
@@ -1034,8 +1035,9 @@ impl Sweeper<'_> {
 /// task, so the pipeline cannot stall, whatever the number of threads.
 fn sweep_strips(sw: &Sweeper<'_>, rx: bool, ry: bool, strips: usize) {
     let nx = sw.nx;
-    let strips = strips.clamp(1, nx.max(1));
-    let counters: Vec<AtomicUsize> = (0..strips).map(|_| AtomicUsize::new(0)).collect();
+    let strips = strips.clamp(1, nx.max(1)).min(SWEEP_MAX_STRIPS);
+    let counters: [AtomicUsize; SWEEP_MAX_STRIPS] = std::array::from_fn(|_| AtomicUsize::new(0));
+    let counters = &counters[..strips];
     let cols = |s: usize| s * nx / strips..(s + 1) * nx / strips;
     fn run(sw: &Sweeper<'_>, rx: bool, ry: bool, s: usize, counters: &[AtomicUsize], cols: &(dyn Fn(usize) -> std::ops::Range<usize> + Sync)) {
         let before = s.checked_sub(1).map(|b| &counters[b]);
@@ -1048,7 +1050,7 @@ fn sweep_strips(sw: &Sweeper<'_>, rx: bool, ry: bool, strips: usize) {
     if strips == 1 {
         sw.strip(rx, ry, 0..nx, None, &counters[0]);
     } else {
-        run(sw, rx, ry, 0, &counters, &cols);
+        run(sw, rx, ry, 0, counters, &cols);
     }
 }
 

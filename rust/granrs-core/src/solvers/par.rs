@@ -12,7 +12,7 @@
 
 use rayon::prelude::*;
 
-use crate::exec::{task_rows, Exec, ROW_BLOCK};
+use crate::exec::{add_by_blocks, task_rows, Exec, ROW_BLOCK};
 
 /// Length of the partials buffer of a reduction over `nrows` rows: one partial per row.
 #[inline]
@@ -141,28 +141,10 @@ where
     add_by_blocks(partials)
 }
 
-/// The sum of the rows' values: those of each block of [`ROW_BLOCK`] rows added in order from
-/// 0, then the blocks' sums in order from 0 (the reductions' fixed order).
-#[inline]
-pub(crate) fn add_by_blocks<const K: usize>(rows: &[[f64; K]]) -> [f64; K] {
-    let mut total = [0.0; K];
-    for block in rows.chunks(ROW_BLOCK) {
-        let mut s = [0.0; K];
-        for v in block {
-            for c in 0..K {
-                s[c] += v[c];
-            }
-        }
-        for c in 0..K {
-            total[c] += s[c];
-        }
-    }
-    total
-}
-
 /// A raw pointer to a buffer that several threads update at disjoint locations (the cells of one
 /// colour in a red–black sweep, the new faces of one layer of the free surface's velocity
-/// extension). Used by [`super::level::Level::smooth`] and `projection::free_surface`.
+/// extension, the strips of a pipelined fast sweep). Used by [`super::level::Level::smooth`],
+/// `projection::free_surface` and `levelset::redistance`.
 #[derive(Clone, Copy)]
 pub(crate) struct SharedMut(pub(crate) *mut f64);
 
@@ -174,8 +156,9 @@ impl SharedMut {
     }
 }
 
-// SAFETY: the pointer is only dereferenced by the red–black sweep and the extension layers, where
-// threads write disjoint cells and never read a cell that another thread writes in the same phase.
+// SAFETY: the pointer is only dereferenced by the red–black sweep, the extension layers and the
+// strips of fast sweeping, where threads write disjoint cells and never read a cell while another
+// thread writes it (the sweep's strips order their accesses by per-row progress counters).
 unsafe impl Send for SharedMut {}
 // SAFETY: as for `Send`: concurrent uses touch disjoint or read-only locations.
 unsafe impl Sync for SharedMut {}

@@ -14,7 +14,7 @@
 //! δt ≲ ρh²/(4η), see `clock.rs`).
 
 use crate::error::{Error, Result};
-use crate::exec::{task_rows, Exec, ROW_BLOCK};
+use crate::exec::{add_by_blocks, task_rows, Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
 use crate::operators::{
     fill_velocity_ghosts, for_each_interior_row, sums_by_row, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots,
@@ -73,8 +73,8 @@ pub struct MomentumSolver {
     /// Per-row sums of the initial residual pass (rhs·rhs, r·r, r·z) on u and v rows.
     row_init_u: Vec<[f64; 3]>,
     row_init_v: Vec<[f64; 3]>,
-    /// Per-row sums (r·z, r·r) of the update pass ([`rows3_dots`]).
-    row_sums: Vec<(f64, f64)>,
+    /// Per-row sums [r·z, r·r] of the update pass ([`rows3_dots`]).
+    row_sums: Vec<[f64; 2]>,
     /// Relative residual tolerance ‖rhs − Aũ‖/‖rhs‖.
     pub rtol: f64,
     /// Iteration cap; reaching it is an error.
@@ -128,7 +128,7 @@ impl MomentumSolver {
             row_dq_v: vec![0.0; grid.ny + 1],
             row_init_u: vec![[0.0; 3]; grid.ny],
             row_init_v: vec![[0.0; 3]; grid.ny + 1],
-            row_sums: vec![(0.0, 0.0); grid.ny + 1],
+            row_sums: vec![[0.0; 2]; grid.ny + 1],
             rtol: 1e-10,
             max_iterations: 2000,
         }
@@ -380,7 +380,7 @@ fn rows3_dots<F>(
     x: &mut [f64],
     r: &mut [f64],
     z: &mut [f64],
-    row_sums: &mut [(f64, f64)],
+    row_sums: &mut [[f64; 2]],
     f: F,
 ) -> (f64, f64)
 where
@@ -389,17 +389,12 @@ where
     let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
     let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
     // each row's (r·z, r·r), the rows of a task written first
-    let task = |j0: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64], out: &mut [(f64, f64)]| {
+    let task = |j0: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64], out: &mut [[f64; 2]]| {
         for (k, ((xr, rrow), zr)) in xb.chunks_mut(st).zip(rb.chunks_mut(st)).zip(zb.chunks_mut(st)).enumerate() {
             f(rows.start + j0 + k, xr, rrow, zr);
         }
         let (rb, zb) = (&*rb, &*zb);
-        let mut sums = [[0.0; 2]; ROW_BLOCK];
-        let sums = &mut sums[..out.len()];
-        sums_by_row(sums, cols.len(), |k| [&rb[k * st + cols.start..k * st + cols.end], &zb[k * st + cols.start..k * st + cols.end]], |[r, z]| [r * z, r * r]);
-        for (o, &[a, b]) in out.iter_mut().zip(sums.iter()) {
-            *o = (a, b);
-        }
+        sums_by_row(out, cols.len(), |k| [&rb[k * st + cols.start..k * st + cols.end], &zb[k * st + cols.start..k * st + cols.end]], |[r, z]| [r * z, r * r]);
     };
     let sums = &mut row_sums[..rows.len()];
     if exec.use_parallel(x.len()) {
@@ -419,16 +414,7 @@ where
         }
     }
     // the rows' sums in blocks of ROW_BLOCK rows from the first row, then the blocks
-    let (mut rz, mut rr) = (0.0, 0.0);
-    for block in sums.chunks(ROW_BLOCK) {
-        let (mut a, mut b) = (0.0, 0.0);
-        for &(x, y) in block {
-            a += x;
-            b += y;
-        }
-        rz += a;
-        rr += b;
-    }
+    let [rz, rr] = add_by_blocks(sums);
     (rz, rr)
 }
 
@@ -572,7 +558,7 @@ mod tests {
                         zr[c] = rr[c] / gs[base + c];
                     }
                 };
-                let mut row_sums = vec![(f64::NAN, f64::NAN); rj.len()];
+                let mut row_sums = vec![[f64::NAN; 2]; rj.len()];
                 let (fused, reference) = pool.install(|| {
                     let fused = rows3_dots(exec, st, rj.clone(), cols.clone(), x1.slice_mut(), r1.slice_mut(), z1.slice_mut(), &mut row_sums, upd);
                     rows3(exec, st, rj.clone(), x2.slice_mut(), r2.slice_mut(), z2.slice_mut(), plain);
