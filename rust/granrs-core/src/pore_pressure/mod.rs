@@ -386,7 +386,7 @@ impl PorePressure {
             }
         });
         let info = self.sys.solve(exec)?;
-        if let Some(k) = self.sys.x.iter().position(|v| !v.is_finite()) {
+        if let Some(k) = (!crate::solvers::all_finite(&self.sys.x)).then(|| self.sys.x.iter().position(|v| !v.is_finite())).flatten() {
             return Err(Error::Simulation {
                 what: format!("pore pressure p_f is not finite ({}) after the implicit (BDF2) solve", self.sys.x[k]),
                 step: 0,

@@ -466,27 +466,80 @@ fn check_len(name: &str, len: usize, shape: &[usize]) -> Result<()> {
     }
 }
 
-/// Checks `ok(v)` for every value of a row-major array with rows of `stride`; the error names the
-/// array, the row and column of the first failure, and `allowed`. A branch-free pass runs first
-/// (it vectorises: these checks run on every solve), the search for the position only on failure.
-/// Large arrays are checked by blocks of rows on the threads of `exec`.
-fn check_array(name: &str, v: &[f64], stride: usize, ok: impl Fn(f64) -> bool + Sync, allowed: &str, exec: Exec) -> Result<()> {
+/// The lower bound of the values a solver accepts in an array; every value must also be below +∞
+/// (NaN fails every bound).
+#[derive(Clone, Copy)]
+enum Lower {
+    /// x > 0
+    Positive,
+    /// x ≥ 0
+    NonNegative,
+    /// x > −∞
+    Finite,
+}
+
+impl Lower {
+    #[inline(always)]
+    fn admits(self, x: f64) -> bool {
+        let above = match self {
+            Lower::Positive => x > 0.0,
+            Lower::NonNegative => x >= 0.0,
+            Lower::Finite => x > f64::NEG_INFINITY,
+        };
+        above & (x < f64::INFINITY)
+    }
+}
+
+crate::multiversion! {
+    /// Whether every value of `v` satisfies `lower` and is below +∞, from two running values
+    /// per lane (vertical arithmetic only, which vectorises; these checks run on every solve):
+    /// Σ 0·x, which stays 0 while every x is finite and becomes NaN at the first NaN or ±∞,
+    /// and the smallest value, compared with the bound at the end.
+    fn all_admitted / all_admitted_base(v: &[f64], lower: Lower) -> bool {
+        let (mut zero, mut lo) = ([0.0f64; 4], [f64::INFINITY; 4]);
+        let chunks = v.chunks_exact(4);
+        let rest = chunks.remainder();
+        for c in chunks {
+            for k in 0..4 {
+                let x = c[k];
+                zero[k] += 0.0 * x;
+                lo[k] = if x < lo[k] { x } else { lo[k] };
+            }
+        }
+        for &x in rest {
+            zero[0] += 0.0 * x;
+            lo[0] = if x < lo[0] { x } else { lo[0] };
+        }
+        let finite = (zero[0] == 0.0) & (zero[1] == 0.0) & (zero[2] == 0.0) & (zero[3] == 0.0);
+        let min = lo[0].min(lo[1]).min(lo[2]).min(lo[3]);
+        finite && (v.is_empty() || lower.admits(min))
+    }
+}
+
+/// Whether every value of `v` is finite (the vectorised pass of the solvers' own checks).
+pub(crate) fn all_finite(v: &[f64]) -> bool {
+    all_admitted(v, Lower::Finite)
+}
+
+/// Checks every value of a row-major array with rows of `stride` against `lower` (and +∞); the
+/// error names the array, the row and column of the first failure, and `allowed`. A branch-free
+/// pass runs first ([`all_admitted`]), the search for the position only on failure. Large
+/// arrays are checked by blocks on the threads of `exec`.
+fn check_array(name: &str, v: &[f64], stride: usize, lower: Lower, allowed: &str, exec: Exec) -> Result<()> {
     use rayon::prelude::*;
-    let block_ok = |c: &[f64]| c.iter().fold(true, |all, &x| all & ok(x));
-    let all_ok = if exec.use_parallel(v.len()) { v.par_chunks(crate::exec::TASK_CELLS).all(block_ok) } else { block_ok(v) };
+    let all_ok = if exec.use_parallel(v.len()) { v.par_chunks(crate::exec::TASK_CELLS).all(|c| all_admitted(c, lower)) } else { all_admitted(v, lower) };
     if all_ok {
         return Ok(());
     }
-    match v.iter().position(|&x| !ok(x)) {
+    match v.iter().position(|&x| !lower.admits(x)) {
         None => Ok(()),
         Some(k) => Err(Error::param(&format!("{name}[j={}, i={}]", k / stride, k % stride), v[k], allowed)),
     }
 }
 
 /// Checks that every coefficient is finite and > 0; the error names the array and the face.
-#[allow(clippy::manual_range_contains)] // branch-free, as `check_non_negative_array`
 fn check_coefficients(name: &str, beta: &[f64], stride: usize, exec: Exec) -> Result<()> {
-    check_array(name, beta, stride, |b| (b > 0.0) & (b < f64::INFINITY), "a finite number > 0 (β = 1/ρ on every face)", exec)
+    check_array(name, beta, stride, Lower::Positive, "a finite number > 0 (β = 1/ρ on every face)", exec)
 }
 
 /// A shifted system (L_β − σ) x = rhs on `nx × ny` cells with its coefficient and work arrays
@@ -525,16 +578,13 @@ impl ShiftedSystem {
 }
 
 /// Checks that every coefficient is finite and ≥ 0 (a shifted operator may decouple cells).
-// `&` rather than `Range::contains` (`&&`): no branch per value, so that the pass vectorises
-#[allow(clippy::manual_range_contains)]
 fn check_non_negative_array(name: &str, beta: &[f64], stride: usize, exec: Exec) -> Result<()> {
-    // NaN fails both comparisons
-    check_array(name, beta, stride, |b| (b >= 0.0) & (b < f64::INFINITY), "a finite number >= 0", exec)
+    check_array(name, beta, stride, Lower::NonNegative, "a finite number >= 0", exec)
 }
 
 /// Checks that every value is finite; the error names the array and the cell.
 fn check_finite_array(name: &str, v: &[f64], stride: usize, exec: Exec) -> Result<()> {
-    check_array(name, v, stride, |x| x.abs() < f64::INFINITY, "a finite number", exec)
+    check_array(name, v, stride, Lower::Finite, "a finite number", exec)
 }
 
 impl PoissonSolver {
@@ -569,5 +619,45 @@ impl ShiftedSystem {
     /// The f64 values [`ShiftedSystem::new`] allocates (its solver, β on faces, shift, rhs, x).
     pub fn memory_values(nx: usize, ny: usize, s: &SolverSettings) -> u64 {
         PoissonSolver::memory_values(nx, ny, s) + (ny * (nx + 1) + (ny + 1) * nx) as u64 + 3 * (nx * ny) as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The vectorised pass accepts an array exactly when every value satisfies its bound, in both
+    /// copies of the kernel, wherever the offending value lies (lanes, remainder) and whatever
+    /// the length.
+    #[test]
+    fn the_checks_accept_exactly_the_admitted_values() {
+        let specials = [0.0, -0.0, 1e-300, -1e-300, 5.0, -5.0, f64::INFINITY, f64::NEG_INFINITY, f64::NAN, f64::MAX, f64::MIN_POSITIVE];
+        for lower in [Lower::Positive, Lower::NonNegative, Lower::Finite] {
+            let definition = |x: f64| match lower {
+                Lower::Positive => x.is_finite() && x > 0.0,
+                Lower::NonNegative => x.is_finite() && x >= 0.0,
+                Lower::Finite => x.is_finite(),
+            };
+            for len in 1..11 {
+                for at in 0..len {
+                    for &x in &specials {
+                        let mut v = vec![2.5; len];
+                        v[at] = x;
+                        let want = definition(x);
+                        assert_eq!(all_admitted(&v, lower), want, "len {len}, at {at}, x {x}");
+                        assert_eq!(all_admitted_base(&v, lower), want, "len {len}, at {at}, x {x}");
+                        let err = check_array("a", &v, 3, lower, "allowed", Exec::SERIAL);
+                        match err {
+                            Ok(()) => assert!(want),
+                            Err(e) => {
+                                assert!(!want);
+                                let msg = e.to_string();
+                                assert!(msg.contains(&format!("a[j={}, i={}]", at / 3, at % 3)), "{msg}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 }

@@ -240,12 +240,17 @@ impl MomentumSolver {
             let cols = i0..i1;
             rows3_blocks(exec, st, 0..nyf, r.slice_mut(), z.slice_mut(), d.slice_mut(), &mut sums[..nyf], |j0, rb, zb, db, sb| {
                 for (k, ((rr_, zr), dr)) in rb.chunks_mut(st).zip(zb.chunks_mut(st)).zip(db.chunks_mut(st)).enumerate() {
-                    rr_.fill(0.0);
-                    zr.fill(0.0);
-                    dr.fill(0.0);
                     if rj.contains(&(j0 + k)) {
+                        for b in [&mut *rr_, &mut *zr, &mut *dr] {
+                            b[..cols.start].fill(0.0);
+                            b[cols.end..].fill(0.0);
+                        }
                         let row = (j0 + k + HALO) * st + cols.start..(j0 + k + HALO) * st + cols.end;
                         cg_residual_row(&bs[row.clone()], &qs[row.clone()], &dg[row], &mut rr_[cols.clone()], &mut zr[cols.clone()], &mut dr[cols.clone()]);
+                    } else {
+                        rr_.fill(0.0);
+                        zr.fill(0.0);
+                        dr.fill(0.0);
                     }
                 }
                 // per row, rhs·rhs, r·r and r·z in column order from 0.0 (zero off the rows `rj`)
