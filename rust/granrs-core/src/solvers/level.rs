@@ -626,6 +626,61 @@ mod tests {
 
     const SIZES: [(usize, usize); 7] = [(2, 2), (4, 6), (6, 1), (130, 40), (514, 18), (600, 96), (1280, 64)];
 
+    /// `case` with the cells above a wavy line decoupled (zero coefficients, a unit shift) and
+    /// x = b = 0 there: rows whose spans shrink to nothing, so that blocks of equal work may be
+    /// empty or one row long.
+    fn case_with_spans(nx: usize, ny: usize) -> (Level, Vec<f64>, Vec<f64>) {
+        let (mut level, mut b, mut x) = case(nx, ny);
+        let top = |i: usize| 1 + (0.15 * ny as f64 * (1.0 + (9.0 * i as f64 / nx as f64).sin())) as usize;
+        for j in 0..ny {
+            for i in 0..=nx {
+                if j >= top(i.min(nx - 1)) || (i > 0 && j >= top(i - 1)) {
+                    level.beta_x[j * (nx + 1) + i] = 0.0;
+                }
+            }
+        }
+        for j in 0..=ny {
+            for i in 0..nx {
+                if j >= top(i) || (j > 0 && j - 1 >= top(i)) {
+                    level.beta_y[j * nx + i] = 0.0;
+                }
+            }
+        }
+        level.shift.fill(1.0);
+        level.update_stencil(Exec::SERIAL);
+        level.set_spans(None, Exec::SERIAL);
+        for j in 0..ny {
+            let (lo, hi) = level.spans[j];
+            for i in (0..nx).filter(|&i| i < lo || i >= hi) {
+                b[j * nx + i] = 0.0;
+                x[j * nx + i] = 0.0;
+            }
+        }
+        (level, b, x)
+    }
+
+    #[test]
+    fn the_parallel_sweep_is_the_serial_sweep_bit_for_bit() {
+        // the serial sweep (one thread) is the wavefront of the definition; the parallel one
+        // runs blocks of 1 to 16 rows, some of them empty with spans (blocks of equal work)
+        let sizes = [(4100, 1), (2050, 2), (1400, 3), (130, 40), (64, 70), (600, 96), (300, 150)];
+        for threads in [2, 3, 4] {
+            let pool = crate::exec::build_pool(threads).unwrap();
+            for (nx, ny) in sizes {
+                for spans in [false, true] {
+                    let (level, b, x0) = if spans { case_with_spans(nx, ny) } else { case(nx, ny) };
+                    for (first, from_zero) in [(0, true), (0, false), (1, false)] {
+                        let mut want = x0.clone();
+                        level.smooth(&mut want, &b, first, from_zero, spans, Exec::SERIAL);
+                        let mut got = x0.clone();
+                        pool.install(|| level.smooth(&mut got, &b, first, from_zero, spans, Exec::with_threads(threads)));
+                        assert_eq!(bits(&got), bits(&want), "{nx}×{ny}, {threads} threads, spans {spans}, colour {first}, from zero {from_zero}");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn restriction_by_spans_adds_the_same_children_in_the_same_order() {
         let pool = crate::exec::build_pool(2).unwrap();
