@@ -222,42 +222,41 @@ impl Level {
         let (idx2, idy2) = (1.0 / (self.dx * self.dx), 1.0 / (self.dy * self.dy));
         let bx = &self.beta_x;
         exec.for_each_row(&mut self.cx, nx + 1, |j, row| {
-            for (i, c) in row.iter_mut().enumerate() {
-                *c = if i == 0 || i == nx { 0.0 } else { bx[j * (nx + 1) + i] * idx2 };
-            }
+            let b = &bx[j * (nx + 1)..(j + 1) * (nx + 1)];
+            scale_row(&mut row[1..nx], &b[1..nx], idx2);
+            row[0] = 0.0;
+            row[nx] = 0.0;
         });
         let by = &self.beta_y;
         exec.for_each_row(&mut self.cy, nx, |j, row| {
-            for (i, c) in row.iter_mut().enumerate() {
-                *c = if j == 0 || j == ny { 0.0 } else { by[j * nx + i] * idy2 };
+            if j == 0 || j == ny {
+                row.fill(0.0);
+            } else {
+                scale_row(row, &by[j * nx..(j + 1) * nx], idy2);
             }
         });
         let dirichlet = self.bc.map(|b| if b == PressureBc::Dirichlet { 2.0 } else { 0.0 });
         let (cx, cy, sh) = (&self.cx, &self.cy, &self.shift);
+        let inv = SharedMut(self.inv_diag.as_mut_ptr());
         exec.for_each_row(&mut self.diag, nx, |j, row| {
-            for (i, d) in row.iter_mut().enumerate() {
-                let mut s = sh[j * nx + i] + cx[j * (nx + 1) + i] + cx[j * (nx + 1) + i + 1] + cy[j * nx + i] + cy[(j + 1) * nx + i];
-                if i == 0 {
-                    s += dirichlet[LEFT] * bx[j * (nx + 1)] * idx2;
+            let cxr = &cx[j * (nx + 1)..(j + 1) * (nx + 1)];
+            diagonal_row(row, &sh[j * nx..(j + 1) * nx], cxr, &cy[j * nx..(j + 1) * nx], &cy[(j + 1) * nx..(j + 2) * nx]);
+            // the Dirichlet sides, added in the order left, right, bottom, top
+            row[0] += dirichlet[LEFT] * bx[j * (nx + 1)] * idx2;
+            row[nx - 1] += dirichlet[RIGHT] * bx[j * (nx + 1) + nx] * idx2;
+            if j == 0 {
+                for (d, b) in row.iter_mut().zip(&by[..nx]) {
+                    *d += dirichlet[BOTTOM] * b * idy2;
                 }
-                if i == nx - 1 {
-                    s += dirichlet[RIGHT] * bx[j * (nx + 1) + nx] * idx2;
-                }
-                if j == 0 {
-                    s += dirichlet[BOTTOM] * by[i] * idy2;
-                }
-                if j == ny - 1 {
-                    s += dirichlet[TOP] * by[ny * nx + i] * idy2;
-                }
-                *d = s;
             }
-        });
-        let diag = &self.diag;
-        exec.for_each_row(&mut self.inv_diag, nx, |j, row| {
-            for (i, v) in row.iter_mut().enumerate() {
-                let d = diag[j * nx + i];
-                *v = if d > 0.0 { 1.0 / d } else { 0.0 };
+            if j == ny - 1 {
+                for (d, b) in row.iter_mut().zip(&by[ny * nx..(ny + 1) * nx]) {
+                    *d += dirichlet[TOP] * b * idy2;
+                }
             }
+            // SAFETY: row j of inv_diag (nx values), written by this row's task only.
+            let inv_row = unsafe { std::slice::from_raw_parts_mut(inv.get().add(j * nx), nx) };
+            inverse_row(inv_row, row);
         });
     }
 
@@ -557,6 +556,38 @@ crate::multiversion! {
     }
 }
 
+crate::multiversion! {
+    /// out[i] = b[i] · s.
+    fn scale_row / scale_row_base(out: &mut [f64], b: &[f64], s: f64) {
+        let b = &b[..out.len()];
+        for (o, &v) in out.iter_mut().zip(b) {
+            *o = v * s;
+        }
+    }
+}
+
+crate::multiversion! {
+    /// The diagonal of a row before its Dirichlet sides: σ + c_w + c_e + c_s + c_n, added in
+    /// that order (`cxr` holds the row's nx + 1 x-couplings).
+    fn diagonal_row / diagonal_row_base(out: &mut [f64], sh: &[f64], cxr: &[f64], cys: &[f64], cyn: &[f64]) {
+        let n = out.len();
+        let (sh, cw, ce, cys, cyn) = (&sh[..n], &cxr[..n], &cxr[1..n + 1], &cys[..n], &cyn[..n]);
+        for i in 0..n {
+            out[i] = sh[i] + cw[i] + ce[i] + cys[i] + cyn[i];
+        }
+    }
+}
+
+crate::multiversion! {
+    /// out[i] = 1/d[i] where d[i] > 0, else 0.
+    fn inverse_row / inverse_row_base(out: &mut [f64], d: &[f64]) {
+        let d = &d[..out.len()];
+        for (o, &v) in out.iter_mut().zip(d) {
+            *o = if v > 0.0 { 1.0 / v } else { 0.0 };
+        }
+    }
+}
+
 /// The work of a row's loop beyond its span's cells, in cells, for the smoother's blocks.
 const ROW_OVERHEAD: usize = 8;
 
@@ -676,6 +707,63 @@ mod tests {
                         pool.install(|| level.smooth(&mut got, &b, first, from_zero, spans, Exec::with_threads(threads)));
                         assert_eq!(bits(&got), bits(&want), "{nx}×{ny}, {threads} threads, spans {spans}, colour {first}, from zero {from_zero}");
                     }
+                }
+            }
+        }
+    }
+
+    /// The couplings, diagonal and inverse diagonal cell by cell, with the Dirichlet sides added
+    /// in the order left, right, bottom, top (the definition `update_stencil` is checked against).
+    fn stencil_by_cells(level: &Level) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+        let (nx, ny) = (level.nx, level.ny);
+        let (idx2, idy2) = (1.0 / (level.dx * level.dx), 1.0 / (level.dy * level.dy));
+        let (bx, by) = (&level.beta_x, &level.beta_y);
+        let cx: Vec<f64> = (0..ny * (nx + 1)).map(|k| if k % (nx + 1) == 0 || k % (nx + 1) == nx { 0.0 } else { bx[k] * idx2 }).collect();
+        let cy: Vec<f64> = (0..(ny + 1) * nx).map(|k| if k / nx == 0 || k / nx == ny { 0.0 } else { by[k] * idy2 }).collect();
+        let dirichlet = level.bc.map(|b| if b == PressureBc::Dirichlet { 2.0 } else { 0.0 });
+        let mut diag = vec![0.0; nx * ny];
+        for j in 0..ny {
+            for i in 0..nx {
+                let mut s = level.shift[j * nx + i] + cx[j * (nx + 1) + i] + cx[j * (nx + 1) + i + 1] + cy[j * nx + i] + cy[(j + 1) * nx + i];
+                if i == 0 {
+                    s += dirichlet[LEFT] * bx[j * (nx + 1)] * idx2;
+                }
+                if i == nx - 1 {
+                    s += dirichlet[RIGHT] * bx[j * (nx + 1) + nx] * idx2;
+                }
+                if j == 0 {
+                    s += dirichlet[BOTTOM] * by[i] * idy2;
+                }
+                if j == ny - 1 {
+                    s += dirichlet[TOP] * by[ny * nx + i] * idy2;
+                }
+                diag[j * nx + i] = s;
+            }
+        }
+        let inv = diag.iter().map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 }).collect();
+        (cx, cy, diag, inv)
+    }
+
+    #[test]
+    fn the_stencil_rows_are_the_stencil_cell_by_cell() {
+        let pool = crate::exec::build_pool(2).unwrap();
+        let n = PressureBc::Neumann;
+        let d = PressureBc::Dirichlet;
+        for bc in [[n, n, n, d], [d, d, d, d], [d, n, d, n], [n, n, n, n]] {
+            for (nx, ny) in [(1, 1), (1, 5), (6, 1), (37, 5), (130, 40)] {
+                let (mut level, _, _) = case(nx, ny);
+                level.bc = bc;
+                level.shift.iter_mut().enumerate().for_each(|(k, s)| *s = if k % 3 == 0 { 0.0 } else { 0.1 * k as f64 });
+                let want = stencil_by_cells(&level);
+                for exec in [Exec::SERIAL, Exec::with_threads(2)] {
+                    level.cx.fill(f64::NAN);
+                    level.diag.fill(f64::NAN);
+                    pool.install(|| level.update_stencil(exec));
+                    let got = (&level.cx, &level.cy, &level.diag, &level.inv_diag);
+                    assert_eq!(bits(got.0), bits(&want.0), "cx, {nx}×{ny}, {bc:?}");
+                    assert_eq!(bits(got.1), bits(&want.1), "cy, {nx}×{ny}, {bc:?}");
+                    assert_eq!(bits(got.2), bits(&want.2), "diag, {nx}×{ny}, {bc:?}");
+                    assert_eq!(bits(got.3), bits(&want.3), "inv_diag, {nx}×{ny}, {bc:?}");
                 }
             }
         }

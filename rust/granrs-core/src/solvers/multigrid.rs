@@ -244,8 +244,51 @@ fn prolong_add(ncx: usize, xc: &[f64], fine: &Level, xf: &mut [f64], spans: bool
     exec.for_each_row(xf, fine.nx, |jf, row| {
         let c = &xc[(jf / 2) * ncx..(jf / 2 + 1) * ncx];
         let (lo, hi) = fine.span(jf, spans);
-        for (i, v) in row[lo..hi].iter_mut().enumerate() {
-            *v += c[(lo + i) / 2];
-        }
+        add_parents(&mut row[lo..hi], c, lo);
     });
+}
+
+crate::multiversion! {
+    /// out[k] += c[(first + k) / 2]: the fine cells first.. of a row add their parents' values
+    /// (the pairs of children of one parent in one loop).
+    fn add_parents / add_parents_base(out: &mut [f64], c: &[f64], first: usize) {
+        let mut out = out;
+        let mut parent = first / 2;
+        if first % 2 == 1 && !out.is_empty() {
+            out[0] += c[parent];
+            out = &mut out[1..];
+            parent += 1;
+        }
+        let pairs = out.len() / 2;
+        let cs = &c[parent..parent + pairs];
+        for (o, &v) in out.chunks_exact_mut(2).zip(cs) {
+            o[0] += v;
+            o[1] += v;
+        }
+        if out.len() % 2 == 1 {
+            let last = out.len() - 1;
+            out[last] += c[parent + pairs];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_children_add_their_parents_whatever_the_cut_of_the_row() {
+        let c: Vec<f64> = (0..20).map(|k| 0.1 + (k as f64).sin()).collect();
+        for first in 0..7 {
+            for len in 0..(40 - 2 * first).min(13) {
+                let base: Vec<f64> = (0..len).map(|k| (0.37 * k as f64).cos()).collect();
+                let want: Vec<u64> = base.iter().enumerate().map(|(k, v)| (v + c[(first + k) / 2]).to_bits()).collect();
+                for f in [add_parents, add_parents_base] {
+                    let mut out = base.clone();
+                    f(&mut out, &c, first);
+                    assert_eq!(out.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), want, "first {first}, len {len}");
+                }
+            }
+        }
+    }
 }
