@@ -98,62 +98,97 @@ impl TwoPhaseModel {
         let cfg = &self.config;
         let per = periodicity(self);
         let (nxu, nyv) = (if per.0 { nx - 1 } else { nx }, if per.1 { ny - 1 } else { ny });
-        // rows 0..=ny: centres and u faces of row j < ny, v faces and nodes of row j
+        // rows 0..=ny: centres and u faces of row j < ny, v faces and nodes of row j. Each row's
+        // terms are made by vectorised kernels a chunk at a time and added in the order of the
+        // faces, cells and nodes (the budget's bits do not depend on the chunks).
         let s = self.pool.install(|| {
             sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
                 let mut out = [0.0; 4]; // gravity, plastic, plastic negative, viscous
                 let ji = j as isize;
+                let (mut t, mut w, mut m) = ([0.0; RATE_CHUNK], [0.0; RATE_CHUNK], [0.0; RATE_CHUNK]);
                 if j < ny {
                     let (bp, bu, bv0, bv1) = (base(phi, ji), base(u, ji), base(v, ji), base(v, ji + 1));
                     let bru = base(rho_u, ji);
-                    for i in 0..=nxu {
-                        if cfg.face_is_solved(ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]) {
-                            out[0] += (ru[bru + i] - rho_ref) * gx * us[bu + i];
+                    for c0 in (0..=nxu).step_by(RATE_CHUNK) {
+                        let n = RATE_CHUNK.min(nxu + 1 - c0);
+                        gravity_terms(&mut t[..n], &ru[bru + c0..bru + c0 + n], &us[bu + c0..bu + c0 + n], rho_ref, gx);
+                        for (k, tk) in t[..n].iter().enumerate() {
+                            let i = c0 + k;
+                            if !free_surface || cfg.face_is_solved(ps[bp + i.saturating_sub(1)], ps[bp + i.min(nx - 1)]) {
+                                out[0] += tk;
+                            }
                         }
                     }
                     let bc = base(eta_c, ji);
-                    for i in 0..nx {
-                        if free_surface && ps[bp + i] <= 0.0 {
-                            continue;
-                        }
-                        let dxx = (us[bu + i + 1] - us[bu + i]) * idx;
-                        let dyy = (vs[bv1 + i] - vs[bv0 + i]) * idy;
-                        out[3] += 2.0 * ec[bc + i] * (dxx * dxx + dyy * dyy);
-                        if let Some((tau_c, _, sxx, _)) = plastic {
-                            let k = base(tau_c, ji) + i;
-                            let w = tau_c.slice()[k] * sxx.slice()[base(sxx, ji) + i] * (dxx - dyy);
-                            out[1] += w;
-                            out[2] += w.min(0.0);
-                        }
+                    let plastic_row = plastic.map(|(tau_c, _, sxx, _)| (&tau_c.slice()[base(tau_c, ji)..], &sxx.slice()[base(sxx, ji)..]));
+                    for c0 in (0..nx).step_by(RATE_CHUNK) {
+                        let n = RATE_CHUNK.min(nx - c0);
+                        let (ue, uw) = (&us[bu + c0 + 1..bu + c0 + 1 + n], &us[bu + c0..bu + c0 + n]);
+                        let (vn, vs_) = (&vs[bv1 + c0..bv1 + c0 + n], &vs[bv0 + c0..bv0 + c0 + n]);
+                        let plastic_chunk = plastic_row.map(|(tc, sxx)| (&tc[c0..c0 + n], &sxx[c0..c0 + n]));
+                        cell_terms(&mut t[..n], &mut w[..n], &mut m[..n], ue, uw, vn, vs_, &ec[bc + c0..bc + c0 + n], plastic_chunk, idx, idy);
+                        // a cell is skipped where Φ ≤ 0 (a NaN Φ is not skipped)
+                        let solved = |k: usize| ps[bp + c0 + k] > 0.0 || ps[bp + c0 + k].is_nan();
+                        add_terms(&mut out, &t[..n], plastic.is_some().then_some((&w[..n], &m[..n])), !free_surface, solved);
                     }
                 }
                 let (b0, b1, bv) = (base(phi, (ji - 1).max(0)), base(phi, ji.min(ny as isize - 1)), base(v, ji));
                 let brv = base(rho_v, ji);
-                for i in 0..if j <= nyv { nx } else { 0 } {
-                    if cfg.face_is_solved(ps[b0 + i], ps[b1 + i]) {
-                        out[0] += (rv[brv + i] - rho_ref) * gy * vs[bv + i];
+                let nv = if j <= nyv { nx } else { 0 };
+                for c0 in (0..nv).step_by(RATE_CHUNK) {
+                    let n = RATE_CHUNK.min(nv - c0);
+                    gravity_terms(&mut t[..n], &rv[brv + c0..brv + c0 + n], &vs[bv + c0..bv + c0 + n], rho_ref, gy);
+                    for (k, tk) in t[..n].iter().enumerate() {
+                        if !free_surface || cfg.face_is_solved(ps[b0 + c0 + k], ps[b1 + c0 + k]) {
+                            out[0] += tk;
+                        }
                     }
                 }
                 // nodes (i, j), i = 0..=nx: D_xy from the faces around the node (ghosts at walls)
                 let (bu0, bu1, bvn, bn) = (base(u, ji - 1), base(u, ji), base(v, ji), base(eta_n, ji));
-                for i in 0..=nx {
-                    if free_surface {
-                        // an air node: its Φ (the mean of its four cells, as `cell_to_node` gives the
-                        // node viscosity) ≤ 0
-                        let c = |ii: isize, jj: isize| ps[base(phi, jj.clamp(0, ny as isize - 1)) + ii.clamp(0, nx as isize - 1) as usize];
-                        let (ii, jj) = (i as isize, ji);
-                        if c(ii - 1, jj - 1) + c(ii, jj - 1) + c(ii - 1, jj) + c(ii, jj) <= 0.0 {
-                            continue;
+                let plastic_row = plastic.map(|(_, tau_n, _, sxy)| (&tau_n.slice()[base(tau_n, ji)..], &sxy.slice()[base(sxy, ji)..]));
+                // an air node (free surface): its Φ (the mean of its four cells, as
+                // `cell_to_node` gives the node viscosity) ≤ 0
+                let air_node = |i: usize| {
+                    let c = |ii: isize, jj: isize| ps[base(phi, jj.clamp(0, ny as isize - 1)) + ii.clamp(0, nx as isize - 1) as usize];
+                    let (ii, jj) = (i as isize, ji);
+                    c(ii - 1, jj - 1) + c(ii, jj - 1) + c(ii - 1, jj) + c(ii, jj) <= 0.0
+                };
+                let wy = node_weight(1, j, nx, ny, per);
+                for c0 in (0..=nx).step_by(RATE_CHUNK) {
+                    let n = RATE_CHUNK.min(nx + 1 - c0);
+                    let (un, us_) = (&us[bu1 + c0..bu1 + c0 + n], &us[bu0 + c0..bu0 + c0 + n]);
+                    // v at i and i − 1 (the ghost left of the row for i = 0)
+                    let (ve, vw) = (&vs[bvn + c0..bvn + c0 + n], &vs[bvn + c0 - 1..bvn + c0 - 1 + n]);
+                    let plastic_chunk = plastic_row.map(|(tn, sxy)| (&tn[c0..c0 + n], &sxy[c0..c0 + n]));
+                    node_terms(&mut t[..n], &mut w[..n], &mut m[..n], un, us_, ve, vw, &en[bn + c0..bn + c0 + n], plastic_chunk, wy, idx, idy);
+                    // the end nodes' own weight, by the same expressions
+                    for k in [0, n - 1] {
+                        let i = c0 + k;
+                        if i == 0 || i == nx {
+                            let wgt = node_weight(i, j, nx, ny, per);
+                            let one = |f: &[f64]| -> [f64; 1] { [f[k]] };
+                            let (mut t1, mut w1, mut m1) = ([0.0], [0.0], [0.0]);
+                            let p1 = plastic_chunk.map(|(tn, sxy)| (one(tn), one(sxy)));
+                            node_terms(
+                                &mut t1,
+                                &mut w1,
+                                &mut m1,
+                                &one(un),
+                                &one(us_),
+                                &one(ve),
+                                &one(vw),
+                                &one(&en[bn + c0..]),
+                                p1.as_ref().map(|(a, b)| (&a[..], &b[..])),
+                                wgt,
+                                idx,
+                                idy,
+                            );
+                            (t[k], w[k], m[k]) = (t1[0], w1[0], m1[0]);
                         }
                     }
-                    let dxy = 0.5 * ((us[bu1 + i] - us[bu0 + i]) * idy + (vs[bvn + i] - vs[bvn + i - 1]) * idx);
-                    let wgt = node_weight(i, j, nx, ny, per);
-                    out[3] += wgt * 4.0 * en[bn + i] * dxy * dxy;
-                    if let Some((_, tau_n, _, sxy)) = plastic {
-                        let w = wgt * tau_n.slice()[base(tau_n, ji) + i] * 2.0 * sxy.slice()[base(sxy, ji) + i] * dxy;
-                        out[1] += w;
-                        out[2] += w.min(0.0);
-                    }
+                    let solved = |k: usize| !air_node(c0 + k);
+                    add_terms(&mut out, &t[..n], plastic.is_some().then_some((&w[..n], &m[..n])), !free_surface, solved);
                 }
                 out
             })
@@ -251,6 +286,93 @@ impl TwoPhaseModel {
     }
 }
 
+/// Adds a chunk's terms in order: `t` to the viscous power (out[3]) and, with the plastic terms,
+/// `w` and `m` to out[1] and out[2], for every cell or node (`all`) or for those where `solved`.
+#[inline(always)]
+fn add_terms(out: &mut [f64; 4], t: &[f64], plastic: Option<(&[f64], &[f64])>, all: bool, solved: impl Fn(usize) -> bool) {
+    match plastic {
+        Some((w, m)) => {
+            for k in 0..t.len() {
+                if all || solved(k) {
+                    out[3] += t[k];
+                    out[1] += w[k];
+                    out[2] += m[k];
+                }
+            }
+        }
+        None => {
+            for (k, tk) in t.iter().enumerate() {
+                if all || solved(k) {
+                    out[3] += tk;
+                }
+            }
+        }
+    }
+}
+
+/// Faces, cells or nodes of a row whose terms of the rates are made in one call of the kernels
+/// below (three stack buffers of 2 KiB).
+const RATE_CHUNK: usize = 256;
+
+crate::multiversion! {
+    /// Gravity's power on a row of faces: t = (ρ − ρ_ref) g u.
+    fn gravity_terms / gravity_terms_base(t: &mut [f64], rho: &[f64], vel: &[f64], rho_ref: f64, g: f64) {
+        let n = t.len();
+        let (rho, vel) = (&rho[..n], &vel[..n]);
+        for k in 0..n {
+            t[k] = (rho[k] - rho_ref) * g * vel[k];
+        }
+    }
+}
+
+crate::multiversion! {
+    /// A row of cells: the viscous power 2η (D_xx² + D_yy²) in `t`, and with the plastic stress
+    /// (τ, Σ_xx) its power w = τ Σ_xx (D_xx − D_yy) and min(w, 0) in `w`, `m`; D_xx = (u_e −
+    /// u_w)/dx, D_yy = (v_n − v_s)/dy.
+    #[allow(clippy::too_many_arguments)]
+    fn cell_terms / cell_terms_base(t: &mut [f64], w: &mut [f64], m: &mut [f64], ue: &[f64], uw: &[f64], vn: &[f64], vs: &[f64], eta: &[f64], plastic: Option<(&[f64], &[f64])>, idx: f64, idy: f64) {
+        let n = t.len();
+        let (ue, uw, vn, vs, eta) = (&ue[..n], &uw[..n], &vn[..n], &vs[..n], &eta[..n]);
+        for k in 0..n {
+            let dxx = (ue[k] - uw[k]) * idx;
+            let dyy = (vn[k] - vs[k]) * idy;
+            t[k] = 2.0 * eta[k] * (dxx * dxx + dyy * dyy);
+        }
+        if let Some((tau, sxx)) = plastic {
+            let (w, m, tau, sxx) = (&mut w[..n], &mut m[..n], &tau[..n], &sxx[..n]);
+            for k in 0..n {
+                let dxx = (ue[k] - uw[k]) * idx;
+                let dyy = (vn[k] - vs[k]) * idy;
+                w[k] = tau[k] * sxx[k] * (dxx - dyy);
+                m[k] = w[k].min(0.0);
+            }
+        }
+    }
+}
+
+crate::multiversion! {
+    /// A row of nodes with weight `wgt`: the viscous power wgt·4η D_xy² in `t`, and with the
+    /// plastic stress (τ, Σ_xy) w = wgt·τ·2Σ_xy D_xy and min(w, 0) in `w`, `m`; D_xy = ½((u_n −
+    /// u_s)/dy + (v_e − v_w)/dx).
+    #[allow(clippy::too_many_arguments)]
+    fn node_terms / node_terms_base(t: &mut [f64], w: &mut [f64], m: &mut [f64], un: &[f64], us: &[f64], ve: &[f64], vw: &[f64], eta: &[f64], plastic: Option<(&[f64], &[f64])>, wgt: f64, idx: f64, idy: f64) {
+        let n = t.len();
+        let (un, us, ve, vw, eta) = (&un[..n], &us[..n], &ve[..n], &vw[..n], &eta[..n]);
+        for k in 0..n {
+            let dxy = 0.5 * ((un[k] - us[k]) * idy + (ve[k] - vw[k]) * idx);
+            t[k] = wgt * 4.0 * eta[k] * dxy * dxy;
+        }
+        if let Some((tau, sxy)) = plastic {
+            let (w, m, tau, sxy) = (&mut w[..n], &mut m[..n], &tau[..n], &sxy[..n]);
+            for k in 0..n {
+                let dxy = 0.5 * ((un[k] - us[k]) * idy + (ve[k] - vw[k]) * idx);
+                w[k] = wgt * tau[k] * 2.0 * sxy[k] * dxy;
+                m[k] = w[k].min(0.0);
+            }
+        }
+    }
+}
+
 #[inline]
 fn base(f: &Field, j: isize) -> usize {
     ((j + HALO as isize) as usize) * f.stride() + HALO
@@ -290,4 +412,52 @@ fn node_weight(i: usize, j: usize, nx: usize, ny: usize, per: (bool, bool)) -> f
 fn periodicity(model: &TwoPhaseModel) -> (bool, bool) {
     let bc = &model.config.bc;
     (periodic_pair(bc.get(Side::Left), bc.get(Side::Right)), periodic_pair(bc.get(Side::Bottom), bc.get(Side::Top)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// Both copies of the term kernels give the expressions of the budget value by value (a
+    /// NaN plastic power gives min(w, 0) = 0, as `f64::min` does).
+    #[test]
+    fn the_rate_kernels_are_the_budget_terms_value_by_value() {
+        let n = 37;
+        let wave = |k: usize, a: f64| (a * k as f64).sin() * 10f64.powi((k % 5) as i32 - 2);
+        let col = |a: f64| -> Vec<f64> { (0..n).map(|k| wave(k, a)).collect() };
+        let (a, b, c, d, eta, tau) = (col(0.7), col(1.3), col(2.1), col(0.4), col(0.9).iter().map(|x| x.abs()).collect::<Vec<_>>(), col(1.7));
+        let mut s = col(2.9);
+        s[5] = f64::NAN;
+        let (idx, idy, wgt) = (71.3, 64.0, 0.5);
+        let mut want = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for k in 0..n {
+            want.0[k] = (a[k] - 1.2) * -9.81 * b[k];
+            let dxx = (a[k] - b[k]) * idx;
+            let dyy = (c[k] - d[k]) * idy;
+            want.1[k] = 2.0 * eta[k] * (dxx * dxx + dyy * dyy);
+            want.2[k] = tau[k] * s[k] * (dxx - dyy);
+            want.3[k] = want.2[k].min(0.0);
+            let dxy = 0.5 * ((a[k] - b[k]) * idy + (c[k] - d[k]) * idx);
+            want.4[k] = wgt * 4.0 * eta[k] * dxy * dxy;
+            want.5[k] = wgt * tau[k] * 2.0 * s[k] * dxy;
+            want.6[k] = want.5[k].min(0.0);
+        }
+        assert_eq!(want.3[5], 0.0);
+        let (mut t, mut w, mut m) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for vectorised in [true, false] {
+            let gravity = if vectorised { gravity_terms } else { gravity_terms_base };
+            gravity(&mut t, &a, &b, 1.2, -9.81);
+            assert_eq!(bits(&t), bits(&want.0));
+            let cells = if vectorised { cell_terms } else { cell_terms_base };
+            cells(&mut t, &mut w, &mut m, &a, &b, &c, &d, &eta, Some((&tau, &s)), idx, idy);
+            assert_eq!((bits(&t), bits(&w), bits(&m)), (bits(&want.1), bits(&want.2), bits(&want.3)));
+            let nodes = if vectorised { node_terms } else { node_terms_base };
+            nodes(&mut t, &mut w, &mut m, &a, &b, &c, &d, &eta, Some((&tau, &s)), wgt, idx, idy);
+            assert_eq!((bits(&t), bits(&w), bits(&m)), (bits(&want.4), bits(&want.5), bits(&want.6)));
+        }
+    }
 }

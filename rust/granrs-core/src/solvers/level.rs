@@ -672,7 +672,7 @@ mod tests {
         }
         for j in 0..=ny {
             for i in 0..nx {
-                if j >= top(i) || (j > 0 && j - 1 >= top(i)) {
+                if j >= top(i) {
                     level.beta_y[j * nx + i] = 0.0;
                 }
             }
