@@ -255,3 +255,36 @@ fn an_open_top_with_backflow_stabilisation_follows_the_whole_domain() {
     assert!(dp_o * 100.0 < dp_w, "pressure: open {dp_o:.3} Pa, walls {dp_w:.3} Pa");
     assert!(dp_o < 1e-4 * 1450.0 * 9.81 * 0.2, "pressure in the grains off by {dp_o} Pa");
 }
+
+#[test]
+fn a_checkpoint_keeps_the_window_size_and_checks_it() {
+    let ar = Some(ActiveRegion { band: 2, align: 4, sides: WindowSides::OpenRightTop });
+    let mut m = column(64, 16, ar);
+    let fresh = m.checkpoint();
+    let entry = |s: &[(String, Vec<f64>)]| s.iter().find(|(n, _)| n == "active_window").map(|(_, d)| d.clone());
+    assert_eq!(entry(&fresh), Some(vec![0.0, 0.0]), "no window before the first step");
+    for _ in 0..10 {
+        m.step().unwrap();
+    }
+    let (wx, wy) = m.active_window().unwrap();
+    let state = m.checkpoint();
+    assert_eq!(entry(&state), Some(vec![wx as f64, wy as f64]));
+    // restored: the next step runs on the window of the checkpoint
+    let mut r = column(64, 16, ar);
+    r.restore(&state).unwrap();
+    r.step().unwrap();
+    m.step().unwrap();
+    assert_eq!(r.active_window(), m.active_window());
+    // a checkpoint without the entry is accepted (the window is rebuilt from the dense phase)
+    let without: Vec<_> = state.iter().filter(|(n, _)| n != "active_window").cloned().collect();
+    column(64, 16, ar).restore(&without).unwrap();
+    // sizes that are not whole numbers of cells within the grid are refused, naming the entry
+    for bad in [[3.5, 8.0], [1.0, 8.0], [128.0, 8.0], [8.0, 17.0]] {
+        let mut s = state.clone();
+        s.iter_mut().find(|(n, _)| n == "active_window").unwrap().1 = bad.to_vec();
+        match column(64, 16, ar).restore(&s) {
+            Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "active_window", "{bad:?}"),
+            other => panic!("{bad:?}: {other:?}"),
+        }
+    }
+}

@@ -5,11 +5,16 @@
 //! p^n and the last pressure increment δp^n (the warm start of the next projection); Φ^n; the
 //! pore pressure p_f^n, p_f^{n−1} and its advection at n−1; the plastic tensor Σ^n and the
 //! Coulomb wall directions s^n (the anchors of the Picard iteration, eq. 12); the clock t_n, n,
-//! δt_{n−1}; the area the mass correction restores. Everything else (densities, viscosities,
+//! δt_{n−1}; the area the mass correction restores; with an active region, the window's size
+//! (it grows and shrinks with a hysteresis, so it is not a function of the fields; a
+//! checkpoint without it rebuilds the window from the dense phase's extent). Everything else (densities, viscosities,
 //! yield stresses, r, solver coefficients) is rebuilt from these by the next step.
 //! Fields are stored with their ghost layers, exactly as held.
 
 use super::two_phase::TwoPhaseModel;
+
+/// The checkpoint entry of the active window's size (n_x^W, n_y^W); (0, 0) before the first step.
+const WINDOW_ENTRY: &str = "active_window";
 use crate::error::{Error, Result};
 use crate::grid::{StateArrays, StateEntry};
 
@@ -59,6 +64,12 @@ impl TwoPhaseModel {
         f("step_count", &[self.step_count as f64]);
         f("dt_prev", &[self.dt_prev.unwrap_or(f64::NAN)]);
         f("reference_area", &[self.reference_area]);
+        if self.config.active_region.is_some() {
+            // the window's size is state: it grows and shrinks with a hysteresis, so a window
+            // rebuilt from the dense phase's extent alone can differ from the one the run had
+            let (wx, wy) = self.window_size().unwrap_or((0, 0));
+            f(WINDOW_ENTRY, &[wx as f64, wy as f64]);
+        }
         out.truncate(k);
     }
 
@@ -77,6 +88,8 @@ impl TwoPhaseModel {
         let expected = self.checkpoint();
         for (name, data) in &expected {
             match state.iter().find(|(n, _)| n == name) {
+                // a checkpoint without the window's size rebuilds the window from the dense phase
+                None if name == WINDOW_ENTRY => {}
                 None => return Err(Error::param("state", name, "a checkpoint of a model with the same configuration (entry missing)")),
                 Some((_, d)) if d.len() != data.len() => {
                     return Err(Error::Shape { name: format!("checkpoint entry `{name}`"), got: vec![d.len()], expected: vec![data.len()] })
@@ -87,6 +100,18 @@ impl TwoPhaseModel {
         if let Some((extra, _)) = state.iter().find(|(n, _)| !expected.iter().any(|(e, _)| e == n)) {
             return Err(Error::param("state", extra, "only entries of a model with the same configuration"));
         }
+        let restored_window = match state.iter().find(|(n, _)| n == WINDOW_ENTRY) {
+            Some((_, d)) if d[0] == 0.0 && d[1] == 0.0 => None,
+            Some((_, d)) => {
+                let (nx, ny) = (self.config.grid.nx as f64, self.config.grid.ny as f64);
+                let size = |v: f64, n: f64| v >= 2.0 && v <= n && v.fract() == 0.0;
+                if !(size(d[0], nx) && size(d[1], ny)) {
+                    return Err(Error::param(WINDOW_ENTRY, format!("{:?}", d), &format!("(0, 0), or whole numbers of cells in [2, {nx}] × [2, {ny}]")));
+                }
+                Some((d[0] as usize, d[1] as usize))
+            }
+            None => None,
+        };
         let get = |name: &str| -> &[f64] { &state.iter().find(|(n, _)| n == name).expect("checked above").1 };
         self.u.slice_mut().copy_from_slice(get("u"));
         self.v.slice_mut().copy_from_slice(get("v"));
@@ -113,6 +138,7 @@ impl TwoPhaseModel {
         self.pressure.density_changed();
         self.time_to_land = None;
         self.window = None;
+        self.restored_window = restored_window;
         Ok(())
     }
 }

@@ -540,6 +540,9 @@ pub struct TwoPhaseModel {
     /// the clock, and the fields follow when the call returns (within
     /// [`TwoPhaseModel::advance`], once at its end).
     pub(crate) window_ahead: bool,
+    /// The window size a restored checkpoint held (its next step rebuilds the window at it,
+    /// as the uninterrupted run keeps its window; `models/window.rs`).
+    pub(crate) restored_window: Option<(usize, usize)>,
     /// Ceiling on δt lowered by a rejected step (`TimeConfig::step_retries`), recovering by
     /// [`crate::time_stepping::DT_CEILING_RECOVERY`] per accepted step (∞: none).
     pub dt_ceiling: f64,
@@ -599,6 +602,7 @@ impl TwoPhaseModel {
             reference_area: 0.0,
             window: None,
             window_ahead: false,
+            restored_window: None,
             dt_ceiling: f64::INFINITY,
             dt_attempt: 0.0,
             step_snapshot: Vec::new(),

@@ -148,10 +148,16 @@ impl TwoPhaseModel {
         Ok(())
     }
 
+    /// The current window's size: the built window's, or the one a restored checkpoint held
+    /// until the next step rebuilds it.
+    pub(crate) fn window_size(&self) -> Option<(usize, usize)> {
+        self.active_window().or(self.restored_window)
+    }
+
     /// The window size the dense phase needs now: (n_x, n_y) before rounding.
     fn window_needed(&self, ar: ActiveRegion) -> (usize, usize) {
         // the dense phase is inside the current window (or anywhere if none): scan that block
-        let (sx, sy) = self.active_window().unwrap_or((self.config.grid.nx, self.config.grid.ny));
+        let (sx, sy) = self.window_size().unwrap_or((self.config.grid.nx, self.config.grid.ny));
         let phi = self.window.as_ref().map_or(&self.phi, |w| &w.phi);
         let support = -3.0 * self.config.interface_width * self.config.grid.h();
         let (mut imax, mut jmax) = (0usize, 0usize);
@@ -170,7 +176,7 @@ impl TwoPhaseModel {
         let (gx, gy) = (self.config.grid.nx, self.config.grid.ny);
         let round = |n: usize, full: usize| n.div_ceil(ar.align).saturating_mul(ar.align).min(full);
         let (need_x, need_y) = self.window_needed(ar);
-        let rebuild = match self.active_window() {
+        let rebuild = match self.window_size() {
             None => true,
             Some((wx, wy)) => {
                 let near = |need: usize, w: usize, full: usize| w < full && need > w;
@@ -181,7 +187,11 @@ impl TwoPhaseModel {
         if rebuild {
             self.sync_from_window();
             self.build_window(round(need_x + ar.band, gx).max(2), round(need_y + ar.band, gy).max(2), ar)?;
+        } else if let (None, Some((wx, wy))) = (self.active_window(), self.restored_window) {
+            // after a restore: the window the checkpointed run had, which it would have kept
+            self.build_window(wx, wy, ar)?;
         }
+        self.restored_window = None;
         let w = self.window.as_mut().expect("built above");
         w.time_to_land = self.time_to_land;
         let out = w.step_accepted();
@@ -205,7 +215,7 @@ impl TwoPhaseModel {
 
     /// Builds the window of nxw × nyw cells from this model's state.
     fn build_window(&mut self, nxw: usize, nyw: usize, ar: ActiveRegion) -> Result<()> {
-        if let Some((wx, wy)) = self.active_window() {
+        if let Some((wx, wy)) = self.window_size() {
             if nxw < wx || nyw < wy {
                 // shrink: the light phase outside the new window at rest
                 for f in flow_state_mut(self).into_iter().take(6) {
