@@ -565,8 +565,8 @@ def test_an_interrupt_inside_a_record_keeps_whole_records(tmp_path, monkeypatch)
 
 def test_ctrl_c_prints_one_line_exits_130_and_keeps_the_last_steps(tmp_path):
     # ny = 32: the run comes to rest after about ten seconds of wall time, far more than the
-    # polling below needs to see its 10th record and send the signal (at ny = 8 about one second
-    # remained, which a loaded 2-core machine could miss)
+    # polling below needs to see its 10th record and send the signal, even on a loaded 2-core
+    # machine
     path = run_file(tmp_path, grid={"ny": 32}, time={"t_end": 5.0})
     out = tmp_path / "out"
     proc = _start(tmp_path, "run", path, "--quiet")
