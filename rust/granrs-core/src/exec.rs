@@ -125,9 +125,9 @@ impl Exec {
     }
 
     /// Deterministic sum over rows `0..nrows` of `f(row)`: the rows' values of each block of
-    /// [`ROW_BLOCK`] rows added in order from 0, then the blocks' sums in order from 0. On the
-    /// pool the rows' values are made in tasks of [`task_rows`] rows (equal shares for the
-    /// threads whatever the blocks), kept on the stack up to [`STACK_ROWS`] rows.
+    /// [`ROW_BLOCK`] rows added in order from 0, then the blocks' sums in order from 0
+    /// ([`Exec::sum_rows_into`] with the rows' values on the stack up to [`STACK_ROWS`] rows;
+    /// serially without a buffer, in the same order).
     pub fn sum_rows<F>(self, nrows: usize, cells: usize, f: F) -> f64
     where
         F: Fn(usize) -> f64 + Sync + Send,
@@ -141,13 +141,7 @@ impl Exec {
                 heap.resize(nrows, [0.0]);
                 &mut heap
             };
-            let rows = task_rows(cells / nrows.max(1));
-            values.par_chunks_mut(rows).enumerate().for_each(|(t, out)| {
-                for (k, o) in out.iter_mut().enumerate() {
-                    *o = [f(t * rows + k)];
-                }
-            });
-            add_by_blocks(values)[0]
+            self.sum_rows_into(nrows, cells, values, |j| [f(j)])[0]
         } else {
             let mut total = 0.0;
             for b in 0..nrows.div_ceil(ROW_BLOCK) {
@@ -159,6 +153,30 @@ impl Exec {
             }
             total
         }
+    }
+
+    /// Deterministic sum over rows `0..nrows` of `f(row)` (K components): the rows' values in
+    /// `partials` (at least one per row), made on the pool in tasks of [`task_rows`] rows (equal
+    /// shares for the threads whatever the blocks), then added by [`add_by_blocks`]. A buffer
+    /// allocated once by the caller: the solvers' reductions allocate nothing.
+    pub fn sum_rows_into<const K: usize, F>(self, nrows: usize, cells: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
+    where
+        F: Fn(usize) -> [f64; K] + Sync + Send,
+    {
+        let partials = &mut partials[..nrows];
+        if self.use_parallel(cells) {
+            let rows = task_rows(cells / nrows.max(1));
+            partials.par_chunks_mut(rows).enumerate().for_each(|(t, out)| {
+                for (k, o) in out.iter_mut().enumerate() {
+                    *o = f(t * rows + k);
+                }
+            });
+        } else {
+            for (j, o) in partials.iter_mut().enumerate() {
+                *o = f(j);
+            }
+        }
+        add_by_blocks(partials)
     }
 
     /// Deterministic maximum over rows of `f(row)` (NaN propagates).

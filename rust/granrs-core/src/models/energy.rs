@@ -6,7 +6,7 @@ use crate::exec::Exec;
 use crate::grid::{Field, Side, HALO};
 use crate::levelset::heaviside;
 use crate::operators::{fill_velocity_ghosts, periodic_pair, BcMode};
-use crate::solvers::par::{partials_len, sum_rows};
+use crate::solvers::par::partials_len;
 
 impl TwoPhaseModel {
     /// Kinetic energy ½ Σ ρ_face u² h² over the solved faces, and the potential energy
@@ -41,7 +41,7 @@ impl TwoPhaseModel {
         let per = periodicity(self);
         let (nxu, nyv) = (if per.0 { nx - 1 } else { nx }, if per.1 { ny - 1 } else { ny });
         let s = self.pool.install(|| {
-            sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
+            exec.sum_rows_into::<4, _>(ny + 1, g.cells(), partials, |j| {
                 let mut out = [0.0; 4];
                 let ji = j as isize;
                 if j < ny {
@@ -102,7 +102,7 @@ impl TwoPhaseModel {
         // terms are made by vectorised kernels a chunk at a time and added in the order of the
         // faces, cells and nodes (the budget's bits do not depend on the chunks).
         let s = self.pool.install(|| {
-            sum_rows::<4, _>(exec, ny + 1, g.cells(), partials, |j| {
+            exec.sum_rows_into::<4, _>(ny + 1, g.cells(), partials, |j| {
                 let mut out = [0.0; 4]; // gravity, plastic, plastic negative, viscous
                 let ji = j as isize;
                 let (mut t, mut w, mut m) = ([0.0; RATE_CHUNK], [0.0; RATE_CHUNK], [0.0; RATE_CHUNK]);
@@ -167,24 +167,23 @@ impl TwoPhaseModel {
                         let i = c0 + k;
                         if i == 0 || i == nx {
                             let wgt = node_weight(i, j, nx, ny, per);
-                            let one = |f: &[f64]| -> [f64; 1] { [f[k]] };
-                            let (mut t1, mut w1, mut m1) = ([0.0], [0.0], [0.0]);
-                            let p1 = plastic_chunk.map(|(tn, sxy)| (one(tn), one(sxy)));
+                            let one = k..k + 1;
+                            let p1 = plastic_chunk.map(|(tn, sxy)| (&tn[one.clone()], &sxy[one.clone()]));
+                            let (t1, w1, m1) = (&mut t[one.clone()], &mut w[one.clone()], &mut m[one.clone()]);
                             node_terms(
-                                &mut t1,
-                                &mut w1,
-                                &mut m1,
-                                &one(un),
-                                &one(us_),
-                                &one(ve),
-                                &one(vw),
-                                &one(&en[bn + c0..]),
-                                p1.as_ref().map(|(a, b)| (&a[..], &b[..])),
+                                t1,
+                                w1,
+                                m1,
+                                &un[one.clone()],
+                                &us_[one.clone()],
+                                &ve[one.clone()],
+                                &vw[one.clone()],
+                                &en[bn + i..bn + i + 1],
+                                p1,
                                 wgt,
                                 idx,
                                 idy,
                             );
-                            (t[k], w[k], m[k]) = (t1[0], w1[0], m1[0]);
                         }
                     }
                     let solved = |k: usize| !air_node(c0 + k);

@@ -26,7 +26,7 @@ use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc, HALO};
 use crate::levelset::heaviside;
 use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row, strain_rate, strain_rate_norm_centre, BcMode};
-use crate::solvers::par::{partials_len, sum_rows};
+use crate::solvers::par::partials_len;
 use crate::solvers::SolveInfo;
 use crate::walls::side::SideWallFriction;
 use crate::walls::{default_r_wall, CoulombWalls, NormalStress};
@@ -452,12 +452,12 @@ fn base(f: &Field, j: isize) -> usize {
 /// Mean pressure of the air on the granular surface (`YieldPressure::SurfaceAir`): the average of
 /// p over the cells with −ε − h ≤ Φ < −ε (one layer of air cells just outside the smoothed band,
 /// Φ a distance), equal weights; 0 when there is none. A fixed-order row-block reduction
-/// ([`crate::solvers::par::sum_rows`], `partials` one per row at least), so serial and parallel
+/// ([`Exec::sum_rows_into`], `partials` one per row at least), so serial and parallel
 /// runs agree bit for bit.
 pub(crate) fn surface_air_pressure(p: &Field, phi: &Field, eps: f64, h: f64, partials: &mut [[f64; 2]], exec: Exec) -> f64 {
     let (nx, ny) = (p.nx, p.ny);
     let (ps, fs) = (p.slice(), phi.slice());
-    let [sum, count] = sum_rows::<2, _>(exec, ny, nx * ny, partials, |j| {
+    let [sum, count] = exec.sum_rows_into::<2, _>(ny, nx * ny, partials, |j| {
         let b = (j + HALO) * p.stride() + HALO;
         let mut out = [0.0; 2];
         for i in 0..nx {

@@ -237,7 +237,6 @@ impl Level {
         });
         let dirichlet = self.bc.map(|b| if b == PressureBc::Dirichlet { 2.0 } else { 0.0 });
         let (cx, cy, sh) = (&self.cx, &self.cy, &self.shift);
-        let inv = SharedMut(self.inv_diag.as_mut_ptr());
         exec.for_each_row(&mut self.diag, nx, |j, row| {
             let cxr = &cx[j * (nx + 1)..(j + 1) * (nx + 1)];
             diagonal_row(row, &sh[j * nx..(j + 1) * nx], cxr, &cy[j * nx..(j + 1) * nx], &cy[(j + 1) * nx..(j + 2) * nx]);
@@ -254,10 +253,9 @@ impl Level {
                     *d += dirichlet[TOP] * b * idy2;
                 }
             }
-            // SAFETY: row j of inv_diag (nx values), written by this row's task only.
-            let inv_row = unsafe { std::slice::from_raw_parts_mut(inv.get().add(j * nx), nx) };
-            inverse_row(inv_row, row);
         });
+        let diag = &self.diag;
+        exec.for_each_row(&mut self.inv_diag, nx, |j, row| inverse_row(row, &diag[j * nx..(j + 1) * nx]));
     }
 
     /// The rows of `p` and of the coefficients that the operator reads for row `j` (the zero row

@@ -166,11 +166,11 @@ impl Multigrid {
         if self.singular {
             let nx = self.levels[self.levels.len() - 1].nx;
             let ny = b.len() / nx;
-            let [s] = par::sum_rows(Exec::SERIAL, ny, b.len(), &mut self.partials, |j| [b[j * nx..(j + 1) * nx].iter().sum()]);
+            let [s] = Exec::SERIAL.sum_rows_into(ny, b.len(), &mut self.partials, |j| [b[j * nx..(j + 1) * nx].iter().sum()]);
             let m = s / n;
             b.iter_mut().for_each(|v| *v -= m);
             self.coarse.solve(b, x);
-            let [s] = par::sum_rows(Exec::SERIAL, ny, x.len(), &mut self.partials, |j| [x[j * nx..(j + 1) * nx].iter().sum()]);
+            let [s] = Exec::SERIAL.sum_rows_into(ny, x.len(), &mut self.partials, |j| [x[j * nx..(j + 1) * nx].iter().sum()]);
             let m = s / n;
             x.iter_mut().for_each(|v| *v -= m);
         } else {

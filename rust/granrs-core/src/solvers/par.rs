@@ -55,33 +55,11 @@ where
     }
 }
 
-/// Deterministic sum over rows `0..nrows` of `f(row)` (nothing written): the rows' values in
-/// `partials` (one per row), added by [`add_by_blocks`].
-pub(crate) fn sum_rows<const K: usize, F>(exec: Exec, nrows: usize, cells: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
-where
-    F: Fn(usize) -> [f64; K] + Sync + Send,
-{
-    let partials = &mut partials[..nrows];
-    if exec.use_parallel(cells) {
-        let rows = reduction_rows(nrows, cells);
-        partials.par_chunks_mut(rows).enumerate().for_each(|(t, out)| {
-            for (k, o) in out.iter_mut().enumerate() {
-                *o = f(t * rows + k);
-            }
-        });
-    } else {
-        for (j, o) in partials.iter_mut().enumerate() {
-            *o = f(j);
-        }
-    }
-    add_by_blocks(partials)
-}
-
-/// The sum of [`sum_rows`] with the rows' sums made a few rows at a time: `f(j0, sums)` writes
-/// the sums of rows j0 .. j0 + sums.len() (at most [`ROW_BLOCK`] rows; each as [`sum_rows`]'s
-/// `f(j)` would return it: [`crate::operators::sums_by_row`] makes them four rows at a time with
+/// The sum of [`Exec::sum_rows_into`] with the rows' sums made a few rows at a time: `f(j0,
+/// sums)` writes the sums of rows j0 .. j0 + sums.len() (at most [`ROW_BLOCK`] rows; each as
+/// `sum_rows_into`'s `f(j)` would return it: [`crate::operators::sums_by_row`] makes them four rows at a time with
 /// the bits of one fold per row), and they are added by [`add_by_blocks`], so that the result
-/// has the bits of [`sum_rows`] with the same rows' sums.
+/// has the bits of [`Exec::sum_rows_into`] with the same rows' sums.
 pub(crate) fn sum_row_blocks<const K: usize, F>(exec: Exec, nrows: usize, cells: usize, partials: &mut [[f64; K]], f: F) -> [f64; K]
 where
     F: Fn(usize, &mut [[f64; K]]) + Sync + Send,
@@ -187,7 +165,7 @@ mod tests {
                 let mut partials = vec![[f64::NAN; 1]; partials_len(ny)];
                 let mut partials2 = vec![[f64::NAN; 2]; partials_len(ny)];
                 let got = pool.install(|| {
-                    let [s1] = sum_rows(exec, ny, nx * ny, &mut partials, |j| [a[j * nx..(j + 1) * nx].iter().fold(0.0, |s, &x| s + x)]);
+                    let [s1] = exec.sum_rows_into(ny, nx * ny, &mut partials, |j| [a[j * nx..(j + 1) * nx].iter().fold(0.0, |s, &x| s + x)]);
                     let [s2] = sum_row_blocks(exec, ny, nx * ny, &mut partials, |j0, out| {
                         for (k, o) in out.iter_mut().enumerate() {
                             *o = [a[(j0 + k) * nx..(j0 + k + 1) * nx].iter().fold(0.0, |s, &x| s + x)];

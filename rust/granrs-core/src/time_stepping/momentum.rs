@@ -391,33 +391,15 @@ fn rows3_dots<F>(
 where
     F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
 {
-    let span = (rows.start + HALO) * st..(rows.end + HALO) * st;
-    let (x, r, z) = (&mut x[span.clone()], &mut r[span.clone()], &mut z[span]);
     // each row's (r·z, r·r), the rows of a task written first
-    let task = |j0: usize, xb: &mut [f64], rb: &mut [f64], zb: &mut [f64], out: &mut [[f64; 2]]| {
+    rows3_blocks(exec, st, rows.clone(), x, r, z, row_sums, |j0, xb, rb, zb, out| {
         for (k, ((xr, rrow), zr)) in xb.chunks_mut(st).zip(rb.chunks_mut(st)).zip(zb.chunks_mut(st)).enumerate() {
-            f(rows.start + j0 + k, xr, rrow, zr);
+            f(j0 + k, xr, rrow, zr);
         }
         let (rb, zb) = (&*rb, &*zb);
         sums_by_row(out, cols.len(), |k| [&rb[k * st + cols.start..k * st + cols.end], &zb[k * st + cols.start..k * st + cols.end]], |[r, z]| [r * z, r * r]);
-    };
-    let sums = &mut row_sums[..rows.len()];
-    if exec.use_parallel(x.len()) {
-        use rayon::prelude::*;
-        let n = task_rows(st);
-        let blk = st * n;
-        x.par_chunks_mut(blk)
-            .zip(r.par_chunks_mut(blk))
-            .zip(z.par_chunks_mut(blk))
-            .zip(sums.par_chunks_mut(n))
-            .enumerate()
-            .for_each(|(t, (((xb, rb), zb), out))| task(t * n, xb, rb, zb, out));
-    } else {
-        let blk = st * ROW_BLOCK;
-        for (b, (((xb, rb), zb), out)) in x.chunks_mut(blk).zip(r.chunks_mut(blk)).zip(z.chunks_mut(blk)).zip(sums.chunks_mut(ROW_BLOCK)).enumerate() {
-            task(b * ROW_BLOCK, xb, rb, zb, out);
-        }
-    }
+    });
+    let sums = &row_sums[..rows.len()];
     // the rows' sums in blocks of ROW_BLOCK rows from the first row, then the blocks
     let [rz, rr] = add_by_blocks(sums);
     (rz, rr)
