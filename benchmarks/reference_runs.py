@@ -58,11 +58,17 @@ OBSERVABLES = (
 
 
 def run(build: str | None, case: str, args: argparse.Namespace, out: Path) -> dict:
+    return run_column(build, ["--ny", str(args.ny), "--threads", str(args.threads)] + CASES[case], out)
+
+
+def run_column(build: str | None, options: list[str], out: Path) -> dict:
+    """``granrs run column OPTIONS --quiet --out OUT`` in a process of its own, with the build in
+    ``build`` (a directory holding a ``granrs`` package) or the one ``import granrs`` finds: its
+    summary's wall time, steps, run-out and observables, or ``error``."""
     env = dict(os.environ)
     if build:
         env["PYTHONPATH"] = build + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    cmd = [sys.executable, "-m", "granrs.cli", "run", "column", "--ny", str(args.ny), "--threads", str(args.threads)]
-    cmd += CASES[case] + ["--quiet", "--out", str(out)]
+    cmd = [sys.executable, "-m", "granrs.cli", "run", "column", *options, "--quiet", "--out", str(out)]
     t0 = time.perf_counter()
     r = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0

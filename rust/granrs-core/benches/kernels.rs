@@ -1,11 +1,13 @@
 //! Operator sweeps, a full Navier–Stokes step, and a STREAM-like triad (the bandwidth reference
-//! for docs/benchmarks.md), on the paper's 1280 × 256 grid, with 1 and 2 threads.
+//! for docs/benchmarks.md), on the paper's 1280 × 256 grid, with 1 and 2 threads; and one row
+//! sweep of [`Exec::for_each_row`] against its size (what a parallel sweep costs beyond its
+//! work, and from which size a second thread pays).
 //!
 //! Run: `cargo bench -p granrs-core --bench kernels`. Each benchmark prints its throughput in
 //! cell updates (or bytes) per second through criterion's `Throughput`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use granrs_core::exec::{build_pool, Exec};
+use granrs_core::exec::{build_pool, with_active_workers, Exec};
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, VelocityBc};
 use granrs_core::models::{Material, ModelConfig, TwoPhaseModel};
 use granrs_core::operators::{convection, divergence, fill_velocity_ghosts, strain_rate, viscous, BcMode};
@@ -113,5 +115,42 @@ fn triad(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, operators, full_step, triad);
+/// One row sweep x ← 0.999 x + 0.001 y + 0.0005 z ([`Exec::for_each_row`], rows of 512 values)
+/// from 4 096 to 262 144 cells (96 KiB to 6 MiB of the three arrays), on 1 and 2 threads, with
+/// the pool's threads kept awake as during a step ([`with_active_workers`]). The step's sweeps
+/// have this granularity: at t = 1.5 s the column's active window holds about 9 400 cells at
+/// ny = 64 and 122 000 at ny = 256. Throughput counts cells.
+fn sweep_size(c: &mut Criterion) {
+    let mut g = c.benchmark_group("sweep_size");
+    g.sample_size(30).measurement_time(Duration::from_secs(1)).warm_up_time(Duration::from_millis(300));
+    const NX: usize = 512;
+    for cells in [4096usize, 8192, 16384, 32768, 65536, 131072, 262144] {
+        let y: Vec<f64> = (0..cells).map(|i| (i as f64 * 0.37).sin()).collect();
+        let z: Vec<f64> = (0..cells).map(|i| (i as f64 * 0.11).cos()).collect();
+        let mut x = vec![1.0; cells];
+        g.throughput(Throughput::Elements(cells as u64));
+        for threads in [1usize, 2] {
+            let pool = build_pool(threads).unwrap();
+            let exec = Exec::with_threads(threads);
+            g.bench_with_input(BenchmarkId::new(format!("cells{cells}"), threads), &threads, |bch, _| {
+                pool.install(|| {
+                    with_active_workers(|| {
+                        bch.iter(|| {
+                            exec.for_each_row(&mut x, NX, |j, row| {
+                                let (yr, zr) = (&y[j * NX..(j + 1) * NX], &z[j * NX..(j + 1) * NX]);
+                                for i in 0..row.len() {
+                                    row[i] = 0.999 * row[i] + 0.001 * yr[i] + 0.0005 * zr[i];
+                                }
+                            });
+                            black_box(&x);
+                        })
+                    })
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, operators, full_step, triad, sweep_size);
 criterion_main!(benches);
