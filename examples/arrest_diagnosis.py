@@ -22,8 +22,9 @@ column's ``interface_yield`` choices ``density-support`` and ``granular-side``, 
 ``theta-0.3`` and ``theta-0.1`` (θ in eq. 12 instead of the column's 0.8), and ``proximal-5``,
 ``proximal-20`` (that many proximal restarts of the anchor Σⁿ per step,
 ``ColumnCase().with_options(proximal_restarts=N)``); ``proximal-20-anderson-5`` (the same with Anderson mixing
-of depth 5, ``Numerics(anderson_depth=5)``) and that one combined with no mass correction,
-redistancing every 50 steps or never, and ``density-support``; ``uzawa-anderson-10`` (θ = 0,
+of depth 5, ``Numerics(anderson_depth=5)``) and that one combined with: no mass correction;
+redistancing every step or every 50 steps; no mass correction and redistancing every step,
+every 50 steps or never; and ``density-support``; ``uzawa-anderson-10`` (θ = 0,
 whose fixed point is eq. 11 itself, with Anderson mixing of depth 10) and
 ``theta-0.3-anderson-5``; ``extended``, ``extended-1.5``, ``extended-3`` (Φ transported with the
 dense phase's velocity extended along the normal from Φ = d h, d = 0, 1.5, 3:
@@ -42,7 +43,11 @@ give-back of the plastic work after 1.5 s, gravity's work and the potential ener
 after 1.5 s and their difference over the run, the deposit profile's change from 2.5 s to t_end,
 the observables of the final volume profile (``granrs.observables.observe_profile``);
 ``arrest_time_s`` under the rest criterion and, after it, the largest granular speed, the
-front's retreat and the change of the surface profile and of the volume profile to t_end).
+front's retreat, the change of the surface profile and of the volume profile to t_end, and
+``eroded_after_arrest``: the columns whose volume profile fell by more than 1 mm, split into
+those with no granular cell on the lowest row at the arrest (a film thinner than half a cell)
+and the others, with where they lie, the area they lost and the speed of their lowest-row cells
+at t_end).
 docs/validation.md, "Arrest of the deposit", quotes it.
 """
 
@@ -90,6 +95,13 @@ VARIANTS = {
         "case": {"proximal_restarts": 20},
         "anderson_depth": 5,
         "redistance_every": 50,
+        "mass_correction": False,
+    },
+    "redistance-1-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "redistance_every": 1},
+    "no-mass-correction-redistance-1-proximal-20": {
+        "case": {"proximal_restarts": 20},
+        "anderson_depth": 5,
+        "redistance_every": 1,
         "mass_correction": False,
     },
     "no-mass-correction-no-redistancing-proximal-20": {
@@ -214,7 +226,10 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
             if m.time > 0.1 and row["speed_granular"] < case.rest_speed:
                 rest_since = m.time if rest_since is None else rest_since
                 if m.time - rest_since >= case.rest_duration - 1e-9:
-                    arrest, arrest_profile = rest_since, (surface_profile(phi, g.dy), volume_profile(phi, g.dy))
+                    arrest, arrest_profile = (
+                        rest_since,
+                        (surface_profile(phi, g.dy), volume_profile(phi, g.dy), np.array(phi[0, :])),
+                    )
             else:
                 rest_since = None
         for tp in (1.5, 2.0, 2.5, t_end):
@@ -274,6 +289,27 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
             max((r["speed_granular"] for r, is_after in zip(rows, after) if is_after), default=0.0)
         )
         out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
+        # the columns whose volume profile fell by more than 1 mm after the arrest, in two groups:
+        # "thin", with no granular cell on the lowest row at the arrest (Φ ≤ 0 there: a film
+        # thinner than half a cell, which the smoothed Heaviside still counts), and "thick"; for
+        # each, where they lie, the area they lost and how fast their lowest-row cells move at t_end
+        loss = arrest_profile[1] - volume_profile(m.phi, g.dy)
+        eroded = {}
+        for group, cols in (("thin", arrest_profile[2] <= 0.0), ("thick", arrest_profile[2] > 0.0)):
+            idx = np.where((loss > 1e-3) & cols)[0]
+            if idx.size:
+                eroded[group] = {
+                    "columns": int(idx.size),
+                    "x_from_gate_m": [float((idx.min() + 0.5) * g.dx - lc), float((idx.max() + 0.5) * g.dx - lc)],
+                    "area_lost_m2": float(loss[idx].sum() * g.dx),
+                    "largest_loss_m": float(loss[idx].max()),
+                    "lowest_row_speed_at_end_max": float(speed[0, idx].max()),
+                }
+        out["eroded_after_arrest"] = {
+            **eroded,
+            "area_lost_all_columns_m2": float(loss.sum() * g.dx),
+            "granular_speed_at_end": rows[-1]["speed_granular"],
+        }
         out["area_drift_after_arrest"] = float(
             np.max(np.abs(area[t >= arrest] / area[t >= arrest][0] - 1.0)) if np.any(t >= arrest) else 0.0
         )
