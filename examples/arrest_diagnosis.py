@@ -65,9 +65,20 @@ from granrs import ActiveRegion
 from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, observe_profile, thickness_front, volume_profile
 
+#: 20 proximal restarts of the anchor Σⁿ per step with Anderson mixing of depth 5 (the variants
+#: named ``...proximal-20...`` below, except ``proximal-20`` itself)
+RESTARTS = {"case": {"proximal_restarts": 20}, "anderson_depth": 5}
+#: the global mass correction off
+NO_CORRECTION = {"mass_correction": False}
+#: Φ transported with the dense phase's velocity extended along the normal
+EXTENDED = {"interface_velocity": "extended"}
+#: the extension only where the dense phase is at rest (the column's rest speed, 5 mm/s): the
+#: one-fluid velocity where it flows
+AT_REST = {**EXTENDED, "extension_rest_speed": 0.005}
+
 VARIANTS = {
     "default": {},
-    "no-mass-correction": {"mass_correction": False},
+    "no-mass-correction": NO_CORRECTION,
     "redistance-50": {"redistance_every": 50},
     # the column's own settings (ColumnCase fields), for comparison
     "density-support": {"case": {"interface_yield": "density-support"}},
@@ -77,97 +88,41 @@ VARIANTS = {
     "proximal-5": {"case": {"proximal_restarts": 5}},
     "proximal-20": {"case": {"proximal_restarts": 20}},
     # the same, with Anderson mixing of the Picard iterates (granrs.Numerics.anderson_depth)
-    "proximal-20-anderson-5": {"case": {"proximal_restarts": 20}, "anderson_depth": 5},
+    "proximal-20-anderson-5": RESTARTS,
     # Uzawa (θ = 0: the fixed point is eq. 11 itself) with Anderson mixing
     "uzawa-anderson-10": {"case": {"theta": 0.0}, "anderson_depth": 10},
     "theta-0.3-anderson-5": {"case": {"theta": 0.3}, "anderson_depth": 5},
     "density-support-proximal-20": {
+        **RESTARTS,
         "case": {"interface_yield": "density-support", "proximal_restarts": 20},
-        "anderson_depth": 5,
     },
-    "no-mass-correction-proximal-20": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "mass_correction": False,
-    },
-    "redistance-50-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "redistance_every": 50},
-    "no-mass-correction-redistance-50-proximal-20": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "redistance_every": 50,
-        "mass_correction": False,
-    },
-    "redistance-1-proximal-20": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "redistance_every": 1},
-    "no-mass-correction-redistance-1-proximal-20": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "redistance_every": 1,
-        "mass_correction": False,
-    },
-    "no-mass-correction-no-redistancing-proximal-20": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "redistance_every": 0,
-        "mass_correction": False,
-    },
+    "no-mass-correction-proximal-20": {**RESTARTS, **NO_CORRECTION},
+    # redistancing every step, every 50 steps or never (the column: every 10)
+    "redistance-50-proximal-20": {**RESTARTS, "redistance_every": 50},
+    "no-mass-correction-redistance-50-proximal-20": {**RESTARTS, **NO_CORRECTION, "redistance_every": 50},
+    "redistance-1-proximal-20": {**RESTARTS, "redistance_every": 1},
+    "no-mass-correction-redistance-1-proximal-20": {**RESTARTS, **NO_CORRECTION, "redistance_every": 1},
+    "no-mass-correction-no-redistancing-proximal-20": {**RESTARTS, **NO_CORRECTION, "redistance_every": 0},
     "density-support-no-mass-correction-proximal-20": {
+        **RESTARTS,
+        **NO_CORRECTION,
         "case": {"interface_yield": "density-support", "proximal_restarts": 20},
-        "anderson_depth": 5,
-        "mass_correction": False,
     },
     # Φ transported with the dense phase's velocity extended along the normal from Φ = d h
     # (interface_velocity = "extended", extension_depth = d), alone and with 20 restarts
-    "extended": {"interface_velocity": "extended"},
-    "extended-1.5": {"interface_velocity": "extended", "extension_depth": 1.5},
-    "extended-3": {"interface_velocity": "extended", "extension_depth": 3.0},
-    "extended-no-mass-correction": {"interface_velocity": "extended", "mass_correction": False},
-    "proximal-20-extended": {"case": {"proximal_restarts": 20}, "anderson_depth": 5, "interface_velocity": "extended"},
-    "proximal-20-extended-1.5": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "interface_velocity": "extended",
-        "extension_depth": 1.5,
-    },
-    "proximal-20-extended-3": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "interface_velocity": "extended",
-        "extension_depth": 3.0,
-    },
-    "proximal-20-extended-no-mass-correction": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "interface_velocity": "extended",
-        "mass_correction": False,
-    },
-    # the extension only where the dense phase is at rest (extension_rest_speed = the column's
-    # rest_speed, 5 mm/s): the one-fluid velocity where it flows
-    "extended-at-rest": {"interface_velocity": "extended", "extension_rest_speed": 0.005},
-    "extended-at-rest-no-mass-correction": {
-        "interface_velocity": "extended",
-        "extension_rest_speed": 0.005,
-        "mass_correction": False,
-    },
-    "proximal-20-extended-at-rest": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "interface_velocity": "extended",
-        "extension_rest_speed": 0.005,
-    },
-    "proximal-20-extended-at-rest-no-mass-correction": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "interface_velocity": "extended",
-        "extension_rest_speed": 0.005,
-        "mass_correction": False,
-    },
-    "proximal-20-extended-1.5-no-mass-correction": {
-        "case": {"proximal_restarts": 20},
-        "anderson_depth": 5,
-        "interface_velocity": "extended",
-        "extension_depth": 1.5,
-        "mass_correction": False,
-    },
+    "extended": EXTENDED,
+    "extended-1.5": {**EXTENDED, "extension_depth": 1.5},
+    "extended-3": {**EXTENDED, "extension_depth": 3.0},
+    "extended-no-mass-correction": {**EXTENDED, **NO_CORRECTION},
+    "proximal-20-extended": {**RESTARTS, **EXTENDED},
+    "proximal-20-extended-1.5": {**RESTARTS, **EXTENDED, "extension_depth": 1.5},
+    "proximal-20-extended-3": {**RESTARTS, **EXTENDED, "extension_depth": 3.0},
+    "proximal-20-extended-no-mass-correction": {**RESTARTS, **EXTENDED, **NO_CORRECTION},
+    "proximal-20-extended-1.5-no-mass-correction": {**RESTARTS, **EXTENDED, "extension_depth": 1.5, **NO_CORRECTION},
+    "extended-at-rest": AT_REST,
+    "extended-at-rest-no-mass-correction": {**AT_REST, **NO_CORRECTION},
+    "proximal-20-extended-at-rest": {**RESTARTS, **AT_REST},
+    "proximal-20-extended-at-rest-no-mass-correction": {**RESTARTS, **AT_REST, **NO_CORRECTION},
 }
 
 
