@@ -103,6 +103,18 @@ VARIANTS = {
     "redistance-1-proximal-20": {**RESTARTS, "redistance_every": 1},
     "no-mass-correction-redistance-1-proximal-20": {**RESTARTS, **NO_CORRECTION, "redistance_every": 1},
     "no-mass-correction-no-redistancing-proximal-20": {**RESTARTS, **NO_CORRECTION, "redistance_every": 0},
+    # the yield stress at full strength over the band's granular side or where the density
+    # supports it, with redistancing at every step
+    "granular-side-redistance-1-proximal-20": {
+        **RESTARTS,
+        "redistance_every": 1,
+        "case": {"interface_yield": "granular-side", "proximal_restarts": 20},
+    },
+    "density-support-redistance-1-proximal-20": {
+        **RESTARTS,
+        "redistance_every": 1,
+        "case": {"interface_yield": "density-support", "proximal_restarts": 20},
+    },
     "density-support-no-mass-correction-proximal-20": {
         **RESTARTS,
         **NO_CORRECTION,
