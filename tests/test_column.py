@@ -556,6 +556,27 @@ def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
     assert c["relative_difference"] != 0.0 and c["relative_standard_error"] > 0.0
 
 
+def test_runout_ensemble_side_by_side_gives_the_same_members(tmp_path):
+    """examples/runout_ensemble.py --jobs 2 runs the members in two processes at a time
+    (docs/howto/threads.md). A member's answer does not depend on the process that runs it: the
+    same steps, run-out and front curve to the last bit as the members run one after the other.
+    A --jobs below 1 is refused with the parameter's name before any member runs."""
+    script = Path(__file__).resolve().parents[1] / "examples" / "runout_ensemble.py"
+    args = [sys.executable, str(script), "--ny", "16", "--members", "3", "--t-end", "0.3", "--eps", "1e-3"]
+    for jobs in (1, 2):
+        subprocess.run(
+            [*args, "--jobs", str(jobs), "--out", str(tmp_path / f"jobs{jobs}")], check=True, capture_output=True
+        )
+    for k in range(3):
+        a, b = (tmp_path / f"jobs{j}" / f"member-{k}" for j in (1, 2))
+        sa, sb = (json.loads((d / "summary.json").read_text()) for d in (a, b))
+        assert (sa["steps"], sa["runout_m"]) == (sb["steps"], sb["runout_m"]), k
+        assert (a / "front.csv").read_bytes() == (b / "front.csv").read_bytes(), k
+    r = subprocess.run([*args, "--jobs", "0", "--out", str(tmp_path / "bad")], capture_output=True, text=True)
+    assert r.returncode != 0 and "`--jobs` = 0" in r.stderr
+    assert not (tmp_path / "bad" / "member-0").exists()
+
+
 def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):
     """energy.csv, energy.png and summary['energy'] (diagnostics/energy.rs): the shares of
     gravity's work add up to 1 by construction, so the checks are on what could be wrong: the
