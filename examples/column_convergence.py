@@ -2,6 +2,7 @@
 
     python examples/column_convergence.py                      # ny = 32, 64, 128, 256: what docs/validation.md reports
     python examples/column_convergence.py --ny 32 64 --threads 2 --out out/convergence
+    python examples/column_convergence.py --ny 32 64 128 --jobs 2 --out out/convergence   # two runs at a time
     python examples/column_convergence.py --channel-width 0.1 --out out/convergence-walls   # with side walls
     python examples/column_convergence.py --ny 32 64 --literal-sign --out out/convergence  # + the literal air supply
     python examples/column_convergence.py --ensemble fluidised=out/ens-fl32 dry=out/ens-dry32   # round-off spreads
@@ -11,7 +12,8 @@ cells of air, the same 28 mm at every grid; `--active-region BAND --active-regio
 open-right-top`, docs/models.md), coarser ones on the whole domain. Run time on the 2-core
 development machine, one thread per run (default numerics):
 ny = 32 about 10 s per run, ny = 64 about 1–2.5 min, ny = 128 about 2–3 min, ny = 256 about
-23 min dry and 25–30 min fluidised (about 1 h for the whole study, two runs at a time). Each
+23 min dry and 25–30 min fluidised (about 1 h for the whole study, two runs at a time:
+``--jobs 2`` runs them side by side, each in a process of its own, the finest grids first). Each
 finished run is kept in ``OUT/{fluidised,dry}-{ny}/`` and skipped when the script is run again,
 so a study can be extended one grid at a time.
 
@@ -38,6 +40,8 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -65,18 +69,49 @@ def case_for(ny: int, fluidised: bool, threads: int, channel_width, air_supply: 
     )
 
 
+def run_folder(out: Path, ny: int, fluidised: bool, air_supply: str = "injection") -> Path:
+    name = ("fluidised" if fluidised else "dry") + ("-literal" if air_supply == "literal" else "")
+    return out / f"{name}-{ny}"
+
+
+def finished(folder: Path) -> bool:
+    # run_column rewrites a partial summary.json every 0.1 s: a finished run's has the wall time
+    summary = folder / "summary.json"
+    return summary.exists() and "wall_s" in json.loads(summary.read_text())
+
+
 def run_or_load(
-    ny: int, fluidised: bool, out: Path, threads: int, channel_width=None, air_supply: str = "injection"
+    ny: int,
+    fluidised: bool,
+    out: Path,
+    threads: int,
+    channel_width=None,
+    air_supply: str = "injection",
+    progress: bool = True,
 ) -> dict:
     """The run's summary.json, running the case first if it is not there yet."""
-    name = ("fluidised" if fluidised else "dry") + ("-literal" if air_supply == "literal" else "")
-    folder = out / f"{name}-{ny}"
-    summary = folder / "summary.json"
-    # run_column rewrites a partial summary.json every 0.1 s: a finished run's has the wall time
-    if not summary.exists() or "wall_s" not in json.loads(summary.read_text()):
-        print(f"running ny = {ny}, {name} ...", flush=True)
-        run_column(case_for(ny, fluidised, threads, channel_width, air_supply), folder, progress=True)
-    return json.loads(summary.read_text())
+    folder = run_folder(out, ny, fluidised, air_supply)
+    if not finished(folder):
+        print(f"running ny = {ny}, {folder.name} ...", flush=True)
+        run_column(case_for(ny, fluidised, threads, channel_width, air_supply), folder, progress=progress)
+    return json.loads((folder / "summary.json").read_text())
+
+
+def run_side_by_side(runs: list, out: Path, args: argparse.Namespace) -> None:
+    """Runs the study's unfinished runs (ny, fluidised, air_supply) ``args.jobs`` at a time, each
+    in a process of its own, the finest grids first (they take longest). A run's answer does not
+    depend on the process that runs it (docs/howto/threads.md)."""
+    todo = sorted((r for r in runs if not finished(run_folder(out, *r))), key=lambda r: -r[0])
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx) as pool:
+        futures = {
+            r: pool.submit(run_or_load, r[0], r[1], out, args.threads, args.channel_width, r[2], False) for r in todo
+        }
+        for r, fut in futures.items():
+            try:
+                fut.result()
+            except Exception as e:  # the others finish and keep their outputs first
+                raise SystemExit(f"the run in {run_folder(out, *r)} failed: {e}") from e
 
 
 def round_off_spread() -> dict:
@@ -154,7 +189,13 @@ def write_ensemble_statistics(specs: list, path: Path = ENSEMBLE) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ny", type=int, nargs="+", default=[32, 64, 128, 256])
-    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--threads", type=int, default=1, help="threads of each run")
+    ap.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="runs side by side, each in a process of its own (at most the free cores / --threads)",
+    )
     ap.add_argument("--out", default="out/convergence")
     ap.add_argument(
         "--channel-width",
@@ -180,8 +221,15 @@ def main() -> None:
     if args.ensemble:
         write_ensemble_statistics(args.ensemble)
         return
+    if args.jobs < 1:
+        raise SystemExit(f"invalid parameter `--jobs` = {args.jobs}: allowed an integer >= 1")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    states = [("fluidised", True, "injection"), ("dry", False, "injection")]
+    if args.literal_sign:
+        states.append(("fluidised-literal", True, "literal"))
+    if args.jobs > 1:
+        run_side_by_side([(ny, fl, supply) for ny in args.ny for _, fl, supply in states], out, args)
 
     rows = []
     for ny in sorted(args.ny):
@@ -210,9 +258,6 @@ def main() -> None:
     for row in rows:
         print(json.dumps(row))
 
-    states = [("fluidised", True, "injection"), ("dry", False, "injection")]
-    if args.literal_sign:
-        states.append(("fluidised-literal", True, "literal"))
     obs_rows = []
     for state, fl, supply in states:
         summaries = [run_or_load(ny, fl, out, args.threads, args.channel_width, supply) for ny in sorted(args.ny)]

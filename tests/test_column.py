@@ -577,6 +577,22 @@ def test_runout_ensemble_side_by_side_gives_the_same_members(tmp_path):
     assert not (tmp_path / "bad" / "member-0").exists()
 
 
+def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
+    """examples/column_convergence.py --jobs 2 runs the study's runs two at a time, each in a
+    process of its own: the same observables to the last digit as one after the other. A --jobs
+    below 1 is refused with the parameter's name."""
+    script = Path(__file__).resolve().parents[1] / "examples" / "column_convergence.py"
+    args = [sys.executable, str(script), "--ny", "16"]
+    for jobs in (1, 2):
+        subprocess.run(
+            [*args, "--jobs", str(jobs), "--out", str(tmp_path / f"jobs{jobs}")], check=True, capture_output=True
+        )
+    a, b = ((tmp_path / f"jobs{j}" / "observables.csv").read_text() for j in (1, 2))
+    assert a == b and "front_h20mm_m" in a
+    r = subprocess.run([*args, "--jobs", "0", "--out", str(tmp_path / "bad")], capture_output=True, text=True)
+    assert r.returncode != 0 and "`--jobs` = 0" in r.stderr
+
+
 def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):
     """energy.csv, energy.png and summary['energy'] (diagnostics/energy.rs): the shares of
     gravity's work add up to 1 by construction, so the checks are on what could be wrong: the
