@@ -40,14 +40,12 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from granrs import ActiveRegion, SideWalls
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column, run_columns
 from granrs.observables import observable_keys
 
 #: the round-off spread of every observable at ny = 32 (std over the members of
@@ -81,37 +79,27 @@ def finished(folder: Path) -> bool:
 
 
 def run_or_load(
-    ny: int,
-    fluidised: bool,
-    out: Path,
-    threads: int,
-    channel_width=None,
-    air_supply: str = "injection",
-    progress: bool = True,
+    ny: int, fluidised: bool, out: Path, threads: int, channel_width=None, air_supply: str = "injection"
 ) -> dict:
     """The run's summary.json, running the case first if it is not there yet."""
     folder = run_folder(out, ny, fluidised, air_supply)
     if not finished(folder):
         print(f"running ny = {ny}, {folder.name} ...", flush=True)
-        run_column(case_for(ny, fluidised, threads, channel_width, air_supply), folder, progress=progress)
+        run_column(case_for(ny, fluidised, threads, channel_width, air_supply), folder, progress=True)
     return json.loads((folder / "summary.json").read_text())
 
 
 def run_side_by_side(runs: list, out: Path, args: argparse.Namespace) -> None:
-    """Runs the study's unfinished runs (ny, fluidised, air_supply) ``args.jobs`` at a time, each
-    in a process of its own, the finest grids first (they take longest). A run's answer does not
-    depend on the process that runs it (docs/howto/threads.md)."""
+    """Runs the study's unfinished runs (ny, fluidised, air_supply) ``args.jobs`` at a time, the
+    finest grids first (they take longest; :func:`granrs.cases.column.run_columns`)."""
     todo = sorted((r for r in runs if not finished(run_folder(out, *r))), key=lambda r: -r[0])
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx) as pool:
-        futures = {
-            r: pool.submit(run_or_load, r[0], r[1], out, args.threads, args.channel_width, r[2], False) for r in todo
-        }
-        for r, fut in futures.items():
-            try:
-                fut.result()
-            except Exception as e:  # the others finish and keep their outputs first
-                raise SystemExit(f"the run in {run_folder(out, *r)} failed: {e}") from e
+    for ny, fl, supply in todo:
+        print(f"running ny = {ny}, {run_folder(out, ny, fl, supply).name} ...", flush=True)
+    cases = [
+        (case_for(ny, fl, args.threads, args.channel_width, supply), run_folder(out, ny, fl, supply))
+        for ny, fl, supply in todo
+    ]
+    run_columns(cases, jobs=args.jobs)
 
 
 def round_off_spread() -> dict:

@@ -44,14 +44,12 @@ import csv
 import dataclasses
 import json
 import math
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from granrs import ActiveRegion, SideWalls
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_column
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_columns
 from granrs.model import ACTIVE_REGION_SIDES
 
 #: Fronts of the members are said to have diverged once their range exceeds this fraction of
@@ -129,31 +127,13 @@ def compare(summary: dict, other: dict) -> dict:
     return out
 
 
-def run_member(case: ColumnCase, folder: Path) -> None:
-    run_column(case, folder, progress=False)
-
-
 def run_members(base: ColumnCase, args: argparse.Namespace, out: Path, tag: str) -> None:
-    """Runs the members that have no summary.json yet in ``out/member-K``: one after the other,
-    or ``args.jobs`` at a time, each in a process of its own (a member's answer does not depend on
-    which process runs it; docs/howto/threads.md for why side by side pays below ny = 256)."""
+    """Runs the members that have no summary.json yet in ``out/member-K``, ``args.jobs`` at a
+    time (:func:`granrs.cases.column.run_columns`)."""
     todo = [k for k in range(args.members) if not (out / f"member-{k}" / "summary.json").exists()]
-    if args.jobs == 1:
-        for k in todo:
-            print(f"member {k} of {args.members} ({tag}) ...", flush=True)
-            run_member(member_case(base, k, args.eps), out / f"member-{k}")
-        return
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx) as pool:
-        futures = {}
-        for k in todo:
-            print(f"member {k} of {args.members} ({tag}) ...", flush=True)
-            futures[k] = pool.submit(run_member, member_case(base, k, args.eps), out / f"member-{k}")
-        for k, fut in futures.items():
-            try:
-                fut.result()
-            except Exception as e:  # the others finish and keep their outputs first
-                raise SystemExit(f"member {k} ({out / f'member-{k}'}) failed: {e}") from e
+    for k in todo:
+        print(f"member {k} of {args.members} ({tag}) ...", flush=True)
+    run_columns([(member_case(base, k, args.eps), out / f"member-{k}") for k in todo], jobs=args.jobs)
 
 
 def main() -> None:

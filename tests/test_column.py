@@ -26,6 +26,7 @@ from granrs.cases.column import (
     farthest_material,
     front_position,
     run_column,
+    run_columns,
 )
 
 
@@ -591,6 +592,32 @@ def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
     assert a == b and "front_h20mm_m" in a
     r = subprocess.run([*args, "--jobs", "0", "--out", str(tmp_path / "bad")], capture_output=True, text=True)
     assert r.returncode != 0 and "`--jobs` = 0" in r.stderr
+
+
+def test_run_columns_side_by_side_gives_the_same_runs_and_keeps_them_when_one_fails(tmp_path):
+    """run_columns runs several cases one after the other or side by side in processes of their
+    own (docs/howto/threads.md): the same steps, run-out and front curves to the last bit either
+    way. Bad input is refused before any run starts (a `jobs` below 1, a case out of range). A run
+    that fails (here the material reaches the far end of a short channel) is raised again with its
+    folder named, after the run beside it has finished and written its outputs."""
+    cases = [ColumnCase(ny=16, t_end=0.3), ColumnCase(ny=16, fluidised=False, t_end=0.3)]
+    one = run_columns([(c, tmp_path / f"one{k}") for k, c in enumerate(cases)], jobs=1)
+    two = run_columns([(c, tmp_path / f"two{k}") for k, c in enumerate(cases)], jobs=2)
+    for k, (a, b) in enumerate(zip(one, two)):
+        assert (a["steps"], a["runout_m"]) == (b["steps"], b["runout_m"]), k
+        assert (tmp_path / f"one{k}" / "front.csv").read_bytes() == (tmp_path / f"two{k}" / "front.csv").read_bytes()
+    assert one[0]["runout_m"] != one[1]["runout_m"], "two different cases"
+    with pytest.raises(ParameterError, match="`jobs` = 0"):
+        run_columns([(cases[0], tmp_path / "never")], jobs=0)
+    with pytest.raises(ParameterError, match="t_end"):
+        run_columns([(cases[0], tmp_path / "never"), (ColumnCase(ny=16, t_end=-1.0), tmp_path / "bad")], jobs=2)
+    assert not (tmp_path / "never").exists()
+    short = ColumnCase(ny=16, t_end=0.3, length=0.3)
+    with pytest.raises(SimulationError, match="far end") as err:
+        run_columns([(short, tmp_path / "short"), (cases[0], tmp_path / "beside")], jobs=2)
+    assert str(tmp_path / "short") in str(err.value)
+    assert json.loads((tmp_path / "beside" / "summary.json").read_text())["steps"] == one[0]["steps"]
+    assert (tmp_path / "short" / "summary.json").exists(), "the failed run keeps what it wrote"
 
 
 def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):

@@ -38,7 +38,8 @@ mass's travel, and profiles.csv the final volume profile (``hvol_final``).
 
 The package, one file a task: ``case`` (:class:`ColumnCase`, its validation, domain and grid),
 ``build`` (the 2D model from a case), ``run`` (:func:`run_column`: records, rest criterion,
-outputs), ``measures`` (front, deposit quantile, surface profile, basal pore-pressure ratio),
+outputs; :func:`run_columns`: several cases, one after the other or side by side),
+``measures`` (front, deposit quantile, surface profile, basal pore-pressure ratio),
 ``summaries`` (summary.json's derived entries), ``outputs`` (the output files), ``plots``,
 and ``depth_averaged`` (the depth-averaged variant).
 """
@@ -75,7 +76,7 @@ from .plots import (
     plot_front,
     plot_profiles,
 )
-from .run import FLUSH_RECORDS, run_column
+from .run import FLUSH_RECORDS, run_column, run_columns
 from .summaries import (
     ENERGY_COLUMNS,
     _energy_row as _energy_row,
@@ -118,6 +119,7 @@ __all__ = [
     "plot_profiles",
     "run_column",
     "run_column_depth_averaged",
+    "run_columns",
     "surface_profile",
     "write_energy",
     "write_outputs",

@@ -4,7 +4,11 @@ package's docstring describes the criterion and the records)."""
 
 from __future__ import annotations
 
+import builtins
+import multiprocessing
 import time
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any, Optional
 
@@ -253,3 +257,68 @@ def run_column(
         kind = SolverError if isinstance(failure, SolverError) else SimulationError
         raise kind(error + f" (outputs written to {out})") from failure
     return summary
+
+
+def run_columns(runs: list, jobs: int = 1, progress: bool = False) -> list[dict]:
+    """Runs several cases, ``runs`` = [(ColumnCase, output folder), ...], with :func:`run_column`,
+    and returns their summaries in the same order.
+
+    ``jobs`` = 1 runs them one after the other in this process; ``jobs`` > 1 runs that many at a
+    time, each in a process of its own (``spawn``), with the thread count of its case. A run's
+    answer does not depend on the process that runs it, and on a machine with free cores several
+    runs side by side finish sooner than one after the other on more threads each below the
+    paper's grid (docs/howto/threads.md). Every case is validated before any run starts. When a run
+    fails, the runs already started finish and keep their outputs, and the first failure is raised
+    again, its message naming its folder; one after the other, the runs after it do not start.
+    Side by side, the workers import the calling script again: a script that calls it needs
+    ``if __name__ == "__main__":``."""
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ParameterError(f"invalid parameter `jobs` = {jobs!r}: allowed an integer >= 1")
+    runs = [(case, Path(out)) for case, out in runs]
+    for case, _ in runs:
+        case.validate()
+    if jobs == 1 or len(runs) < 2:
+        return [run_column(case, out, progress=progress) for case, out in runs]
+    ctx = multiprocessing.get_context("spawn")
+    summaries: list[dict] = []
+    first_error: Optional[BaseException] = None
+    with ProcessPoolExecutor(max_workers=min(jobs, len(runs)), mp_context=ctx) as pool:
+        futures = [pool.submit(_run_in_child, case, out) for case, out in runs]
+        for (_, out), fut in zip(runs, futures):
+            try:
+                kind, value = fut.result()
+            except BrokenProcessPool as e:
+                raise SimulationError(
+                    f"the process running the case writing into {out} died before it finished: killed "
+                    "for its memory, or the script that calls run_columns with jobs > 1 cannot be "
+                    'imported again by its workers (it needs `if __name__ == "__main__":`)'
+                ) from e
+            if kind == "summary":
+                summaries.append(value)
+                continue
+            first_error = first_error or _rebuilt_error(value, out)
+    if first_error is not None:
+        raise first_error
+    return summaries
+
+
+def _run_in_child(case: ColumnCase, out: Path) -> tuple[str, Any]:
+    """:func:`run_column` in a worker process of :func:`run_columns`: ("summary", the summary),
+    or ("error", (class name, message)) for an exception (the extension's exception classes
+    do not pickle across processes)."""
+    try:
+        return "summary", run_column(case, out, progress=False)
+    except Exception as e:
+        return "error", (type(e).__name__, str(e))
+
+
+def _rebuilt_error(value: tuple[str, str], out: Path) -> Exception:
+    """The exception a worker of :func:`run_columns` reported for the run writing into ``out``:
+    granrs's own classes (SimulationError, SolverError, ParameterError, OutputError) and the
+    built-in ones by name, RuntimeError for any other, with the worker's message and the folder."""
+    name, message = value
+    own = {c.__name__: c for c in (SimulationError, SolverError, ParameterError, OutputError)}
+    cls = own.get(name) or getattr(builtins, name, None)
+    if not (isinstance(cls, type) and issubclass(cls, Exception)):
+        return RuntimeError(f"{name}: {message} (the run writing into {out})")
+    return cls(f"{message} (the run writing into {out})")
