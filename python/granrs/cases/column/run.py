@@ -271,7 +271,8 @@ def run_columns(runs: list, jobs: int = 1, progress: bool = False) -> list[dict]
     fails, the runs already started finish and keep their outputs, and the first failure is raised
     again, its message naming its folder; one after the other, the runs after it do not start.
     Side by side, the workers import the calling script again: a script that calls it needs
-    ``if __name__ == "__main__":``."""
+    ``if __name__ == "__main__":``. ``progress``: each run's progress line, one after the other
+    only."""
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ParameterError(f"invalid parameter `jobs` = {jobs!r}: allowed an integer >= 1")
     runs = [(case, Path(out)) for case, out in runs]
