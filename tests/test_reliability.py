@@ -516,12 +516,15 @@ def test_the_summary_is_written_during_the_run_with_a_truthful_stop_reason(tmp_p
 
 # ---- faults: signals -------------------------------------------------------------------------------
 def _start(tmp_path, *argv):
+    # the run's SIGINT at its default (KeyboardInterrupt), as in a terminal, even when the test
+    # runner was started with SIGINT ignored (in the background by a shell without job control)
     return subprocess.Popen(
         [sys.executable, "-m", "granrs.cli", *map(str, argv)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         cwd=tmp_path,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 

@@ -27,8 +27,10 @@ FORMATS = ("vtk", "netcdf")
 
 @contextlib.contextmanager
 def deferred_interrupt():
-    """Holds SIGINT (KeyboardInterrupt) until the block ends, then raises it (main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
+    """Holds SIGINT (KeyboardInterrupt) until the block ends, then raises it (main thread only).
+    A process that ignores SIGINT (started in the background by a shell without job control, or
+    under ``nohup``-like launchers that set it so) keeps ignoring it inside the block too."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         yield
         return
     received = []
