@@ -515,16 +515,22 @@ def test_the_summary_is_written_during_the_run_with_a_truthful_stop_reason(tmp_p
 
 
 # ---- faults: signals -------------------------------------------------------------------------------
+#: ``python -m granrs.cli ARGS`` with SIGINT raising KeyboardInterrupt, as in a terminal, even when
+#: the test runner was started with SIGINT ignored (in the background by a shell without job
+#: control), which its children inherit
+_CLI_WITH_CTRL_C = (
+    "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "sys.argv = ['granrs'] + sys.argv[1:]; runpy.run_module('granrs.cli', run_name='__main__')"
+)
+
+
 def _start(tmp_path, *argv):
-    # the run's SIGINT at its default (KeyboardInterrupt), as in a terminal, even when the test
-    # runner was started with SIGINT ignored (in the background by a shell without job control)
     return subprocess.Popen(
-        [sys.executable, "-m", "granrs.cli", *map(str, argv)],
+        [sys.executable, "-c", _CLI_WITH_CTRL_C, *map(str, argv)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         cwd=tmp_path,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 
