@@ -39,7 +39,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from reference_runs import run_column  # noqa: E402
 from thread_curve import cpu_model  # noqa: E402
 
-LAYOUTS = ("1 run x 1 thread", "1 run x 2 threads", "2 runs x 1 thread")
+#: layout → (threads per run, runs)
+LAYOUTS = {"1 run x 1 thread": (1, 1), "1 run x 2 threads": (2, 1), "2 runs x 1 thread": (1, 2)}
 
 
 def options(ny: int, threads: int) -> list[str]:
@@ -58,7 +59,7 @@ def options(ny: int, threads: int) -> list[str]:
 
 def run_layout(layout: str, ny: int, tmp: Path) -> dict:
     """The layout's wall time (until its last run has finished) and its runs' summaries."""
-    threads, count = {"1 run x 1 thread": (1, 1), "1 run x 2 threads": (2, 1), "2 runs x 1 thread": (1, 2)}[layout]
+    threads, count = LAYOUTS[layout]
     outs = [tmp / f"ny{ny}-{layout.replace(' ', '')}-{k}-{time.monotonic_ns()}" for k in range(count)]
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=count) as pool:
@@ -81,7 +82,8 @@ def main() -> None:
             walls = {lay: [] for lay in LAYOUTS}
             answers = set()
             for k in range(args.rounds):
-                order = LAYOUTS[k % 3 :] + LAYOUTS[: k % 3]
+                names = list(LAYOUTS)
+                order = names[k % 3 :] + names[: k % 3]
                 for lay in order:
                     r = run_layout(lay, ny, Path(tmp))
                     for run in r["runs"]:
@@ -111,7 +113,7 @@ def main() -> None:
     for r in rows:
         m = r["median_wall_s"]
         print(
-            f"| {r['ny']} | {r['steps']} | {m[LAYOUTS[0]]:.1f} s | {m[LAYOUTS[1]]:.1f} s | {m[LAYOUTS[2]]:.1f} s | "
+            f"| {r['ny']} | {r['steps']} | " + " | ".join(f"{m[lay]:.1f} s" for lay in LAYOUTS) + " | "
             f"{r['speedup_one_run_two_threads']:.2f} | {r['throughput_two_runs_side_by_side']:.2f} |"
         )
     if args.out:

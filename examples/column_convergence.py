@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion, SideWalls
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_column, run_columns
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_columns
 from granrs.observables import observable_keys
 
 #: the round-off spread of every observable at ny = 32 (std over the members of
@@ -78,28 +78,25 @@ def finished(folder: Path) -> bool:
     return summary.exists() and "wall_s" in json.loads(summary.read_text())
 
 
-def run_or_load(
-    ny: int, fluidised: bool, out: Path, threads: int, channel_width=None, air_supply: str = "injection"
-) -> dict:
-    """The run's summary.json, running the case first if it is not there yet."""
-    folder = run_folder(out, ny, fluidised, air_supply)
-    if not finished(folder):
-        print(f"running ny = {ny}, {folder.name} ...", flush=True)
-        run_column(case_for(ny, fluidised, threads, channel_width, air_supply), folder, progress=True)
-    return json.loads((folder / "summary.json").read_text())
+def load(out: Path, ny: int, fluidised: bool, air_supply: str = "injection") -> dict:
+    """The finished run's summary.json."""
+    return json.loads((run_folder(out, ny, fluidised, air_supply) / "summary.json").read_text())
 
 
-def run_side_by_side(runs: list, out: Path, args: argparse.Namespace) -> None:
-    """Runs the study's unfinished runs (ny, fluidised, air_supply) ``args.jobs`` at a time, the
-    finest grids first (they take longest; :func:`granrs.cases.column.run_columns`)."""
-    todo = sorted((r for r in runs if not finished(run_folder(out, *r))), key=lambda r: -r[0])
+def run_missing(runs: list, out: Path, args: argparse.Namespace) -> None:
+    """Runs the study's unfinished runs (ny, fluidised, air_supply) with
+    :func:`granrs.cases.column.run_columns`: one after the other in the order given, with their
+    progress lines, or ``args.jobs`` at a time, the finest grids first (they take longest)."""
+    todo = [r for r in runs if not finished(run_folder(out, *r))]
+    if args.jobs > 1:
+        todo.sort(key=lambda r: -r[0])
     for ny, fl, supply in todo:
         print(f"running ny = {ny}, {run_folder(out, ny, fl, supply).name} ...", flush=True)
     cases = [
         (case_for(ny, fl, args.threads, args.channel_width, supply), run_folder(out, ny, fl, supply))
         for ny, fl, supply in todo
     ]
-    run_columns(cases, jobs=args.jobs)
+    run_columns(cases, jobs=args.jobs, progress=args.jobs == 1)
 
 
 def round_off_spread() -> dict:
@@ -216,12 +213,11 @@ def main() -> None:
     states = [("fluidised", True, "injection"), ("dry", False, "injection")]
     if args.literal_sign:
         states.append(("fluidised-literal", True, "literal"))
-    if args.jobs > 1:
-        run_side_by_side([(ny, fl, supply) for ny in args.ny for _, fl, supply in states], out, args)
+    run_missing([(ny, fl, supply) for _, fl, supply in states for ny in sorted(args.ny)], out, args)
 
     rows = []
     for ny in sorted(args.ny):
-        wet, dry = (run_or_load(ny, fl, out, args.threads, args.channel_width) for fl in (True, False))
+        wet, dry = (load(out, ny, fl) for fl in (True, False))
         rows.append(
             {
                 "ny": ny,
@@ -248,7 +244,7 @@ def main() -> None:
 
     obs_rows = []
     for state, fl, supply in states:
-        summaries = [run_or_load(ny, fl, out, args.threads, args.channel_width, supply) for ny in sorted(args.ny)]
+        summaries = [load(out, ny, fl, supply) for ny in sorted(args.ny)]
         obs_rows += convergence_rows(state, summaries)
     keys = (
         ["state", "observable"]

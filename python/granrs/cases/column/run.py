@@ -282,7 +282,7 @@ def run_columns(runs: list, jobs: int = 1, progress: bool = False) -> list[dict]
         return [run_column(case, out, progress=progress) for case, out in runs]
     ctx = multiprocessing.get_context("spawn")
     summaries: list[dict] = []
-    first_error: Optional[BaseException] = None
+    first_error: Optional[Exception] = None
     with ProcessPoolExecutor(max_workers=min(jobs, len(runs)), mp_context=ctx) as pool:
         futures = [pool.submit(_run_in_child, case, out) for case, out in runs]
         for (_, out), fut in zip(runs, futures):
@@ -316,10 +316,13 @@ def _run_in_child(case: ColumnCase, out: Path) -> tuple[str, Any]:
 def _rebuilt_error(value: tuple[str, str], out: Path) -> Exception:
     """The exception a worker of :func:`run_columns` reported for the run writing into ``out``:
     granrs's own classes (SimulationError, SolverError, ParameterError, OutputError) and the
-    built-in ones by name, RuntimeError for any other, with the worker's message and the folder."""
+    built-in ones by name, RuntimeError for any other, with the worker's message, which names the
+    folder."""
     name, message = value
+    if str(out) not in message:  # run_column's own errors name the folder already
+        message += f" (the run writing into {out})"
     own = {c.__name__: c for c in (SimulationError, SolverError, ParameterError, OutputError)}
     cls = own.get(name) or getattr(builtins, name, None)
     if not (isinstance(cls, type) and issubclass(cls, Exception)):
-        return RuntimeError(f"{name}: {message} (the run writing into {out})")
-    return cls(f"{message} (the run writing into {out})")
+        return RuntimeError(f"{name}: {message}")
+    return cls(message)

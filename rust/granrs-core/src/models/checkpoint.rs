@@ -12,11 +12,11 @@
 //! Fields are stored with their ghost layers, exactly as held.
 
 use super::two_phase::TwoPhaseModel;
+use crate::error::{Error, Result};
+use crate::grid::{StateArrays, StateEntry};
 
 /// The checkpoint entry of the active window's size (n_x^W, n_y^W); (0, 0) before the first step.
 const WINDOW_ENTRY: &str = "active_window";
-use crate::error::{Error, Result};
-use crate::grid::{StateArrays, StateEntry};
 
 impl TwoPhaseModel {
     /// The model's state as named flat arrays (see the module docs).
