@@ -15,7 +15,8 @@ ny = 32 about 10 s per run, ny = 64 about 1–2.5 min, ny = 128 about 2–3 min,
 23 min dry and 25–30 min fluidised (about 1 h for the whole study, two runs at a time:
 ``--jobs 2`` runs them side by side, each in a process of its own, the finest grids first). Each
 finished run is kept in ``OUT/{fluidised,dry}-{ny}/`` and skipped when the script is run again,
-so a study can be extended one grid at a time.
+so a study can be extended one grid at a time; a run that was killed, interrupted or failed is
+run again (``granrs.cases.column.run_finished``).
 
 What it writes into ``OUT``:
 
@@ -45,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion, SideWalls
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_columns
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_columns, run_finished
 from granrs.observables import observable_keys
 
 #: the round-off spread of every observable at ny = 32 (std over the members of
@@ -72,12 +73,6 @@ def run_folder(out: Path, ny: int, fluidised: bool, air_supply: str = "injection
     return out / f"{name}-{ny}"
 
 
-def finished(folder: Path) -> bool:
-    # run_column rewrites a partial summary.json every 0.1 s: a finished run's has the wall time
-    summary = folder / "summary.json"
-    return summary.exists() and "wall_s" in json.loads(summary.read_text())
-
-
 def load(out: Path, ny: int, fluidised: bool, air_supply: str = "injection") -> dict:
     """The finished run's summary.json."""
     return json.loads((run_folder(out, ny, fluidised, air_supply) / "summary.json").read_text())
@@ -87,7 +82,7 @@ def run_missing(runs: list, out: Path, args: argparse.Namespace) -> None:
     """Runs the study's unfinished runs (ny, fluidised, air_supply) with
     :func:`granrs.cases.column.run_columns`: one after the other in the order given, with their
     progress lines, or ``args.jobs`` at a time, the finest grids first (they take longest)."""
-    todo = [r for r in runs if not finished(run_folder(out, *r))]
+    todo = [r for r in runs if not run_finished(run_folder(out, *r))]
     if args.jobs > 1:
         todo.sort(key=lambda r: -r[0])
     for ny, fl, supply in todo:

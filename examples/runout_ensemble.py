@@ -18,7 +18,8 @@ an active region, a different multigrid hierarchy) become visible in the front? 
 ("Predictability of the late run-out") reports what it measured; the spread it prints is the
 floor below which two runs cannot be said to disagree.
 
-What it writes into ``OUT`` (each member in ``OUT/member-K/``, reused when run again):
+What it writes into ``OUT`` (each member in ``OUT/member-K/``, reused when run
+again if it finished; one that was killed, interrupted or failed is run again):
 
 * ``ensemble.csv``: per member the perturbation, run-out, largest front, the 99 % area quantile
   of the final deposit (``runout_q99_m``), front at 0.5 / 1.0 / 1.5 / 2.0 s, steps and wall time;
@@ -49,7 +50,14 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion, SideWalls
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, deposit_quantile, run_columns
+from granrs.cases.column import (
+    PAPER_RUNOUT_EXP,
+    PAPER_RUNOUT_SIM,
+    ColumnCase,
+    deposit_quantile,
+    run_columns,
+    run_finished,
+)
 from granrs.model import ACTIVE_REGION_SIDES
 
 #: Fronts of the members are said to have diverged once their range exceeds this fraction of
@@ -128,9 +136,10 @@ def compare(summary: dict, other: dict) -> dict:
 
 
 def run_members(base: ColumnCase, args: argparse.Namespace, out: Path, tag: str) -> None:
-    """Runs the members that have no summary.json yet in ``out/member-K``, ``args.jobs`` at a
-    time (:func:`granrs.cases.column.run_columns`)."""
-    todo = [k for k in range(args.members) if not (out / f"member-{k}" / "summary.json").exists()]
+    """Runs the members whose folder ``out/member-K`` holds no finished run
+    (:func:`granrs.cases.column.run_finished`: a member that was killed, interrupted or failed is
+    run again), ``args.jobs`` at a time (:func:`granrs.cases.column.run_columns`)."""
+    todo = [k for k in range(args.members) if not run_finished(out / f"member-{k}")]
     for k in todo:
         print(f"member {k} of {args.members} ({tag}) ...", flush=True)
     run_columns([(member_case(base, k, args.eps), out / f"member-{k}") for k in todo], jobs=args.jobs)

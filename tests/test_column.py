@@ -27,6 +27,7 @@ from granrs.cases.column import (
     front_position,
     run_column,
     run_columns,
+    run_finished,
 )
 
 
@@ -576,6 +577,13 @@ def test_runout_ensemble_side_by_side_gives_the_same_members(tmp_path):
     r = subprocess.run([*args, "--jobs", "0", "--out", str(tmp_path / "bad")], capture_output=True, text=True)
     assert r.returncode != 0 and "`--jobs` = 0" in r.stderr
     assert not (tmp_path / "bad" / "member-0").exists()
+    # run again, the script redoes a member whose run was interrupted and keeps the finished ones
+    done, cut = tmp_path / "jobs1" / "member-0", tmp_path / "jobs1" / "member-1"
+    kept, front = (done / "summary.json").read_bytes(), (cut / "front.csv").read_bytes()
+    _mark_interrupted(cut)
+    subprocess.run([*args, "--out", str(tmp_path / "jobs1")], check=True, capture_output=True)
+    assert (done / "summary.json").read_bytes() == kept
+    assert run_finished(cut) and (cut / "front.csv").read_bytes() == front
 
 
 def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
@@ -592,6 +600,45 @@ def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
     assert a == b and "front_h20mm_m" in a
     r = subprocess.run([*args, "--jobs", "0", "--out", str(tmp_path / "bad")], capture_output=True, text=True)
     assert r.returncode != 0 and "`--jobs` = 0" in r.stderr
+    # run again, the study redoes a run that failed and keeps the finished one
+    done, cut = tmp_path / "jobs1" / "fluidised-16", tmp_path / "jobs1" / "dry-16"
+    kept = (done / "summary.json").read_bytes()
+    _mark_interrupted(cut, "error: the pressure solve diverged")
+    subprocess.run([*args, "--out", str(tmp_path / "jobs1")], check=True, capture_output=True)
+    assert (done / "summary.json").read_bytes() == kept
+    assert run_finished(cut) and (tmp_path / "jobs1" / "observables.csv").read_text() == a
+
+
+def _mark_interrupted(folder: Path, reason: str = "interrupted: KeyboardInterrupt") -> None:
+    """Gives a finished run's summary.json the stop_reason that run_column writes for a run
+    stopped by Ctrl-C (or by ``reason``)."""
+    summary = json.loads((folder / "summary.json").read_text())
+    (folder / "summary.json").write_text(json.dumps(summary | {"stop_reason": reason}))
+    assert not run_finished(folder)
+
+
+def test_run_finished_tells_a_run_that_ended_from_one_that_did_not(tmp_path):
+    """run_finished is what the study scripts resume by: a folder whose summary.json says the run
+    reached t_end or came to rest is finished; one with no summary, an unreadable one, or the
+    summary of a run killed (written during the run), interrupted or failed is not."""
+    cases = {
+        "t_end": ("stop_time", True),
+        "rest": ("rest", True),
+        "killed": ("incomplete: written during the run at t = 0.4 s (step 80); ...", False),
+        "ctrl-c": ("interrupted: KeyboardInterrupt", False),
+        "failed": ("error: the material reached the far end of the channel", False),
+        "no-reason": (None, False),
+    }
+    for name, (reason, finished) in cases.items():
+        (tmp_path / name).mkdir()
+        summary = {"runout_m": 1.0} if reason is None else {"runout_m": 1.0, "stop_reason": reason}
+        (tmp_path / name / "summary.json").write_text(json.dumps(summary))
+        assert run_finished(tmp_path / name) is finished, name
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "torn").mkdir()
+    (tmp_path / "torn" / "summary.json").write_text('{"runout_m": 1.0, "stop_')
+    for name in ("empty", "torn", "absent"):
+        assert not run_finished(tmp_path / name), name
 
 
 def test_run_columns_side_by_side_gives_the_same_runs_and_keeps_them_when_one_fails(tmp_path):
@@ -618,6 +665,7 @@ def test_run_columns_side_by_side_gives_the_same_runs_and_keeps_them_when_one_fa
     assert str(tmp_path / "short") in str(err.value)
     assert json.loads((tmp_path / "beside" / "summary.json").read_text())["steps"] == one[0]["steps"]
     assert (tmp_path / "short" / "summary.json").exists(), "the failed run keeps what it wrote"
+    assert run_finished(tmp_path / "beside") and not run_finished(tmp_path / "short")
 
 
 def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):

@@ -38,7 +38,8 @@ mass's travel, and profiles.csv the final volume profile (``hvol_final``).
 
 The package, one file a task: ``case`` (:class:`ColumnCase`, its validation, domain and grid),
 ``build`` (the 2D model from a case), ``run`` (:func:`run_column`: records, rest criterion,
-outputs; :func:`run_columns`: several cases, one after the other or side by side),
+outputs; :func:`run_columns`: several cases, one after the other or side by side;
+:func:`run_finished`: whether a folder holds a run that ended),
 ``measures`` (front, deposit quantile, surface profile, basal pore-pressure ratio),
 ``summaries`` (summary.json's derived entries), ``outputs`` (the output files), ``plots``,
 and ``depth_averaged`` (the depth-averaged variant).
@@ -76,7 +77,7 @@ from .plots import (
     plot_front,
     plot_profiles,
 )
-from .run import FLUSH_RECORDS, run_column, run_columns
+from .run import FLUSH_RECORDS, UNFINISHED_REASONS, run_column, run_columns, run_finished
 from .summaries import (
     ENERGY_COLUMNS,
     _energy_row as _energy_row,
@@ -120,6 +121,8 @@ __all__ = [
     "run_column",
     "run_column_depth_averaged",
     "run_columns",
+    "run_finished",
+    "UNFINISHED_REASONS",
     "surface_profile",
     "write_energy",
     "write_outputs",

@@ -5,6 +5,7 @@ package's docstring describes the criterion and the records)."""
 from __future__ import annotations
 
 import builtins
+import json
 import multiprocessing
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -257,6 +258,26 @@ def run_column(
         kind = SolverError if isinstance(failure, SolverError) else SimulationError
         raise kind(error + f" (outputs written to {out})") from failure
     return summary
+
+
+#: How summary.json's ``stop_reason`` begins for a run that did not end: killed or still running
+#: (``incomplete: ...``, the summary written during the run), stopped by Ctrl-C
+#: (``interrupted: ...``) or by a failure (``error: ...``).
+UNFINISHED_REASONS = ("incomplete", "interrupted", "error")
+
+
+def run_finished(out) -> bool:
+    """Whether the folder ``out`` holds a column run that ended: its summary.json can be read and
+    its ``stop_reason`` is not one of :data:`UNFINISHED_REASONS` (a run that reached ``t_end`` or
+    came to rest). A folder without summary.json, with one that cannot be read, or with the
+    summary of a run that was killed, interrupted or failed is not finished: a study that
+    resumes runs it again."""
+    try:
+        summary = json.loads((Path(out) / "summary.json").read_text())
+    except (OSError, ValueError):
+        return False
+    reason = summary.get("stop_reason") if isinstance(summary, dict) else None
+    return isinstance(reason, str) and not reason.startswith(UNFINISHED_REASONS)
 
 
 def run_columns(runs: list, jobs: int = 1, progress: bool = False) -> list[dict]:
