@@ -252,14 +252,14 @@ pub fn with_active_workers<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 const SPIN_PAUSES: usize = 32;
 
 /// Builds a rayon pool with exactly `threads` threads.
-pub fn build_pool(threads: usize) -> crate::Result<rayon::ThreadPool> {
+pub fn build_pool(threads: usize) -> crate::error::Result<rayon::ThreadPool> {
     if threads == 0 || threads > 1024 {
-        return Err(crate::Error::param("threads", threads, "an integer in [1, 1024]"));
+        return Err(crate::error::Error::param("threads", threads, "an integer in [1, 1024]"));
     }
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| crate::Error::param("threads", threads, &format!("a thread count the OS accepts ({e})")))
+        .map_err(|e| crate::error::Error::param("threads", threads, &format!("a thread count the OS accepts ({e})")))
 }
 
 #[cfg(test)]

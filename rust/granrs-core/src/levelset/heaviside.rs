@@ -131,7 +131,7 @@ impl TwoPhaseProperties {
 /// scheme: ρⁿ⁺¹ = ρ(Φⁿ⁺¹), …). Ghosts of `out` are left untouched.
 pub fn map_centre_field(phi: &Field, out: &mut Field, exec: Exec, f: impl Fn(f64) -> f64 + Sync + Send) -> Result<()> {
     if phi.loc != Location::Centre || out.loc != Location::Centre || phi.data.dim() != out.data.dim() {
-        return Err(crate::Error::Shape {
+        return Err(crate::error::Error::Shape {
             name: "out (same shape as the cell-centre field phi)".into(),
             got: vec![out.ny, out.nx],
             expected: vec![phi.ny, phi.nx],

@@ -339,7 +339,7 @@ impl RheologyState {
                 // viscous operator there (see `MomentumSolver::diagonal`).
                 let info = match solve(u, v, &self.rhs_u, &self.rhs_v) {
                     Ok(info) => info,
-                    Err(crate::Error::NotConverged { iterations, residual, tolerance, .. }) if residual <= (1e3 * tolerance).max(1e-7) => {
+                    Err(crate::error::Error::NotConverged { iterations, residual, tolerance, .. }) if residual <= (1e3 * tolerance).max(1e-7) => {
                         fill_velocity_ghosts(u, v, bc, grid, BcMode::Full);
                         SolveInfo { iterations, residual, initial_residual: 0.0, rhs_mean_removed: 0.0 }
                     }
@@ -434,7 +434,7 @@ impl RheologyState {
     }
 
     /// The non-convergence error after `iterations`, naming where the stresses moved most.
-    fn picard_failure(&mut self, rc: &RheologyConfig, inc: f64, iterations: usize, step: u64, time: f64) -> crate::Error {
+    fn picard_failure(&mut self, rc: &RheologyConfig, inc: f64, iterations: usize, step: u64, time: f64) -> crate::error::Error {
         self.plastic.locate = false;
         let plastic =
             self.plastic.last_largest.filter(|_| self.projection).map(|(increment, location, i, j)| IncrementSite::Plastic { location, i, j, increment });
