@@ -13,6 +13,10 @@ variants and records, every 0.01 s:
   (Φ > 2ε, ε = 1.5 h the Heaviside half-width: beyond the smoothed band), the **band on the
   granular side** (0 < Φ ≤ 2ε), and the **air side of the band** (−ε < Φ ≤ 0, where H_ε still
   gives the cell grains);
+* the largest speed over the **deposit** (the granular cells 8-connected to the largest
+  connected region of them, ``deposit_mask``) and over the **detached pieces** (the other
+  granular cells: specks of Φ > 0 in the air, a piece of the tip cut off by a gap), and how many
+  cells the pieces hold;
 * the largest trial norm |Σ + rD + θ(Σⁿ − Σ)| over the bulk (≤ 1: rigid);
 * the dense-phase area, and the energy budget's plastic work and its negative part.
 
@@ -31,7 +35,12 @@ dense phase's velocity extended along the normal from Φ = d h, d = 0, 1.5, 3:
 ``Variants(interface_velocity="extended", extension_depth=d)``), ``extended-at-rest`` (the
 extension only where the dense phase moves slower than 5 mm/s, the column's rest speed:
 ``extension_rest_speed=0.005``), each also with ``no-mass-correction`` and with 20 proximal
-restarts and Anderson mixing (``proximal-20-extended...``). The runs do not stop at rest (the records go to t_end); the column's
+restarts and Anderson mixing (``proximal-20-extended...``);
+``density-support-extended-at-rest-proximal-20`` (the extension where the grains rest and the
+yield stress at full strength over the band, with the restarts), also without the correction and
+with redistancing every step; ``pieces-4`` (the regions of Φ > 0 of at most 4 cells turned to
+air after each step's transport, ``Variants(piece_removal_cells=4)``), alone, with the restarts,
+and with the restarts and redistancing every step, with and without the correction. The runs do not stop at rest (the records go to t_end); the column's
 rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
 same, to say when the run would have stopped and what changes after that.
 
@@ -43,7 +52,12 @@ give-back of the plastic work after 1.5 s, gravity's work and the potential ener
 after 1.5 s and their difference over the run, the deposit profile's change from 2.5 s to t_end,
 the observables of the final volume profile (``granrs.observables.observe_profile``);
 ``arrest_time_s`` under the rest criterion and, after it, the largest granular speed, the
-front's retreat, the change of the surface profile and of the volume profile to t_end, and
+front's retreat, the change of the surface profile and of the volume profile to t_end, the
+largest speeds of the deposit and of the detached pieces and the most cells the pieces held;
+``deposit_arrest_time_s``, the same criterion on the deposit alone, and the deposit's largest
+speed after it; ``pieces_removed_cells``, the cells of detached pieces turned to air over the
+run (``piece_removal_cells``; per record in the CSV's ``pieces_removed``), and when the first
+were; and
 ``eroded_after_arrest``: the columns whose volume profile fell by more than 1 mm, split into
 those with no granular cell on the lowest row at the arrest (a film thinner than half a cell)
 and the others, with where they lie, the area they lost and the speed of their lowest-row cells
@@ -75,6 +89,10 @@ EXTENDED = {"interface_velocity": "extended"}
 #: the extension only where the dense phase is at rest (the column's rest speed, 5 mm/s): the
 #: one-fluid velocity where it flows
 AT_REST = {**EXTENDED, "extension_rest_speed": 0.005}
+#: pieces of Φ > 0 of at most 4 cells turned to air after each step's transport
+PIECES = {"piece_removal_cells": 4}
+#: the yield stress at full strength over the band, with the 20 restarts of RESTARTS
+DENSITY_SUPPORT_20 = {"case": {"interface_yield": "density-support", "proximal_restarts": 20}}
 
 VARIANTS = {
     "default": {},
@@ -94,7 +112,7 @@ VARIANTS = {
     "theta-0.3-anderson-5": {"case": {"theta": 0.3}, "anderson_depth": 5},
     "density-support-proximal-20": {
         **RESTARTS,
-        "case": {"interface_yield": "density-support", "proximal_restarts": 20},
+        **DENSITY_SUPPORT_20,
     },
     "no-mass-correction-proximal-20": {**RESTARTS, **NO_CORRECTION},
     # redistancing every step, every 50 steps or never (the column: every 10)
@@ -113,12 +131,12 @@ VARIANTS = {
     "density-support-redistance-1-proximal-20": {
         **RESTARTS,
         "redistance_every": 1,
-        "case": {"interface_yield": "density-support", "proximal_restarts": 20},
+        **DENSITY_SUPPORT_20,
     },
     "density-support-no-mass-correction-proximal-20": {
         **RESTARTS,
         **NO_CORRECTION,
-        "case": {"interface_yield": "density-support", "proximal_restarts": 20},
+        **DENSITY_SUPPORT_20,
     },
     # Φ transported with the dense phase's velocity extended along the normal from Φ = d h
     # (interface_velocity = "extended", extension_depth = d), alone and with 20 restarts
@@ -135,7 +153,62 @@ VARIANTS = {
     "extended-at-rest-no-mass-correction": {**AT_REST, **NO_CORRECTION},
     "proximal-20-extended-at-rest": {**RESTARTS, **AT_REST},
     "proximal-20-extended-at-rest-no-mass-correction": {**RESTARTS, **AT_REST, **NO_CORRECTION},
+    # small detached pieces of the dense phase turned to air
+    "pieces-4": PIECES,
+    "proximal-20-pieces-4": {**RESTARTS, **PIECES},
+    "redistance-1-proximal-20-pieces-4": {**RESTARTS, **PIECES, "redistance_every": 1},
+    "no-mass-correction-redistance-1-proximal-20-pieces-4": {
+        **RESTARTS,
+        **PIECES,
+        **NO_CORRECTION,
+        "redistance_every": 1,
+    },
+    # the yield stress at full strength over the band and the extension where the grains rest
+    "density-support-extended-at-rest-proximal-20": {**RESTARTS, **AT_REST, **DENSITY_SUPPORT_20},
+    "density-support-extended-at-rest-no-mass-correction-proximal-20": {
+        **RESTARTS,
+        **AT_REST,
+        **DENSITY_SUPPORT_20,
+        **NO_CORRECTION,
+    },
+    "density-support-extended-at-rest-redistance-1-proximal-20": {
+        **RESTARTS,
+        **AT_REST,
+        **DENSITY_SUPPORT_20,
+        "redistance_every": 1,
+    },
+    "density-support-extended-at-rest-no-mass-correction-redistance-1-proximal-20": {
+        **RESTARTS,
+        **AT_REST,
+        **DENSITY_SUPPORT_20,
+        **NO_CORRECTION,
+        "redistance_every": 1,
+    },
 }
+
+
+def deposit_mask(granular: np.ndarray) -> np.ndarray:
+    """The deposit: the granular cells (Φ > 0) 8-connected to the largest 8-connected region of
+    them. The other granular cells are detached pieces (specks of Φ > 0 in the air, a piece of
+    the tip cut off by a gap)."""
+    ny, nx = granular.shape
+    label = np.zeros(granular.shape, dtype=np.int32)
+    sizes = [0]
+    for start in zip(*np.nonzero(granular)):
+        if label[start]:
+            continue
+        sizes.append(0)
+        label[start] = len(sizes) - 1
+        stack = [start]
+        while stack:
+            j, i = stack.pop()
+            sizes[-1] += 1
+            for jj in range(max(j - 1, 0), min(j + 2, ny)):
+                for ii in range(max(i - 1, 0), min(i + 2, nx)):
+                    if granular[jj, ii] and not label[jj, ii]:
+                        label[jj, ii] = label[start]
+                        stack.append((jj, ii))
+    return label == int(np.argmax(sizes)) if len(sizes) > 1 else granular
 
 
 def build(case: ColumnCase, numerics: dict):
@@ -157,15 +230,18 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     # the column's rest criterion (granrs.cases.column), evaluated without stopping: the start of
     # the first quiet window of rest_duration, and the profile then
     rest_since = arrest = None
+    # the same criterion on the deposit alone (deposit_mask: without the detached pieces)
+    deposit_since = deposit_arrest = None
     arrest_profile = None
     while m.time < t_end - 1e-12:
         k += 1
-        m.advance(min(t_end, k * every))
+        log = m.advance(min(t_end, k * every))
         phi = m.phi
         uc, vc = m.centre_velocity()
         speed = np.hypot(uc, vc)
         groups = {"bulk": phi > 2 * eps, "band": (phi > 0) & (phi <= 2 * eps), "air_band": (phi > -eps) & (phi <= 0)}
         row = {"t": m.time, "front": front_position(phi, g.dx) - lc, "area": m.dense_area()}
+        row["pieces_removed"] = int(sum(log["pieces_removed"]))  # cells turned to air since the last record
         # fronts of the volume profile, which do not jump when a film thinner than h/2 on the
         # lowest row changes sign: where it is half a cell thick, and the 99 % area quantile
         hvol = volume_profile(phi, g.dy)
@@ -175,6 +251,12 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         for key, mask in groups.items():
             row[f"speed_{key}"] = float(speed[mask].max()) if mask.any() else 0.0
         granular = phi > 0
+        deposit = deposit_mask(granular)
+        detached = granular & ~deposit
+        row["speed_deposit"] = float(speed[deposit].max()) if deposit.any() else 0.0
+        row["speed_detached"] = float(speed[detached].max()) if detached.any() else 0.0
+        row["detached_cells"] = int(detached.sum())
+        row["detached_phi_max_over_h"] = float(phi[detached].max() / g.dy) if detached.any() else 0.0
         j, i = np.unravel_index(np.argmax(np.where(granular, speed, -1.0)), speed.shape)
         row["speed_granular"] = float(speed[j, i])
         row["where_x"], row["where_y"], row["where_phi_over_h"] = (
@@ -189,6 +271,13 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         row["gravity_work"] = b["gravity_work"]
         row["potential"] = b["potential"]
         rows.append(row)
+        if deposit_arrest is None:
+            if m.time > 0.1 and row["speed_deposit"] < case.rest_speed:
+                deposit_since = m.time if deposit_since is None else deposit_since
+                if m.time - deposit_since >= case.rest_duration - 1e-9:
+                    deposit_arrest = deposit_since
+            else:
+                deposit_since = None
         if arrest is None:
             if m.time > 0.1 and row["speed_granular"] < case.rest_speed:
                 rest_since = m.time if rest_since is None else rest_since
@@ -246,6 +335,14 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         f = np.array([r[key] for r in rows])
         out[f"retreat_{key}_cells"] = float((f.max() - f[-1]) / g.dx)
     out["arrest_time_s"] = arrest
+    out["pieces_removed_cells"] = int(sum(r["pieces_removed"] for r in rows))
+    out["pieces_removed_first_time_s"] = next((r["t"] for r in rows if r["pieces_removed"]), None)
+    out["deposit_arrest_time_s"] = deposit_arrest
+    if deposit_arrest is not None:
+        after = t > deposit_arrest + case.rest_duration
+        out["deposit_speed_after_deposit_arrest_max"] = float(
+            max((r["speed_deposit"] for r, is_after in zip(rows, after) if is_after), default=0.0)
+        )
     if arrest is not None:
         after = t > arrest + case.rest_duration
         out["profile_change_after_arrest_m"] = float(np.max(np.abs(surface_profile(m.phi, g.dy) - arrest_profile[0])))
@@ -254,6 +351,14 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         )
         out["granular_speed_after_arrest_max"] = float(
             max((r["speed_granular"] for r, is_after in zip(rows, after) if is_after), default=0.0)
+        )
+        # the fastest granular cells after the arrest: in the deposit, or in detached pieces
+        for key in ("deposit", "detached"):
+            out[f"{key}_speed_after_arrest_max"] = float(
+                max((r[f"speed_{key}"] for r, is_after in zip(rows, after) if is_after), default=0.0)
+            )
+        out["detached_cells_after_arrest_max"] = int(
+            max((r["detached_cells"] for r, is_after in zip(rows, after) if is_after), default=0)
         )
         out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
         # the columns whose volume profile fell by more than 1 mm after the arrest, in two groups:

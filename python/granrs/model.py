@@ -490,7 +490,9 @@ class Model:
     def advance(self, t_end: Optional[float] = None, max_steps: Optional[int] = None) -> dict:
         """Steps until ``t_end`` (landing on it exactly) or ``max_steps``; returns per-step
         diagnostics as lists (time, dt, max_speed, cfl, divergence, pressure_iterations,
-        viscous_iterations, picard_iterations, picard_increment)."""
+        viscous_iterations, pore_iterations, picard_iterations, picard_increment,
+        picard_r_halvings, step_retries, pieces_removed: the cells of the detached pieces of
+        the dense phase turned to air, ``piece_removal_cells``)."""
         if t_end is None and max_steps is None:
             raise ParameterError("invalid parameter `t_end/max_steps`: allowed at least one of them")
         if t_end is not None and (

@@ -85,6 +85,9 @@ fn the_estimate_matches_the_bytes_a_model_takes() {
     let mut anderson = dry.clone();
     anderson.rheology.anderson_depth = 3;
     cases.push(("dry, Anderson mixing of depth 3", anderson));
+    let mut pieces = dry.clone();
+    pieces.redistance.piece_removal_cells = 4;
+    cases.push(("dry, detached pieces removed", pieces));
     let mut granular = dry.clone();
     granular.free_surface = true;
     cases.push(("granular-only", granular));

@@ -61,7 +61,7 @@ def build_depth_averaged(case: ColumnCase):
 
 def run_column_depth_averaged(
     case: ColumnCase,
-    out: Path,
+    out: str | Path,
     progress: bool = True,
     compare_with: Optional[Path] = None,
     extra_summary: Optional[dict] = None,
@@ -69,6 +69,7 @@ def run_column_depth_averaged(
 ) -> dict:
     """The column with the depth-averaged model: same records, rest criterion, outputs and plots
     as :func:`run_column` (front read at :func:`depth_averaged_front_depth`)."""
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m = build_depth_averaged(case)
     lc, hc = case.width, case.column_height

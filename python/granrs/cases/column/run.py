@@ -42,9 +42,9 @@ def whole_records(rec: dict[str, list]) -> None:
 
 def run_column(
     case: ColumnCase,
-    out: Path,
+    out: str | Path,
     progress: bool = True,
-    compare_with: Optional[Path] = None,
+    compare_with: Optional[str | Path] = None,
     callbacks: Optional[list] = None,
     extra_summary: Optional[dict] = None,
     prepare=None,
@@ -61,6 +61,8 @@ def run_column(
     SolverError or KeyboardInterrupt still writes every output from the steps done, with the
     ``stop_reason``, then is raised again."""
     case.validate()
+    out = Path(out)
+    compare_with = None if compare_with is None else Path(compare_with)
     model_name, model_reason = case.model, "requested"
     if model_name == "depth-averaged":
         if callbacks or prepare is not None:

@@ -107,6 +107,9 @@ pub struct RedistanceSettings {
     pub extension_depth: f64,
     /// The extension only where the dense phase moves slower than this [m s⁻¹] (0: everywhere).
     pub extension_rest_speed: f64,
+    /// Regions of {Φ > 0} of at most this many cells are turned to air after each step's
+    /// transport ([`super::pieces`]; 0: none).
+    pub piece_removal_cells: usize,
 }
 
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
@@ -168,6 +171,16 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "with interface_velocity = extended: the extension only where the dense phase moves slower than this, blended to the one-fluid velocity above (0: everywhere)",
     )
     .variant(),
+    options::int(
+        "redistance",
+        "piece_removal_cells",
+        0,
+        0,
+        1_000_000,
+        "cells",
+        "regions of Φ > 0 (8-connected cells) of at most this many cells are turned to air after each step's transport, their area put back by the mass correction (0: none)",
+    )
+    .variant(),
 ];
 
 impl InterfaceTreatment {
@@ -192,6 +205,7 @@ impl Default for RedistanceSettings {
             extended_velocity: options::as_name(&o("interface_velocity").default) == "extended",
             extension_depth: o("extension_depth").float(),
             extension_rest_speed: o("extension_rest_speed").float(),
+            piece_removal_cells: o("piece_removal_cells").usize(),
         }
     }
 }
@@ -210,6 +224,7 @@ impl Configurable for RedistanceSettings {
             "interface_velocity" => Value::str(if self.extended_velocity { "extended" } else { "one-fluid" }),
             "extension_depth" => Value::Float(self.extension_depth),
             "extension_rest_speed" => Value::Float(self.extension_rest_speed),
+            "piece_removal_cells" => Value::Int(self.piece_removal_cells.min(i64::MAX as usize) as i64),
             _ => Value::None,
         }
     }
@@ -225,6 +240,7 @@ impl Configurable for RedistanceSettings {
             "interface_velocity" => self.extended_velocity = options::as_name(v) == "extended",
             "extension_depth" => self.extension_depth = v.as_f64().unwrap_or(self.extension_depth),
             "extension_rest_speed" => self.extension_rest_speed = v.as_f64().unwrap_or(self.extension_rest_speed),
+            "piece_removal_cells" => self.piece_removal_cells = options::as_usize(v),
             _ => {}
         }
         Ok(())

@@ -4,10 +4,12 @@
 //! phase, [`super::extension`], with `interface_velocity = "extended"`), and the redistancing of
 //! [`super::redistance`] every N steps ([`Interface::advance`]); then, when asked, the global
 //! mass correction Φ ← Φ + δ with the constant δ that restores the dense phase's reference area
-//! A_ref = |{Φ > 0}| ([`Interface::correct_mass`]). The material properties of step 2 are the
-//! properties room's (`properties/mod.rs`).
+//! A_ref = |{Φ > 0}| ([`Interface::correct_mass`]), and, when asked, the removal of the small
+//! detached pieces of the dense phase that the transport or the correction's shift left
+//! ([`Interface::remove_pieces`], [`super::pieces`]), whose area a second correction puts
+//! back. The material properties of step 2 are the properties room's (`properties/mod.rs`).
 
-use super::{LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension};
+use super::{DetachedPieces, LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, HALO};
@@ -19,6 +21,8 @@ pub struct Interface {
     pub redistancer: Redistancer,
     /// The transport velocity's extension from the dense phase (`interface_velocity = "extended"`).
     pub extension: Option<VelocityExtension>,
+    /// The removal of small detached pieces of the dense phase (`piece_removal_cells` > 0).
+    pub pieces: Option<DetachedPieces>,
 }
 
 /// The velocity the interface is transported with, and where to put the time-centred one.
@@ -40,7 +44,8 @@ impl Interface {
     /// The state for `grid`.
     pub fn new(grid: &Grid, redistance: RedistanceSettings) -> Result<Self> {
         let extension = redistance.extended_velocity.then(|| VelocityExtension::new(grid, redistance.extension_depth, redistance.extension_rest_speed));
-        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension })
+        let pieces = (redistance.piece_removal_cells > 0).then(|| DetachedPieces::new(grid, redistance.piece_removal_cells));
+        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces })
     }
 
     /// Step 1: Φ^{n+1} from Φⁿ (in `phi`) transported over δt with u^{n+½}, then redistanced
@@ -83,6 +88,17 @@ impl Interface {
             self.redistancer.redistance(phi, grid, exec)?;
         }
         Ok(())
+    }
+
+    /// With `piece_removal_cells` > 0, turns the regions of {Φ > 0} of at most that many cells
+    /// to air ([`super::pieces`]) and returns how many cells changed (0 without the option).
+    pub fn remove_pieces(&mut self, phi: &mut Field) -> usize {
+        let Some(pieces) = self.pieces.as_mut() else { return 0 };
+        let changed = pieces.remove(phi);
+        if changed > 0 {
+            phi.extrapolate_ghosts_linear();
+        }
+        changed
     }
 
     /// The global mass correction after step 1: Φ ← Φ + δ with the constant δ that restores

@@ -12,7 +12,9 @@
 //! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
 //! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^{n+½}, redistancing every N steps
 //!    (`levelset::Interface::advance`), then the optional global mass correction
-//!    (`levelset::Interface::correct_mass`, to the area `reference_area`).
+//!    (`levelset::Interface::correct_mass`, to the area `reference_area`), then the optional
+//!    removal of small detached pieces of {Φ > 0} (`levelset::Interface::remove_pieces`,
+//!    `piece_removal_cells`), followed by the correction again when it removed any.
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1})
 //!    (`properties::MaterialProperties::update`).
 //! 4. `pore_pressure` [step 3]: p_f^{n+1} (`pore_pressure::PorePressure::advance`, implicit
@@ -176,7 +178,7 @@ impl TwoPhaseModel {
         self.dt_attempt = dt;
         let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
         lap(&mut secs.choose_dt);
-        self.interface(dt, exec)?;
+        let pieces_removed = self.interface(dt, exec)?;
         lap(&mut secs.interface);
         self.properties(exec);
         lap(&mut secs.properties);
@@ -196,6 +198,8 @@ impl TwoPhaseModel {
         lap(&mut secs.diagnostics);
         info.stage_seconds = secs;
         self.last.stage_seconds = secs;
+        info.pieces_removed = pieces_removed;
+        self.last.pieces_removed = pieces_removed;
         Ok(info)
     }
 
@@ -344,10 +348,10 @@ impl TwoPhaseModel {
     }
 
     /// Stage 2 (paper step 1): transport of the level set. A single-phase model or a frozen
-    /// interface skips it.
-    fn interface(&mut self, dt: f64, exec: Exec) -> Result<()> {
+    /// interface skips it. Returns the cells of the detached pieces turned to air.
+    fn interface(&mut self, dt: f64, exec: Exec) -> Result<usize> {
         if self.config.light.is_none() || !self.config.transport_interface {
-            return Ok(());
+            return Ok(0);
         }
         let cfg = &self.config;
         fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, &cfg.grid, BcMode::Full);
@@ -364,8 +368,14 @@ impl TwoPhaseModel {
         if cfg.mass_correction {
             self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
         }
+        // the small detached pieces the transport or the correction's shift left, their area put
+        // back by a second correction (`piece_removal_cells`)
+        let removed = self.levelset.remove_pieces(&mut self.phi);
+        if removed > 0 && cfg.mass_correction {
+            self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
+        }
         self.properties.invalidate();
-        Ok(())
+        Ok(removed)
     }
 
     /// Stage 3 (paper step 2): material properties from the level set
@@ -621,6 +631,7 @@ impl TwoPhaseModel {
             picard_increment: picard.increment,
             picard_r_halvings: picard.r_halvings,
             retries: 0,
+            pieces_removed: 0,
             stage_seconds: StageSeconds::default(),
         };
         Ok(self.last)

@@ -29,6 +29,9 @@ pub struct StepInfo {
     pub picard_r_halvings: usize,
     /// Times the step was rejected (Picard non-convergence) and retaken with δt halved.
     pub retries: usize,
+    /// Cells of the small detached pieces of {Φ > 0} turned to air in the step
+    /// (`piece_removal_cells`; 0 without the option).
+    pub pieces_removed: usize,
     /// Wall time of each stage of the accepted attempt (`std::time::Instant`; a measurement of
     /// this machine, never part of the results).
     pub stage_seconds: StageSeconds,
