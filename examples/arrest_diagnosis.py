@@ -40,7 +40,10 @@ restarts and Anderson mixing (``proximal-20-extended...``);
 yield stress at full strength over the band, with the restarts), also without the correction and
 with redistancing every step; ``pieces-4`` (the regions of Φ > 0 of at most 4 cells turned to
 air after each step's transport, ``Variants(piece_removal_cells=4)``), alone, with the restarts,
-and with the restarts and redistancing every step, with and without the correction. The runs do not stop at rest (the records go to t_end); the column's
+and with the restarts and redistancing every step, with and without the correction; the last
+with the Picard tolerance 1e-4 or 1e-5 (``...-picard-tol-1e-4``), with 5 restarts
+(``redistance-1-proximal-5-pieces-4``), without Anderson mixing (``...-no-anderson-...``) and with
+redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
 rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
 same, to say when the run would have stopped and what changes after that.
 
@@ -157,6 +160,28 @@ VARIANTS = {
     "pieces-4": PIECES,
     "proximal-20-pieces-4": {**RESTARTS, **PIECES},
     "redistance-1-proximal-20-pieces-4": {**RESTARTS, **PIECES, "redistance_every": 1},
+    "redistance-1-proximal-20-pieces-4-picard-tol-1e-4": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "picard_tol": 1e-4,
+    },
+    "redistance-1-proximal-20-pieces-4-picard-tol-1e-5": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "picard_tol": 1e-5,
+    },
+    "redistance-1-proximal-5-pieces-4": {**RESTARTS, **PIECES, "redistance_every": 1, "case": {"proximal_restarts": 5}},
+    "redistance-1-proximal-5-no-anderson-pieces-4": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "case": {"proximal_restarts": 5},
+        "anderson_depth": 0,
+    },
+    "redistance-1-proximal-20-no-anderson-pieces-4": {**RESTARTS, **PIECES, "redistance_every": 1, "anderson_depth": 0},
+    "redistance-2-proximal-20-pieces-4": {**RESTARTS, **PIECES, "redistance_every": 2},
     "no-mass-correction-redistance-1-proximal-20-pieces-4": {
         **RESTARTS,
         **PIECES,

@@ -21,7 +21,9 @@ cell some grains, is explicitly not looked at) stays below ``rest_speed`` (defau
 summary.json says when (:func:`arrest_summary`): ``stop_reason`` is ``"rest"`` and
 ``arrest_time_s`` the start of that quiet window (None for a run that did not come to rest),
 with the largest front, when it was reached and how far the front then moved back
-(docs/validation.md, "Arrest of the deposit").
+(docs/validation.md, "Arrest of the deposit"). With the default numerics the deposit does not
+come to rest before ``t_end``; docs/howto/deposit-at-rest.md gives the options that bring it to
+rest and keep it there, and what they change.
 
 Models (``ColumnCase.model``, ``granrs run column --model``): ``two-phase`` (the paper's model,
 the default), ``granular`` (the same 2D model with the air not resolved: the granular phase has a

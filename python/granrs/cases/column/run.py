@@ -233,6 +233,8 @@ def run_column(
         summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
     if "step_retries" in hist:
         summary["step_retries_total"] = int(np.sum(hist["step_retries"]))
+    if "pieces_removed" in hist:
+        summary["pieces_removed_total"] = int(np.sum(hist["pieces_removed"]))
     if rec["energy"]:
         summary["energy"] = energy_summary(rec["energy"][-1])
     summary["observables"] = _observables_summary(rec, profiles["hvol_final"], grid.dx, grid.dy, lc)
