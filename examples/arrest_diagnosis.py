@@ -60,7 +60,8 @@ largest speeds of the deposit and of the detached pieces and the most cells the 
 ``deposit_arrest_time_s``, the same criterion on the deposit alone, and the deposit's largest
 speed after it; ``pieces_removed_cells``, the cells of detached pieces turned to air over the
 run (``piece_removal_cells``; per record in the CSV's ``pieces_removed``), and when the first
-were; and
+were; ``mass_shift_after_arrest_m``, the global mass correction's shifts δ of Φ summed from the
+arrest to t_end (and of their magnitudes; per record in the CSV's ``mass_shift``); and
 ``eroded_after_arrest``: the columns whose volume profile fell by more than 1 mm, split into
 those with no granular cell on the lowest row at the arrest (a film thinner than half a cell)
 and the others, with where they lie, the area they lost and the speed of their lowest-row cells
@@ -267,6 +268,8 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         groups = {"bulk": phi > 2 * eps, "band": (phi > 0) & (phi <= 2 * eps), "air_band": (phi > -eps) & (phi <= 0)}
         row = {"t": m.time, "front": front_position(phi, g.dx) - lc, "area": m.dense_area()}
         row["pieces_removed"] = int(sum(log["pieces_removed"]))  # cells turned to air since the last record
+        row["mass_shift"] = float(sum(log["mass_shift"]))  # the mass correction's δ since the last record (m)
+        row["mass_shift_abs"] = float(sum(abs(d) for d in log["mass_shift"]))
         # fronts of the volume profile, which do not jump when a film thinner than h/2 on the
         # lowest row changes sign: where it is half a cell thick, and the 99 % area quantile
         hvol = volume_profile(phi, g.dy)
@@ -385,6 +388,10 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         out["detached_cells_after_arrest_max"] = int(
             max((r["detached_cells"] for r, is_after in zip(rows, after) if is_after), default=0)
         )
+        # how far the global mass correction moved the interface after the arrest: the sum of
+        # its shifts δ (Φ ← Φ + δ), and of their magnitudes
+        out["mass_shift_after_arrest_m"] = float(sum(r["mass_shift"] for r, a in zip(rows, after) if a))
+        out["mass_shift_abs_after_arrest_m"] = float(sum(r["mass_shift_abs"] for r, a in zip(rows, after) if a))
         out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
         # the columns whose volume profile fell by more than 1 mm after the arrest, in two groups:
         # "thin", with no granular cell on the lowest row at the arrest (Φ ≤ 0 there: a film

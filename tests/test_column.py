@@ -260,6 +260,20 @@ def test_the_deposit_at_rest_recipe_stops_the_run_at_rest(tmp_path, fluidised, a
     assert int(np.load(tmp_path / "history.npz")["pieces_removed"].sum()) == s["pieces_removed_total"]
 
 
+def test_each_step_reports_the_mass_corrections_shift(tmp_path):
+    """history.npz's mass_shift is the correction's δ of Φ in each step: nonzero with the
+    correction (it restores the area to 1e-10 relative every step, levelset/stage.rs) and zero
+    without it, where the area then drifts."""
+    on = run_column(ColumnCase(ny=16, t_end=0.2), tmp_path / "on", progress=False)
+    off_case = ColumnCase(ny=16, t_end=0.2).with_options(mass_correction=False)
+    off = run_column(off_case, tmp_path / "off", progress=False)
+    shift_on = np.load(tmp_path / "on" / "history.npz")["mass_shift"]
+    shift_off = np.load(tmp_path / "off" / "history.npz")["mass_shift"]
+    assert shift_on.size == on["steps"] and np.count_nonzero(shift_on) > 0.9 * shift_on.size
+    assert np.all(np.isfinite(shift_on)) and np.max(np.abs(shift_on)) < ColumnCase(ny=16).grid().dy
+    assert not np.any(shift_off) and off["mass_rel_error"] > 100 * on["mass_rel_error"]
+
+
 def test_mass_is_conserved_with_the_default_correction(coarse_runs):
     # the global correction solves for the area to the secant tolerance (1e-10 in the dam break)
     _, dry, wet = coarse_runs

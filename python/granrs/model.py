@@ -492,7 +492,8 @@ class Model:
         diagnostics as lists (time, dt, max_speed, cfl, divergence, pressure_iterations,
         viscous_iterations, pore_iterations, picard_iterations, picard_increment,
         picard_r_halvings, step_retries, pieces_removed: the cells of the detached pieces of
-        the dense phase turned to air, ``piece_removal_cells``)."""
+        the dense phase turned to air, ``piece_removal_cells``; mass_shift: the global mass
+        correction's shift δ of Φ in m)."""
         if t_end is None and max_steps is None:
             raise ParameterError("invalid parameter `t_end/max_steps`: allowed at least one of them")
         if t_end is not None and (

@@ -110,6 +110,7 @@ fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>>
     d.set_item("picard", pic)?;
     d.set_item("retries", s.retries)?;
     d.set_item("pieces_removed", s.pieces_removed)?;
+    d.set_item("mass_shift", s.mass_shift)?;
     let t = &s.stage_seconds;
     let secs = PyDict::new(py);
     for (name, x) in [
@@ -609,7 +610,7 @@ impl PyModel {
     /// Takes steps until `t_end` (the last step is shortened to land on it) or `max_steps`
     /// steps, with the GIL released. Returns per-step arrays: time, dt, max_speed, cfl,
     /// pressure_iterations, viscous_iterations, divergence, picard_iterations, picard_increment,
-    /// picard_r_halvings, step_retries, pieces_removed.
+    /// picard_r_halvings, step_retries, pieces_removed, mass_shift.
     #[pyo3(signature = (t_end=None, max_steps=None))]
     fn advance<'py>(&mut self, py: Python<'py>, t_end: Option<f64>, max_steps: Option<u64>) -> PyResult<Bound<'py, PyDict>> {
         if t_end.is_none() && max_steps.is_none() {
@@ -636,6 +637,7 @@ impl PyModel {
         d.set_item("picard_r_halvings", log.iter().map(|s| s.picard_r_halvings as f64).collect::<Vec<_>>())?;
         d.set_item("step_retries", log.iter().map(|s| s.retries as f64).collect::<Vec<_>>())?;
         d.set_item("pieces_removed", log.iter().map(|s| s.pieces_removed as f64).collect::<Vec<_>>())?;
+        d.set_item("mass_shift", log.iter().map(|s| s.mass_shift).collect::<Vec<_>>())?;
         if let Some(e) = err {
             // the steps taken before the failure travel with the exception
             let pyerr = to_py(e);

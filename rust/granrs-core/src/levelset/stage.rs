@@ -105,20 +105,21 @@ impl Interface {
     /// the dense-phase area to `reference_area` (secant iterations on the sub-cell area A(δ) of
     /// [`super::dense_area`]; the first guess δ = (A_ref − A)/L uses the interface length
     /// L ≈ ∫ δ_ε(Φ) dx). Nothing is done for a reference area ≤ 0, an area already within
-    /// 1e-12 of it, or no interface. Switchable: `mass_correction`.
-    pub fn correct_mass(&self, phi: &mut Field, reference_area: f64, grid: &Grid, exec: Exec) {
+    /// 1e-12 of it, or no interface. Switchable: `mass_correction`. Returns δ (m; 0 when nothing
+    /// was done).
+    pub fn correct_mass(&self, phi: &mut Field, reference_area: f64, grid: &Grid, exec: Exec) -> f64 {
         let target = reference_area;
         let area = |phi: &Field| super::dense_area(phi, grid, exec);
         let a0 = area(phi);
         if target <= 0.0 || (a0 - target).abs() <= 1e-12 * target {
-            return;
+            return 0.0;
         }
         let eps = 1.5 * grid.h();
         let (ps, st, nx) = (phi.slice(), phi.stride(), phi.nx);
         let rows = (0..phi.ny).map(|j| &ps[(j + HALO) * st + HALO..(j + HALO) * st + HALO + nx]);
         let length: f64 = rows.flat_map(|r| r.iter()).map(|&p| super::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
         if length <= 0.0 {
-            return;
+            return 0.0;
         }
         let shift = |phi: &mut Field, d: f64| {
             let n = phi.nx;
@@ -136,5 +137,28 @@ impl Interface {
             shift(phi, d_new - d);
             (d_prev, a_prev, d) = (d, a, d_new);
         }
+        d
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Location;
+    use crate::levelset::dense_area;
+
+    #[test]
+    fn the_correction_of_a_flat_layer_returns_the_shift_that_restores_its_area() {
+        // a layer Φ = H − y over the whole width L: A = L H, so restoring L (H + d) takes δ = d
+        let grid = Grid::new(32, 16, 2.0, 1.0).unwrap();
+        let (h0, d) = (0.4, 0.013);
+        let mut phi = Field::from_fn(&grid, Location::Centre, |_, y| h0 - y);
+        let interface = Interface::new(&grid, RedistanceSettings::default()).unwrap();
+        let shift = interface.correct_mass(&mut phi, 2.0 * (h0 + d), &grid, Exec::SERIAL);
+        assert!((shift - d).abs() < 1e-10, "δ = {shift}, expected {d}");
+        assert!((dense_area(&phi, &grid, Exec::SERIAL) - 2.0 * (h0 + d)).abs() < 1e-10);
+        // an area already right: nothing done, δ = 0
+        let area = dense_area(&phi, &grid, Exec::SERIAL);
+        assert_eq!(interface.correct_mass(&mut phi, area, &grid, Exec::SERIAL), 0.0);
     }
 }

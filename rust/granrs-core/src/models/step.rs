@@ -178,7 +178,7 @@ impl TwoPhaseModel {
         self.dt_attempt = dt;
         let (a0, a1, a2, w) = bdf_coefficients(dt, self.dt_prev);
         lap(&mut secs.choose_dt);
-        let pieces_removed = self.interface(dt, exec)?;
+        let (pieces_removed, mass_shift) = self.interface(dt, exec)?;
         lap(&mut secs.interface);
         self.properties(exec);
         lap(&mut secs.properties);
@@ -200,6 +200,8 @@ impl TwoPhaseModel {
         self.last.stage_seconds = secs;
         info.pieces_removed = pieces_removed;
         self.last.pieces_removed = pieces_removed;
+        info.mass_shift = mass_shift;
+        self.last.mass_shift = mass_shift;
         Ok(info)
     }
 
@@ -348,10 +350,11 @@ impl TwoPhaseModel {
     }
 
     /// Stage 2 (paper step 1): transport of the level set. A single-phase model or a frozen
-    /// interface skips it. Returns the cells of the detached pieces turned to air.
-    fn interface(&mut self, dt: f64, exec: Exec) -> Result<usize> {
+    /// interface skips it. Returns the cells of the detached pieces turned to air and the mass
+    /// correction's shift δ of Φ (m).
+    fn interface(&mut self, dt: f64, exec: Exec) -> Result<(usize, f64)> {
         if self.config.light.is_none() || !self.config.transport_interface {
-            return Ok(0);
+            return Ok((0, 0.0));
         }
         let cfg = &self.config;
         fill_velocity_ghosts(&mut self.u, &mut self.v, &cfg.bc, &cfg.grid, BcMode::Full);
@@ -365,17 +368,18 @@ impl TwoPhaseModel {
         let redistance = cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0;
         let r = self.levelset.advance(&mut self.phi, vel, &cfg.grid, &cfg.bc, dt, redistance, exec);
         r.map_err(|e| self.at_step(e))?;
+        let mut shift = 0.0;
         if cfg.mass_correction {
-            self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
+            shift += self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
         }
         // the small detached pieces the transport or the correction's shift left, their area put
         // back by a second correction (`piece_removal_cells`)
         let removed = self.levelset.remove_pieces(&mut self.phi);
         if removed > 0 && cfg.mass_correction {
-            self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
+            shift += self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
         }
         self.properties.invalidate();
-        Ok(removed)
+        Ok((removed, shift))
     }
 
     /// Stage 3 (paper step 2): material properties from the level set
@@ -632,6 +636,7 @@ impl TwoPhaseModel {
             picard_r_halvings: picard.r_halvings,
             retries: 0,
             pieces_removed: 0,
+            mass_shift: 0.0,
             stage_seconds: StageSeconds::default(),
         };
         Ok(self.last)

@@ -32,6 +32,9 @@ pub struct StepInfo {
     /// Cells of the small detached pieces of {Φ > 0} turned to air in the step
     /// (`piece_removal_cells`; 0 without the option).
     pub pieces_removed: usize,
+    /// The global mass correction's shift δ of Φ in the step (m; Φ ← Φ + δ moves the interface
+    /// by δ along its normal; 0 without the correction).
+    pub mass_shift: f64,
     /// Wall time of each stage of the accepted attempt (`std::time::Instant`; a measurement of
     /// this machine, never part of the results).
     pub stage_seconds: StageSeconds,
