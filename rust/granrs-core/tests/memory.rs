@@ -88,6 +88,9 @@ fn the_estimate_matches_the_bytes_a_model_takes() {
     let mut pieces = dry.clone();
     pieces.redistance.piece_removal_cells = 4;
     cases.push(("dry, detached pieces removed", pieces));
+    let mut extended = dry.clone();
+    extended.redistance.extended_velocity = true;
+    cases.push(("dry, extended transport velocity", extended));
     let mut granular = dry.clone();
     granular.free_surface = true;
     cases.push(("granular-only", granular));

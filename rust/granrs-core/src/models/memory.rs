@@ -48,9 +48,12 @@ impl ModelConfig {
         f += 4 * (xf + yf) + c;
         // the properties: ρ on the faces, η at centres and nodes
         f += (xf + yf) + c + nd;
-        // level set: transport (2 stages) and redistancing (10 fields); the removal of detached
-        // pieces: two u32 per cell
+        // level set: transport (2 stages) and redistancing (10 fields); the extended transport
+        // velocity: its two face fields; the removal of detached pieces: two u32 per cell
         f += 12 * c;
+        if self.redistance.extended_velocity {
+            f += xf + yf;
+        }
         if self.redistance.piece_removal_cells > 0 {
             f += n;
         }
