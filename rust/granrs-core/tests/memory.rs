@@ -2,9 +2,10 @@
 //! refusal of a grid that does not fit.
 
 use granrs_core::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
-use granrs_core::models::{available_memory, ActiveRegion, Material, ModelConfig, TwoPhaseModel, WindowSides};
+use granrs_core::models::{available_memory, ActiveRegion, ConvectionScheme, Material, ModelConfig, TwoPhaseModel, WindowSides};
 use granrs_core::pore_pressure::{PoreFormulation, PorePressureConfig, PoreTimeScheme};
 use granrs_core::rheology::{RheologyConfig, RheologyLaw, SigmaLocation};
+use granrs_core::time_stepping::ViscousScheme;
 use granrs_core::walls::side::SideWalls;
 use granrs_core::Error;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -88,6 +89,21 @@ fn the_estimate_matches_the_bytes_a_model_takes() {
     let mut pieces = dry.clone();
     pieces.redistance.piece_removal_cells = 4;
     cases.push(("dry, detached pieces removed", pieces));
+    let mut restarts = dry.clone();
+    restarts.rheology.proximal_restarts = 5;
+    restarts.rheology.picard_tol = 1e-3;
+    restarts.redistance_every = 1;
+    cases.push(("dry, proximal restarts, redistancing every step", restarts));
+    let mut mu_i = wet.clone();
+    mu_i.rheology = RheologyConfig::new(RheologyLaw::MuI { mu_s: 0.51, mu_2: 0.9, i0: 0.28, grain_diameter: 75e-6, grain_density: 2500.0 });
+    mu_i.rheology.wall_friction_angle = Some(27.0);
+    mu_i.rheology.picard_max_iterations = 50;
+    mu_i.rheology.picard_tol = 1e-3;
+    cases.push(("fluidised, mu(I)", mu_i));
+    let mut weno = dry.clone();
+    weno.convection_scheme = ConvectionScheme::Weno5;
+    weno.viscous = ViscousScheme::Explicit;
+    cases.push(("dry, WENO5 convection, explicit viscous term", weno));
     let mut extended = dry.clone();
     extended.redistance.extended_velocity = true;
     cases.push(("dry, extended transport velocity", extended));
