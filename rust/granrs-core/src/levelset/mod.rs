@@ -9,7 +9,7 @@
 //! | [`transport`] | ∂Φ/∂t + u·∇Φ = 0 (10a), TVD-RK3 + upwind WENO5 | Shu & Osher 1988 |
 //! | [`redistance`] | ∂Φ/∂τ + S(Φ⁰)(\|∇Φ\| − 1) = 0 with a frozen subcell band | Sussman, Smereka & Osher 1994; Russo & Smereka 2000; Chopp 2001; Min 2010 |
 //! | [`extension`] | ∇u_ext·∇Φ = 0 below Φ = d h: the transport velocity extended from the dense phase (option) | Adalsteinsson & Sethian 1999 |
-//! | [`pieces`] | regions of {Φ > 0} of at most N cells turned to air after the transport (option) | — (granrs's own; docs/validation.md, "Arrest of the deposit") |
+//! | [`pieces`] | regions of {Φ > 0} of at most N cells, other than the largest, turned to air after the transport (option) | — (granrs's own; docs/validation.md, "Arrest of the deposit") |
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
 //! | [`stage`] | the room's stage of a step: transport, redistancing and the optional mass correction (step 1) | paper §3.1 |
 //! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |

@@ -3,7 +3,7 @@
 //!
 //! After the transport of eq. (10a), ∂Φ/∂t + u·∇Φ = 0 (Aravena et al. §2.4), and its
 //! redistancing, every region of {Φ > 0} that is 8-connected on the cell centres and holds at
-//! most N cells is given the value
+//! most N cells, other than the largest region (the deposit, kept whatever N), is given the value
 //!
 //!   Φ|_piece ← max { Φ_c : c an 8-neighbour of the piece outside it } ≤ 0,
 //!
@@ -42,9 +42,11 @@ impl DetachedPieces {
     }
 
     /// Turns every 8-connected region of {Φ > 0} of at most `max_cells` cells in the interior of
-    /// `phi` to air (module docs). Returns the number of cells changed. The ghost layers are not
-    /// touched (the stage fills them before the next use). Panics if `phi` holds more cells than
-    /// the grid given to [`DetachedPieces::new`].
+    /// `phi` to air (module docs), except the largest region of the field (the first of them in
+    /// row-major order when several are as large), which is the deposit whatever `max_cells`.
+    /// Returns the number of cells changed. The ghost layers are not touched (the stage fills
+    /// them before the next use). Panics if `phi` holds more cells than the grid given to
+    /// [`DetachedPieces::new`].
     pub fn remove(&mut self, phi: &mut Field) -> usize {
         let (nx, ny, st) = (phi.nx, phi.ny, phi.stride());
         let n = nx * ny;
@@ -57,14 +59,10 @@ impl DetachedPieces {
         label.fill(0);
         let members = &mut self.members[..n];
         let values = phi.slice_mut();
-        let mut changed = 0;
-        let mut next: u32 = 0;
-        for start in 0..n {
-            if label[start] != 0 || values[at(start)] <= 0.0 {
-                continue;
-            }
-            next += 1;
-            label[start] = next;
+        // the cells of the region of `start` with label `from`, relabelled `to`, into `members`
+        // (breadth first, in a fixed order); returns how many
+        let fill = |label: &mut [u32], members: &mut [u32], values: &[f64], start: usize, from: u32, to: u32| -> usize {
+            label[start] = to;
             members[0] = start as u32;
             let (mut head, mut len) = (0usize, 1usize);
             while head < len {
@@ -74,32 +72,53 @@ impl DetachedPieces {
                 for jj in j.saturating_sub(1)..(j + 2).min(ny) {
                     for ii in i.saturating_sub(1)..(i + 2).min(nx) {
                         let m = jj * nx + ii;
-                        if label[m] == 0 && values[at(m)] > 0.0 {
-                            label[m] = next;
+                        if label[m] == from && values[at(m)] > 0.0 {
+                            label[m] = to;
                             members[len] = m as u32;
                             len += 1;
                         }
                     }
                 }
             }
+            len
+        };
+        // every region labelled, and the largest found
+        let (mut next, mut largest, mut largest_cells) = (0u32, 0u32, 0usize);
+        for start in 0..n {
+            if label[start] == 0 && values[at(start)] > 0.0 {
+                next += 1;
+                let cells = fill(label, members, values, start, 0, next);
+                if cells > largest_cells {
+                    (largest, largest_cells) = (next, cells);
+                }
+            }
+        }
+        // the others of at most max_cells cells: the level of the air around them (their
+        // outer 8-neighbours all hold Φ ≤ 0, the region being a whole connected component)
+        let mut changed = 0;
+        for start in 0..n {
+            let l = label[start];
+            if l == 0 || l == largest {
+                continue;
+            }
+            let len = fill(label, members, values, start, l, 0);
             if len > self.max_cells {
                 continue;
             }
-            // the level of the air around the piece: its outer 8-neighbours all hold Φ ≤ 0
             let mut around = f64::NEG_INFINITY;
             for &k in &members[..len] {
                 let (j, i) = (k as usize / nx, k as usize % nx);
                 for jj in j.saturating_sub(1)..(j + 2).min(ny) {
                     for ii in i.saturating_sub(1)..(i + 2).min(nx) {
-                        let m = jj * nx + ii;
-                        if label[m] != next {
-                            around = around.max(values[at(m)]);
+                        let v = values[at(jj * nx + ii)];
+                        if v <= 0.0 {
+                            around = around.max(v);
                         }
                     }
                 }
             }
             if around == f64::NEG_INFINITY {
-                continue; // the piece fills the field: nothing around it
+                continue; // nothing around it (cannot happen beside a larger region)
             }
             for &k in &members[..len] {
                 values[at(k as usize)] = around;
@@ -171,16 +190,33 @@ mod tests {
     fn the_area_removed_is_the_pieces_and_a_window_of_the_grid_is_accepted() {
         let grid = Grid::new(32, 16, 3.2, 1.6).unwrap();
         let h = grid.dx;
-        let speck = [(10, 20, 0.3 * h)];
-        let mut with = field(&grid, &speck);
-        let without = field(&grid, &[]);
-        let removed = DetachedPieces::new(&grid, 1).remove(&mut with);
-        assert_eq!(removed, 1);
+        let layer: Vec<_> = (0..32).map(|i| (0, i, 0.4 * h)).collect();
+        let mut with = field(&grid, &[layer.as_slice(), &[(10, 20, 0.3 * h)]].concat());
+        let without = field(&grid, &layer);
+        assert_eq!(DetachedPieces::new(&grid, 1).remove(&mut with), 1);
         assert_eq!(dense_area(&with, &grid, Exec::SERIAL), dense_area(&without, &grid, Exec::SERIAL));
         // a field smaller than the grid (an active window)
         let window = Grid::new(8, 4, 0.8, 0.4).unwrap();
-        let mut phi = field(&window, &[(1, 1, 0.2 * h)]);
+        let mut phi = field(&window, &[(0, 0, 0.2 * h), (0, 1, 0.2 * h), (2, 5, 0.2 * h)]);
         assert_eq!(DetachedPieces::new(&grid, 2).remove(&mut phi), 1);
-        assert!(phi.interior().iter().all(|&p| p <= 0.0));
+        assert!(phi.interior()[[2, 5]] <= 0.0 && phi.interior()[[0, 0]] > 0.0);
+    }
+
+    #[test]
+    fn the_largest_region_stays_whatever_the_limit() {
+        // a limit larger than the deposit removes the smaller regions only; a lone region stays
+        let grid = Grid::new(16, 8, 1.6, 0.8).unwrap();
+        let h = grid.dx;
+        let mut cells: Vec<_> = (0..6).map(|i| (0, i, 0.5 * h)).collect();
+        cells.extend([(0, 10, 0.2 * h), (0, 11, 0.2 * h), (5, 14, 0.1 * h)]);
+        let mut phi = field(&grid, &cells);
+        assert_eq!(DetachedPieces::new(&grid, 1_000_000).remove(&mut phi), 3);
+        assert!((0..6).all(|i| phi.interior()[[0, i]] > 0.0));
+        let mut lone = field(&grid, &[(3, 3, 0.2 * h)]);
+        assert_eq!(DetachedPieces::new(&grid, 1_000_000).remove(&mut lone), 0);
+        // two regions as large: the first in row-major order is kept
+        let mut twins = field(&grid, &[(0, 0, 0.2 * h), (0, 8, 0.2 * h)]);
+        assert_eq!(DetachedPieces::new(&grid, 4).remove(&mut twins), 1);
+        assert!(twins.interior()[[0, 0]] > 0.0 && twins.interior()[[0, 8]] <= 0.0);
     }
 }

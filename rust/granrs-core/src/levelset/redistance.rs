@@ -107,8 +107,8 @@ pub struct RedistanceSettings {
     pub extension_depth: f64,
     /// The extension only where the dense phase moves slower than this [m s⁻¹] (0: everywhere).
     pub extension_rest_speed: f64,
-    /// Regions of {Φ > 0} of at most this many cells are turned to air after each step's
-    /// transport ([`super::pieces`]; 0: none).
+    /// Regions of {Φ > 0} of at most this many cells, other than the largest, are turned to air
+    /// after each step's transport ([`super::pieces`]; 0: none).
     pub piece_removal_cells: usize,
 }
 
@@ -178,7 +178,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         0,
         1_000_000,
         "cells",
-        "regions of Φ > 0 (8-connected cells) of at most this many cells are turned to air after each step's transport, their area put back by the mass correction (0: none)",
+        "regions of Φ > 0 (8-connected cells) of at most this many cells, other than the largest, are turned to air after each step's transport, their area put back by the mass correction (0: none)",
     )
     .variant(),
 ];
