@@ -19,6 +19,7 @@
 //! | (10e) | σ_t = τ_b s, s = P_b(s − r_b u_t), the Coulomb walls | `walls/mod.rs` | [`walls::CoulombWalls::update`] |
 //! | (10f) | ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (step 3) | `pore_pressure/mod.rs` | [`pore_pressure::PorePressure::advance`] |
 //! | (10a), mass | the optional global mass correction Φ ← Φ + δ, \|{Φ > 0}\| = A_ref (after step 1) | `levelset/stage.rs` | [`levelset::Interface::correct_mass`] |
+//! | (10a), pieces | the optional removal of the regions of {Φ > 0} of at most N cells other than the largest (after the mass correction; not in the paper) | `levelset/pieces.rs` | [`levelset::Interface::remove_pieces`] |
 //! | step 2 | ρ(Φ), η(Φ) from Φ^{n+1} | `properties/mod.rs` | [`properties::MaterialProperties::update`] ([`properties::PropertyLaws`]) |
 //! | step 2 | τ(Φ), τ_b, r, r_b, the lagged viscosity of μ(I) | `rheology/stage.rs` | [`rheology::stage::RheologyState::prepare`] |
 //! | (11) | the predictor ũ^{n+1} with Σ^{n+1}, s^{n+1} (step 4, BDF2) | `models/step.rs`, `models/rheology_stage.rs` | `TwoPhaseModel::predictor`, `TwoPhaseModel::momentum_solve` |

@@ -90,8 +90,9 @@ impl Interface {
         Ok(())
     }
 
-    /// With `piece_removal_cells` > 0, turns the regions of {Φ > 0} of at most that many cells
-    /// to air ([`super::pieces`]) and returns how many cells changed (0 without the option).
+    /// With `piece_removal_cells` > 0, turns the regions of {Φ > 0} of at most that many cells,
+    /// other than the largest, to air ([`super::pieces`]) and returns how many cells changed (0
+    /// without the option).
     pub fn remove_pieces(&mut self, phi: &mut Field) -> usize {
         let Some(pieces) = self.pieces.as_mut() else { return 0 };
         let changed = pieces.remove(phi);
