@@ -80,7 +80,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion
-from granrs.cases.column import ColumnCase, build_model, front_position, surface_profile
+from granrs.cases.column import ColumnCase, RestCriterion, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, observe_profile, thickness_front, volume_profile
 
 #: 20 proximal restarts of the anchor Σⁿ per step with Anderson mixing of depth 5 (the variants
@@ -237,6 +237,11 @@ def deposit_mask(granular: np.ndarray) -> np.ndarray:
     return label == int(np.argmax(sizes)) if len(sizes) > 1 else granular
 
 
+def largest_after(rows: list, after: np.ndarray, key: str) -> float:
+    """The largest ``key`` of the records where ``after`` is True (0 when none)."""
+    return float(max((r[key] for r, a in zip(rows, after) if a), default=0.0))
+
+
 def build(case: ColumnCase, numerics: dict):
     """build_model with the options of ``numerics`` (and of ``numerics["case"]``) changed by their
     schema keys, each in the case's object that holds it (``ColumnCase.with_options``)."""
@@ -253,12 +258,11 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     profiles = {}
     t0 = time.perf_counter()
     k = 0
-    # the column's rest criterion (granrs.cases.column), evaluated without stopping: the start of
-    # the first quiet window of rest_duration, and the profile then
-    rest_since = arrest = None
-    # the same criterion on the deposit alone (deposit_mask: without the detached pieces)
-    deposit_since = deposit_arrest = None
-    arrest_profile = None
+    # the column's rest criterion (granrs.cases.column.RestCriterion), evaluated without stopping:
+    # the start of the first quiet window of rest_duration, and the profile then; and the same
+    # criterion on the deposit alone (deposit_mask: without the detached pieces)
+    rest, deposit_rest = (RestCriterion(case.rest_speed, case.rest_duration) for _ in range(2))
+    arrest = deposit_arrest = arrest_profile = None
     while m.time < t_end - 1e-12:
         k += 1
         log = m.advance(min(t_end, k * every))
@@ -299,23 +303,11 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         row["gravity_work"] = b["gravity_work"]
         row["potential"] = b["potential"]
         rows.append(row)
-        if deposit_arrest is None:
-            if m.time > 0.1 and row["speed_deposit"] < case.rest_speed:
-                deposit_since = m.time if deposit_since is None else deposit_since
-                if m.time - deposit_since >= case.rest_duration - 1e-9:
-                    deposit_arrest = deposit_since
-            else:
-                deposit_since = None
-        if arrest is None:
-            if m.time > 0.1 and row["speed_granular"] < case.rest_speed:
-                rest_since = m.time if rest_since is None else rest_since
-                if m.time - rest_since >= case.rest_duration - 1e-9:
-                    arrest, arrest_profile = (
-                        rest_since,
-                        (surface_profile(phi, g.dy), volume_profile(phi, g.dy), np.array(phi[0, :])),
-                    )
-            else:
-                rest_since = None
+        if deposit_arrest is None and deposit_rest.update(m.time, row["speed_deposit"]):
+            deposit_arrest = deposit_rest.since
+        if arrest is None and rest.update(m.time, row["speed_granular"]):
+            arrest = rest.since
+            arrest_profile = (surface_profile(phi, g.dy), volume_profile(phi, g.dy), np.array(phi[0, :]))
         for tp in (1.5, 2.0, 2.5, t_end):
             if abs(m.time - tp) < 1e-9:
                 profiles[tp] = surface_profile(phi, g.dy)
@@ -368,26 +360,18 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     out["deposit_arrest_time_s"] = deposit_arrest
     if deposit_arrest is not None:
         after = t > deposit_arrest + case.rest_duration
-        out["deposit_speed_after_deposit_arrest_max"] = float(
-            max((r["speed_deposit"] for r, is_after in zip(rows, after) if is_after), default=0.0)
-        )
+        out["deposit_speed_after_deposit_arrest_max"] = largest_after(rows, after, "speed_deposit")
     if arrest is not None:
         after = t > arrest + case.rest_duration
         out["profile_change_after_arrest_m"] = float(np.max(np.abs(surface_profile(m.phi, g.dy) - arrest_profile[0])))
         out["volume_profile_change_after_arrest_m"] = float(
             np.max(np.abs(volume_profile(m.phi, g.dy) - arrest_profile[1]))
         )
-        out["granular_speed_after_arrest_max"] = float(
-            max((r["speed_granular"] for r, is_after in zip(rows, after) if is_after), default=0.0)
-        )
+        out["granular_speed_after_arrest_max"] = largest_after(rows, after, "speed_granular")
         # the fastest granular cells after the arrest: in the deposit, or in detached pieces
         for key in ("deposit", "detached"):
-            out[f"{key}_speed_after_arrest_max"] = float(
-                max((r[f"speed_{key}"] for r, is_after in zip(rows, after) if is_after), default=0.0)
-            )
-        out["detached_cells_after_arrest_max"] = int(
-            max((r["detached_cells"] for r, is_after in zip(rows, after) if is_after), default=0)
-        )
+            out[f"{key}_speed_after_arrest_max"] = largest_after(rows, after, f"speed_{key}")
+        out["detached_cells_after_arrest_max"] = int(largest_after(rows, after, "detached_cells"))
         # how far the global mass correction moved the interface after the arrest: the sum of
         # its shifts δ (Φ ← Φ + δ), and of their magnitudes
         out["mass_shift_after_arrest_m"] = float(sum(r["mass_shift"] for r, a in zip(rows, after) if a))

@@ -262,8 +262,10 @@ def test_the_deposit_at_rest_recipe_stops_the_run_at_rest(tmp_path, fluidised, a
 
 def test_each_step_reports_the_mass_corrections_shift(tmp_path):
     """history.npz's mass_shift is the correction's δ of Φ in each step: nonzero with the
-    correction (it restores the area to 1e-10 relative every step, levelset/stage.rs) and zero
-    without it, where the area then drifts."""
+    correction (it restores the area to 1e-10 relative every step, levelset/stage.rs; measured:
+    63 of the 64 steps to 0.2 s at ny = 16, at most 5.3e-5 m, 0.002 h) and zero without it, where
+    the area then drifts (measured 4.5e-3 against 2.4e-11). The bounds: nine steps in ten, a
+    shift below one cell, a drift 100 times larger."""
     on = run_column(ColumnCase(ny=16, t_end=0.2), tmp_path / "on", progress=False)
     off_case = ColumnCase(ny=16, t_end=0.2).with_options(mass_correction=False)
     off = run_column(off_case, tmp_path / "off", progress=False)

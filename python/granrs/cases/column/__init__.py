@@ -43,7 +43,7 @@ The package, one file a task: ``case`` (:class:`ColumnCase`, its validation, dom
 outputs; :func:`run_columns`: several cases, one after the other or side by side;
 :func:`run_finished`: whether a folder holds a run that ended),
 ``measures`` (front, deposit quantile, surface profile, basal pore-pressure ratio),
-``summaries`` (summary.json's derived entries), ``outputs`` (the output files), ``plots``,
+``summaries`` (summary.json's derived entries, :class:`RestCriterion`, the stop reasons), ``outputs`` (the output files), ``plots``,
 and ``depth_averaged`` (the depth-averaged variant).
 """
 
@@ -79,9 +79,11 @@ from .plots import (
     plot_front,
     plot_profiles,
 )
-from .run import FLUSH_RECORDS, UNFINISHED_REASONS, run_column, run_columns, run_finished
+from .run import FLUSH_RECORDS, run_column, run_columns, run_finished
 from .summaries import (
     ENERGY_COLUMNS,
+    UNFINISHED_REASONS,
+    RestCriterion,
     _energy_row as _energy_row,
     _observables_summary as _observables_summary,
     _record_observables as _record_observables,
@@ -124,6 +126,7 @@ __all__ = [
     "run_column_depth_averaged",
     "run_columns",
     "run_finished",
+    "RestCriterion",
     "UNFINISHED_REASONS",
     "surface_profile",
     "write_energy",

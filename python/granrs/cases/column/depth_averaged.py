@@ -17,7 +17,7 @@ from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .measures import deposit_quantile
 from .outputs import write_outputs
 from .plots import plot_front, plot_profiles
-from .summaries import _observables_summary, _record_observables, arrest_summary
+from .summaries import RestCriterion, _observables_summary, _record_observables, arrest_summary, failure_stop_reason
 
 
 def depth_averaged_front_depth(case: ColumnCase) -> float:
@@ -78,7 +78,7 @@ def run_column_depth_averaged(
     rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": []}
     profiles: dict = {}
     pending = sorted(case.profile_times)
-    rest_since = None
+    rest = RestCriterion(case.rest_speed, case.rest_duration)
     stop_reason = "t_end"
     error = None
     t0 = time.perf_counter()
@@ -100,13 +100,9 @@ def run_column_depth_averaged(
             _record_observables(rec, m.h, m.dx, 2 * threshold, lc)
             while pending and t >= pending[0] - 1e-9:
                 profiles[round(pending.pop(0), 6)] = m.h.copy()
-            if t > 0.1 and speed < case.rest_speed:
-                rest_since = rest_since if rest_since is not None else t
-                if t - rest_since >= case.rest_duration:
-                    stop_reason = "rest"
-                    break
-            else:
-                rest_since = None
+            if rest.update(t, speed):
+                stop_reason = "rest"
+                break
             if t >= case.t_end - 1e-12:
                 break
             k += 1
@@ -115,7 +111,7 @@ def run_column_depth_averaged(
                 print(f"\rdepth-averaged: t = {m.time:.2f} s, front {xf - lc:.3f} m", end="", flush=True)
     except (SimulationError, KeyboardInterrupt) as err:
         error = err
-        stop_reason = "interrupted: KeyboardInterrupt" if isinstance(err, KeyboardInterrupt) else f"error: {err}"
+        stop_reason = failure_stop_reason(err, str(err))
     if progress:
         print()
     wall = time.perf_counter() - t0
@@ -148,7 +144,7 @@ def run_column_depth_averaged(
         "model_reason": reason,
         "case": case.summary(),
     }
-    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest_since))
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], stop_reason, rest.since))
     summary["observables"] = _observables_summary(rec, profiles["final"], m.dx, threshold * 2, lc)
     summary["observables"]["profile_definition"] = "h(x), the depth-averaged layer's thickness"
     profiles["hvol_final"] = profiles["final"]

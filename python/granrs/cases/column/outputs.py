@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ...io.outputs import RunOutputs
-from .summaries import ENERGY_COLUMNS, _energy_row
+from .summaries import ENERGY_COLUMNS, INCOMPLETE, _energy_row
 
 
 def write_energy(out: Path, times: list, budgets: list) -> None:
@@ -61,7 +61,7 @@ def _progress(outputs, summary: dict, rec: dict, hist: dict, t: float, steps: in
         "summary.json",
         summary
         | {
-            "stop_reason": f"incomplete: written during the run at t = {t:.6g} s (step {steps}); a run that ends writes "
+            "stop_reason": f"{INCOMPLETE}: written during the run at t = {t:.6g} s (step {steps}); a run that ends writes "
             "its final stop_reason here, so this one was killed or its disk filled"
         },
     )

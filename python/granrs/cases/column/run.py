@@ -25,7 +25,16 @@ from .depth_averaged import run_column_depth_averaged
 from .measures import basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position, surface_profile
 from .outputs import _progress, write_energy, write_outputs
 from .plots import plot_energy, plot_fluidisation, plot_front, plot_profiles
-from .summaries import _observables_summary, _record_observables, arrest_summary, energy_summary, fluidisation_summary
+from .summaries import (
+    UNFINISHED_REASONS,
+    RestCriterion,
+    _observables_summary,
+    _record_observables,
+    arrest_summary,
+    energy_summary,
+    failure_stop_reason,
+    fluidisation_summary,
+)
 
 #: run_column rewrites summary.json, front.csv and history.npz every this many records (0.1 s)
 FLUSH_RECORDS = 10
@@ -94,7 +103,7 @@ def run_column(
     if fluid:
         rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
     profiles: dict = {}
-    state: dict[str, Optional[float]] = {"rest_since": None}
+    rest = RestCriterion(case.rest_speed, case.rest_duration)
     last_flush = (0, -1)  # (records, steps) written by the last flush
     pending_profiles = sorted(case.profile_times)
 
@@ -128,12 +137,8 @@ def run_column(
             rec["pf_ratio_channel"].append(basal_pore_pressure_ratio(pf0, h, weight, ~under_reservoir))
         while pending_profiles and t >= pending_profiles[0] - 1e-9:
             profiles[round(pending_profiles.pop(0), 6)] = surface_profile(model.phi, grid.dy)
-        if t > 0.1 and speed < case.rest_speed:
-            since = state["rest_since"] = state["rest_since"] if state["rest_since"] is not None else t
-            if t - since >= case.rest_duration:
-                sim.stop, sim.stop_reason = True, "rest"
-        else:
-            state["rest_since"] = None
+        if rest.update(t, speed):
+            sim.stop, sim.stop_reason = True, "rest"
         if len(rec["t"]) % FLUSH_RECORDS == 0:
             flush(sim)
 
@@ -210,9 +215,7 @@ def run_column(
         "active_region_sides": None if region is None else region.sides,
         "threads": case.threads,
         "version": __version__,
-        "stop_reason": sim.stop_reason
-        if error is None
-        else ("interrupted: KeyboardInterrupt" if isinstance(failure, KeyboardInterrupt) else f"error: {error}"),
+        "stop_reason": sim.stop_reason if failure is None else failure_stop_reason(failure, str(error)),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,
         "pressure_iterations_max": int(np.max(hist["pressure_iterations"])) if "time" in hist else 0,
         "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
@@ -223,9 +226,7 @@ def run_column(
         "model_reason": model_reason,
         "case": case.summary(),
     }
-    summary.update(
-        arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], state["rest_since"])
-    )
+    summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], rest.since))
     for key in ("picard_iterations",):
         if key in hist:
             summary[key + "_median"] = float(np.median(hist[key]))
@@ -262,12 +263,6 @@ def run_column(
         kind = SolverError if isinstance(failure, SolverError) else SimulationError
         raise kind(error + f" (outputs written to {out})") from failure
     return summary
-
-
-#: How summary.json's ``stop_reason`` begins for a run that did not end: killed or still running
-#: (``incomplete: ...``, the summary written during the run), stopped by Ctrl-C
-#: (``interrupted: ...``) or by a failure (``error: ...``).
-UNFINISHED_REASONS = ("incomplete", "interrupted", "error")
 
 
 def run_finished(out) -> bool:

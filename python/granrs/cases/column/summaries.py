@@ -9,6 +9,39 @@ import numpy as np
 
 from ... import observables as obs
 
+#: How summary.json's ``stop_reason`` begins for a run that did not end: written during the run
+#: (killed, or still running), stopped by Ctrl-C, or stopped by a failure.
+INCOMPLETE, INTERRUPTED, ERROR = "incomplete", "interrupted", "error"
+UNFINISHED_REASONS = (INCOMPLETE, INTERRUPTED, ERROR)
+
+
+def failure_stop_reason(failure: BaseException, message: str) -> str:
+    """summary.json's ``stop_reason`` for a run that ``failure`` stopped: ``interrupted:
+    KeyboardInterrupt`` for a Ctrl-C, ``error: <message>`` otherwise."""
+    if isinstance(failure, KeyboardInterrupt):
+        return f"{INTERRUPTED}: {type(failure).__name__}"
+    return f"{ERROR}: {message}"
+
+
+class RestCriterion:
+    """The column's rest criterion (the package's docstring): after t > 0.1 s, the largest
+    granular speed stays below ``rest_speed`` for ``rest_duration``. Give it each record with
+    :meth:`update`; ``since`` is the start of the current quiet window (None while the grains
+    move faster)."""
+
+    def __init__(self, rest_speed: float, rest_duration: float):
+        self.rest_speed, self.rest_duration = rest_speed, rest_duration
+        self.since: Optional[float] = None
+
+    def update(self, t: float, speed: float) -> bool:
+        """Takes the record at time ``t``; True once the quiet window has lasted ``rest_duration``."""
+        if t > 0.1 and speed < self.rest_speed:
+            if self.since is None:
+                self.since = t
+            return t - self.since >= self.rest_duration
+        self.since = None
+        return False
+
 
 def arrest_summary(t, front, speed, stop_reason: str, rest_since: Optional[float]) -> dict:
     """summary.json's arrest entries from the records (times ``t``, fronts ``front`` from the

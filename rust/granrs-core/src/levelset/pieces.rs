@@ -36,11 +36,6 @@ impl DetachedPieces {
         DetachedPieces { max_cells, label: vec![0; n], members: vec![0; n] }
     }
 
-    /// The largest piece removed (cells).
-    pub fn max_cells(&self) -> usize {
-        self.max_cells
-    }
-
     /// Turns every 8-connected region of {Φ > 0} of at most `max_cells` cells in the interior of
     /// `phi` to air (module docs), except the largest region of the field (the first of them in
     /// row-major order when several are as large), which is the deposit whatever `max_cells`.
