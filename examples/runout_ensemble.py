@@ -5,6 +5,7 @@
     python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8 --compare-with out/ensemble-two-phase-fluidised-64
     python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8 --active-region-sides open-right --compare-with out/ensemble-two-phase-fluidised-64
     python examples/runout_ensemble.py --ny 32 --members 8 --model granular --out out/ensemble-g32
+    python examples/runout_ensemble.py --ny 32 --members 8 --option proximal_restarts=20 --compare-with out/ensemble-two-phase-fluidised-32
 
 Member k runs the paper's column (`granrs run column`, fluidised unless ``--dry``) with the column
 width multiplied by 1 + k·ε (ε = 1e-12 by default: a relative change of the size of the
@@ -25,11 +26,14 @@ again if it finished; one that was killed, interrupted or failed is run again):
   of the final deposit (``runout_q99_m``), front at 0.5 / 1.0 / 1.5 / 2.0 s, steps and wall time;
 * ``ensemble_summary.json``: mean, standard deviation, min, max and relative spread of the
   run-out, the largest front and the 99 % quantile, and ``divergence_time_s``: the first time at which the members'
-  fronts differ by more than 1 % of their mean;
+  fronts differ by more than 1 % of their mean; under ``observables`` the same statistics of every
+  observable of the final deposits (``summary.json["observables"]``, granrs.observables), of the
+  front's retreat and, where every member came to rest, of the arrest time;
 * ``ensemble_fronts.png``: every member's front against time, with the band min–max;
 * with ``--compare-with DIR`` (another ensemble's folder), ``comparison.json``: for every
   statistic, the difference of the means relative to the other ensemble's, and the standard error
-  of that difference (the "± " of the active-region and model comparisons in docs/models.md).
+  of that difference (the "± " of the active-region and model comparisons in docs/models.md), and
+  the difference in standard deviations of the other ensemble (``sigmas``), observables included.
 
 Run time on the 2-core development machine, one thread per member: about 13 s per member at
 ny = 32 (two-phase), 8 s granular-only; about 3 min at ny = 64 (two-phase), 1 min with
@@ -58,6 +62,7 @@ from granrs.cases.column import (
     run_columns,
     run_finished,
 )
+from granrs.config import parse_options
 from granrs.model import ACTIVE_REGION_SIDES
 
 #: Fronts of the members are said to have diverged once their range exceeds this fraction of
@@ -117,13 +122,36 @@ def statistics(values: list[float]) -> dict:
     }
 
 
+def observable_statistics(summaries: list[dict]) -> dict:
+    """The statistics of every observable of the members' final deposits
+    (``summary.json["observables"]``, granrs.observables) that every member reports as a number,
+    and of ``front_retreat_m`` and ``arrest_time_s`` where every member has one."""
+    stats = {}
+    keys = set.intersection(*(set(s.get("observables") or {}) for s in summaries))
+    for key in sorted(keys):
+        values = [s["observables"][key] for s in summaries]
+        if all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+            stats[key] = statistics(values)
+    for key in ("front_retreat_m", "arrest_time_s"):
+        values = [s.get(key) for s in summaries]
+        if all(isinstance(v, (int, float)) for v in values):
+            stats[key] = statistics(values)
+    return stats
+
+
 def compare(summary: dict, other: dict) -> dict:
     """Differences of this ensemble's means against another's (``--compare-with``), relative to the
-    other's mean, with the standard error of the difference √(s₁²/n₁ + s₂²/n₂) in the same units:
-    how the docs compare an active region with the whole domain, or two models."""
-    out = {"against": other.get("case"), "this": summary.get("case")}
+    other's mean, with the standard error of the difference √(s₁²/n₁ + s₂²/n₂) in the same units
+    and the difference in units of the other's standard deviation (``sigmas``, the other's
+    round-off spread; null when that is 0): how the docs compare an active region with the whole
+    domain, two models, or two sets of numerics. The observables of ``summary["observables"]`` are
+    compared the same way, under ``"observables"``."""
+    out: dict = {"against": other.get("case"), "this": summary.get("case")}
     for key, a in summary.items():
         b = other.get(key)
+        if key == "observables" and isinstance(a, dict) and isinstance(b, dict):
+            out[key] = {k: v for k, v in compare(a, b).items() if k not in ("against", "this")}
+            continue
         if not (isinstance(a, dict) and isinstance(b, dict) and "mean" in a and "mean" in b) or not b["mean"]:
             continue
         se = math.sqrt(a["std"] ** 2 / a["n"] + b["std"] ** 2 / b["n"])
@@ -131,6 +159,7 @@ def compare(summary: dict, other: dict) -> dict:
             "difference": a["mean"] - b["mean"],
             "relative_difference": a["mean"] / b["mean"] - 1.0,
             "relative_standard_error": se / abs(b["mean"]),
+            "sigmas": (a["mean"] - b["mean"]) / b["std"] if b["std"] > 0 else None,
         }
     return out
 
@@ -167,6 +196,14 @@ def main() -> None:
         help="the Picard relaxation θ of eq. (12) (BiProjection.theta; the column's 0.8)",
     )
     ap.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change a model option from the column's default by its schema key (`granrs keys`), "
+        "e.g. --option proximal_restarts=20 (repeat)",
+    )
+    ap.add_argument(
         "--channel-width",
         dest="channel_width",
         type=float,
@@ -192,15 +229,16 @@ def main() -> None:
         raise SystemExit(f"invalid parameter `--members` = {args.members}: allowed an integer >= 2")
     if args.jobs < 1:
         raise SystemExit(f"invalid parameter `--jobs` = {args.jobs}: allowed an integer >= 1")
+    options = parse_options(args.option)
     tag = (
         f"{args.model}-{'dry' if args.dry else 'fluidised'}-{args.ny}"
         + (f"-band{args.active_region}" if args.active_region else "")
         + (f"-{args.active_region_sides}" if args.active_region and args.active_region_sides != "walls" else "")
         + (f"-theta{args.theta:g}" if args.theta is not None else "")
         + (f"-walls{args.channel_width:g}" if args.channel_width is not None else "")
+        + "".join(f"-{k}{v}" for k, v in options.items())
     )
     out = Path(args.out or f"out/ensemble-{tag}")
-    out.mkdir(parents=True, exist_ok=True)
 
     base = ColumnCase(
         ny=args.ny,
@@ -215,13 +253,17 @@ def main() -> None:
         base.t_end = args.t_end
     if args.theta is not None:
         base = base.with_options(theta=args.theta)
+    if options:
+        base = base.with_options(**options)
     if args.channel_width is not None:
         base.side_walls = SideWalls(args.channel_width, base.base.friction_angle)
+    out.mkdir(parents=True, exist_ok=True)  # after the case's options were checked
     run_members(base, args, out, tag)
-    rows, curves = [], []
+    rows, curves, summaries = [], [], []
     for k in range(args.members):
         folder = out / f"member-{k}"
         s = json.loads((folder / "summary.json").read_text())
+        summaries.append(s)
         t, f = read_front(folder)
         curves.append((t, f))
         row = {
@@ -250,6 +292,7 @@ def main() -> None:
         "runout_q99_m": statistics([r["runout_q99_m"] for r in rows]),
         "divergence_threshold": DIVERGENCE,
         "divergence_time_s": divergence_time(t_common, fronts),
+        "observables": observable_statistics(summaries),
     }
     for tt in TIMES:
         vals = [r[f"front_{tt:g}s_m"] for r in rows if np.isfinite(r[f"front_{tt:g}s_m"])]

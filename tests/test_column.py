@@ -642,6 +642,15 @@ def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
         np.hypot(a["std"] / np.sqrt(a["n"]), b["std"] / np.sqrt(b["n"])) / b["mean"]
     )
     assert c["relative_difference"] != 0.0 and c["relative_standard_error"] > 0.0
+    # every observable of the final deposits, compared the same way, and in the other's σ
+    a, b = (
+        json.loads((tmp_path / f"eps{e}" / "ensemble_summary.json").read_text())["observables"]["q50_m"]
+        for e in ("0.01", "1e-12")
+    )
+    c = json.loads((tmp_path / "eps0.01" / "comparison.json").read_text())["observables"]["q50_m"]
+    assert a["n"] == b["n"] == 2
+    assert c["relative_difference"] == pytest.approx(a["mean"] / b["mean"] - 1)
+    assert c["sigmas"] is None if b["std"] == 0 else c["sigmas"] == pytest.approx((a["mean"] - b["mean"]) / b["std"])
 
 
 def test_runout_ensemble_side_by_side_gives_the_same_members(tmp_path):
@@ -670,6 +679,32 @@ def test_runout_ensemble_side_by_side_gives_the_same_members(tmp_path):
     subprocess.run([*args, "--out", str(tmp_path / "jobs1")], check=True, capture_output=True)
     assert (done / "summary.json").read_bytes() == kept
     assert run_finished(cut) and (cut / "front.csv").read_bytes() == front
+
+
+def test_runout_ensemble_takes_any_model_option_checked_before_any_run(tmp_path):
+    """examples/runout_ensemble.py --option KEY=VALUE puts a model option (a schema key of
+    `granrs keys`) into every member's case, as ColumnCase.with_options does: the members'
+    summary.json state it. An unknown key, a value out of its range or an item without "=" is
+    refused with the parameter's name before the output folder is made."""
+    script = Path(__file__).resolve().parents[1] / "examples" / "runout_ensemble.py"
+    args = [sys.executable, str(script), "--ny", "16", "--members", "2", "--t-end", "0.05"]
+    out = tmp_path / "restarts"
+    subprocess.run(
+        [*args, "--option", "proximal_restarts=2", "--option", "piece_removal_cells=4", "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    for k in range(2):
+        case = json.loads((out / f"member-{k}" / "summary.json").read_text())["case"]
+        assert case["variants"]["proximal_restarts"] == 2 and case["variants"]["piece_removal_cells"] == 4
+    for bad, name in (
+        ("nonsense=1", "`nonsense`"),
+        ("proximal_restarts=-1", "`proximal_restarts` = -1"),
+        ("theta", "`--option`"),
+    ):
+        r = subprocess.run([*args, "--option", bad, "--out", str(tmp_path / "bad")], capture_output=True, text=True)
+        assert r.returncode != 0 and name in r.stderr, r.stderr[-300:]
+        assert not (tmp_path / "bad").exists()
 
 
 def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):

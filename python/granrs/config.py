@@ -456,6 +456,19 @@ def parse_scalar(text: str):
         return text
 
 
+def parse_options(items: Iterable[str], flag: str = "--option") -> dict:
+    """``KEY=VALUE`` items of a command line (``flag`` names them in an error) as a dict of model
+    options by their schema keys (``ColumnCase.with_options``), each value parsed by
+    ``parse_scalar``. An item without ``=`` raises ``ParameterError`` before any work."""
+    options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ParameterError(f"invalid parameter `{flag}` = {item!r}: allowed KEY=VALUE, e.g. proximal_restarts=20")
+        options[key.strip()] = parse_scalar(value.strip())
+    return options
+
+
 def apply_sets(raw: dict, sets: Iterable[str]) -> dict:
     """A copy of ``raw`` with ``section.key=value`` overrides applied (values parsed by ``parse_scalar``)."""
     raw = {s: dict(t) if isinstance(t, dict) else t for s, t in raw.items()}

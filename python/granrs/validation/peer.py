@@ -351,7 +351,7 @@ def main(argv=None) -> int:
     schema key of ``granrs.options``, the value in TOML syntax) for a sensitivity run."""
     import argparse
 
-    from ..config import parse_scalar
+    from ..config import parse_options
 
     ap = argparse.ArgumentParser(description="granrs's dry column against Basilisk")
     ap.add_argument("--out", required=True)
@@ -366,14 +366,7 @@ def main(argv=None) -> int:
         help="change a model option from its default, e.g. --option proximal_restarts=20 (repeat)",
     )
     args = ap.parse_args(argv)
-    options = {}
-    for item in args.option:
-        key, sep, value = item.partition("=")
-        if not sep:
-            from .._granrs import ParameterError
-
-            raise ParameterError(f"invalid parameter `--option` = {item!r}: allowed KEY=VALUE")
-        options[key.strip()] = parse_scalar(value.strip())
+    options = parse_options(args.option)
     metrics, reference, passed = peer_dry_column(args.n, threads=args.threads, out=args.out, options=options)
     record = {"case": "peer-dry-column", "metrics": metrics, "reference": reference, "passed": passed}
     Path(args.out, "record.json").write_text(json.dumps(record, indent=2) + "\n")
