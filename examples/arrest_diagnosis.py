@@ -43,7 +43,9 @@ air after each step's transport, ``Variants(piece_removal_cells=4)``), alone, wi
 and with the restarts and redistancing every step, with and without the correction; the last
 with the Picard tolerance 1e-4 or 1e-5 (``...-picard-tol-1e-4``), with 5 restarts
 (``redistance-1-proximal-5-pieces-4``), without Anderson mixing (``...-no-anderson-...``) and with
-redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
+redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``), and with the yield stress at
+full strength over the band or its granular side (``density-support-...``,
+``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
 rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
 same, to say when the run would have stopped and what changes after that.
 
@@ -188,6 +190,20 @@ VARIANTS = {
         **PIECES,
         **NO_CORRECTION,
         "redistance_every": 1,
+    },
+    # the yield stress at full strength over the band (or its granular side) with the four
+    # options of the deposit-at-rest how-to
+    "density-support-redistance-1-proximal-20-pieces-4": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        **DENSITY_SUPPORT_20,
+    },
+    "granular-side-redistance-1-proximal-20-pieces-4": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "case": {"interface_yield": "granular-side", "proximal_restarts": 20},
     },
     # the yield stress at full strength over the band and the extension where the grains rest
     "density-support-extended-at-rest-proximal-20": {**RESTARTS, **AT_REST, **DENSITY_SUPPORT_20},
