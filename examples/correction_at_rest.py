@@ -1,20 +1,23 @@
 """Does the global mass correction move a deposit at rest? The same arrested state, continued with
-and without it.
+and without it (and without the redistancing).
 
     python examples/correction_at_rest.py --ny 16 [--dry] [--t-end 3] [--out out/correction-at-rest]
+        [--continuations with_correction without_correction without_redistancing without_either]
 
 The column (``granrs.cases.column``) runs with the options of docs/howto/deposit-at-rest.md (20
 proximal restarts, Anderson mixing of depth 5, redistancing at every step, detached pieces of at
 most 4 cells turned to air) until its rest criterion holds (``RestCriterion``: the largest
 granular speed below ``rest_speed`` for ``rest_duration``). Its whole state is then taken
-(``Model._rust.checkpoint_state``) and continued to ``--t-end`` twice, from that same state: as
-it is, with the global mass correction (``levelset::Interface::correct_mass``, a uniform shift of
-Φ), and in a model built without it (``mass_correction = False``) into which the state is
-restored. The records every 0.01 s give, for each continuation, the range of the front on the
-lowest row of cells, its last value, the largest granular speed, the correction's shifts (the sum
-of |δ| over the steps) and the dense area's relative change; and between the two, the largest
-change of the surface and of the volume profile since the arrest. Writes ``OUT/<state>-<ny>.json``
-and prints it. About 5 s at ny = 16 and 30 s at ny = 32 on one thread (2-core VM, 2026-12-05).
+(``Model._rust.checkpoint_state``) and continued to ``--t-end`` from that same state, in
+each of ``--continuations``: ``with_correction``, the run itself with the global mass correction
+(``levelset::Interface::correct_mass``, a uniform shift of Φ); ``without_correction``,
+``without_redistancing`` and ``without_either``, models built with ``mass_correction = False``,
+``redistance_every = 0`` or both, into which the state is restored. The records every 0.01 s (at
+the run's own times) give, for each continuation, the range of the front on the lowest row of
+cells, its last value, the largest granular speed, the correction's shifts (the sum of |δ| over
+the steps), the dense area's relative change, and the largest change of the surface and of the
+volume profile since the restart. Writes ``OUT/<state>-<ny>.json`` and prints it. About 5 s per
+continuation at ny = 16 and 30 s at ny = 32 on one thread (2-core VM, 2026-12-05).
 """
 
 from __future__ import annotations
@@ -80,22 +83,39 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
     }
 
 
+#: the continuations from the arrested state: the run itself, and models built with these
+#: options changed, into which the state is restored
+CONTINUATIONS = {
+    "with_correction": {},
+    "without_correction": {"mass_correction": False},
+    "without_redistancing": {"redistance_every": 0},
+    "without_either": {"mass_correction": False, "redistance_every": 0},
+}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ny", type=int, default=16)
     ap.add_argument("--dry", action="store_true")
-    ap.add_argument("--t-end", type=float, default=3.0, help="end of both continuations (s)")
+    ap.add_argument("--t-end", type=float, default=3.0, help="end of the continuations (s)")
+    ap.add_argument(
+        "--continuations",
+        nargs="+",
+        default=["with_correction", "without_correction"],
+        choices=list(CONTINUATIONS),
+        help="what to continue the arrested state with (with_correction: the run itself)",
+    )
     ap.add_argument("--out", default="out/correction-at-rest")
     args = ap.parse_args()
     case = ColumnCase(ny=args.ny, fluidised=not args.dry)
-    with_correction = case.with_options(**AT_REST)
-    without_correction = case.with_options(**AT_REST, mass_correction=False)  # checked before any run
+    run_case = case.with_options(**AT_REST)
+    cases = {name: case.with_options(**{**AT_REST, **CONTINUATIONS[name]}) for name in args.continuations}  # checked first
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
-    model = build_model(with_correction)
+    model = build_model(run_case)
     g, lc = model.grid, case.width
-    arrest = run_to_rest(model, with_correction)
+    arrest = run_to_rest(model, run_case)
     t_restart = model.time
     state = model._rust.checkpoint_state()
     phi0 = np.array(model.phi)
@@ -103,17 +123,17 @@ def main() -> None:
 
     result = {"ny": args.ny, "state": "dry" if args.dry else "fluidised", "cell_m": g.dx}
     result.update({"arrest_time_s": arrest, "restart_time_s": t_restart, "front_at_restart_m": front0})
-    result["with_correction"] = continue_to(model, t_restart, args.t_end, front0, area0, lc)
-    phi_with = np.array(model.phi)
-    other = build_model(without_correction)
-    other._rust.restore_state(state)
-    result["without_correction"] = continue_to(other, t_restart, args.t_end, front0, area0, lc)
-    phi_without = np.array(other.phi)
-    for name, profile in (("surface", surface_profile), ("volume", volume_profile)):
-        p0, pw, po = (profile(p, g.dy) for p in (phi0, phi_with, phi_without))
-        result[f"{name}_change_with_m"] = float(np.max(np.abs(pw - p0)))
-        result[f"{name}_change_without_m"] = float(np.max(np.abs(po - p0)))
-        result[f"{name}_with_minus_without_m"] = float(np.max(np.abs(pw - po)))
+    for name in args.continuations:
+        if name == "with_correction":
+            m = model  # the run itself, continued
+        else:
+            m = build_model(cases[name])
+            m._rust.restore_state(state)
+        r = continue_to(m, t_restart, args.t_end, front0, area0, lc)
+        phi = np.array(m.phi)
+        r["surface_change_m"] = float(np.max(np.abs(surface_profile(phi, g.dy) - surface_profile(phi0, g.dy))))
+        r["volume_change_m"] = float(np.max(np.abs(volume_profile(phi, g.dy) - volume_profile(phi0, g.dy))))
+        result[name] = r
     path = out / f"{result['state']}-{args.ny}.json"
     path.write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps(result, indent=1))
