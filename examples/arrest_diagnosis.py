@@ -43,7 +43,9 @@ air after each step's transport, ``Variants(piece_removal_cells=4)``), alone, wi
 and with the restarts and redistancing every step, with and without the correction; the last
 with the Picard tolerance 1e-4 or 1e-5 (``...-picard-tol-1e-4``), with 5 restarts
 (``redistance-1-proximal-5-pieces-4``), without Anderson mixing (``...-no-anderson-...``) and with
-redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``), and with the yield stress at
+redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``), with the film-sparing mass
+correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_correction_film=0.5)``),
+and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
 ``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
 rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
@@ -185,6 +187,13 @@ VARIANTS = {
     },
     "redistance-1-proximal-20-no-anderson-pieces-4": {**RESTARTS, **PIECES, "redistance_every": 1, "anderson_depth": 0},
     "redistance-2-proximal-20-pieces-4": {**RESTARTS, **PIECES, "redistance_every": 2},
+    # the same with the film-sparing mass correction (films thinner than about half a cell keep Φ)
+    "redistance-1-proximal-20-pieces-4-film-0.5": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "mass_correction_film": 0.5,
+    },
     "no-mass-correction-redistance-1-proximal-20-pieces-4": {
         **RESTARTS,
         **PIECES,

@@ -3,10 +3,11 @@ and without it (and without the redistancing).
 
     python examples/correction_at_rest.py --ny 16 [--dry] [--t-end 3] [--out out/correction-at-rest]
         [--continuations with_correction without_correction without_redistancing without_either]
+        [--option mass_correction_film=0.5]
 
 The column (``granrs.cases.column``) runs with the options of docs/howto/deposit-at-rest.md (20
 proximal restarts, Anderson mixing of depth 5, redistancing at every step, detached pieces of at
-most 4 cells turned to air) until its rest criterion holds (``RestCriterion``: the largest
+most 4 cells turned to air), and any ``--option`` besides, until its rest criterion holds (``RestCriterion``: the largest
 granular speed below ``rest_speed`` for ``rest_duration``). Its whole state is then taken
 (``Model._rust.checkpoint_state``) and continued to ``--t-end`` from that same state, in
 each of ``--continuations``: ``with_correction``, the run itself with the global mass correction
@@ -30,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs.cases.column import ColumnCase, RestCriterion, build_model, front_position, surface_profile
+from granrs.config import parse_options
 from granrs.observables import volume_profile
 
 #: the options of docs/howto/deposit-at-rest.md
@@ -105,11 +107,22 @@ def main() -> None:
         choices=list(CONTINUATIONS),
         help="what to continue the arrested state with (with_correction: the run itself)",
     )
+    ap.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a model option of the run besides the four (a schema key of `granrs keys`), e.g. "
+        "--option mass_correction_film=0.5 (repeat)",
+    )
     ap.add_argument("--out", default="out/correction-at-rest")
     args = ap.parse_args()
     case = ColumnCase(ny=args.ny, fluidised=not args.dry)
-    run_case = case.with_options(**AT_REST)
-    cases = {name: case.with_options(**{**AT_REST, **CONTINUATIONS[name]}) for name in args.continuations}  # checked first
+    run_options = {**AT_REST, **parse_options(args.option)}
+    run_case = case.with_options(**run_options)
+    cases = {
+        name: case.with_options(**{**run_options, **CONTINUATIONS[name]}) for name in args.continuations
+    }  # checked first
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
@@ -121,7 +134,7 @@ def main() -> None:
     phi0 = np.array(model.phi)
     front0, area0 = front_position(phi0, g.dx) - lc, model.dense_area()
 
-    result = {"ny": args.ny, "state": "dry" if args.dry else "fluidised", "cell_m": g.dx}
+    result = {"ny": args.ny, "state": "dry" if args.dry else "fluidised", "cell_m": g.dx, "options": run_options}
     result.update({"arrest_time_s": arrest, "restart_time_s": t_restart, "front_at_restart_m": front0})
     for name in args.continuations:
         if name == "with_correction":

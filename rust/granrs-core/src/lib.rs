@@ -18,7 +18,7 @@
 //! | (10d) | Σ = P(Σ + r D(u)), the plastic projection | `rheology/plastic.rs` | [`rheology::PlasticState::update`] |
 //! | (10e) | σ_t = τ_b s, s = P_b(s − r_b u_t), the Coulomb walls | `walls/mod.rs` | [`walls::CoulombWalls::update`] |
 //! | (10f) | ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (step 3) | `pore_pressure/mod.rs` | [`pore_pressure::PorePressure::advance`] |
-//! | (10a), mass | the optional global mass correction Φ ← Φ + δ, \|{Φ > 0}\| = A_ref (after step 1) | `levelset/stage.rs` | [`levelset::Interface::correct_mass`] |
+//! | (10a), mass | the optional global mass correction Φ ← Φ + δ, \|{Φ > 0}\| = A_ref (after step 1); with `mass_correction_film` = a, Φ ← Φ + δ w sparing films thinner than a cells | `levelset/stage.rs`, `levelset/film.rs` | [`levelset::Interface::correct_mass`], [`levelset::FilmWeight`] |
 //! | (10a), pieces | the optional removal of the regions of {Φ > 0} of at most N cells other than the largest (after the mass correction; not in the paper) | `levelset/pieces.rs` | [`levelset::Interface::remove_pieces`] |
 //! | step 2 | ρ(Φ), η(Φ) from Φ^{n+1} | `properties/mod.rs` | [`properties::MaterialProperties::update`] ([`properties::PropertyLaws`]) |
 //! | step 2 | τ(Φ), τ_b, r, r_b, the lagged viscosity of μ(I) | `rheology/stage.rs` | [`rheology::stage::RheologyState::prepare`] |

@@ -89,6 +89,9 @@ fn the_estimate_matches_the_bytes_a_model_takes() {
     let mut pieces = dry.clone();
     pieces.redistance.piece_removal_cells = 4;
     cases.push(("dry, detached pieces removed", pieces));
+    let mut film = dry.clone();
+    film.redistance.mass_correction_film = 1.0;
+    cases.push(("dry, the film-sparing mass correction", film));
     let mut restarts = dry.clone();
     restarts.rheology.proximal_restarts = 5;
     restarts.rheology.picard_tol = 1e-3;

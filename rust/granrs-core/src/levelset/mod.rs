@@ -10,6 +10,7 @@
 //! | [`redistance`] | ∂Φ/∂τ + S(Φ⁰)(\|∇Φ\| − 1) = 0 with a frozen subcell band | Sussman, Smereka & Osher 1994; Russo & Smereka 2000; Chopp 2001; Min 2010 |
 //! | [`extension`] | ∇u_ext·∇Φ = 0 below Φ = d h: the transport velocity extended from the dense phase (option) | Adalsteinsson & Sethian 1999 |
 //! | [`pieces`] | regions of {Φ > 0} of at most N cells, other than the largest, turned to air after the transport (option) | — (granrs's own; docs/validation.md, "Arrest of the deposit") |
+//! | [`film`] | Φ ← Φ + δ w, w = min(1, max(0, M/h − a)): the global mass correction that leaves films thinner than a cells alone (option) | — (granrs's own; docs/validation.md, "Arrest of the deposit") |
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
 //! | [`stage`] | the room's stage of a step: transport, redistancing and the optional mass correction (step 1) | paper §3.1 |
 //! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
@@ -43,6 +44,7 @@
 mod closest_point;
 pub mod diagnostics;
 pub mod extension;
+pub mod film;
 pub mod heaviside;
 pub mod pieces;
 pub mod redistance;
@@ -55,6 +57,7 @@ pub use crate::operators::weno5;
 
 pub use diagnostics::{dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError};
 pub use extension::VelocityExtension;
+pub use film::FilmWeight;
 pub use heaviside::{blend, blend_harmonic, default_eps, dirac, heaviside, map_centre_field, TwoPhaseProperties, DEFAULT_EPS_CELLS};
 pub use pieces::DetachedPieces;
 pub use redistance::{InterfaceTreatment, RedistanceInfo, RedistanceSettings, Redistancer, KINK_RATIO};

@@ -110,6 +110,9 @@ pub struct RedistanceSettings {
     /// Regions of {Φ > 0} of at most this many cells, other than the largest, are turned to air
     /// after each step's transport ([`super::pieces`]; 0: none).
     pub piece_removal_cells: usize,
+    /// The global mass correction leaves films thinner than about this many cells alone
+    /// ([`super::film`]; 0: the uniform shift).
+    pub mass_correction_film: f64,
 }
 
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
@@ -181,6 +184,16 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "regions of Φ > 0 (8-connected cells) of at most this many cells, other than the largest, are turned to air after each step's transport, their area put back by the mass correction (0: none)",
     )
     .variant(),
+    options::float(
+        "redistance",
+        "mass_correction_film",
+        0.0,
+        0.0,
+        20.0,
+        "cells",
+        "the global mass correction's shift δ weighted by w = min(1, max(0, M/h − a)), M the largest Φ within ⌈a⌉ + 3 cells: films of the dense phase thinner than about a cells keep their Φ and their ends stay put (0: the uniform shift Φ + δ)",
+    )
+    .variant(),
 ];
 
 impl InterfaceTreatment {
@@ -206,6 +219,7 @@ impl Default for RedistanceSettings {
             extension_depth: o("extension_depth").float(),
             extension_rest_speed: o("extension_rest_speed").float(),
             piece_removal_cells: o("piece_removal_cells").usize(),
+            mass_correction_film: o("mass_correction_film").float(),
         }
     }
 }
@@ -225,6 +239,7 @@ impl Configurable for RedistanceSettings {
             "extension_depth" => Value::Float(self.extension_depth),
             "extension_rest_speed" => Value::Float(self.extension_rest_speed),
             "piece_removal_cells" => Value::Int(self.piece_removal_cells.min(i64::MAX as usize) as i64),
+            "mass_correction_film" => Value::Float(self.mass_correction_film),
             _ => Value::None,
         }
     }
@@ -241,6 +256,7 @@ impl Configurable for RedistanceSettings {
             "extension_depth" => self.extension_depth = v.as_f64().unwrap_or(self.extension_depth),
             "extension_rest_speed" => self.extension_rest_speed = v.as_f64().unwrap_or(self.extension_rest_speed),
             "piece_removal_cells" => self.piece_removal_cells = options::as_usize(v),
+            "mass_correction_film" => self.mass_correction_film = v.as_f64().unwrap_or(self.mass_correction_film),
             _ => {}
         }
         Ok(())

@@ -9,7 +9,7 @@
 //! ([`Interface::remove_pieces`], [`super::pieces`]), whose area a second correction puts
 //! back. The material properties of step 2 are the properties room's (`properties/mod.rs`).
 
-use super::{DetachedPieces, LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension};
+use super::{DetachedPieces, FilmWeight, LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, HALO};
@@ -23,6 +23,8 @@ pub struct Interface {
     pub extension: Option<VelocityExtension>,
     /// The removal of small detached pieces of the dense phase (`piece_removal_cells` > 0).
     pub pieces: Option<DetachedPieces>,
+    /// The weight of the film-sparing mass correction (`mass_correction_film` > 0).
+    pub film: Option<FilmWeight>,
 }
 
 /// The velocity the interface is transported with, and where to put the time-centred one.
@@ -45,7 +47,8 @@ impl Interface {
     pub fn new(grid: &Grid, redistance: RedistanceSettings) -> Result<Self> {
         let extension = redistance.extended_velocity.then(|| VelocityExtension::new(grid, redistance.extension_depth, redistance.extension_rest_speed));
         let pieces = (redistance.piece_removal_cells > 0).then(|| DetachedPieces::new(grid, redistance.piece_removal_cells));
-        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces })
+        let film = (redistance.mass_correction_film > 0.0).then(|| FilmWeight::new(grid, redistance.mass_correction_film));
+        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces, film })
     }
 
     /// Step 1: Φ^{n+1} from Φⁿ (in `phi`) transported over δt with u^{n+½}, then redistanced
@@ -105,10 +108,12 @@ impl Interface {
     /// The global mass correction after step 1: Φ ← Φ + δ with the constant δ that restores
     /// the dense-phase area to `reference_area` (secant iterations on the sub-cell area A(δ) of
     /// [`super::dense_area`]; the first guess δ = (A_ref − A)/L uses the interface length
-    /// L ≈ ∫ δ_ε(Φ) dx). Nothing is done for a reference area ≤ 0, an area already within
-    /// 1e-12 of it, or no interface. Switchable: `mass_correction`. Returns δ (m; 0 when nothing
-    /// was done).
-    pub fn correct_mass(&self, phi: &mut Field, reference_area: f64, grid: &Grid, exec: Exec) -> f64 {
+    /// L ≈ ∫ δ_ε(Φ) dx). With `mass_correction_film` = a > 0 the shift is δ w, with the weight w
+    /// of [`super::film`] computed from Φ before the shift (films thinner than about a cells keep
+    /// their Φ), and L ≈ ∫ δ_ε(Φ) w dx. Nothing is done for a reference area ≤ 0, an area already
+    /// within 1e-12 of it, or no (weighted) interface. Switchable: `mass_correction`. Returns δ
+    /// (m; 0 when nothing was done): the shift where w = 1.
+    pub fn correct_mass(&mut self, phi: &mut Field, reference_area: f64, grid: &Grid, exec: Exec) -> f64 {
         let target = reference_area;
         let area = |phi: &Field| super::dense_area(phi, grid, exec);
         let a0 = area(phi);
@@ -116,15 +121,37 @@ impl Interface {
             return 0.0;
         }
         let eps = 1.5 * grid.h();
+        if let Some(film) = self.film.as_mut() {
+            film.update(phi, grid, exec);
+        }
+        let weight = self.film.as_ref().map(|f| &f.w);
         let (ps, st, nx) = (phi.slice(), phi.stride(), phi.nx);
-        let rows = (0..phi.ny).map(|j| &ps[(j + HALO) * st + HALO..(j + HALO) * st + HALO + nx]);
-        let length: f64 = rows.flat_map(|r| r.iter()).map(|&p| super::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy;
+        let length: f64 = match weight {
+            None => {
+                let rows = (0..phi.ny).map(|j| &ps[(j + HALO) * st + HALO..(j + HALO) * st + HALO + nx]);
+                rows.flat_map(|r| r.iter()).map(|&p| super::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy
+            }
+            Some(w) => {
+                let ws = w.slice();
+                let cells = (0..phi.ny).flat_map(|j| (j + HALO) * st + HALO..(j + HALO) * st + HALO + nx);
+                cells.map(|k| super::dirac(ps[k], eps) * ws[k]).sum::<f64>() * grid.dx * grid.dy
+            }
+        };
         if length <= 0.0 {
             return 0.0;
         }
         let shift = |phi: &mut Field, d: f64| {
             let n = phi.nx;
-            for_each_interior_row(exec, phi, |_, row| row[HALO..HALO + n].iter_mut().for_each(|x| *x += d));
+            match weight {
+                None => for_each_interior_row(exec, phi, |_, row| row[HALO..HALO + n].iter_mut().for_each(|x| *x += d)),
+                Some(w) => {
+                    let (ws, wst) = (w.slice(), w.stride());
+                    for_each_interior_row(exec, phi, |j, row| {
+                        let wr = &ws[(j + HALO) * wst + HALO..(j + HALO) * wst + HALO + n];
+                        row[HALO..HALO + n].iter_mut().zip(wr).for_each(|(x, &c)| *x += d * c);
+                    })
+                }
+            }
         };
         let (mut d_prev, mut a_prev) = (0.0, a0);
         let mut d = (target - a0) / length;
@@ -154,12 +181,52 @@ mod tests {
         let grid = Grid::new(32, 16, 2.0, 1.0).unwrap();
         let (h0, d) = (0.4, 0.013);
         let mut phi = Field::from_fn(&grid, Location::Centre, |_, y| h0 - y);
-        let interface = Interface::new(&grid, RedistanceSettings::default()).unwrap();
+        let mut interface = Interface::new(&grid, RedistanceSettings::default()).unwrap();
         let shift = interface.correct_mass(&mut phi, 2.0 * (h0 + d), &grid, Exec::SERIAL);
         assert!((shift - d).abs() < 1e-10, "δ = {shift}, expected {d}");
         assert!((dense_area(&phi, &grid, Exec::SERIAL) - 2.0 * (h0 + d)).abs() < 1e-10);
         // an area already right: nothing done, δ = 0
         let area = dense_area(&phi, &grid, Exec::SERIAL);
         assert_eq!(interface.correct_mass(&mut phi, area, &grid, Exec::SERIAL), 0.0);
+    }
+
+    #[test]
+    fn the_film_sparing_correction_restores_the_area_and_leaves_a_thin_film_and_its_end_alone() {
+        // a layer 8 cells thick over x < 1, a film one cell thick from x = 1 to its end at
+        // x = 1.5, air beyond; Φ the distance to the top and to the film's end (the bottom is a
+        // wall, not an interface)
+        let grid = Grid::new(64, 32, 2.0, 1.0).unwrap();
+        let h = grid.h();
+        let phi_of = |x: f64, y: f64| if x < 1.0 { 8.0 * h - y } else { (h - y).min(1.5 - x) };
+        let phi0 = Field::from_fn(&grid, Location::Centre, phi_of);
+        let film_end = |phi: &Field| crate::levelset::interface_points(phi, &grid).iter().filter(|p| p[1] < 0.6 * h).map(|p| p[0]).fold(0.0, f64::max);
+        let a0 = dense_area(&phi0, &grid, Exec::SERIAL);
+        let settings = RedistanceSettings { mass_correction_film: 1.0, ..RedistanceSettings::default() };
+        let mut results = Vec::new();
+        for exec in [Exec::SERIAL, Exec::with_threads(2)] {
+            for gain in [1.002, 0.998] {
+                let mut phi = phi0.clone();
+                let mut interface = Interface::new(&grid, settings).unwrap();
+                let d = interface.correct_mass(&mut phi, gain * a0, &grid, exec);
+                assert!(d != 0.0);
+                assert!((dense_area(&phi, &grid, exec) / (gain * a0) - 1.0).abs() < 1e-10);
+                // the film's cells, more than r = 4 cells beyond the layer, keep Φ to the last bit
+                for j in 0..grid.ny {
+                    for i in 37..grid.nx {
+                        assert_eq!(phi.data[[j + HALO, i + HALO]], phi0.data[[j + HALO, i + HALO]], "({i}, {j})");
+                    }
+                }
+                assert_eq!(film_end(&phi), film_end(&phi0));
+                results.push(phi);
+            }
+        }
+        // one thread and two give the same Φ to the last bit
+        assert_eq!(results[0].data, results[2].data);
+        assert_eq!(results[1].data, results[3].data);
+        // the uniform shift moves the film's end: by δ along x where the end is vertical
+        let mut phi = phi0.clone();
+        let mut interface = Interface::new(&grid, RedistanceSettings::default()).unwrap();
+        let d = interface.correct_mass(&mut phi, 1.002 * a0, &grid, Exec::SERIAL);
+        assert!(film_end(&phi) > film_end(&phi0) + 0.5 * d, "{} {} {d}", film_end(&phi), film_end(&phi0));
     }
 }

@@ -57,6 +57,10 @@ impl ModelConfig {
         if self.redistance.piece_removal_cells > 0 {
             f += n;
         }
+        // the film-sparing mass correction: its weight and the rows' maxima
+        if self.redistance.mass_correction_film > 0.0 {
+            f += 2 * c;
+        }
         // momentum solver (5 vectors of CG per component)
         f += 5 * (xf + yf);
         // projection: Poisson solver, β on faces, rhs, δp, work, divergence and δp fields

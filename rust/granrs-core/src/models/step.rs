@@ -12,7 +12,8 @@
 //! 1. `choose_dt`: δt from the CFL rule or the fixed step; variable-step BDF2 coefficients.
 //! 2. `interface` [step 1]: Φ^{n+1} by WENO5 + TVD-RK3 with u^{n+½}, redistancing every N steps
 //!    (`levelset::Interface::advance`), then the optional global mass correction
-//!    (`levelset::Interface::correct_mass`, to the area `reference_area`), then the optional
+//!    (`levelset::Interface::correct_mass`, to the area `reference_area`; weighted to spare thin
+//!    films with `mass_correction_film`), then the optional
 //!    removal of small detached pieces of {Φ > 0} (`levelset::Interface::remove_pieces`,
 //!    `piece_removal_cells`), followed by the correction again when it removed any.
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1})
