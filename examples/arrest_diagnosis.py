@@ -44,7 +44,9 @@ and with the restarts and redistancing every step, with and without the correcti
 with the Picard tolerance 1e-4 or 1e-5 (``...-picard-tol-1e-4``), with 5 restarts
 (``redistance-1-proximal-5-pieces-4``), without Anderson mixing (``...-no-anderson-...``) and with
 redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``), with the film-sparing mass
-correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_correction_film=0.5)``),
+correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_correction_film=0.5)``;
+``...-film-0.5-at-rest``: only where the dense phase moves slower than 5 mm/s,
+``mass_correction_film_speed=0.005``),
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
 ``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
@@ -193,6 +195,14 @@ VARIANTS = {
         **PIECES,
         "redistance_every": 1,
         "mass_correction_film": 0.5,
+    },
+    # ... sparing only the films at rest (below the column's rest speed, 5 mm/s)
+    "redistance-1-proximal-20-pieces-4-film-0.5-at-rest": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "mass_correction_film": 0.5,
+        "mass_correction_film_speed": 0.005,
     },
     "no-mass-correction-redistance-1-proximal-20-pieces-4": {
         **RESTARTS,

@@ -19,6 +19,12 @@
 //! smoothed band |Φ| < 1.5 h of a deposit at least (a + 2) h thick sees Φ ≥ (a + 1) h within r
 //! cells). — (granrs's own; no published reference.)
 //!
+//! With `mass_correction_film_speed` = u_r > 0 the films are spared only where the dense phase is
+//! at rest: w ← max(w, min(1, max(0, |u|/u_r − 1))), |u| the cell-centre speed (the mean of the
+//! two faces in each direction). A film that flows (|u| ≥ 2 u_r) gets the uniform shift, whose
+//! return of the transport's losses keeps its end where it was while the flow spreads it; a film
+//! at rest (|u| ≤ u_r) keeps its Φ.
+//!
 //! The weight is computed once per correction from Φ before the shift, by a separable maximum
 //! over the interior cells (rows, then columns), with two centre fields allocated once; serial
 //! and parallel results are the same (a maximum does not depend on the order).
@@ -51,8 +57,9 @@ impl FilmWeight {
         self.radius
     }
 
-    /// w from `phi` (interior cells only: the ghosts are not read).
-    pub fn update(&mut self, phi: &Field, grid: &Grid, exec: Exec) {
+    /// w from `phi` (interior cells only: the ghosts are not read), and with `motion` = (u, v,
+    /// u_r), u_r > 0, raised to 1 where the cell-centre speed reaches 2 u_r.
+    pub fn update(&mut self, phi: &Field, motion: Option<(&Field, &Field, f64)>, grid: &Grid, exec: Exec) {
         let (nx, ny, r) = (phi.nx, phi.ny, self.radius);
         let (ps, st) = (phi.slice(), phi.stride());
         for_each_interior_row(exec, &mut self.row_max, |j, row| {
@@ -69,6 +76,17 @@ impl FilmWeight {
             for (i, out) in row[HALO..HALO + nx].iter_mut().enumerate() {
                 let m = (lo..=hi).map(|l| rs[(l + HALO) * rst + HALO + i]).fold(f64::NEG_INFINITY, f64::max);
                 *out = (m * inv_h - a).clamp(0.0, 1.0);
+            }
+        });
+        let Some((u, v, rest_speed)) = motion.filter(|m| m.2 > 0.0) else { return };
+        let (us, ust, vs, vst) = (u.slice(), u.stride(), v.slice(), v.stride());
+        let inv_r = 1.0 / rest_speed;
+        for_each_interior_row(exec, &mut self.w, |j, row| {
+            let (ub, vb, vt) = ((j + HALO) * ust + HALO, (j + HALO) * vst + HALO, (j + 1 + HALO) * vst + HALO);
+            for (i, out) in row[HALO..HALO + nx].iter_mut().enumerate() {
+                let uc = 0.5 * (us[ub + i] + us[ub + i + 1]);
+                let vc = 0.5 * (vs[vb + i] + vs[vt + i]);
+                *out = out.max((uc.hypot(vc) * inv_r - 1.0).clamp(0.0, 1.0));
             }
         });
     }
@@ -88,7 +106,7 @@ mod tests {
         let phi = Field::from_fn(&grid, Location::Centre, |x, y| top(x) - y);
         let mut f = FilmWeight::new(&grid, 1.0);
         assert_eq!(f.radius(), 4);
-        f.update(&phi, &grid, Exec::SERIAL);
+        f.update(&phi, None, &grid, Exec::SERIAL);
         let w = |i: usize, j: usize| f.w.data[[j + HALO, i + HALO]];
         // the film, more than r cells beyond the step: max Φ = h/2 < a h
         for i in 40..64 {
@@ -107,7 +125,19 @@ mod tests {
         }
         // serial == parallel, to the last bit
         let mut g = FilmWeight::new(&grid, 1.0);
-        g.update(&phi, &grid, Exec::with_threads(2));
+        g.update(&phi, None, &grid, Exec::with_threads(2));
         assert_eq!(f.w.data, g.w.data);
+        // with a rest speed: a film that flows at 2 u_r or faster is weighted 1, one at rest 0
+        let u_r = 0.005;
+        let u = Field::from_fn(&grid, Location::XFace, |x, _| if x > 1.6 { 2.0 * u_r } else { 0.2 * u_r });
+        let v = Field::zeros(&grid, Location::YFace);
+        for exec in [Exec::SERIAL, Exec::with_threads(2)] {
+            g.update(&phi, Some((&u, &v, u_r)), &grid, exec);
+            let wg = |i: usize, j: usize| g.w.data[[j + HALO, i + HALO]];
+            for j in 0..32 {
+                assert_eq!(wg(45, j), 0.0, "film at rest");
+                assert_eq!(wg(60, j), 1.0, "flowing film");
+            }
+        }
     }
 }

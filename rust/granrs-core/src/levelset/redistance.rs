@@ -113,6 +113,9 @@ pub struct RedistanceSettings {
     /// The global mass correction leaves films thinner than about this many cells alone
     /// ([`super::film`]; 0: the uniform shift).
     pub mass_correction_film: f64,
+    /// With `mass_correction_film` > 0: the films are spared only where the dense phase moves
+    /// slower than this [m s⁻¹] (0: whatever their speed).
+    pub mass_correction_film_speed: f64,
 }
 
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
@@ -194,6 +197,16 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "the global mass correction's shift δ weighted by w = min(1, max(0, M/h − a)), M the largest Φ within ⌈a⌉ + 3 cells: films of the dense phase thinner than about a cells keep their Φ and their ends stay put (0: the uniform shift Φ + δ)",
     )
     .variant(),
+    options::float(
+        "redistance",
+        "mass_correction_film_speed",
+        0.0,
+        0.0,
+        f64::INFINITY,
+        "m/s",
+        "with mass_correction_film > 0: the films are spared only where the dense phase is at rest, w raised to min(1, max(0, |u|/u_r − 1)) with u_r this speed (0: whatever their speed)",
+    )
+    .variant(),
 ];
 
 impl InterfaceTreatment {
@@ -220,6 +233,7 @@ impl Default for RedistanceSettings {
             extension_rest_speed: o("extension_rest_speed").float(),
             piece_removal_cells: o("piece_removal_cells").usize(),
             mass_correction_film: o("mass_correction_film").float(),
+            mass_correction_film_speed: o("mass_correction_film_speed").float(),
         }
     }
 }
@@ -240,6 +254,7 @@ impl Configurable for RedistanceSettings {
             "extension_rest_speed" => Value::Float(self.extension_rest_speed),
             "piece_removal_cells" => Value::Int(self.piece_removal_cells.min(i64::MAX as usize) as i64),
             "mass_correction_film" => Value::Float(self.mass_correction_film),
+            "mass_correction_film_speed" => Value::Float(self.mass_correction_film_speed),
             _ => Value::None,
         }
     }
@@ -257,6 +272,7 @@ impl Configurable for RedistanceSettings {
             "extension_rest_speed" => self.extension_rest_speed = v.as_f64().unwrap_or(self.extension_rest_speed),
             "piece_removal_cells" => self.piece_removal_cells = options::as_usize(v),
             "mass_correction_film" => self.mass_correction_film = v.as_f64().unwrap_or(self.mass_correction_film),
+            "mass_correction_film_speed" => self.mass_correction_film_speed = v.as_f64().unwrap_or(self.mass_correction_film_speed),
             _ => {}
         }
         Ok(())

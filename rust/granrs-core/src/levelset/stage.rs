@@ -25,6 +25,8 @@ pub struct Interface {
     pub pieces: Option<DetachedPieces>,
     /// The weight of the film-sparing mass correction (`mass_correction_film` > 0).
     pub film: Option<FilmWeight>,
+    /// Its rest speed (`mass_correction_film_speed`; 0: films spared whatever their speed).
+    film_speed: f64,
 }
 
 /// The velocity the interface is transported with, and where to put the time-centred one.
@@ -48,7 +50,8 @@ impl Interface {
         let extension = redistance.extended_velocity.then(|| VelocityExtension::new(grid, redistance.extension_depth, redistance.extension_rest_speed));
         let pieces = (redistance.piece_removal_cells > 0).then(|| DetachedPieces::new(grid, redistance.piece_removal_cells));
         let film = (redistance.mass_correction_film > 0.0).then(|| FilmWeight::new(grid, redistance.mass_correction_film));
-        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces, film })
+        let film_speed = redistance.mass_correction_film_speed;
+        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces, film, film_speed })
     }
 
     /// Step 1: Φ^{n+1} from Φⁿ (in `phi`) transported over δt with u^{n+½}, then redistanced
@@ -110,10 +113,12 @@ impl Interface {
     /// [`super::dense_area`]; the first guess δ = (A_ref − A)/L uses the interface length
     /// L ≈ ∫ δ_ε(Φ) dx). With `mass_correction_film` = a > 0 the shift is δ w, with the weight w
     /// of [`super::film`] computed from Φ before the shift (films thinner than about a cells keep
-    /// their Φ), and L ≈ ∫ δ_ε(Φ) w dx. Nothing is done for a reference area ≤ 0, an area already
-    /// within 1e-12 of it, or no (weighted) interface. Switchable: `mass_correction`. Returns δ
-    /// (m; 0 when nothing was done): the shift where w = 1.
-    pub fn correct_mass(&mut self, phi: &mut Field, reference_area: f64, grid: &Grid, exec: Exec) -> f64 {
+    /// their Φ; with `mass_correction_film_speed` > 0 only where the dense phase is at rest, its
+    /// speed from `velocity` = (u, v), the faces' velocity), and L ≈ ∫ δ_ε(Φ) w dx. Nothing is
+    /// done for a reference area ≤ 0, an area already within 1e-12 of it, or no (weighted)
+    /// interface. Switchable: `mass_correction`. Returns δ (m; 0 when nothing was done): the
+    /// shift where w = 1.
+    pub fn correct_mass(&mut self, phi: &mut Field, reference_area: f64, velocity: Option<(&Field, &Field)>, grid: &Grid, exec: Exec) -> f64 {
         let target = reference_area;
         let area = |phi: &Field| super::dense_area(phi, grid, exec);
         let a0 = area(phi);
@@ -122,7 +127,7 @@ impl Interface {
         }
         let eps = 1.5 * grid.h();
         if let Some(film) = self.film.as_mut() {
-            film.update(phi, grid, exec);
+            film.update(phi, velocity.map(|(u, v)| (u, v, self.film_speed)), grid, exec);
         }
         let weight = self.film.as_ref().map(|f| &f.w);
         let (ps, st, nx) = (phi.slice(), phi.stride(), phi.nx);
@@ -182,12 +187,12 @@ mod tests {
         let (h0, d) = (0.4, 0.013);
         let mut phi = Field::from_fn(&grid, Location::Centre, |_, y| h0 - y);
         let mut interface = Interface::new(&grid, RedistanceSettings::default()).unwrap();
-        let shift = interface.correct_mass(&mut phi, 2.0 * (h0 + d), &grid, Exec::SERIAL);
+        let shift = interface.correct_mass(&mut phi, 2.0 * (h0 + d), None, &grid, Exec::SERIAL);
         assert!((shift - d).abs() < 1e-10, "δ = {shift}, expected {d}");
         assert!((dense_area(&phi, &grid, Exec::SERIAL) - 2.0 * (h0 + d)).abs() < 1e-10);
         // an area already right: nothing done, δ = 0
         let area = dense_area(&phi, &grid, Exec::SERIAL);
-        assert_eq!(interface.correct_mass(&mut phi, area, &grid, Exec::SERIAL), 0.0);
+        assert_eq!(interface.correct_mass(&mut phi, area, None, &grid, Exec::SERIAL), 0.0);
     }
 
     #[test]
@@ -207,7 +212,7 @@ mod tests {
             for gain in [1.002, 0.998] {
                 let mut phi = phi0.clone();
                 let mut interface = Interface::new(&grid, settings).unwrap();
-                let d = interface.correct_mass(&mut phi, gain * a0, &grid, exec);
+                let d = interface.correct_mass(&mut phi, gain * a0, None, &grid, exec);
                 assert!(d != 0.0);
                 assert!((dense_area(&phi, &grid, exec) / (gain * a0) - 1.0).abs() < 1e-10);
                 // the film's cells, more than r = 4 cells beyond the layer, keep Φ to the last bit
@@ -226,7 +231,7 @@ mod tests {
         // the uniform shift moves the film's end: by δ along x where the end is vertical
         let mut phi = phi0.clone();
         let mut interface = Interface::new(&grid, RedistanceSettings::default()).unwrap();
-        let d = interface.correct_mass(&mut phi, 1.002 * a0, &grid, Exec::SERIAL);
+        let d = interface.correct_mass(&mut phi, 1.002 * a0, None, &grid, Exec::SERIAL);
         assert!(film_end(&phi) > film_end(&phi0) + 0.5 * d, "{} {} {d}", film_end(&phi), film_end(&phi0));
     }
 }

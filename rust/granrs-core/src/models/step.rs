@@ -371,13 +371,13 @@ impl TwoPhaseModel {
         r.map_err(|e| self.at_step(e))?;
         let mut shift = 0.0;
         if cfg.mass_correction {
-            shift += self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
+            shift += self.levelset.correct_mass(&mut self.phi, self.reference_area, Some((&self.u, &self.v)), &cfg.grid, exec);
         }
         // the small detached pieces the transport or the correction's shift left, their area put
         // back by a second correction (`piece_removal_cells`)
         let removed = self.levelset.remove_pieces(&mut self.phi);
         if removed > 0 && cfg.mass_correction {
-            shift += self.levelset.correct_mass(&mut self.phi, self.reference_area, &cfg.grid, exec);
+            shift += self.levelset.correct_mass(&mut self.phi, self.reference_area, Some((&self.u, &self.v)), &cfg.grid, exec);
         }
         self.properties.invalidate();
         Ok((removed, shift))
