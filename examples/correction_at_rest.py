@@ -30,7 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs.cases.column import ColumnCase, RestCriterion, build_model, front_position, surface_profile
+from granrs.cases.column import (
+    ColumnCase,
+    RestCriterion,
+    build_model,
+    front_position,
+    granular_speed,
+    surface_profile,
+)
 from granrs.config import parse_options
 from granrs.observables import volume_profile
 
@@ -38,13 +45,6 @@ from granrs.observables import volume_profile
 AT_REST = {"proximal_restarts": 20, "anderson_depth": 5, "redistance_every": 1, "piece_removal_cells": 4}
 #: record interval (s), as the column's runs
 EVERY = 0.01
-
-
-def granular_speed(model) -> float:
-    uc, vc = model.centre_velocity()
-    speed = np.hypot(uc, vc)
-    grains = model.phi > 0
-    return float(speed[grains].max()) if grains.any() else 0.0
 
 
 def run_to_rest(model, case: ColumnCase) -> float:

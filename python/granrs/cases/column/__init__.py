@@ -66,6 +66,7 @@ from .measures import (
     deposit_quantile,
     farthest_material,
     front_position,
+    granular_speed,
     surface_profile,
 )
 from .outputs import FRONT_NAMES, _progress as _progress, front_columns, write_energy, write_outputs
@@ -118,6 +119,7 @@ __all__ = [
     "fluidisation_summary",
     "front_columns",
     "front_position",
+    "granular_speed",
     "plot_energy",
     "plot_fluidisation",
     "plot_front",

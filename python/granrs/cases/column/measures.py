@@ -1,5 +1,6 @@
 """Measures of the column's fields: the front on the lowest row of cells, the farthest material,
-the deposit quantile, the surface profile and the basal pore-pressure ratio."""
+the deposit quantile, the surface profile, the basal pore-pressure ratio and the granular speed
+of the rest criterion."""
 
 from __future__ import annotations
 
@@ -25,6 +26,14 @@ def front_position(phi: np.ndarray, dx: float, max_gap: int = 2) -> float:
     if i + 1 < row.size:
         x += dx * row[i] / (row[i] - row[i + 1])
     return float(x)
+
+
+def granular_speed(model) -> float:
+    """The largest cell-centre speed over the cells with Φ > 0 (0 without any): what the column's
+    rest criterion (:class:`RestCriterion`) and summary.json's ``final_granular_speed_m_s`` read."""
+    uc, vc = model.centre_velocity()
+    inside = model.phi > 0
+    return float(np.max(np.hypot(uc, vc)[inside])) if inside.any() else 0.0
 
 
 def farthest_material(phi: np.ndarray, dx: float) -> float:

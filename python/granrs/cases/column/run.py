@@ -22,7 +22,14 @@ from ...simulation import Callback, Simulation
 from .build import build_model
 from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .depth_averaged import run_column_depth_averaged
-from .measures import basal_pore_pressure_ratio, deposit_quantile, farthest_material, front_position, surface_profile
+from .measures import (
+    basal_pore_pressure_ratio,
+    deposit_quantile,
+    farthest_material,
+    front_position,
+    granular_speed,
+    surface_profile,
+)
 from .outputs import _progress, write_energy, write_outputs
 from .plots import plot_energy, plot_fluidisation, plot_front, plot_profiles
 from .summaries import (
@@ -107,11 +114,6 @@ def run_column(
     last_flush = (0, -1)  # (records, steps) written by the last flush
     pending_profiles = sorted(case.profile_times)
 
-    def granular_speed() -> float:
-        uc, vc = model.centre_velocity()
-        inside = model.phi > 0
-        return float(np.max(np.hypot(uc, vc)[inside])) if inside.any() else 0.0
-
     def observe(sim: Simulation) -> None:
         t = model.time
         xf = front_position(model.phi, grid.dx)
@@ -124,7 +126,7 @@ def run_column(
                 f"the granular material reached the far end of the domain (x = {xfar:.3f} m of "
                 f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)"
             )
-        speed = granular_speed()
+        speed = granular_speed(model)
         rec["t"].append(t)
         rec["front"].append(xf - lc)
         rec["area"].append(model.dense_area())

@@ -39,6 +39,8 @@ pub struct FilmWeight {
     thickness: f64,
     /// r = ⌈a⌉ + 3: the half-width of the neighbourhood (cells).
     radius: usize,
+    /// u_r: films are spared only where the dense phase moves slower (m s⁻¹; 0: whatever their speed).
+    rest_speed: f64,
     /// The maximum of Φ along each row over |k − i| ≤ r.
     row_max: Field,
     /// w at the cell centres (interior; the ghosts stay 0).
@@ -46,10 +48,12 @@ pub struct FilmWeight {
 }
 
 impl FilmWeight {
-    /// The weight for films thinner than about `thickness` cells (> 0) on `grid`.
-    pub fn new(grid: &Grid, thickness: f64) -> Self {
+    /// The weight for films thinner than about `thickness` cells (> 0) on `grid`, spared only
+    /// where the dense phase moves slower than `rest_speed` (0: whatever their speed).
+    pub fn new(grid: &Grid, thickness: f64, rest_speed: f64) -> Self {
         let radius = thickness.ceil() as usize + 3;
-        FilmWeight { thickness, radius, row_max: Field::zeros(grid, Location::Centre), w: Field::zeros(grid, Location::Centre) }
+        let (row_max, w) = (Field::zeros(grid, Location::Centre), Field::zeros(grid, Location::Centre));
+        FilmWeight { thickness, radius, rest_speed, row_max, w }
     }
 
     /// The neighbourhood's half-width r (cells).
@@ -57,9 +61,9 @@ impl FilmWeight {
         self.radius
     }
 
-    /// w from `phi` (interior cells only: the ghosts are not read), and with `motion` = (u, v,
-    /// u_r), u_r > 0, raised to 1 where the cell-centre speed reaches 2 u_r.
-    pub fn update(&mut self, phi: &Field, motion: Option<(&Field, &Field, f64)>, grid: &Grid, exec: Exec) {
+    /// w from `phi` (interior cells only: the ghosts are not read), and with a rest speed u_r > 0
+    /// and `velocity` = (u, v) on the faces, raised to 1 where the cell-centre speed reaches 2 u_r.
+    pub fn update(&mut self, phi: &Field, velocity: Option<(&Field, &Field)>, grid: &Grid, exec: Exec) {
         let (nx, ny, r) = (phi.nx, phi.ny, self.radius);
         let (ps, st) = (phi.slice(), phi.stride());
         for_each_interior_row(exec, &mut self.row_max, |j, row| {
@@ -78,9 +82,9 @@ impl FilmWeight {
                 *out = (m * inv_h - a).clamp(0.0, 1.0);
             }
         });
-        let Some((u, v, rest_speed)) = motion.filter(|m| m.2 > 0.0) else { return };
+        let Some((u, v)) = velocity.filter(|_| self.rest_speed > 0.0) else { return };
         let (us, ust, vs, vst) = (u.slice(), u.stride(), v.slice(), v.stride());
-        let inv_r = 1.0 / rest_speed;
+        let inv_r = 1.0 / self.rest_speed;
         for_each_interior_row(exec, &mut self.w, |j, row| {
             let (ub, vb, vt) = ((j + HALO) * ust + HALO, (j + HALO) * vst + HALO, (j + 1 + HALO) * vst + HALO);
             for (i, out) in row[HALO..HALO + nx].iter_mut().enumerate() {
@@ -104,7 +108,7 @@ mod tests {
         let h = grid.h();
         let top = |x: f64| if x < 1.0 { 8.0 * h } else { h };
         let phi = Field::from_fn(&grid, Location::Centre, |x, y| top(x) - y);
-        let mut f = FilmWeight::new(&grid, 1.0);
+        let mut f = FilmWeight::new(&grid, 1.0, 0.0);
         assert_eq!(f.radius(), 4);
         f.update(&phi, None, &grid, Exec::SERIAL);
         let w = |i: usize, j: usize| f.w.data[[j + HALO, i + HALO]];
@@ -124,15 +128,16 @@ mod tests {
             }
         }
         // serial == parallel, to the last bit
-        let mut g = FilmWeight::new(&grid, 1.0);
+        let mut g = FilmWeight::new(&grid, 1.0, 0.0);
         g.update(&phi, None, &grid, Exec::with_threads(2));
         assert_eq!(f.w.data, g.w.data);
         // with a rest speed: a film that flows at 2 u_r or faster is weighted 1, one at rest 0
         let u_r = 0.005;
+        let mut g = FilmWeight::new(&grid, 1.0, u_r);
         let u = Field::from_fn(&grid, Location::XFace, |x, _| if x > 1.6 { 2.0 * u_r } else { 0.2 * u_r });
         let v = Field::zeros(&grid, Location::YFace);
         for exec in [Exec::SERIAL, Exec::with_threads(2)] {
-            g.update(&phi, Some((&u, &v, u_r)), &grid, exec);
+            g.update(&phi, Some((&u, &v)), &grid, exec);
             let wg = |i: usize, j: usize| g.w.data[[j + HALO, i + HALO]];
             for j in 0..32 {
                 assert_eq!(wg(45, j), 0.0, "film at rest");

@@ -23,10 +23,9 @@ pub struct Interface {
     pub extension: Option<VelocityExtension>,
     /// The removal of small detached pieces of the dense phase (`piece_removal_cells` > 0).
     pub pieces: Option<DetachedPieces>,
-    /// The weight of the film-sparing mass correction (`mass_correction_film` > 0).
+    /// The weight of the film-sparing mass correction (`mass_correction_film` > 0, with its rest
+    /// speed `mass_correction_film_speed`).
     pub film: Option<FilmWeight>,
-    /// Its rest speed (`mass_correction_film_speed`; 0: films spared whatever their speed).
-    film_speed: f64,
 }
 
 /// The velocity the interface is transported with, and where to put the time-centred one.
@@ -49,9 +48,9 @@ impl Interface {
     pub fn new(grid: &Grid, redistance: RedistanceSettings) -> Result<Self> {
         let extension = redistance.extended_velocity.then(|| VelocityExtension::new(grid, redistance.extension_depth, redistance.extension_rest_speed));
         let pieces = (redistance.piece_removal_cells > 0).then(|| DetachedPieces::new(grid, redistance.piece_removal_cells));
-        let film = (redistance.mass_correction_film > 0.0).then(|| FilmWeight::new(grid, redistance.mass_correction_film));
-        let film_speed = redistance.mass_correction_film_speed;
-        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces, film, film_speed })
+        let film =
+            (redistance.mass_correction_film > 0.0).then(|| FilmWeight::new(grid, redistance.mass_correction_film, redistance.mass_correction_film_speed));
+        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces, film })
     }
 
     /// Step 1: Φ^{n+1} from Φⁿ (in `phi`) transported over δt with u^{n+½}, then redistanced
@@ -127,36 +126,26 @@ impl Interface {
         }
         let eps = 1.5 * grid.h();
         if let Some(film) = self.film.as_mut() {
-            film.update(phi, velocity.map(|(u, v)| (u, v, self.film_speed)), grid, exec);
+            film.update(phi, velocity, grid, exec);
         }
-        let weight = self.film.as_ref().map(|f| &f.w);
+        // the weight (a centre field, Φ's layout): w = 1 everywhere without the option, where
+        // δ·1 and δ_ε·1 are δ and δ_ε exactly
+        let weight = self.film.as_ref().map(|f| f.w.slice());
         let (ps, st, nx) = (phi.slice(), phi.stride(), phi.nx);
-        let length: f64 = match weight {
-            None => {
-                let rows = (0..phi.ny).map(|j| &ps[(j + HALO) * st + HALO..(j + HALO) * st + HALO + nx]);
-                rows.flat_map(|r| r.iter()).map(|&p| super::dirac(p, eps)).sum::<f64>() * grid.dx * grid.dy
-            }
-            Some(w) => {
-                let ws = w.slice();
-                let cells = (0..phi.ny).flat_map(|j| (j + HALO) * st + HALO..(j + HALO) * st + HALO + nx);
-                cells.map(|k| super::dirac(ps[k], eps) * ws[k]).sum::<f64>() * grid.dx * grid.dy
-            }
-        };
+        let cells = (0..phi.ny).flat_map(|j| (j + HALO) * st + HALO..(j + HALO) * st + HALO + nx);
+        let length = cells.map(|k| super::dirac(ps[k], eps) * weight.map_or(1.0, |w| w[k])).sum::<f64>() * grid.dx * grid.dy;
         if length <= 0.0 {
             return 0.0;
         }
         let shift = |phi: &mut Field, d: f64| {
             let n = phi.nx;
-            match weight {
-                None => for_each_interior_row(exec, phi, |_, row| row[HALO..HALO + n].iter_mut().for_each(|x| *x += d)),
-                Some(w) => {
-                    let (ws, wst) = (w.slice(), w.stride());
-                    for_each_interior_row(exec, phi, |j, row| {
-                        let wr = &ws[(j + HALO) * wst + HALO..(j + HALO) * wst + HALO + n];
-                        row[HALO..HALO + n].iter_mut().zip(wr).for_each(|(x, &c)| *x += d * c);
-                    })
+            for_each_interior_row(exec, phi, |j, row| {
+                let row = &mut row[HALO..HALO + n];
+                match weight {
+                    None => row.iter_mut().for_each(|x| *x += d),
+                    Some(w) => row.iter_mut().zip(&w[(j + HALO) * st + HALO..]).for_each(|(x, &c)| *x += d * c),
                 }
-            }
+            });
         };
         let (mut d_prev, mut a_prev) = (0.0, a0);
         let mut d = (target - a0) / length;
