@@ -11,7 +11,8 @@ import argparse
 
 
 def warm_column_model(args: argparse.Namespace):
-    """The column's Rust model of ``args`` (ny, threads, model, dry, active_region, sides),
+    """The column's Rust model of ``args`` (ny, threads, model, dry, active_region, sides, and
+    ``option``: KEY=VALUE model options by their schema keys),
     restored from ``args.restart`` (a run's checkpoint.npz of the same case, if given: the
     steps then start at a late state of the collapse, with its larger window and iteration
     counts), or advanced to ``args.at_time`` (a checkpoint of that state is kept in
@@ -23,10 +24,14 @@ def warm_column_model(args: argparse.Namespace):
 
     if granrs.build_info()["profile"] != "release":
         raise SystemExit("benchmarks need a release build (make install builds one)")
+    from granrs.config import parse_options
+
     kw = dict(ny=args.ny, threads=args.threads, model=args.model, fluidised=not args.dry)
     if args.active_region is not None:
         kw.update(active_region=ActiveRegion(args.active_region, sides=args.sides))
-    m = build_model(ColumnCase(**kw))
+    options = parse_options(getattr(args, "option", None) or [])
+    m = build_model(ColumnCase(**kw).with_options(**options))
+    kw.update(options)  # the cache's name holds them
     if getattr(args, "restart", None):
         from granrs.io import restore_checkpoint
 

@@ -3,7 +3,7 @@ that every step reports (``Model.step()['stage_seconds']``, models/step.rs).
 
     .venv/bin/python benchmarks/stage_profile.py --ny 64 [--dry] [--model two-phase|granular]
         [--threads 1] [--warmup 10] [--steps 30] [--active-region B --sides S] [--restart CHECKPOINT]
-        [--speeds] [--out FILE.json]
+        [--speeds] [--option KEY=VALUE ...] [--out FILE.json]
 
 The column of ``granrs.cases.column`` is built, advanced ``--warmup`` steps, then stepped
 ``--steps`` times one step at a time; the table gives each stage's mean seconds per step and
@@ -109,6 +109,13 @@ def main() -> None:
         "--speeds",
         action="store_true",
         help="first print the largest cell-centre speed, its cell and Φ/h there, and the largest in the grains (Φ > 0)",
+    )
+    ap.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a model option changed from the column's default by its schema key (`granrs keys`; repeat)",
     )
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
