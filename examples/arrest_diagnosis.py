@@ -46,7 +46,9 @@ with the Picard tolerance 1e-4 or 1e-5 (``...-picard-tol-1e-4``), with 5 restart
 redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``), with the film-sparing mass
 correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_correction_film=0.5)``;
 ``...-film-0.5-at-rest``: only where the dense phase moves slower than 5 mm/s,
-``mass_correction_film_speed=0.005``),
+``mass_correction_film_speed=0.005``), with the redistancing's tolerance
+(``redistance-1-proximal-20-pieces-4-tolerance-0.01``, ``Variants(redistance_tolerance=0.01)``: the
+interface cells already within 0.01 cell of their distance keep Φ),
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
 ``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
@@ -203,6 +205,13 @@ VARIANTS = {
         "redistance_every": 1,
         "mass_correction_film": 0.5,
         "mass_correction_film_speed": 0.005,
+    },
+    # ... with the redistancing's interface cells kept where they are already a distance
+    "redistance-1-proximal-20-pieces-4-tolerance-0.01": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "redistance_tolerance": 0.01,
     },
     "no-mass-correction-redistance-1-proximal-20-pieces-4": {
         **RESTARTS,

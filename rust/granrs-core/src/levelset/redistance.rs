@@ -100,6 +100,10 @@ pub struct RedistanceSettings {
     pub band: Option<f64>,
     /// Treatment of the cells next to the interface.
     pub interface: InterfaceTreatment,
+    /// [`InterfaceTreatment::ClosestPoint`]: a cell next to the interface whose |Φ⁰| is already
+    /// within this many cells of its closest-point distance keeps Φ⁰ (0: every such cell is
+    /// reset to its distance).
+    pub tolerance: f64,
     /// The velocity that transports Φ: the one-fluid velocity (default) or its extension from
     /// the level Φ = `extension_depth` · h of the dense phase ([`super::extension`]).
     pub extended_velocity: bool,
@@ -147,6 +151,16 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "closest-point",
         &["closest-point", "subcell-pde"],
         "treatment of the cells next to the interface: frozen band at the bicubic zero set (Chopp 2001) or the subcell PDE (Min 2010)",
+    )
+    .variant(),
+    options::float(
+        "redistance",
+        "redistance_tolerance",
+        0.0,
+        0.0,
+        0.5,
+        "cells",
+        "with redistance_interface = closest-point: a cell next to the interface whose |Φ| is already within this many cells of its closest-point distance keeps Φ, so that redistancing a distance function again leaves its interface cells to the bit (0: every such cell is reset)",
     )
     .variant(),
     options::choice(
@@ -228,6 +242,7 @@ impl Default for RedistanceSettings {
             cfl: o("redistance_cfl").float(),
             band: None,
             interface: InterfaceTreatment::ClosestPoint,
+            tolerance: o("redistance_tolerance").float(),
             extended_velocity: options::as_name(&o("interface_velocity").default) == "extended",
             extension_depth: o("extension_depth").float(),
             extension_rest_speed: o("extension_rest_speed").float(),
@@ -249,6 +264,7 @@ impl Configurable for RedistanceSettings {
             "redistance_cfl" => Value::Float(self.cfl),
             "redistance_band" => Value::opt_f64(self.band),
             "redistance_interface" => Value::str(self.interface.name()),
+            "redistance_tolerance" => Value::Float(self.tolerance),
             "interface_velocity" => Value::str(if self.extended_velocity { "extended" } else { "one-fluid" }),
             "extension_depth" => Value::Float(self.extension_depth),
             "extension_rest_speed" => Value::Float(self.extension_rest_speed),
@@ -267,6 +283,7 @@ impl Configurable for RedistanceSettings {
             "redistance_interface" => {
                 self.interface = if options::as_name(v) == "subcell-pde" { InterfaceTreatment::SubcellPde } else { InterfaceTreatment::ClosestPoint }
             }
+            "redistance_tolerance" => self.tolerance = v.as_f64().unwrap_or(self.tolerance),
             "interface_velocity" => self.extended_velocity = options::as_name(v) == "extended",
             "extension_depth" => self.extension_depth = v.as_f64().unwrap_or(self.extension_depth),
             "extension_rest_speed" => self.extension_rest_speed = v.as_f64().unwrap_or(self.extension_rest_speed),
@@ -480,6 +497,8 @@ impl Redistancer {
         let p0 = self.phi0.slice();
         let [sxm, sxp, sym, syp] = [0, 1, 2, 3].map(|d| self.sub[d].slice());
         let h = grid.h();
+        // A tolerance of 0 keeps no cell: d = |Φ⁰| to the bit gives the same value either way.
+        let keep = self.settings.tolerance * h;
         exec.for_each_row(self.frozen.slice_mut(), stride, |r, row| {
             row.fill(f64::NAN);
             if !on || !(HALO..ny + HALO).contains(&r) {
@@ -513,7 +532,7 @@ impl Redistancer {
                 }
                 // A crossing lies within h along a grid line: the foot point is within h.
                 if let Some(d) = bic.distance((x, y), &starts[..n], 1.5 * h) {
-                    row[i + HALO] = p0[k].signum() * d;
+                    row[i + HALO] = if (d - p0[k].abs()).abs() <= keep { p0[k] } else { p0[k].signum() * d };
                 }
             }
         });
