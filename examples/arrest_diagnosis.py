@@ -48,7 +48,8 @@ correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_corr
 ``...-film-0.5-at-rest``: only where the dense phase moves slower than 5 mm/s,
 ``mass_correction_film_speed=0.005``), with the redistancing's tolerance
 (``redistance-1-proximal-20-pieces-4-tolerance-0.01``, ``Variants(redistance_tolerance=0.01)``: the
-interface cells already within 0.01 cell of their distance keep Φ),
+interface cells already within 0.01 cell of their distance keep Φ; also without the correction,
+``no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01``),
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
 ``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
@@ -218,6 +219,13 @@ VARIANTS = {
         **PIECES,
         **NO_CORRECTION,
         "redistance_every": 1,
+    },
+    "no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01": {
+        **RESTARTS,
+        **PIECES,
+        **NO_CORRECTION,
+        "redistance_every": 1,
+        "redistance_tolerance": 0.01,
     },
     # the yield stress at full strength over the band (or its granular side) with the four
     # options of the deposit-at-rest how-to
