@@ -49,7 +49,8 @@ correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_corr
 ``mass_correction_film_speed=0.005``), with the redistancing's tolerance
 (``redistance-1-proximal-20-pieces-4-tolerance-0.01``, ``Variants(redistance_tolerance=0.01)``: the
 interface cells already within 0.01 cell of their distance keep Φ; also without the correction,
-``no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01``, and with the extension
+``no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01``, with redistancing every 10
+steps, ``proximal-20-pieces-4-tolerance-0.01``, and with the extension
 where the dense phase rests, ``...-tolerance-0.01-extended-at-rest``),
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
@@ -221,6 +222,8 @@ VARIANTS = {
         **NO_CORRECTION,
         "redistance_every": 1,
     },
+    # ... redistancing every 10 steps (the column's) instead of every step
+    "proximal-20-pieces-4-tolerance-0.01": {**RESTARTS, **PIECES, "redistance_tolerance": 0.01},
     # ... and with Φ transported by the dense phase's velocity extended where it rests
     "redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest": {
         **RESTARTS,
