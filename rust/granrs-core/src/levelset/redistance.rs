@@ -39,6 +39,11 @@
 //!   second difference of Φ⁰ in the 5 × 5 cells around exceeds [`KINK_RATIO`] times the
 //!   undivided gradient (≈ h/r for an interface of radius r, so r ≳ 2h counts as smooth). If
 //!   the iteration does not converge, the cell falls back to the PDE treatment below.
+//!   On bumps a few cells wide the reset is not exact and moves the surface by a few 1e-4 h per
+//!   call, always the same way: called at every step, millimetres in a second on a deposit at
+//!   rest. With [`RedistanceSettings::tolerance`] t > 0 a cell whose |Φ⁰| is already within t·h of
+//!   its closest-point distance keeps Φ⁰, so that a distance function redistanced again keeps
+//!   its interface cells, and the zero level between them, to the bit.
 //! - [`InterfaceTreatment::SubcellPde`]: the second-order subcell PDE of Chéné, Min & Gibou (2008,
 //!   J. Sci. Comput. 35) and Min (2010, J. Comput. Phys. 229). Where Φ⁰ changes sign between
 //!   cell i and i+1, the interface distance s = θ h along the grid line is taken from the
