@@ -418,39 +418,54 @@ fn interface_values(phi: &Field, grid: &Grid) -> Vec<f64> {
 /// with bumps of about five cells: what the column leaves at rest. Redistanced after every step
 /// of a run at rest (hundreds of calls a second), the closest-point treatment moves such a
 /// surface a little at every call, where the bicubic sees bumps of a few cells; with
-/// `redistance_tolerance` the interface cells, already at their distance, keep their values.
+/// `redistance_tolerance` = t the interface cells already within t·h of their distance keep
+/// their values, and after a few calls nothing moves any more.
 #[test]
 fn redistancing_with_a_tolerance_leaves_a_deposit_at_rest_in_place() {
     let grid = Grid::new(192, 32, 192.0, 32.0).unwrap(); // h = 1; 6 144 cells: parallel sweeps
     let surface = |x: f64| (3.0 - 0.04 * x).max(0.6) + 0.3 * (2.0 * PI * x / 4.7).sin() + 0.2 * (2.0 * PI * x / 7.3).cos();
-    // the surface heights and interface cells after the first call and after 200 more
+    // the surface heights after the first call, and heights and interface cells after 10 and
+    // after 200 calls
     let run = |tolerance: f64, exec: Exec| {
         let mut phi = Field::from_fn(&grid, Location::Centre, |x, y| surface(x) - y);
         let mut r = Redistancer::new(&grid, RedistanceSettings { tolerance, ..Default::default() }).unwrap();
         // the first call brings Φ to a distance (|∇Φ| is 1.0–1.4 before it)
         r.redistance(&mut phi, &grid, exec).unwrap();
-        let first = (surface_heights(&phi, &grid), interface_values(&phi, &grid));
-        for _ in 0..200 {
+        let first = surface_heights(&phi, &grid);
+        for _ in 1..10 {
             r.redistance(&mut phi, &grid, exec).unwrap();
         }
-        (first, (surface_heights(&phi, &grid), interface_values(&phi, &grid)), phi)
+        let tenth = (surface_heights(&phi, &grid), interface_values(&phi, &grid));
+        for _ in 10..200 {
+            r.redistance(&mut phi, &grid, exec).unwrap();
+        }
+        (first, tenth, (surface_heights(&phi, &grid), interface_values(&phi, &grid)), phi)
     };
-    let mut moved = [0.0; 2];
-    for (m, tolerance) in [0.0, 0.01].into_iter().enumerate() {
-        let ((h1, cells1), (h2, cells2), phi) = run(tolerance, Exec::SERIAL);
-        moved[m] = h1.iter().zip(&h2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        let changed = cells1.len() != cells2.len() || cells1.iter().zip(&cells2).any(|(a, b)| a.to_bits() != b.to_bits());
-        println!("tolerance {tolerance}: the surface moved up to {:.2e} h in 200 calls; interface cells changed: {changed}", moved[m]);
-        if tolerance > 0.0 {
-            assert!(!changed, "with a tolerance the interface cells must keep their values to the bit");
+    let largest = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    // measured (h): t = 0: 6.3e-2 in 200 calls, 5.9e-2 of it after the tenth; 1e-3: 6.0e-2 (the
+    // reset's change per call is larger than t); 3e-3: 2.3e-3; 1e-2: 0; 3e-2: 1.0e-2 (all three
+    // within t, and nothing moves after the tenth call)
+    for tolerance in [0.0, 0.001, 0.003, 0.01, 0.03] {
+        let (first, (h10, cells10), (h200, cells200), phi) = run(tolerance, Exec::SERIAL);
+        let moved = largest(&first, &h200);
+        let same = cells10.len() == cells200.len() && cells10.iter().zip(&cells200).all(|(a, b)| a.to_bits() == b.to_bits());
+        println!(
+            "tolerance {tolerance}: the surface moved {moved:.2e} h in 200 calls ({:.2e} after the tenth); interface cells kept after the tenth: {same}",
+            largest(&h10, &h200)
+        );
+        if tolerance == 0.0 {
+            assert!(moved > 1e-2, "the test's surface should creep without a tolerance: {moved:.2e} h");
+        }
+        if tolerance >= 0.003 {
+            assert!(same && moved <= tolerance, "tolerance {tolerance}: moved {moved:.2e} h, cells kept after the tenth call: {same}");
+        }
+        if tolerance == 0.01 {
+            assert!(moved == 0.0, "{moved:e}");
             let pool = build_pool(2).unwrap();
-            let (_, _, parallel) = pool.install(|| run(tolerance, Exec { parallel: true }));
+            let (_, _, _, parallel) = pool.install(|| run(tolerance, Exec { parallel: true }));
             assert!(phi.slice().iter().zip(parallel.slice()).all(|(a, b)| a.to_bits() == b.to_bits()), "one thread against two");
         }
     }
-    // measured: 6.3e-2 h without the tolerance (3e-4 h per call), 0 with it
-    assert!(moved[1] == 0.0, "{moved:?}");
-    assert!(moved[0] > 1e-2, "the test's surface should creep without a tolerance: {moved:?}");
 }
 
 #[test]
