@@ -50,7 +50,8 @@ correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_corr
 (``redistance-1-proximal-20-pieces-4-tolerance-0.01``, ``Variants(redistance_tolerance=0.01)``: the
 interface cells already within 0.01 cell of their distance keep Φ; also without the correction,
 ``no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01``, with redistancing every 10
-steps, ``proximal-20-pieces-4-tolerance-0.01``, and with the extension
+steps, ``proximal-20-pieces-4-tolerance-0.01``, with 5 restarts,
+``redistance-1-proximal-5-pieces-4-tolerance-0.01``, and with the extension
 where the dense phase rests, ``...-tolerance-0.01-extended-at-rest``),
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
@@ -221,6 +222,14 @@ VARIANTS = {
         **PIECES,
         **NO_CORRECTION,
         "redistance_every": 1,
+    },
+    # ... with 5 restarts instead of 20
+    "redistance-1-proximal-5-pieces-4-tolerance-0.01": {
+        **RESTARTS,
+        **PIECES,
+        "redistance_every": 1,
+        "case": {"proximal_restarts": 5},
+        "redistance_tolerance": 0.01,
     },
     # ... redistancing every 10 steps (the column's) instead of every step
     "proximal-20-pieces-4-tolerance-0.01": {**RESTARTS, **PIECES, "redistance_tolerance": 0.01},
