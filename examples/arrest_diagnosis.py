@@ -231,6 +231,16 @@ VARIANTS = {
         "case": {"proximal_restarts": 5},
         "redistance_tolerance": 0.01,
     },
+    # ... with Φ transported by the extended velocity where the grains rest and the yield stress
+    # at full strength over the band
+    "density-support-redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest": {
+        **DENSITY_SUPPORT_20,
+        "anderson_depth": 5,
+        **PIECES,
+        **AT_REST,
+        "redistance_every": 1,
+        "redistance_tolerance": 0.01,
+    },
     # ... redistancing every 10 steps (the column's) instead of every step
     "proximal-20-pieces-4-tolerance-0.01": {**RESTARTS, **PIECES, "redistance_tolerance": 0.01},
     # ... and with Φ transported by the dense phase's velocity extended where it rests
