@@ -52,7 +52,9 @@ interface cells already within 0.01 cell of their distance keep Φ; also without
 ``no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01``, with redistancing every 10
 steps, ``proximal-20-pieces-4-tolerance-0.01``, with 5 restarts,
 ``redistance-1-proximal-5-pieces-4-tolerance-0.01``, and with the extension
-where the dense phase rests, ``...-tolerance-0.01-extended-at-rest``),
+where the dense phase rests, ``...-tolerance-0.01-extended-at-rest``, also with the yield stress
+at full strength over the band,
+``density-support-redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest``),
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
 ``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
