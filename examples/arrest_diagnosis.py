@@ -219,13 +219,17 @@ VARIANTS = {
         "redistance_every": 1,
         "redistance_tolerance": 0.01,
     },
-    "no-mass-correction-redistance-1-proximal-20-pieces-4": {
+    # the same with one thing changed: without the mass correction
+    "no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01": {
         **RESTARTS,
         **PIECES,
         **NO_CORRECTION,
         "redistance_every": 1,
+        "redistance_tolerance": 0.01,
     },
-    # ... with 5 restarts instead of 20
+    # ... redistancing every 10 steps (the column's) instead of every step
+    "proximal-20-pieces-4-tolerance-0.01": {**RESTARTS, **PIECES, "redistance_tolerance": 0.01},
+    # ... 5 restarts instead of 20
     "redistance-1-proximal-5-pieces-4-tolerance-0.01": {
         **RESTARTS,
         **PIECES,
@@ -233,8 +237,15 @@ VARIANTS = {
         "case": {"proximal_restarts": 5},
         "redistance_tolerance": 0.01,
     },
-    # ... with Φ transported by the extended velocity where the grains rest and the yield stress
-    # at full strength over the band
+    # ... Φ transported by the dense phase's velocity extended where it rests
+    "redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest": {
+        **RESTARTS,
+        **PIECES,
+        **AT_REST,
+        "redistance_every": 1,
+        "redistance_tolerance": 0.01,
+    },
+    # ... the same extension and the yield stress at full strength over the band
     "density-support-redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest": {
         **DENSITY_SUPPORT_20,
         "anderson_depth": 5,
@@ -243,22 +254,11 @@ VARIANTS = {
         "redistance_every": 1,
         "redistance_tolerance": 0.01,
     },
-    # ... redistancing every 10 steps (the column's) instead of every step
-    "proximal-20-pieces-4-tolerance-0.01": {**RESTARTS, **PIECES, "redistance_tolerance": 0.01},
-    # ... and with Φ transported by the dense phase's velocity extended where it rests
-    "redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest": {
-        **RESTARTS,
-        **PIECES,
-        **AT_REST,
-        "redistance_every": 1,
-        "redistance_tolerance": 0.01,
-    },
-    "no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01": {
+    "no-mass-correction-redistance-1-proximal-20-pieces-4": {
         **RESTARTS,
         **PIECES,
         **NO_CORRECTION,
         "redistance_every": 1,
-        "redistance_tolerance": 0.01,
     },
     # the yield stress at full strength over the band (or its granular side) with the four
     # options of the deposit-at-rest how-to
