@@ -134,6 +134,7 @@ def main() -> None:
     state = model._rust.checkpoint_state()
     phi0 = np.array(model.phi)
     front0, area0 = front_position(phi0, g.dx) - lc, model.dense_area()
+    surface0, volume0 = surface_profile(phi0, g.dy), volume_profile(phi0, g.dy)
 
     result = {"ny": args.ny, "state": "dry" if args.dry else "fluidised", "cell_m": g.dx, "options": run_options}
     result.update({"arrest_time_s": arrest, "restart_time_s": t_restart, "front_at_restart_m": front0})
@@ -145,8 +146,8 @@ def main() -> None:
             m._rust.restore_state(state)
         r = continue_to(m, t_restart, args.t_end, front0, area0, lc)
         phi = np.array(m.phi)
-        r["surface_change_m"] = float(np.max(np.abs(surface_profile(phi, g.dy) - surface_profile(phi0, g.dy))))
-        r["volume_change_m"] = float(np.max(np.abs(volume_profile(phi, g.dy) - volume_profile(phi0, g.dy))))
+        r["surface_change_m"] = float(np.max(np.abs(surface_profile(phi, g.dy) - surface0)))
+        r["volume_change_m"] = float(np.max(np.abs(volume_profile(phi, g.dy) - volume0)))
         result[name] = r
     path = out / f"{result['state']}-{args.ny}.json"
     path.write_text(json.dumps(result, indent=1) + "\n")
