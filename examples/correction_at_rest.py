@@ -1,9 +1,9 @@
 """Does the global mass correction move a deposit at rest? The same arrested state, continued with
-and without it (and without the redistancing).
+and without it (and without the redistancing, or with a tighter Picard tolerance).
 
     python examples/correction_at_rest.py --ny 16 [--dry] [--t-end 3] [--out out/correction-at-rest]
-        [--continuations with_correction without_correction without_redistancing without_either]
-        [--option mass_correction_film=0.5]
+        [--continuations with_correction without_correction without_redistancing without_either
+         tighter_picard] [--option mass_correction_film=0.5]
 
 The column (``granrs.cases.column``) runs with the options of docs/howto/deposit-at-rest.md (20
 proximal restarts, Anderson mixing of depth 5, redistancing at every step, detached pieces of at
@@ -13,11 +13,15 @@ granular speed below ``rest_speed`` for ``rest_duration``). Its whole state is t
 each of ``--continuations``: ``with_correction``, the run itself with the global mass correction
 (``levelset::Interface::correct_mass``, a uniform shift of Φ); ``without_correction``,
 ``without_redistancing`` and ``without_either``, models built with ``mass_correction = False``,
-``redistance_every = 0`` or both, into which the state is restored. The records every 0.01 s (at
+``redistance_every = 0`` or both, into which the state is restored; ``tighter_picard``, a model
+whose Picard tolerance (``picard_tol``) is the run's over ``TIGHTER`` (100). The records every 0.01 s (at
 the run's own times) give, for each continuation, the range of the front on the lowest row of
-cells, its last value, the largest granular speed, the correction's shifts (the sum of |δ| over
-the steps), the dense area's relative change, and the largest change of the surface and of the
-volume profile since the restart. Writes ``OUT/<state>-<ny>.json`` and prints it. On one thread
+cells, its last value, the largest granular speed, and the speed in each layer of the granular
+phase by depth below its surface (``DEPTH_LAYERS``: 0 < Φ ≤ h, the cells of the smoothed band and
+of films one cell thick; h < Φ ≤ 2h; 2h < Φ ≤ 4h; Φ > 4h, the bulk), the largest over the
+continuation and the largest at its last record, each with its cell, the correction's shifts (the sum of |δ| over the steps), the dense area's relative change,
+and the largest change of the surface and of the volume profile since the restart, with the
+column of the surface's. Writes ``OUT/<state>-<ny>.json`` and prints it. On one thread
 (2-core VM, 2026-12-05, four runs sharing the two cores): the run to its arrest 6 s at ny = 16
 and 20–28 s at ny = 32, each continuation 1–3 s and 2–6 s.
 """
@@ -26,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
 
@@ -46,6 +51,22 @@ from granrs.observables import volume_profile
 AT_REST = {"proximal_restarts": 20, "anderson_depth": 5, "redistance_every": 1, "piece_removal_cells": 4}
 #: record interval (s), as the column's runs
 EVERY = 0.01
+#: the layers of the granular phase by depth below its surface, in cells of Φ: (name, Φ/h above,
+#: Φ/h at most)
+DEPTH_LAYERS = (("film", 0.0, 1.0), ("1-2", 1.0, 2.0), ("2-4", 2.0, 4.0), ("bulk", 4.0, math.inf))
+
+
+def speeds_by_depth(phi: np.ndarray, speed: np.ndarray, h: float) -> dict:
+    """The largest of ``speed`` (cell centres) over each layer of ``DEPTH_LAYERS`` of the cells
+    with Φ > 0, with its cell (i, j); a layer without cells is left out."""
+    out = {}
+    for name, lo, hi in DEPTH_LAYERS:
+        sel = (phi > lo * h) & (phi <= hi * h)
+        if sel.any():
+            k = int(np.argmax(np.where(sel, speed, -1.0)))
+            j, i = divmod(k, phi.shape[1])
+            out[name] = {"speed_m_s": float(speed[j, i]), "cell": [i, j]}
+    return out
 
 
 def run_to_rest(model, case: ColumnCase) -> float:
@@ -67,7 +88,7 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
     """Advances ``model`` from ``t_start`` to ``t_end``, one record every EVERY s."""
     g = model.grid
     t0 = time.perf_counter()
-    fronts, speeds, shifts = [], [], 0.0
+    fronts, speeds, shifts, layers = [], [], 0.0, {}
     k = 0
     while model.time < t_end - 1e-12:
         k += 1
@@ -75,17 +96,26 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
         shifts += float(sum(abs(d) for d in log["mass_shift"]))
         fronts.append(front_position(model.phi, g.dx) - lc)
         speeds.append(granular_speed(model))
+        uc, vc = model.centre_velocity()
+        for name, r in speeds_by_depth(np.asarray(model.phi), np.hypot(uc, vc), g.dy).items():
+            layer = layers.setdefault(name, {"largest_m_s": -1.0})
+            if r["speed_m_s"] > layer["largest_m_s"]:
+                layer.update(largest_m_s=r["speed_m_s"], largest_cell=r["cell"], largest_t_s=model.time)
+            layer.update(end_m_s=r["speed_m_s"], end_cell=r["cell"], end_t_s=model.time)
     return {
         "front_end_m": fronts[-1],
         "front_range_cells": (max(fronts) - min(fronts)) / g.dx,
         "front_end_minus_arrest_cells": (fronts[-1] - front0) / g.dx,
         "granular_speed_max_m_s": max(speeds),
+        "granular_speed_by_depth": layers,
         "mass_shift_abs_sum_m": shifts,
         "area_rel_change": model.dense_area() / area0 - 1.0,
         "wall_s": time.perf_counter() - t0,
     }
 
 
+#: ``tighter_picard`` divides the run's Picard tolerance by this
+TIGHTER = 100.0
 #: the continuations from the arrested state: the run itself, and models built with these
 #: options changed, into which the state is restored
 CONTINUATIONS = {
@@ -93,6 +123,7 @@ CONTINUATIONS = {
     "without_correction": {"mass_correction": False},
     "without_redistancing": {"redistance_every": 0},
     "without_either": {"mass_correction": False, "redistance_every": 0},
+    "tighter_picard": {},  # picard_tol: the run's over TIGHTER (set in main)
 }
 
 
@@ -121,8 +152,12 @@ def main() -> None:
     case = ColumnCase(ny=args.ny, fluidised=not args.dry)
     run_options = {**AT_REST, **parse_options(args.option)}
     run_case = case.with_options(**run_options)
+    tighter = {"picard_tol": run_case.rheology.projection.tolerance / TIGHTER}
     cases = {
-        name: case.with_options(**{**run_options, **CONTINUATIONS[name]}) for name in args.continuations
+        name: case.with_options(
+            **{**run_options, **CONTINUATIONS[name], **(tighter if name == "tighter_picard" else {})}
+        )
+        for name in args.continuations
     }  # checked first
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -146,7 +181,9 @@ def main() -> None:
             m._rust.restore_state(state)
         r = continue_to(m, t_restart, args.t_end, front0, area0, lc)
         phi = np.array(m.phi)
-        r["surface_change_m"] = float(np.max(np.abs(surface_profile(phi, g.dy) - surface0)))
+        ds = np.abs(surface_profile(phi, g.dy) - surface0)
+        r["surface_change_m"] = float(np.max(ds))
+        r["surface_change_column"] = int(np.argmax(ds))
         r["volume_change_m"] = float(np.max(np.abs(volume_profile(phi, g.dy) - volume0)))
         result[name] = r
     path = out / f"{result['state']}-{args.ny}.json"

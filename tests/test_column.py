@@ -772,6 +772,30 @@ def test_the_redistancing_tolerance_keeps_a_surface_at_rest(tmp_path):
         assert r["options"]["redistance_tolerance"] == t and r["restart_time_s"] > r["arrest_time_s"] > 1.5
         change[t] = r["with_correction"]["surface_change_m"]
     assert change[0.01] < 1e-3 and change[0.01] < 0.2 * change[0.0], change
+    # what still moves at 3 s is the film one cell thick at the front, on the lowest row
+    # (measured 1.57 mm/s), far faster than the bulk below Φ = 4h (0.023 mm/s)
+    layers = r["with_correction"]["granular_speed_by_depth"]
+    film, bulk = layers["film"], layers["bulk"]
+    assert film["end_cell"][1] == 0 and film["end_m_s"] > 10 * bulk["end_m_s"], layers
+
+
+def test_the_speeds_by_depth_take_each_layer_of_the_granular_phase():
+    """examples/correction_at_rest.py's layers: the largest speed of the cells with Φ in (0, h],
+    (h, 2h], (2h, 4h] and above 4h, each with its cell; air cells (Φ ≤ 0) are not looked at, and
+    a layer without cells is left out."""
+    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    speeds_by_depth = runpy.run_path(str(script))["speeds_by_depth"]
+    h = 0.5
+    phi = np.array([[3.0, 1.5, 0.5, -0.2], [0.4, 1.0, 0.3, -3.0]])
+    speed = np.array([[7.0, 2.0, 1.0, 99.0], [3.0, 5.0, 4.0, 99.0]])
+    got = speeds_by_depth(phi, speed, h)
+    assert got == {
+        "film": {"speed_m_s": 4.0, "cell": [2, 1]},
+        "1-2": {"speed_m_s": 5.0, "cell": [1, 1]},
+        "2-4": {"speed_m_s": 2.0, "cell": [1, 0]},
+        "bulk": {"speed_m_s": 7.0, "cell": [0, 0]},
+    }
+    assert set(speeds_by_depth(np.array([[0.2, -1.0]]), np.array([[1.0, 2.0]]), h)) == {"film"}
 
 
 def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
