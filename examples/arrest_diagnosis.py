@@ -54,7 +54,10 @@ steps, ``proximal-20-pieces-4-tolerance-0.01``, with 5 restarts,
 ``redistance-1-proximal-5-pieces-4-tolerance-0.01``, and with the extension
 where the dense phase rests, ``...-tolerance-0.01-extended-at-rest``, also with the yield stress
 at full strength over the band,
-``density-support-redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest``),
+``density-support-redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest``), and
+switched on late (``switch-U-redistance-1-proximal-20-pieces-4-tolerance-0.01``, U = 0.6, 0.3,
+0.03: the column's own numerics until its largest granular speed falls below U m/s after
+0.5 s, then the same state continued with the five options; ``switched_at_s`` in the summary),
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
 ``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
@@ -111,6 +114,11 @@ AT_REST = {**EXTENDED, "extension_rest_speed": 0.005}
 PIECES = {"piece_removal_cells": 4}
 #: the yield stress at full strength over the band, with the 20 restarts of RESTARTS
 DENSITY_SUPPORT_20 = {"case": {"interface_yield": "density-support", "proximal_restarts": 20}}
+#: a variant with this key runs the column's own numerics until its largest granular speed falls
+#: below the value (m/s) after SWITCH_AFTER, then continues the same state with its options
+SWITCH_BELOW = "switch_below_m_s"
+#: no switch before this time (s): the collapse starts from rest
+SWITCH_AFTER = 0.5
 
 VARIANTS = {
     "default": {},
@@ -245,6 +253,18 @@ VARIANTS = {
         "redistance_every": 1,
         "redistance_tolerance": 0.01,
     },
+    # ... the same five options switched on only once the column has slowed down (SWITCH_BELOW):
+    # the column's own numerics until its largest granular speed falls below 0.6, 0.3 or 0.03 m/s
+    **{
+        f"switch-{u}-redistance-1-proximal-20-pieces-4-tolerance-0.01": {
+            **RESTARTS,
+            **PIECES,
+            "redistance_every": 1,
+            "redistance_tolerance": 0.01,
+            SWITCH_BELOW: u,
+        }
+        for u in (0.6, 0.3, 0.03)
+    },
     # ... the same extension and the yield stress at full strength over the band
     "density-support-redistance-1-proximal-20-pieces-4-tolerance-0.01-extended-at-rest": {
         **DENSITY_SUPPORT_20,
@@ -331,11 +351,14 @@ def build(case: ColumnCase, numerics: dict):
     """build_model with the options of ``numerics`` (and of ``numerics["case"]``) changed by their
     schema keys, each in the case's object that holds it (``ColumnCase.with_options``)."""
     numerics = dict(numerics)
+    numerics.pop(SWITCH_BELOW, None)
     return build_model(case.with_options(**numerics.pop("case", {}), **numerics))
 
 
 def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) -> dict:
-    m = build(case, VARIANTS[name])
+    switch_below = VARIANTS[name].get(SWITCH_BELOW)
+    switched = None  # when the variant's options were switched on (SWITCH_BELOW)
+    m = build(case, {} if switch_below is not None else VARIANTS[name])
     g = m.grid
     eps = 1.5 * g.dy
     lc = case.width
@@ -388,6 +411,17 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         row["gravity_work"] = b["gravity_work"]
         row["potential"] = b["potential"]
         rows.append(row)
+        if (
+            switched is None
+            and switch_below is not None
+            and m.time > SWITCH_AFTER
+            and row["speed_granular"] < switch_below
+        ):
+            # the same state (fields, history, clock) continued with the variant's options
+            state = m._rust.checkpoint_state()
+            m = build(case, VARIANTS[name])
+            m._rust.restore_state(state)
+            switched = m.time
         if deposit_arrest is None and deposit_rest.update(m.time, row["speed_deposit"]):
             deposit_arrest = deposit_rest.since
         if arrest is None and rest.update(m.time, row["speed_granular"]):
@@ -404,6 +438,7 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     late = t >= 1.5
     out = {
         "variant": name,
+        "switched_at_s": switched,
         "wall_s": wall,
         "steps": m.step_count,
         "max_front_m": float(front[imax]),
