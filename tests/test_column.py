@@ -244,6 +244,24 @@ def test_removing_detached_pieces_keeps_the_arrested_column_at_rest():
     assert rows == rows2
 
 
+def test_the_options_switched_on_late_bring_rest_but_not_the_front_back():
+    """examples/arrest_diagnosis.py's switched variant (docs/validation.md, "The options are needed
+    from the start"): the dry column at ny = 16 runs its own numerics until its largest granular
+    speed falls below 0.3 m/s (measured at 1.27 s), then the same state continues with the five
+    deposit-at-rest options. It comes to rest (2.02 s), but its front ends 1.22 cells behind its
+    largest value, against 0.30 with the options from the start
+    (test_the_deposit_at_rest_options_keep_the_front_within_a_cell). Asserted: the switch at the
+    first record after 0.5 s below 0.3 m/s, rest before 2.5 s, and more than a cell back."""
+    diag = _arrest_diagnosis()
+    name = "switch-0.3-redistance-1-proximal-20-pieces-4-tolerance-0.01"
+    case = ColumnCase(ny=16, fluidised=False, t_end=2.5)
+    s, rows = diag["run_variant"](case, name, case.t_end)
+    first = next(r["t"] for r in rows if r["t"] > diag["SWITCH_AFTER"] and r["speed_granular"] < 0.3)
+    assert s["switched_at_s"] == pytest.approx(first, abs=1e-9) and s["switched_at_s"] > 1.0
+    assert s["arrest_time_s"] is not None and s["arrest_time_s"] < 2.5
+    assert s["retreat_cells"] > 1.0, s["retreat_cells"]
+
+
 #: the options of docs/howto/deposit-at-rest.md
 DEPOSIT_AT_REST = {"proximal_restarts": 20, "anderson_depth": 5, "redistance_every": 1, "piece_removal_cells": 4}
 
