@@ -988,3 +988,30 @@ def test_fluidisation_is_recorded_and_the_channel_loses_its_pore_pressure(coarse
     assert (base / "wet" / "fluidisation.png").stat().st_size > 0
     assert "fluidisation" not in dry and not (base / "dry" / "fluidisation.png").exists()
     assert "pf_ratio" not in open(base / "dry" / "front.csv").readline()
+
+
+def test_the_cli_column_takes_the_models_keys_by_set(tmp_path):
+    """`granrs run column --set KEY=VALUE` changes a model key that none of the column's flags sets
+    (here the deposit-at-rest options of docs/howto/deposit-at-rest.md, with the redistancing's
+    tolerance), as a run file's --set does: summary.json's case holds the values, and the run is
+    that of the same case built in Python (the same step count and run-out to the last digit)."""
+    sets = {
+        "variants.proximal_restarts": 20,
+        "bi_projection.anderson_depth": 5,
+        "numerics.redistance_every": 1,
+        "variants.piece_removal_cells": 4,
+        "variants.redistance_tolerance": 0.01,
+    }
+    args = [a for k, v in sets.items() for a in ("--set", f"{k}={v}")]
+    s = _run_cli(tmp_path / "cli", "--ny", "16", "--no-fluidised", "--t-end", "0.3", *args)
+    case = s["case"]
+    for dotted, value in sets.items():
+        section, key = dotted.split(".")
+        holder = case["rheology"]["projection"] if section == "bi_projection" else case[section]
+        assert holder[key] == value, (dotted, holder)
+    py = run_column(
+        ColumnCase(ny=16, fluidised=False, t_end=0.3).with_options(**{k.split(".")[1]: v for k, v in sets.items()}),
+        tmp_path / "py",
+        progress=False,
+    )
+    assert (s["steps"], s["runout_m"]) == (py["steps"], py["runout_m"])

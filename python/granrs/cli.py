@@ -149,6 +149,30 @@ _COLUMN_KEYS = {
     "channel_width": "side_walls.width",
 }
 _CAVITY_OPTIONS = ("re", "n")
+#: The keys `granrs run column` takes from its own flags or none, which --set may not change.
+_COLUMN_FLAG_KEYS = {
+    **{dotted: "--" + name.replace("_", "-") for name, dotted in _COLUMN_KEYS.items()},
+    "grid.length": "--length",
+    "case.model": "--model",
+}
+
+
+def _column_set(item: str) -> str:
+    """A ``--set KEY=VALUE`` of `granrs run column`, refused (``ParameterError``) where a flag of the
+    column sets the key, or where the column does not read it (``case.name``, ``output.*``: the
+    case is the column, the folder is --out)."""
+    dotted = item.partition("=")[0].strip()
+    if dotted in _COLUMN_FLAG_KEYS:
+        raise ParameterError(
+            f"invalid parameter `--set {item}` with `granrs run column`: allowed keys without a flag of "
+            f"their own; use {_COLUMN_FLAG_KEYS[dotted]}"
+        )
+    if dotted == "case.name" or dotted.startswith("output."):
+        raise ParameterError(
+            f"invalid parameter `--set {item}` with `granrs run column`: not read there (the case is the "
+            "column, its outputs go to --out); allowed the model's keys (granrs keys)"
+        )
+    return item
 
 
 def _run_file(args, parser) -> int:
@@ -214,11 +238,10 @@ def _run(args, parser) -> int:
             f"invalid parameter `case` = {args.case!r}: not a readable run file; allowed 'column', "
             "'cavity' or a run file FILE.toml"
         )
-    for flag in ("set", "restart", "allow_changes"):
+    for flag in ("restart", "allow_changes") + (("set",) if args.case != "column" else ()):
         if getattr(args, flag):
-            raise ParameterError(
-                f"invalid parameter `--{flag.replace('_', '-')}`: allowed only with a run file (granrs run FILE.toml)"
-            )
+            allowed = "a run file (granrs run FILE.toml)" + (" or `granrs run column`" if flag == "set" else "")
+            raise ParameterError(f"invalid parameter `--{flag.replace('_', '-')}`: allowed only with {allowed}")
     if args.case not in ("column", "cavity"):
         raise ParameterError(
             f"invalid parameter `case` = {args.case!r}: allowed 'column', 'cavity' or a run file "
@@ -270,13 +293,14 @@ def _run(args, parser) -> int:
                     f"{'no such folder' if not compare.is_dir() else 'no ' + ' or '.join(missing) + ' there'}"
                     "; allowed the output folder of a finished column run"
                 )
-        from .config import column_case, resolve, set_value
+        from .config import apply_sets, column_case, resolve, set_value
 
         raw: dict = {}
         for name, dotted in _COLUMN_KEYS.items():
             value = getattr(args, name)
             if value is not None:
                 set_value(raw, dotted, value)
+        raw = apply_sets(raw, [_column_set(item) for item in args.set or []])
         case = column_case(resolve(raw))
         case.length = args.length  # None: the column's own domain (ColumnCase.domain)
         case.model = args.model  # checked by the case: its error says there is no automatic choice
@@ -399,7 +423,8 @@ def main(argv=None) -> int:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="run file: override a key, e.g. --set time.cfl=0.3 (TOML value; repeat)",
+        help="override a key of a run file, or with `granrs run column` a key that none of its flags sets, "
+        "e.g. --set variants.proximal_restarts=20 (TOML value; repeat)",
     )
     r.add_argument(
         "--restart",
