@@ -41,7 +41,7 @@ pub const PARALLEL_MIN_CELLS: usize = 4096;
 
 /// Cells per parallel task of a sweep without reduction ([`Exec::for_each_row`],
 /// [`Exec::max_each_row`]): a task is [`ROW_BLOCK`] rows, or fewer rows of at least this many
-/// cells when the rows are long. An active window of a few dozen rows of 2 000 cells then still
+/// cells when the rows are long (then shared evenly among the threads, [`balanced_task_rows`]). An active window of a few dozen rows of 2 000 cells then still
 /// splits into some thirty tasks that balance the threads, where blocks of eight rows would
 /// leave one thread a block more than the other. Such sweeps write each row independently of
 /// the others, so the split does not change a bit of the result.
@@ -52,6 +52,19 @@ pub const TASK_CELLS: usize = 4096;
 #[inline]
 pub fn task_rows(stride: usize) -> usize {
     TASK_CELLS.div_ceil(stride.max(1)).clamp(1, ROW_BLOCK)
+}
+
+/// Rows per task of a sweep over `nrows` rows of `stride` values on the installed pool: at most
+/// [`task_rows`]`(stride)`, in a number of tasks that is a multiple of the pool's threads, the
+/// rows shared among them as evenly as that allows. A window 24 rows high in tasks of eight rows
+/// gives one thread two tasks and the other one; in four tasks of six rows each thread takes
+/// two. The split changes no result: each row is written by one task, and the reductions add
+/// the rows' values in their fixed blocks whatever the tasks.
+#[inline]
+pub fn balanced_task_rows(nrows: usize, stride: usize) -> usize {
+    let threads = rayon::current_num_threads().max(1);
+    let tasks = nrows.div_ceil(task_rows(stride)).div_ceil(threads) * threads;
+    nrows.div_ceil(tasks.max(1)).max(1)
 }
 
 /// How a kernel runs.
@@ -83,7 +96,7 @@ impl Exec {
         F: Fn(usize, &mut [f64]) + Sync + Send,
     {
         if self.use_parallel(data.len()) {
-            let rows = task_rows(stride);
+            let rows = balanced_task_rows(data.len() / stride.max(1), stride);
             data.par_chunks_mut(stride * rows).enumerate().for_each(|(b, block)| {
                 for (r, row) in block.chunks_mut(stride).enumerate() {
                     f(b * rows + r, row);
@@ -114,7 +127,7 @@ impl Exec {
         F: Fn(usize, &mut [f64]) -> f64 + Sync + Send,
     {
         if self.use_parallel(data.len()) {
-            let rows = task_rows(stride);
+            let rows = balanced_task_rows(data.len() / stride.max(1), stride);
             data.par_chunks_mut(stride * rows)
                 .enumerate()
                 .map(|(b, block)| block.chunks_mut(stride).enumerate().fold(f64::NEG_INFINITY, |m, (r, row)| max_nan(m, f(b * rows + r, row))))
@@ -165,7 +178,7 @@ impl Exec {
     {
         let partials = &mut partials[..nrows];
         if self.use_parallel(cells) {
-            let rows = task_rows(cells / nrows.max(1));
+            let rows = balanced_task_rows(nrows, cells / nrows.max(1));
             partials.par_chunks_mut(rows).enumerate().for_each(|(t, out)| {
                 for (k, o) in out.iter_mut().enumerate() {
                     *o = f(t * rows + k);
@@ -265,6 +278,32 @@ pub fn build_pool(threads: usize) -> crate::error::Result<rayon::ThreadPool> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The tasks of a sweep: never more rows than `task_rows`, as many tasks for each thread,
+    /// the rows shared evenly (the windows of the reference configuration at ny = 64, 128 and
+    /// 256, 24, 40 and 72 rows of 398, 814 and 1 702 values, and a few others).
+    #[test]
+    fn the_tasks_of_a_sweep_are_shared_evenly_among_the_threads() {
+        for threads in [1, 2, 3, 4] {
+            let pool = build_pool(threads).unwrap();
+            pool.install(|| {
+                for (nrows, stride) in [(24, 398), (25, 398), (40, 814), (72, 1702), (40, 238), (1, 5000), (3, 100), (200, 30)] {
+                    let r = balanced_task_rows(nrows, stride);
+                    assert!(r >= 1 && r <= task_rows(stride), "{threads} threads, {nrows} x {stride}: {r} rows");
+                    let tasks = nrows.div_ceil(r);
+                    // no fewer rows per task than needed for as many tasks as the threads' multiple
+                    let needed = nrows.div_ceil(task_rows(stride)).div_ceil(threads) * threads;
+                    assert!(tasks <= needed && nrows.div_ceil(needed) == r, "{threads} threads, {nrows} x {stride}: {tasks} tasks of {r}");
+                }
+                if threads == 2 {
+                    // ny = 64: four tasks of six rows (eight-row tasks would give one thread two, the other one)
+                    assert_eq!(balanced_task_rows(24, 398), 6);
+                    assert_eq!(balanced_task_rows(40, 814), 5);
+                    assert_eq!(balanced_task_rows(72, 1702), 3);
+                }
+            });
+        }
+    }
 
     /// `with_active_workers` returns what `f` returns, outside a pool, on one thread and on
     /// several, with parallel sweeps (and the joins in which the calling thread may take a

@@ -173,7 +173,7 @@ fn interior_rows_dots<F>(exec: Exec, field: &mut Field, dots: Option<(&mut [f64]
 where
     F: Fn(usize, &mut [f64]) + Sync + Send,
 {
-    use crate::exec::{task_rows, ROW_BLOCK};
+    use crate::exec::{balanced_task_rows, ROW_BLOCK};
     use rayon::prelude::*;
     let Some((sums, input, cols)) = dots else {
         for_each_interior_row(exec, field, f);
@@ -200,7 +200,7 @@ where
         }
     };
     if exec.use_parallel(data.len()) {
-        let rows = task_rows(stride);
+        let rows = balanced_task_rows(data.len() / stride.max(1), stride);
         data.par_chunks_mut(stride * rows).zip(sums.par_chunks_mut(rows)).enumerate().for_each(|(t, (r, out))| block(t * rows, r, out));
     } else {
         for (b, (rows, out)) in data.chunks_mut(stride * ROW_BLOCK).zip(sums.chunks_mut(ROW_BLOCK)).enumerate() {

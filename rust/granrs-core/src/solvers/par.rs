@@ -2,8 +2,9 @@
 //!
 //! Every reduction of the solvers adds its rows' sums in fixed blocks of [`ROW_BLOCK`] rows,
 //! whatever the number of threads: each block's rows in order from 0, then the blocks in order
-//! from 0. The rows' sums themselves are made on the pool in tasks of [`task_rows`] rows (a few
-//! thousand cells each, so that the threads get equal shares of a window a few dozen rows high)
+//! from 0. The rows' sums themselves are made on the pool in tasks of [`balanced_task_rows`] rows
+//! (a few thousand cells each, as many tasks for each thread, so that the threads get equal
+//! shares of a window a few dozen rows high)
 //! into a buffer of one partial per row that was allocated once ([`partials_len`]); the blocks
 //! are added afterwards on the calling thread. One thread and many threads give bit-identical
 //! results, and `solve` allocates nothing. These helpers complement [`Exec::for_each_row`] with
@@ -12,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use crate::exec::{add_by_blocks, task_rows, Exec, ROW_BLOCK};
+use crate::exec::{add_by_blocks, balanced_task_rows, Exec, ROW_BLOCK};
 
 /// Length of the partials buffer of a reduction over `nrows` rows: one partial per row.
 #[inline]
@@ -23,7 +24,7 @@ pub(crate) fn partials_len(nrows: usize) -> usize {
 /// Rows per task of a reduction over `nrows` rows holding `cells` values in all.
 #[inline]
 fn reduction_rows(nrows: usize, cells: usize) -> usize {
-    task_rows(cells / nrows.max(1))
+    balanced_task_rows(nrows, cells / nrows.max(1))
 }
 
 /// Runs `f(rows)` on `nblocks` disjoint blocks of consecutive rows that cover `0..nrows`, in

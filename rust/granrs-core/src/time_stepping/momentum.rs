@@ -14,7 +14,7 @@
 //! δt ≲ ρh²/(4η), see `clock.rs`).
 
 use crate::error::{Error, Result};
-use crate::exec::{add_by_blocks, task_rows, Exec, ROW_BLOCK};
+use crate::exec::{add_by_blocks, balanced_task_rows, Exec, ROW_BLOCK};
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, HALO};
 use crate::operators::{
     fill_velocity_ghosts, for_each_interior_row, sums_by_row, unknown_face_range, viscous, viscous_helmholtz, viscous_helmholtz_dots, BcMode, RowDots,
@@ -443,7 +443,7 @@ where
     let sums = &mut sums[..rows.len()];
     if exec.use_parallel(x.len()) {
         use rayon::prelude::*;
-        let n = task_rows(st);
+        let n = balanced_task_rows(rows.len(), st);
         let blk = st * n;
         x.par_chunks_mut(blk)
             .zip(r.par_chunks_mut(blk))
