@@ -21,7 +21,9 @@ phase by depth below its surface (``DEPTH_LAYERS``: 0 < Φ ≤ h, the cells of t
 of films one cell thick; h < Φ ≤ 2h; 2h < Φ ≤ 4h; Φ > 4h, the bulk), the largest over the
 continuation and the largest at its last record, each with its cell, the correction's shifts (the sum of |δ| over the steps), the dense area's relative change,
 and the largest change of the surface and of the volume profile since the restart, with the
-column of the surface's. Writes ``OUT/<state>-<ny>.json`` and prints it. On one thread
+column of the surface's; and, at the end, the tip on the base (``tip_on_the_base``: the slip of
+the lowest row's last granular cells, the share of its bound that the base's friction takes
+there, and their trial norm). Writes ``OUT/<state>-<ny>.json`` and prints it. On one thread
 (2-core VM, 2026-12-05, four runs sharing the two cores): the run to its arrest 6 s at ny = 16
 and 20–28 s at ny = 32, each continuation 1–3 s and 2–6 s.
 """
@@ -84,6 +86,36 @@ def run_to_rest(model, case: ColumnCase) -> float:
     raise SystemExit(f"the column did not come to rest by t = {case.t_end} s: nothing to continue")
 
 
+#: the cells of the lowest row behind the front that ``tip_on_the_base`` looks at
+TIP_CELLS = 4
+
+
+def tip_on_the_base(model) -> dict:
+    """The last ``TIP_CELLS`` granular cells of the lowest row, up to the front's own (the first
+    gap of more than one cell ends the deposit, as ``front_position``): the largest |u| on their
+    x-faces (the slip along the base, which the Coulomb wall's friction s τ_b opposes), the
+    largest share |s| of its bound that the friction takes on those faces (below 1: the face is
+    stuck), the largest trial norm of the plastic projection in those cells (at most 1: rigid),
+    and their Φ/h."""
+    phi = np.asarray(model.phi)
+    inside = np.nonzero(phi[0] > 0)[0]
+    if inside.size == 0:
+        return {}
+    breaks = np.nonzero(np.diff(inside) > 2)[0]
+    last = int(inside[breaks[0]] if breaks.size else inside[-1])
+    cells = np.arange(max(last - TIP_CELLS + 1, 0), last + 1)
+    faces = np.arange(cells[0], last + 2)
+    s, tau_b = (np.asarray(a) for a in model.wall_friction("bottom"))
+    share = np.abs(s[faces])[tau_b[faces] > 0]
+    return {
+        "front_cell": last,
+        "phi_over_h": [float(v) for v in phi[0, cells] / model.grid.dy],
+        "slip_m_s": float(np.max(np.abs(np.asarray(model.u)[0, faces]))),
+        "friction_share": float(share.max()) if share.size else 0.0,
+        "trial_norm": float(np.max(np.asarray(model.trial_norm)[0, cells])),
+    }
+
+
 def continue_to(model, t_start: float, t_end: float, front0: float, area0: float, lc: float) -> dict:
     """Advances ``model`` from ``t_start`` to ``t_end``, one record every EVERY s."""
     g = model.grid
@@ -108,6 +140,7 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
         "front_end_minus_arrest_cells": (fronts[-1] - front0) / g.dx,
         "granular_speed_max_m_s": max(speeds),
         "granular_speed_by_depth": layers,
+        "tip_on_the_base_at_end": tip_on_the_base(model),
         "mass_shift_abs_sum_m": shifts,
         "area_rel_change": model.dense_area() / area0 - 1.0,
         "wall_s": time.perf_counter() - t0,
