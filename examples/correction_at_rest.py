@@ -42,6 +42,7 @@ from granrs.cases.column import (
     ColumnCase,
     RestCriterion,
     build_model,
+    front_cell,
     front_position,
     granular_speed,
     surface_profile,
@@ -91,18 +92,16 @@ TIP_CELLS = 4
 
 
 def tip_on_the_base(model) -> dict:
-    """The last ``TIP_CELLS`` granular cells of the lowest row, up to the front's own (the first
-    gap of more than one cell ends the deposit, as ``front_position``): the largest |u| on their
+    """The last ``TIP_CELLS`` granular cells of the lowest row, up to the front's own
+    (``front_cell``): the largest |u| on their
     x-faces (the slip along the base, which the Coulomb wall's friction s τ_b opposes), the
     largest share |s| of its bound that the friction takes on those faces (below 1: the face is
     stuck), the largest trial norm of the plastic projection in those cells (at most 1: rigid),
     and their Φ/h."""
     phi = np.asarray(model.phi)
-    inside = np.nonzero(phi[0] > 0)[0]
-    if inside.size == 0:
+    last = front_cell(phi)
+    if last is None:
         return {}
-    breaks = np.nonzero(np.diff(inside) > 2)[0]
-    last = int(inside[breaks[0]] if breaks.size else inside[-1])
     cells = np.arange(max(last - TIP_CELLS + 1, 0), last + 1)
     faces = np.arange(cells[0], last + 2)
     s, tau_b = (np.asarray(a) for a in model.wall_friction("bottom"))
@@ -127,9 +126,11 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
         log = model.advance(min(t_end, (round(t_start / EVERY) + k) * EVERY))  # the run's own record times
         shifts += float(sum(abs(d) for d in log["mass_shift"]))
         fronts.append(front_position(model.phi, g.dx) - lc)
-        speeds.append(granular_speed(model))
         uc, vc = model.centre_velocity()
-        for name, r in speeds_by_depth(np.asarray(model.phi), np.hypot(uc, vc), g.dy).items():
+        by_depth = speeds_by_depth(np.asarray(model.phi), np.hypot(uc, vc), g.dy)
+        # the layers cover every cell with Φ > 0: their largest is granular_speed(model)
+        speeds.append(max((r["speed_m_s"] for r in by_depth.values()), default=0.0))
+        for name, r in by_depth.items():
             layer = layers.setdefault(name, {"largest_m_s": -1.0})
             if r["speed_m_s"] > layer["largest_m_s"]:
                 layer.update(largest_m_s=r["speed_m_s"], largest_cell=r["cell"], largest_t_s=model.time)

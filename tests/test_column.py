@@ -25,6 +25,7 @@ from granrs.cases.column import (
     basal_pore_pressure_ratio,
     deposit_quantile,
     farthest_material,
+    front_cell,
     front_position,
     run_column,
     run_columns,
@@ -342,6 +343,8 @@ def test_front_position_bridges_small_gaps_and_ignores_droplets():
     x = front_position(phi, dx)
     assert 0.145 < x < 0.16
     assert farthest_material(phi, dx) == pytest.approx(0.32)
+    # the front's own cell: the last of the bridged run, none without a granular cell
+    assert front_cell(phi) == 14 and front_cell(phi, max_gap=1) == 9 and front_cell(-np.ones((3, 40))) is None
 
 
 def test_deposit_quantile_of_a_triangle_is_exact():

@@ -41,9 +41,10 @@ pub const PARALLEL_MIN_CELLS: usize = 4096;
 
 /// Cells per parallel task of a sweep without reduction ([`Exec::for_each_row`],
 /// [`Exec::max_each_row`]): a task is [`ROW_BLOCK`] rows, or fewer rows of at least this many
-/// cells when the rows are long (then shared evenly among the threads, [`balanced_task_rows`]). An active window of a few dozen rows of 2 000 cells then still
-/// splits into some thirty tasks that balance the threads, where blocks of eight rows would
-/// leave one thread a block more than the other. Such sweeps write each row independently of
+/// cells when the rows are long, then shared evenly among the threads ([`balanced_task_rows`]).
+/// An active window of a few dozen rows of 2 000 cells then still splits into some thirty tasks
+/// that balance the threads, where blocks of eight rows would leave one thread a block more than
+/// the other. Such sweeps write each row independently of
 /// the others, so the split does not change a bit of the result.
 pub const TASK_CELLS: usize = 4096;
 

@@ -11,17 +11,25 @@ import numpy as np
 from ..._granrs import ParameterError
 
 
-def front_position(phi: np.ndarray, dx: float, max_gap: int = 2) -> float:
-    """Front of the granular mass on the lowest row of cells: walking from the back wall along the
-    cells with Φ > 0, gaps of at most ``max_gap`` cells are bridged (a front broken by one under-
-    resolved cell), larger ones end the mass (detached droplets ahead of it do not count; see
-    :func:`farthest_material`). Located at the linear zero crossing of Φ after the last cell."""
-    row = phi[0]
-    inside = np.nonzero(row > 0)[0]
+def front_cell(phi: np.ndarray, max_gap: int = 2) -> int | None:
+    """The last cell of the granular mass on the lowest row of cells (None without any): walking
+    from the back wall along the cells with Φ > 0, gaps of at most ``max_gap`` cells are bridged
+    (a front broken by one under-resolved cell), larger ones end the mass (detached droplets ahead
+    of it do not count; see :func:`farthest_material`)."""
+    inside = np.nonzero(phi[0] > 0)[0]
     if inside.size == 0:
-        return 0.0
+        return None
     breaks = np.nonzero(np.diff(inside) > max_gap + 1)[0]
-    i = inside[breaks[0]] if breaks.size else inside[-1]
+    return int(inside[breaks[0]] if breaks.size else inside[-1])
+
+
+def front_position(phi: np.ndarray, dx: float, max_gap: int = 2) -> float:
+    """Front of the granular mass on the lowest row of cells, after its last cell
+    (:func:`front_cell`), at the linear zero crossing of Φ."""
+    row = phi[0]
+    i = front_cell(phi, max_gap)
+    if i is None:
+        return 0.0
     x = (i + 0.5) * dx
     if i + 1 < row.size:
         x += dx * row[i] / (row[i] - row[i + 1])
