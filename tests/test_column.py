@@ -804,6 +804,30 @@ def test_the_redistancing_tolerance_keeps_a_surface_at_rest(tmp_path):
     assert tip["trial_norm"] <= 1.0 and tip["friction_share"] < 1.0 and tip["slip_m_s"] > 1e-3, tip
 
 
+def test_each_face_s_own_r_b_stops_the_tip_sliding_on_stuck_faces(tmp_path):
+    """``wall_r`` = "local" (rust walls/mod.rs, "Choice of r_b"; docs/validation.md, "Each face's
+    own r_b"): the run of test_the_redistancing_tolerance_keeps_a_surface_at_rest (dry, ny = 16,
+    the deposit-at-rest options and ``redistance_tolerance`` = 0.01) with each base face's own
+    r_b. Its tip's last cells, rigid on stuck faces, slid at 2.05 mm/s at 3 s with the single
+    r_b, which leaves the thin faces' iteration a hundred times slower than the stiffest's. With
+    their own r_b they slide at 0.039 mm/s and the bulk creeps at 0.57 µm/s (against 23 µm/s;
+    measured). Asserted: the tip still rigid and stuck, its slip below 0.1 mm/s (a twentieth of
+    the single r_b's) and the bulk below 10 µm/s (under half the single r_b's)."""
+    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    subprocess.run(
+        [sys.executable, str(script), "--ny", "16", "--dry", "--continuations", "with_correction"]
+        + ["--option", "redistance_tolerance=0.01", "--option", "wall_r=local", "--out", str(tmp_path)],
+        check=True,
+        capture_output=True,
+    )
+    r = json.loads((tmp_path / "dry-16.json").read_text())
+    assert r["options"]["wall_r"] == "local" and r["restart_time_s"] > r["arrest_time_s"] > 1.5
+    tip = r["with_correction"]["tip_on_the_base_at_end"]
+    assert tip["trial_norm"] <= 1.0 and tip["friction_share"] < 1.0 and tip["slip_m_s"] < 1e-4, tip
+    bulk = r["with_correction"]["granular_speed_by_depth"]["bulk"]
+    assert bulk["end_m_s"] < 1e-5, bulk
+
+
 def test_the_speeds_by_depth_take_each_layer_of_the_granular_phase():
     """examples/correction_at_rest.py's layers: the largest speed of the cells with Φ in (0, h],
     (h, 2h], (2h, 4h] and above 4h, each with its cell; air cells (Φ ≤ 0) are not looked at, and

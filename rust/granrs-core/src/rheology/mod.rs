@@ -395,6 +395,9 @@ pub struct RheologyConfig {
     pub r: Option<f64>,
     /// r_b of s = P_b(s − r_b u_t) [s m⁻¹]; `None`: the bound of [`crate::walls::default_r_wall`].
     pub r_wall: Option<f64>,
+    /// How the default r_b is chosen: one for every face, or each face's own
+    /// (`walls/mod.rs`, "Choice of r_b"); a user's `r_wall` is used as a constant.
+    pub wall_r: crate::walls::WallR,
     /// Pseudo-relaxation θ ∈ [0, 1) of eq. (12) (0: plain Uzawa iteration).
     pub theta: f64,
     /// The Picard iteration stops when max |τ(Σ^{k+1} − Σ^k)|/τ_max and max |τ_b(s^{k+1} − s^k)|/max τ_b are below this.
@@ -550,6 +553,14 @@ pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
     .variant(),
     options::int("variants", "proximal_restarts", 0, 0, 1_000_000, "1", "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)")
         .variant(),
+    options::choice(
+        "variants",
+        "wall_r",
+        "single",
+        &["single", "local"],
+        "default r_b of the Coulomb walls: one from the stiffest face, or each face's own bound (1 − θ)h c/τ_b",
+    )
+    .variant(),
 ];
 
 /// The friction angle of the Coulomb walls (paper eq. 8–9; `RheologyConfig::wall_friction_angle`).
@@ -585,6 +596,7 @@ impl Default for RheologyConfig {
             wall_friction_angle: None,
             r: None,
             r_wall: None,
+            wall_r: crate::walls::WallR::default(),
             theta: b("theta").float(),
             picard_tol: b("picard_tol").float(),
             picard_max_iterations: b("picard_max_iterations").usize(),
@@ -653,6 +665,7 @@ impl RheologyConfig {
             "sigma_location" => Value::str(self.sigma_location.name()),
             "r_neighbourhood" => Value::Int(self.r_neighbourhood.min(i64::MAX as usize) as i64),
             "proximal_restarts" => Value::Int(self.proximal_restarts.min(i64::MAX as usize) as i64),
+            "wall_r" => Value::str(self.wall_r.name()),
             _ => Value::None,
         }
     }
@@ -724,6 +737,9 @@ impl RheologyConfig {
         }
         if let Some(v) = checked("proximal_restarts")? {
             self.proximal_restarts = options::as_usize(&v);
+        }
+        if let Some(v) = checked("wall_r")? {
+            self.wall_r = crate::walls::WallR::ALL.into_iter().find(|x| x.name() == options::as_name(&v)).unwrap_or_default();
         }
         Ok(used)
     }

@@ -29,7 +29,7 @@ use crate::operators::{cell_to_node, fill_velocity_ghosts, for_each_interior_row
 use crate::solvers::par::partials_len;
 use crate::solvers::SolveInfo;
 use crate::walls::side::SideWallFriction;
-use crate::walls::{default_r_wall, CoulombWalls, NormalStress};
+use crate::walls::{CoulombWalls, NormalStress};
 
 /// Stall safeguard of the Picard loop: the iterations of a step are taken in windows of
 /// `PICARD_STALL_WINDOW`; if the largest increment of a window is above
@@ -84,7 +84,8 @@ pub struct RheologyState {
     pub(crate) projection: bool,
     /// Increments of the Picard iterations of the last step (capacity reserved once).
     pub history: Vec<f64>,
-    /// r of the current step (a user's constant r, or the smallest local r), and r_b.
+    /// r of the current step (a user's constant r, or the smallest local r), and r_b (a user's
+    /// constant, or the smallest over the faces).
     pub r: f64,
     pub r_wall: f64,
     /// p_s of `YieldPressure::SurfaceAir` at the current step (0 with `Absolute`) [Pa].
@@ -267,7 +268,7 @@ impl RheologyState {
                 dx: grid.dx,
             });
             self.walls.set_friction(input.p, p_s, tnn, input.phi, tan_b, two_phase.then_some(eps), rc.interface_yield, grid);
-            self.r_wall = rc.r_wall.unwrap_or_else(|| default_r_wall(rc.theta, self.walls.max_response(input.rho_u, input.rho_v, a0_over_dt, grid)));
+            self.r_wall = self.walls.set_r(rc.r_wall, rc.wall_r, rc.theta, input.rho_u, input.rho_v, a0_over_dt, grid);
         }
         if let (Some(sw), Some(walls)) = (self.side_walls.as_mut(), rc.side_walls) {
             sw.set_friction(walls, input.p, p_s, input.phi, two_phase.then_some(eps), rc.interface_yield, input.rho_u, input.rho_v, a0_over_dt, rc.theta, exec);
@@ -362,7 +363,7 @@ impl RheologyState {
                 inc = self.plastic.update_from_velocity(u, v, grid, (&mut self.dxx, &mut self.dyy, &mut self.dxy), rc.theta, exec);
             }
             if self.walls.is_active() {
-                let d = self.walls.update(u, v, self.r_wall, rc.theta, grid);
+                let d = self.walls.update(u, v, rc.theta, grid);
                 inc = if d.is_nan() { d } else { inc.max(d) };
             }
             if let Some(sw) = self.side_walls.as_mut() {
@@ -422,6 +423,7 @@ impl RheologyState {
                     }
                     if rc.r_wall.is_none() {
                         self.r_wall *= 0.5;
+                        self.walls.scale_r(0.5);
                     }
                     halvings += 1;
                 }
