@@ -491,7 +491,8 @@ class Model:
         """Steps until ``t_end`` (landing on it exactly) or ``max_steps``; returns per-step
         diagnostics as lists (time, dt, max_speed, cfl, divergence, pressure_iterations,
         viscous_iterations, pore_iterations, picard_iterations, picard_increment,
-        picard_r_halvings, step_retries, pieces_removed: the cells of the detached pieces of
+        picard_r_halvings, picard_restarts (the proximal restarts of the step, at most
+        ``proximal_restarts``), step_retries, pieces_removed: the cells of the detached pieces of
         the dense phase turned to air, ``piece_removal_cells``; mass_shift: the global mass
         correction's shift δ of Φ in m)."""
         if t_end is None and max_steps is None:

@@ -107,6 +107,7 @@ fn step_dict<'py>(py: Python<'py>, s: &StepInfo) -> PyResult<Bound<'py, PyDict>>
     pic.set_item("iterations", s.picard_iterations)?;
     pic.set_item("increment", s.picard_increment)?;
     pic.set_item("r_halvings", s.picard_r_halvings)?;
+    pic.set_item("restarts", s.picard_restarts)?;
     d.set_item("picard", pic)?;
     d.set_item("retries", s.retries)?;
     d.set_item("pieces_removed", s.pieces_removed)?;
@@ -610,7 +611,7 @@ impl PyModel {
     /// Takes steps until `t_end` (the last step is shortened to land on it) or `max_steps`
     /// steps, with the GIL released. Returns per-step arrays: time, dt, max_speed, cfl,
     /// pressure_iterations, viscous_iterations, divergence, picard_iterations, picard_increment,
-    /// picard_r_halvings, step_retries, pieces_removed, mass_shift.
+    /// picard_r_halvings, picard_restarts, step_retries, pieces_removed, mass_shift.
     #[pyo3(signature = (t_end=None, max_steps=None))]
     fn advance<'py>(&mut self, py: Python<'py>, t_end: Option<f64>, max_steps: Option<u64>) -> PyResult<Bound<'py, PyDict>> {
         if t_end.is_none() && max_steps.is_none() {
@@ -635,6 +636,7 @@ impl PyModel {
         d.set_item("picard_iterations", log.iter().map(|s| s.picard_iterations).collect::<Vec<_>>())?;
         d.set_item("picard_increment", log.iter().map(|s| s.picard_increment).collect::<Vec<_>>())?;
         d.set_item("picard_r_halvings", log.iter().map(|s| s.picard_r_halvings as f64).collect::<Vec<_>>())?;
+        d.set_item("picard_restarts", log.iter().map(|s| s.picard_restarts as f64).collect::<Vec<_>>())?;
         d.set_item("step_retries", log.iter().map(|s| s.retries as f64).collect::<Vec<_>>())?;
         d.set_item("pieces_removed", log.iter().map(|s| s.pieces_removed as f64).collect::<Vec<_>>())?;
         d.set_item("mass_shift", log.iter().map(|s| s.mass_shift).collect::<Vec<_>>())?;

@@ -234,6 +234,11 @@ def run_column(
             summary[key + "_median"] = float(np.median(hist[key]))
     if "picard_r_halvings" in hist:
         summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
+    cap = case.variants.proximal_restarts
+    if "picard_restarts" in hist and cap > 0:
+        # steps whose Picard loop used every proximal restart it was allowed: they end on the
+        # relaxed fixed point of their last anchor, not on eq. (11)'s
+        summary["picard_restarts_capped_steps"] = int(np.sum(hist["picard_restarts"] >= cap))
     if "step_retries" in hist:
         summary["step_retries_total"] = int(np.sum(hist["step_retries"]))
     if "pieces_removed" in hist:

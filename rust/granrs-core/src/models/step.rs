@@ -635,6 +635,7 @@ impl TwoPhaseModel {
             picard_iterations: picard.iterations,
             picard_increment: picard.increment,
             picard_r_halvings: picard.r_halvings,
+            picard_restarts: picard.restarts,
             retries: 0,
             pieces_removed: 0,
             mass_shift: 0.0,

@@ -27,6 +27,9 @@ pub struct StepInfo {
     pub picard_increment: f64,
     /// Times the Picard stall safeguard halved r and r_b in the step.
     pub picard_r_halvings: usize,
+    /// Proximal restarts of the Picard iteration in the step (`proximal_restarts` is their cap:
+    /// a step that reaches it stops on the relaxed fixed point of its last anchor).
+    pub picard_restarts: usize,
     /// Times the step was rejected (Picard non-convergence) and retaken with δt halved.
     pub retries: usize,
     /// Cells of the small detached pieces of {Φ > 0} turned to air in the step
