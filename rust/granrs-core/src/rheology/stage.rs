@@ -85,7 +85,7 @@ pub struct RheologyState {
     /// Increments of the Picard iterations of the last step (capacity reserved once).
     pub history: Vec<f64>,
     /// r of the current step (a user's constant r, or the smallest local r), and r_b (a user's
-    /// constant, or the smallest over the faces).
+    /// constant, or the single bound, the smallest of the faces' r_b).
     pub r: f64,
     pub r_wall: f64,
     /// p_s of `YieldPressure::SurfaceAir` at the current step (0 with `Absolute`) [Pa].

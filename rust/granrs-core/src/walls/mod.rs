@@ -221,28 +221,19 @@ impl CoulombWalls {
 
     /// Sets r_b on every face after [`CoulombWalls::set_friction`]: `user`'s constant, else the
     /// bound of `choice` (module doc, "Choice of r_b"; a face without friction takes the single
-    /// bound, which it never uses). Returns the smallest r_b over the faces with friction (the
-    /// single bound with `WallR::Single`).
+    /// bound, which it never uses). Returns the single bound (or the user's r_b): the smallest
+    /// r_b of the faces, since every face's own bound (1 − θ)/(τ_b/(h_n c)) is at least it.
     #[allow(clippy::too_many_arguments)]
     pub fn set_r(&mut self, user: Option<f64>, choice: WallR, theta: f64, rho_u: &Field, rho_v: &Field, a0_over_dt: f64, grid: &Grid) -> f64 {
         let single = user.unwrap_or_else(|| default_r_wall(theta, self.max_response(rho_u, rho_v, a0_over_dt, grid)));
-        let mut smallest = f64::INFINITY;
+        let local = user.is_none() && choice == WallR::Local;
         for w in &mut self.sides {
-            for f in 0..w.r.len() {
-                w.r[f] = single;
-                if user.is_none() && choice == WallR::Local && w.faces.contains(&f) && w.tau_b[f] > 0.0 {
-                    w.r[f] = default_r_wall(theta, Self::response(w, f, rho_u, rho_v, a0_over_dt, grid));
-                }
-                if w.faces.contains(&f) && w.tau_b[f] > 0.0 {
-                    smallest = smallest.min(w.r[f]);
-                }
+            w.r.fill(single);
+            for f in w.faces.clone().filter(|&f| local && w.tau_b[f] > 0.0) {
+                w.r[f] = default_r_wall(theta, Self::response(w, f, rho_u, rho_v, a0_over_dt, grid));
             }
         }
-        if smallest.is_finite() {
-            smallest
-        } else {
-            single
-        }
+        single
     }
 
     /// Multiplies r_b on every face by `factor` (the Picard loop's stall safeguard).
@@ -299,15 +290,15 @@ impl CoulombWalls {
         inc
     }
 
-    /// Copies s, s^n, τ_b and r_b of every side from `other` (a model of the same boundary
-    /// conditions on a grid sharing this one's lower-left corner) over the faces both have.
+    /// Copies s, s^n and τ_b of every side from `other` (a model of the same boundary conditions
+    /// on a grid sharing this one's lower-left corner) over the faces both have (r_b is set
+    /// afresh by each step's [`CoulombWalls::set_r`]).
     pub(crate) fn copy_prefix_from(&mut self, other: &CoulombWalls) {
         for (a, b) in self.sides.iter_mut().zip(&other.sides) {
             let n = a.s.len().min(b.s.len());
             a.s[..n].copy_from_slice(&b.s[..n]);
             a.s_n[..n].copy_from_slice(&b.s_n[..n]);
             a.tau_b[..n].copy_from_slice(&b.tau_b[..n]);
-            a.r[..n].copy_from_slice(&b.r[..n]);
         }
     }
 
@@ -397,6 +388,7 @@ mod tests {
         let (_, r_single, _, single) = run(WallR::Single, 1);
         assert!(r_single.iter().all(|&x| x == single) && (smallest - single).abs() < 1e-12 * single, "{smallest} {single}");
         assert!(r[faces.end - 1] > 50.0 * single, "the thin end's r_b {} against {single}", r[faces.end - 1]);
+        assert!(r[faces.clone()].iter().all(|&x| x >= single), "a face's own bound below the single one");
         let (slip, _, inc, _) = run(WallR::Single, 50);
         let thin = slip[faces.len() - 1];
         // the thin face's ratio 1 − τ_b/max τ_b (faces average two cells: τ_b/max τ_b = 0.0136)
