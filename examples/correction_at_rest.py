@@ -1,9 +1,11 @@
 """Does the global mass correction move a deposit at rest? The same arrested state, continued with
-and without it (and without the redistancing, or with a tighter Picard tolerance).
+and without it (and without the redistancing, with a tighter Picard tolerance, or with Φ moved by
+the grains' velocity where they rest).
 
     python examples/correction_at_rest.py --ny 16 [--dry] [--t-end 3] [--out out/correction-at-rest]
         [--continuations with_correction without_correction without_redistancing without_either
-         tighter_picard] [--option mass_correction_film=0.5]
+         tighter_picard extended_at_rest extended_at_rest_without_correction]
+        [--option mass_correction_film=0.5]
 
 The column (``granrs.cases.column``) runs with the options of docs/howto/deposit-at-rest.md (20
 proximal restarts, Anderson mixing of depth 5, redistancing at every step, detached pieces of at
@@ -14,7 +16,11 @@ each of ``--continuations``: ``with_correction``, the run itself with the global
 (``levelset::Interface::correct_mass``, a uniform shift of Φ); ``without_correction``,
 ``without_redistancing`` and ``without_either``, models built with ``mass_correction = False``,
 ``redistance_every = 0`` or both, into which the state is restored; ``tighter_picard``, a model
-whose Picard tolerance (``picard_tol``) is the run's over ``TIGHTER`` (100). The records every 0.01 s (at
+whose Picard tolerance (``picard_tol``) is the run's over ``TIGHTER`` (100);
+``extended_at_rest`` and ``extended_at_rest_without_correction``, models whose level set is
+moved by the dense phase's velocity extended along the normal where the grains move slower than
+the column's rest speed (``interface_velocity = "extended"``, ``extension_rest_speed`` =
+``ColumnCase.rest_speed``, 5 mm/s), with and without the correction. The records every 0.01 s (at
 the run's own times) give, for each continuation, the range of the front on the lowest row of
 cells, its last value, the largest granular speed, and the speed in each layer of the granular
 phase by depth below its surface (``DEPTH_LAYERS``: 0 < Φ ≤ h, the cells of the smoothed band and
@@ -150,6 +156,9 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
 
 #: ``tighter_picard`` divides the run's Picard tolerance by this
 TIGHTER = 100.0
+#: Φ moved by the dense phase's velocity extended where the grains move slower than the column's
+#: rest speed
+EXTENDED_AT_REST = {"interface_velocity": "extended", "extension_rest_speed": ColumnCase.rest_speed}
 #: the continuations from the arrested state: the run itself, and models built with these
 #: options changed, into which the state is restored
 CONTINUATIONS = {
@@ -157,6 +166,8 @@ CONTINUATIONS = {
     "without_correction": {"mass_correction": False},
     "without_redistancing": {"redistance_every": 0},
     "without_either": {"mass_correction": False, "redistance_every": 0},
+    "extended_at_rest": EXTENDED_AT_REST,
+    "extended_at_rest_without_correction": {**EXTENDED_AT_REST, "mass_correction": False},
     "tighter_picard": {},  # picard_tol: the run's over TIGHTER (set in main)
 }
 

@@ -835,6 +835,32 @@ def test_each_face_s_own_r_b_stops_the_tip_sliding_on_stuck_faces(tmp_path):
     assert bulk["end_m_s"] < 1e-5, bulk
 
 
+def test_phi_moved_by_the_grains_velocity_holds_a_surface_at_rest(tmp_path):
+    """examples/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
+    the fluidised column at ny = 16 with the deposit-at-rest options and ``redistance_tolerance``
+    = 0.01, continued from its arrest to 3 s without the global correction, with Φ moved by the
+    one-fluid velocity and by the grains' velocity extended where they rest. The layers under the
+    film are at rest to micrometres per second in both (measured 2.5 and 1.2 µm/s at 3 s), yet the
+    one-fluid velocity, whose air side flows over the deposit, moves the surface by 82 µm; the
+    extension by 11 µm (measured). Asserted: below the film slower than 10 µm/s in both, and the
+    surface's change with the extension below 25 µm and under a third of the one-fluid one's."""
+    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    subprocess.run(
+        [sys.executable, str(script), "--ny", "16", "--option", "redistance_tolerance=0.01", "--continuations"]
+        + ["without_correction", "extended_at_rest_without_correction", "--out", str(tmp_path)],
+        check=True,
+        capture_output=True,
+    )
+    r = json.loads((tmp_path / "fluidised-16.json").read_text())
+    assert r["restart_time_s"] > r["arrest_time_s"] > 1.5
+    one_fluid, extended = r["without_correction"], r["extended_at_rest_without_correction"]
+    for c in (one_fluid, extended):
+        below = max(v["end_m_s"] for k, v in c["granular_speed_by_depth"].items() if k != "film")
+        assert c["mass_shift_abs_sum_m"] == 0.0 and below < 1e-5, c["granular_speed_by_depth"]
+    change = (one_fluid["surface_change_m"], extended["surface_change_m"])
+    assert change[1] < 25e-6 and change[1] < change[0] / 3, change
+
+
 def test_the_speeds_by_depth_take_each_layer_of_the_granular_phase():
     """examples/correction_at_rest.py's layers: the largest speed of the cells with Φ in (0, h],
     (h, 2h], (2h, 4h] and above 4h, each with its cell; air cells (Φ ≤ 0) are not looked at, and
