@@ -27,8 +27,10 @@ phase by depth below its surface (``DEPTH_LAYERS``: 0 < Φ ≤ h, the cells of t
 of films one cell thick; h < Φ ≤ 2h; 2h < Φ ≤ 4h; Φ > 4h, the bulk), the largest over the
 continuation and the largest at its last record, each with its cell, the correction's shifts (the sum of |δ| over the steps), the dense area's relative change,
 and the largest change of the surface and of the volume profile since the restart, with the
-column of the surface's; and, at the end, the tip on the base (``tip_on_the_base``: the slip of
-the lowest row's last granular cells, the share of its bound that the base's friction takes
+column of the surface's, and the time from which the surface stays within ``STILL`` (1e-6 m) of
+its last profile (``surface_still_from_s``; the last record's time if it moved until then);
+and, at the end, the tip on the base (``tip_on_the_base``: the slip of the lowest row's last
+granular cells, the share of its bound that the base's friction takes
 there, and their trial norm). Writes ``OUT/<state>-<ny>.json`` and prints it. On one thread
 (2-core VM, 2026-12-05, four runs sharing the two cores): the run to its arrest 6 s at ny = 16
 and 20–28 s at ny = 32, each continuation 1–3 s and 2–6 s.
@@ -60,6 +62,8 @@ from granrs.observables import volume_profile
 AT_REST = {"proximal_restarts": 20, "anderson_depth": 5, "redistance_every": 1, "piece_removal_cells": 4}
 #: record interval (s), as the column's runs
 EVERY = 0.01
+#: a surface that changes by less than this is still (m): the 1e-6 m of a deposit at rest
+STILL = 1e-6
 #: the layers of the granular phase by depth below its surface, in cells of Φ: (name, Φ/h above,
 #: Φ/h at most)
 DEPTH_LAYERS = (("film", 0.0, 1.0), ("1-2", 1.0, 2.0), ("2-4", 2.0, 4.0), ("bulk", 4.0, math.inf))
@@ -125,13 +129,15 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
     """Advances ``model`` from ``t_start`` to ``t_end``, one record every EVERY s."""
     g = model.grid
     t0 = time.perf_counter()
-    fronts, speeds, shifts, layers = [], [], 0.0, {}
+    fronts, speeds, shifts, layers, surfaces, times = [], [], 0.0, {}, [], []
     k = 0
     while model.time < t_end - 1e-12:
         k += 1
         log = model.advance(min(t_end, (round(t_start / EVERY) + k) * EVERY))  # the run's own record times
         shifts += float(sum(abs(d) for d in log["mass_shift"]))
         fronts.append(front_position(model.phi, g.dx) - lc)
+        surfaces.append(surface_profile(np.asarray(model.phi), g.dy))
+        times.append(model.time)
         uc, vc = model.centre_velocity()
         by_depth = speeds_by_depth(np.asarray(model.phi), np.hypot(uc, vc), g.dy)
         # the layers cover every cell with Φ > 0: their largest is granular_speed(model)
@@ -141,7 +147,11 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
             if r["speed_m_s"] > layer["largest_m_s"]:
                 layer.update(largest_m_s=r["speed_m_s"], largest_cell=r["cell"], largest_t_s=model.time)
             layer.update(end_m_s=r["speed_m_s"], end_cell=r["cell"], end_t_s=model.time)
+    # the earliest record from which the surface stays within STILL of its last profile
+    off = [float(np.max(np.abs(sp - surfaces[-1]))) for sp in surfaces]
+    still = len(off) - next((i for i, d in enumerate(reversed(off)) if d > STILL), len(off))
     return {
+        "surface_still_from_s": times[still],
         "front_end_m": fronts[-1],
         "front_range_cells": (max(fronts) - min(fronts)) / g.dx,
         "front_end_minus_arrest_cells": (fronts[-1] - front0) / g.dx,
