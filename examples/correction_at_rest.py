@@ -5,12 +5,13 @@ the grains' velocity where they rest).
     python examples/correction_at_rest.py --ny 16 [--dry] [--t-end 3] [--out out/correction-at-rest]
         [--continuations with_correction without_correction without_redistancing without_either
          tighter_picard extended_at_rest extended_at_rest_without_correction]
-        [--option mass_correction_film=0.5]
+        [--option mass_correction_film=0.5] [--continuation-option picard_tol=1e-5]
 
 The column (``granrs.cases.column``) runs with the options of docs/howto/deposit-at-rest.md (20
 proximal restarts, Anderson mixing of depth 5, redistancing at every step, detached pieces of at
-most 4 cells turned to air), and any ``--option`` besides, until its rest criterion holds (``RestCriterion``: the largest
-granular speed below ``rest_speed`` for ``rest_duration``). Its whole state is then taken
+most 4 cells turned to air), and any ``--option`` besides, until its rest criterion holds
+(``RestCriterion``: the largest granular speed below ``rest_speed`` for ``rest_duration``). Its
+whole state is then taken
 (``Model._rust.checkpoint_state``) and continued to ``--t-end`` from that same state, in
 each of ``--continuations``: ``with_correction``, the run itself with the global mass correction
 (``levelset::Interface::correct_mass``, a uniform shift of Φ); ``without_correction``,
@@ -20,7 +21,9 @@ whose Picard tolerance (``picard_tol``) is the run's over ``TIGHTER`` (100);
 ``extended_at_rest`` and ``extended_at_rest_without_correction``, models whose level set is
 moved by the dense phase's velocity extended along the normal where the grains move slower than
 the column's rest speed (``interface_velocity = "extended"``, ``extension_rest_speed`` =
-``ColumnCase.rest_speed``, 5 mm/s), with and without the correction. The records every 0.01 s (at
+``ColumnCase.rest_speed``, 5 mm/s), with and without the correction. Any
+``--continuation-option`` applies to the continuations only (``with_correction`` is then
+continued in a model built with it). The records every 0.01 s (at
 the run's own times) give, for each continuation, the range of the front on the lowest row of
 cells, its last value, the largest granular speed, and the speed in each layer of the granular
 phase by depth below its surface (``DEPTH_LAYERS``: 0 < Φ ≤ h, the cells of the smoothed band and
@@ -202,15 +205,24 @@ def main() -> None:
         help="a model option of the run besides the four (a schema key of `granrs keys`), e.g. "
         "--option mass_correction_film=0.5 (repeat)",
     )
+    ap.add_argument(
+        "--continuation-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a model option of the continuations only, after the arrest (repeat); "
+        "with_correction is then continued in a model built with it",
+    )
     ap.add_argument("--out", default="out/correction-at-rest")
     args = ap.parse_args()
     case = ColumnCase(ny=args.ny, fluidised=not args.dry)
     run_options = {**AT_REST, **parse_options(args.option)}
+    after = parse_options(args.continuation_option, flag="--continuation-option")
     run_case = case.with_options(**run_options)
     tighter = {"picard_tol": run_case.rheology.projection.tolerance / TIGHTER}
     cases = {
         name: case.with_options(
-            **{**run_options, **CONTINUATIONS[name], **(tighter if name == "tighter_picard" else {})}
+            **{**run_options, **after, **CONTINUATIONS[name], **(tighter if name == "tighter_picard" else {})}
         )
         for name in args.continuations
     }  # checked first
@@ -227,9 +239,10 @@ def main() -> None:
     surface0, volume0 = surface_profile(phi0, g.dy), volume_profile(phi0, g.dy)
 
     result = {"ny": args.ny, "state": "dry" if args.dry else "fluidised", "cell_m": g.dx, "options": run_options}
+    result["continuation_options"] = after
     result.update({"arrest_time_s": arrest, "restart_time_s": t_restart, "front_at_restart_m": front0})
     for name in args.continuations:
-        if name == "with_correction":
+        if name == "with_correction" and not after:
             m = model  # the run itself, continued
         else:
             m = build_model(cases[name])
