@@ -861,6 +861,24 @@ def test_phi_moved_by_the_grains_velocity_holds_a_surface_at_rest(tmp_path):
     assert change[1] < 25e-6 and change[1] < change[0] / 3, change
 
 
+def test_a_continuation_option_reaches_the_continuations_only(tmp_path):
+    """examples/correction_at_rest.py --continuation-option: the run to the arrest keeps the
+    global correction, the continuation ``with_correction`` is built with the option
+    (mass_correction = false) and makes no shift. An item without "=" is refused naming the flag
+    before any work."""
+    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    args = [sys.executable, str(script), "--ny", "16", "--dry", "--t-end", "2.2", "--continuations", "with_correction"]
+    subprocess.run([*args, "--continuation-option", "mass_correction=false", "--out", str(tmp_path)], check=True)
+    r = json.loads((tmp_path / "dry-16.json").read_text())
+    assert r["continuation_options"] == {"mass_correction": False} and "mass_correction" not in r["options"]
+    assert r["restart_time_s"] > r["arrest_time_s"] > 1.5
+    assert r["with_correction"]["mass_shift_abs_sum_m"] == 0.0
+    bad = subprocess.run(
+        [*args, "--continuation-option", "theta", "--out", str(tmp_path / "bad")], capture_output=True, text=True
+    )
+    assert bad.returncode != 0 and "`--continuation-option`" in bad.stderr and not (tmp_path / "bad").exists()
+
+
 @pytest.mark.slow
 def test_a_converged_iteration_and_phi_moved_by_the_grains_hold_the_surface_to_a_micrometre(tmp_path):
     """examples/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
