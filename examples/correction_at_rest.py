@@ -138,11 +138,12 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
         k += 1
         log = model.advance(min(t_end, (round(t_start / EVERY) + k) * EVERY))  # the run's own record times
         shifts += float(sum(abs(d) for d in log["mass_shift"]))
-        fronts.append(front_position(model.phi, g.dx) - lc)
-        surfaces.append(surface_profile(np.asarray(model.phi), g.dy))
+        phi = np.asarray(model.phi)
+        fronts.append(front_position(phi, g.dx) - lc)
+        surfaces.append(surface_profile(phi, g.dy))
         times.append(model.time)
         uc, vc = model.centre_velocity()
-        by_depth = speeds_by_depth(np.asarray(model.phi), np.hypot(uc, vc), g.dy)
+        by_depth = speeds_by_depth(phi, np.hypot(uc, vc), g.dy)
         # the layers cover every cell with Φ > 0: their largest is granular_speed(model)
         speeds.append(max((r["speed_m_s"] for r in by_depth.values()), default=0.0))
         for name, r in by_depth.items():
