@@ -211,3 +211,23 @@ def test_failed_column_run_keeps_summary_and_front(tmp_path):
     assert summary["steps"] >= 1 and summary["t_end_s"] > 0
     rows = (tmp_path / "front.csv").read_text().splitlines()
     assert rows[0].startswith("t_s,") and len(rows) >= 2, rows
+
+
+def test_a_column_run_that_fails_at_its_first_step_reports_it_and_keeps_its_outputs(tmp_path):
+    # one Picard iteration per step cannot reach the tolerance 1e-3 from Σ = 0 (the first
+    # increment is 0.14 at ny = 8): the first step fails, is retaken three times with δt halved,
+    # and the run stops before any step is recorded, with empty history arrays
+    with pytest.raises(SimulationError, match=r"step 1, t = 0.*Picard iteration .* did not converge.*outputs written to"):
+        run_column(
+            ColumnCase(ny=8, t_end=0.1, fluidised=False).with_options(picard_max_iterations=1),
+            tmp_path,
+            progress=False,
+        )
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["stop_reason"].startswith("error:") and "Picard" in summary["stop_reason"], summary
+    assert summary["steps"] == 0 and summary["t_end_s"] == 0.0
+    assert summary["pressure_iterations_max"] == 0 and "picard_iterations_median" not in summary
+    with np.load(tmp_path / "history.npz") as hist:
+        assert hist["time"].size == 0 and "picard_iterations" in hist.files
+    for name in ("front.csv", "profiles.csv", "front.png", "profiles.png"):
+        assert (tmp_path / name).exists(), name

@@ -187,7 +187,9 @@ def run_column(
     whole_records(rec)
     profiles["final"] = surface_profile(model.phi, grid.dy)
     profiles["hvol_final"] = obs.volume_profile(model.phi, grid.dy)
-    hist = sim.history_arrays()
+    history = sim.history_arrays()
+    # the statistics below: a run that failed at its first step has the history's keys, no values
+    hist = {k: v for k, v in history.items() if v.size}
     front = np.array(rec["front"])
     area = np.array(rec["area"])
     walls, region = case.side_walls, case.active_region
@@ -251,7 +253,7 @@ def run_column(
     summary.update(extra_summary or {})
     try:
         write_outputs(out, summary, rec, profiles, xs_c - lc, outputs)
-        outputs.write_history(hist)
+        outputs.write_history(history)
         if rec["energy"]:
             write_energy(out, rec["t"], rec["energy"])
             plot_energy(out)
