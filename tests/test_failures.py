@@ -217,7 +217,9 @@ def test_a_column_run_that_fails_at_its_first_step_reports_it_and_keeps_its_outp
     # one Picard iteration per step cannot reach the tolerance 1e-3 from Σ = 0 (the first
     # increment is 0.14 at ny = 8): the first step fails, is retaken three times with δt halved,
     # and the run stops before any step is recorded, with empty history arrays
-    with pytest.raises(SimulationError, match=r"step 1, t = 0.*Picard iteration .* did not converge.*outputs written to"):
+    with pytest.raises(
+        SimulationError, match=r"step 1, t = 0.*Picard iteration .* did not converge.*outputs written to"
+    ):
         run_column(
             ColumnCase(ny=8, t_end=0.1, fluidised=False).with_options(picard_max_iterations=1),
             tmp_path,
