@@ -523,6 +523,19 @@ class Model:
     def last_step(self) -> dict:
         return self._rust.last_step()
 
+    def state(self) -> dict:
+        """A copy of the whole state the next step starts from (fields, time, step count, the
+        clock's and the iterations' memory), as a dict of NumPy arrays and numbers: what a
+        checkpoint stores (granrs.io.checkpoint). Restoring it with :meth:`restore` into a model
+        built the same way continues the run to the bit; a model built with other options
+        continues the same state with them."""
+        return self._rust.checkpoint_state()
+
+    def restore(self, state: dict) -> None:
+        """Sets the model's state to ``state``, a dict from :meth:`state` of a model on the same
+        grid (the same keys and array shapes; ParameterError or ValueError otherwise)."""
+        self._rust.restore_state(state)
+
     # ---- derived quantities -------------------------------------------------------------
     def centre_velocity(self) -> tuple[np.ndarray, np.ndarray]:
         """(u, v) averaged to cell centres, each (ny, nx)."""
