@@ -40,7 +40,7 @@ bench: install
 # The Rust tree's layout, clippy's lints as errors, and the core's floors (rust/granrs-core/src/lib.rs);
 # the Python code's lints and layout (ruff), the package's types (mypy) and the extension's stubs
 # against the compiled module (mypy.stubtest; settings in pyproject.toml).
-PY_SOURCES := python tests examples scripts benchmarks
+PY_SOURCES := python tests examples studies scripts benchmarks
 
 lint: install
 	cargo fmt --all -- --check

@@ -193,12 +193,12 @@ def test_proximal_restarts_bring_the_column_to_rest(tmp_path, fluidised):
 
 
 def _arrest_diagnosis() -> dict:
-    """The functions of examples/arrest_diagnosis.py."""
-    return runpy.run_path(str(Path(__file__).resolve().parents[1] / "examples" / "arrest_diagnosis.py"))
+    """The functions of studies/arrest_diagnosis.py."""
+    return runpy.run_path(str(Path(__file__).resolve().parents[1] / "studies" / "arrest_diagnosis.py"))
 
 
 def test_the_deposit_is_the_largest_connected_granular_region():
-    """deposit_mask (examples/arrest_diagnosis.py): the granular cells 8-connected to the largest
+    """deposit_mask (studies/arrest_diagnosis.py): the granular cells 8-connected to the largest
     connected region; a cell touching it by a corner belongs to it, a speck one cell away does not."""
     granular = np.zeros((6, 12), dtype=bool)
     granular[0:3, 0:6] = True  # the deposit
@@ -246,7 +246,7 @@ def test_removing_detached_pieces_keeps_the_arrested_column_at_rest():
 
 
 def test_the_options_switched_on_late_bring_rest_but_not_the_front_back():
-    """examples/arrest_diagnosis.py's switched variant (docs/validation.md, "The options are needed
+    """studies/arrest_diagnosis.py's switched variant (docs/validation.md, "The options are needed
     from the start"): the dry column at ny = 16 runs its own numerics until its largest granular
     speed falls below 0.3 m/s (measured at 1.27 s), then the same state continues with the five
     deposit-at-rest options. It comes to rest (2.02 s), but its front ends 1.22 cells behind its
@@ -615,12 +615,12 @@ def test_wall_normal_stress_choice_names_itself(tmp_path):
 
 
 def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
-    """examples/runout_ensemble.py (docs/validation.md, "Predictability of the late run-out"):
+    """studies/runout_ensemble.py (docs/validation.md, "Predictability of the late run-out"):
     member k scales the column width by 1 + k·ε on the unperturbed grid. With ε = 1e-12 the
     collapse is deterministic to far better than 1e-6 (the fronts of the ny = 32 ensemble first
     differ by 1 % at t = 1.15 s), so two members must agree to 1e-6 up to t = 0.4 s, and a
     member with a visible perturbation (ε = 1e-2) must not."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "runout_ensemble.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "runout_ensemble.py"
     fronts = {}
     for eps in (1e-12, 1e-2):
         out = tmp_path / f"eps{eps:g}"
@@ -681,11 +681,11 @@ def test_runout_ensemble_members_share_the_grid_and_the_early_front(tmp_path):
 
 
 def test_runout_ensemble_side_by_side_gives_the_same_members(tmp_path):
-    """examples/runout_ensemble.py --jobs 2 runs the members in two processes at a time
+    """studies/runout_ensemble.py --jobs 2 runs the members in two processes at a time
     (docs/howto/threads.md). A member's answer does not depend on the process that runs it: the
     same steps, run-out and front curve to the last bit as the members run one after the other.
     A --jobs below 1 is refused with the parameter's name before any member runs."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "runout_ensemble.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "runout_ensemble.py"
     args = [sys.executable, str(script), "--ny", "16", "--members", "3", "--t-end", "0.3", "--eps", "1e-3"]
     for jobs in (1, 2):
         subprocess.run(
@@ -709,11 +709,11 @@ def test_runout_ensemble_side_by_side_gives_the_same_members(tmp_path):
 
 
 def test_runout_ensemble_takes_any_model_option_checked_before_any_run(tmp_path):
-    """examples/runout_ensemble.py --option KEY=VALUE puts a model option (a schema key of
+    """studies/runout_ensemble.py --option KEY=VALUE puts a model option (a schema key of
     `granrs keys`) into every member's case, as ColumnCase.with_options does: the members'
     summary.json state it. An unknown key, a value out of its range or an item without "=" is
     refused with the parameter's name before the output folder is made."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "runout_ensemble.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "runout_ensemble.py"
     args = [sys.executable, str(script), "--ny", "16", "--members", "2", "--t-end", "0.05"]
     out = tmp_path / "restarts"
     subprocess.run(
@@ -735,7 +735,7 @@ def test_runout_ensemble_takes_any_model_option_checked_before_any_run(tmp_path)
 
 
 def test_the_global_correction_moves_a_front_at_rest(tmp_path):
-    """examples/correction_at_rest.py (docs/validation.md, "The correction moves a front at
+    """studies/correction_at_rest.py (docs/validation.md, "The correction moves a front at
     rest"): the dry column at ny = 16 with the deposit-at-rest options, continued from its
     arrest (1.97 s) to 2.4 s with and without the global mass correction, from the same state.
     Without it no shift is made and the area drifts (measured +0.13 %); with it the area holds to
@@ -743,7 +743,7 @@ def test_the_global_correction_moves_a_front_at_rest(tmp_path):
     against 0.014 cell): the correction, not the transport, moves the front of a deposit at rest.
     Asserted: area drift > 1e-4 without, < 1e-9 with, and a front range at least 5 times larger
     with the correction."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "correction_at_rest.py"
     subprocess.run(
         [sys.executable, str(script), "--ny", "16", "--dry", "--t-end", "2.4", "--out", str(tmp_path)],
         check=True,
@@ -780,13 +780,13 @@ def test_the_deposit_at_rest_options_keep_the_front_within_a_cell(tmp_path, flui
 
 
 def test_the_redistancing_tolerance_keeps_a_surface_at_rest(tmp_path):
-    """examples/correction_at_rest.py with and without ``redistance_tolerance`` = 0.01
+    """studies/correction_at_rest.py with and without ``redistance_tolerance`` = 0.01
     (docs/validation.md, "A redistancing that leaves a surface at rest in place"): the dry column
     at ny = 16 with the deposit-at-rest options, each run to its arrest and continued to 3 s.
     Redistanced at every step, the closest-point reset moves the surface at rest by 6.9 mm
     (measured); with the tolerance its interface cells keep their values and the surface moves by
     0.25 mm. Asserted: below 1 mm with it, and less than a fifth of the change without it."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "correction_at_rest.py"
     change = {}
     for t in (0.0, 0.01):
         out = tmp_path / f"t{t}"
@@ -820,7 +820,7 @@ def test_each_face_s_own_r_b_stops_the_tip_sliding_on_stuck_faces(tmp_path):
     their own r_b they slide at 0.039 mm/s and the bulk creeps at 0.57 µm/s (against 23 µm/s;
     measured). Asserted: the tip still rigid and stuck, its slip below 0.1 mm/s (a twentieth of
     the single r_b's) and the bulk below 10 µm/s (under half the single r_b's)."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "correction_at_rest.py"
     subprocess.run(
         [sys.executable, str(script), "--ny", "16", "--dry", "--continuations", "with_correction"]
         + ["--option", "redistance_tolerance=0.01", "--option", "wall_r=local", "--out", str(tmp_path)],
@@ -836,7 +836,7 @@ def test_each_face_s_own_r_b_stops_the_tip_sliding_on_stuck_faces(tmp_path):
 
 
 def test_phi_moved_by_the_grains_velocity_holds_a_surface_at_rest(tmp_path):
-    """examples/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
+    """studies/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
     the fluidised column at ny = 16 with the deposit-at-rest options and ``redistance_tolerance``
     = 0.01, continued from its arrest to 3 s without the global correction, with Φ moved by the
     one-fluid velocity and by the grains' velocity extended where they rest. The layers under the
@@ -844,7 +844,7 @@ def test_phi_moved_by_the_grains_velocity_holds_a_surface_at_rest(tmp_path):
     one-fluid velocity, whose air side flows over the deposit, moves the surface by 82 µm; the
     extension by 11 µm (measured). Asserted: below the film slower than 10 µm/s in both, and the
     surface's change with the extension below 25 µm and under a third of the one-fluid one's."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "correction_at_rest.py"
     subprocess.run(
         [sys.executable, str(script), "--ny", "16", "--option", "redistance_tolerance=0.01", "--continuations"]
         + ["without_correction", "extended_at_rest_without_correction", "--out", str(tmp_path)],
@@ -862,11 +862,11 @@ def test_phi_moved_by_the_grains_velocity_holds_a_surface_at_rest(tmp_path):
 
 
 def test_a_continuation_option_reaches_the_continuations_only(tmp_path):
-    """examples/correction_at_rest.py --continuation-option: the run to the arrest keeps the
+    """studies/correction_at_rest.py --continuation-option: the run to the arrest keeps the
     global correction, the continuation ``with_correction`` is built with the option
     (mass_correction = false) and makes no shift. An item without "=" is refused naming the flag
     before any work."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "correction_at_rest.py"
     args = [sys.executable, str(script), "--ny", "16", "--dry", "--t-end", "2.2", "--continuations", "with_correction"]
     subprocess.run([*args, "--continuation-option", "mass_correction=false", "--out", str(tmp_path)], check=True)
     r = json.loads((tmp_path / "dry-16.json").read_text())
@@ -881,7 +881,7 @@ def test_a_continuation_option_reaches_the_continuations_only(tmp_path):
 
 @pytest.mark.slow
 def test_a_converged_iteration_and_phi_moved_by_the_grains_hold_the_surface_to_a_micrometre(tmp_path):
-    """examples/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
+    """studies/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
     the fluidised column at ny = 16 with the deposit-at-rest options, ``redistance_tolerance`` =
     0.01, each face's own r_b and the Picard iteration taken to 1e-5 with up to 1000 restarts,
     continued from its arrest (1.92 s) to 3 s without the global correction. With Φ moved by the
@@ -889,7 +889,7 @@ def test_a_converged_iteration_and_phi_moved_by_the_grains_hold_the_surface_to_a
     2.16 s, 0.24 s after the arrest (measured); with the one-fluid velocity it moves until the
     last record. About 150 s on one thread. Asserted: still within 0.5 s of the arrest with the
     extension, not before the last 0.02 s with the one-fluid velocity."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "correction_at_rest.py"
     options = ["redistance_tolerance=0.01", "wall_r=local", "picard_tol=1e-5", "proximal_restarts=1000"]
     options += ["picard_max_iterations=50000"]
     subprocess.run(
@@ -906,10 +906,10 @@ def test_a_converged_iteration_and_phi_moved_by_the_grains_hold_the_surface_to_a
 
 
 def test_the_speeds_by_depth_take_each_layer_of_the_granular_phase():
-    """examples/correction_at_rest.py's layers: the largest speed of the cells with Φ in (0, h],
+    """studies/correction_at_rest.py's layers: the largest speed of the cells with Φ in (0, h],
     (h, 2h], (2h, 4h] and above 4h, each with its cell; air cells (Φ ≤ 0) are not looked at, and
     a layer without cells is left out."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "correction_at_rest.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "correction_at_rest.py"
     speeds_by_depth = runpy.run_path(str(script))["speeds_by_depth"]
     h = 0.5
     phi = np.array([[3.0, 1.5, 0.5, -0.2], [0.4, 1.0, 0.3, -3.0]])
@@ -925,10 +925,10 @@ def test_the_speeds_by_depth_take_each_layer_of_the_granular_phase():
 
 
 def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
-    """examples/column_convergence.py --jobs 2 runs the study's runs two at a time, each in a
+    """studies/column_convergence.py --jobs 2 runs the study's runs two at a time, each in a
     process of its own: the same observables to the last digit as one after the other. A --jobs
     below 1 is refused with the parameter's name."""
-    script = Path(__file__).resolve().parents[1] / "examples" / "column_convergence.py"
+    script = Path(__file__).resolve().parents[1] / "studies" / "column_convergence.py"
     args = [sys.executable, str(script), "--ny", "16"]
     for jobs in (1, 2):
         subprocess.run(

@@ -1,9 +1,9 @@
 """Where does the column's late motion live, and what moves its front back?
 
-    python examples/arrest_diagnosis.py --ny 32 --dry        # 10-25 s per variant at ny = 32, 2 min at 64
-    python examples/arrest_diagnosis.py --ny 32 --dry --variants default no-mass-correction
-    python examples/arrest_diagnosis.py --ny 32 --out out/arrest-wet
-    python examples/arrest_diagnosis.py --ny 32 --dry --active-region 2 --variants proximal-20-anderson-5 --out out/arrest-window
+    python studies/arrest_diagnosis.py --ny 32 --dry        # 10-25 s per variant at ny = 32, 2 min at 64
+    python studies/arrest_diagnosis.py --ny 32 --dry --variants default no-mass-correction
+    python studies/arrest_diagnosis.py --ny 32 --out out/arrest-wet
+    python studies/arrest_diagnosis.py --ny 32 --dry --active-region 2 --variants proximal-20-anderson-5 --out out/arrest-window
 
 Runs the paper's column (granrs.cases.column.build_model) to ``--t-end`` under several level-set
 variants and records, every 0.01 s:
@@ -418,9 +418,9 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
             and row["speed_granular"] < switch_below
         ):
             # the same state (fields, history, clock) continued with the variant's options
-            state = m._rust.checkpoint_state()
+            state = m.state()
             m = build(case, VARIANTS[name])
-            m._rust.restore_state(state)
+            m.restore(state)
             switched = m.time
         if deposit_arrest is None and deposit_rest.update(m.time, row["speed_deposit"]):
             deposit_arrest = deposit_rest.since

@@ -2,9 +2,9 @@
 against the cell size h, and what failure looks like past it, classified from granrs's own error
 messages and metrics.
 
-    .venv/bin/python examples/stability_map.py                 # docs/img/stability_map.{csv,png}
-    .venv/bin/python examples/stability_map.py --quick         # fewer bisection steps (a check)
-    .venv/bin/python examples/stability_map.py --plot-only     # redraw the PNG from the CSV
+    .venv/bin/python studies/stability_map.py                 # docs/img/stability_map.{csv,png}
+    .venv/bin/python studies/stability_map.py --quick         # fewer bisection steps (a check)
+    .venv/bin/python studies/stability_map.py --plot-only     # redraw the PNG from the CSV
 
 Families (short simulated times; every run is a fixed δt or a fixed CFL number):
 

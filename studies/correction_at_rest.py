@@ -2,7 +2,7 @@
 and without it (and without the redistancing, with a tighter Picard tolerance, or with Φ moved by
 the grains' velocity where they rest).
 
-    python examples/correction_at_rest.py --ny 16 [--dry] [--t-end 3] [--out out/correction-at-rest]
+    python studies/correction_at_rest.py --ny 16 [--dry] [--t-end 3] [--out out/correction-at-rest]
         [--continuations with_correction without_correction without_redistancing without_either
          tighter_picard extended_at_rest extended_at_rest_without_correction]
         [--option mass_correction_film=0.5] [--continuation-option picard_tol=1e-5]
@@ -12,7 +12,7 @@ proximal restarts, Anderson mixing of depth 5, redistancing at every step, detac
 most 4 cells turned to air), and any ``--option`` besides, until its rest criterion holds
 (``RestCriterion``: the largest granular speed below ``rest_speed`` for ``rest_duration``). Its
 whole state is then taken
-(``Model._rust.checkpoint_state``) and continued to ``--t-end`` from that same state, in
+(``Model.state``) and continued to ``--t-end`` from that same state, in
 each of ``--continuations``: ``with_correction``, the run itself with the global mass correction
 (``levelset::Interface::correct_mass``, a uniform shift of Φ); ``without_correction``,
 ``without_redistancing`` and ``without_either``, models built with ``mass_correction = False``,
@@ -234,7 +234,7 @@ def main() -> None:
     g, lc = model.grid, case.width
     arrest = run_to_rest(model, run_case)
     t_restart = model.time
-    state = model._rust.checkpoint_state()
+    state = model.state()
     phi0 = np.array(model.phi)
     front0, area0 = front_position(phi0, g.dx) - lc, model.dense_area()
     surface0, volume0 = surface_profile(phi0, g.dy), volume_profile(phi0, g.dy)
@@ -247,7 +247,7 @@ def main() -> None:
             m = model  # the run itself, continued
         else:
             m = build_model(cases[name])
-            m._rust.restore_state(state)
+            m.restore(state)
         r = continue_to(m, t_restart, args.t_end, front0, area0, lc)
         phi = np.array(m.phi)
         ds = np.abs(surface_profile(phi, g.dy) - surface0)

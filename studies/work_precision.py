@@ -1,15 +1,15 @@
 """Work-precision chart of the column collapse: error against wall time, for every grid and every
 model or method variant granrs offers.
 
-    python examples/work_precision.py                          # ny = 16, 32, 64 (+ 128 if present)
-    python examples/work_precision.py --ny 16 32 64 128        # the fine reference runs too (hours)
-    python examples/work_precision.py --ny 128 --variants "D-P (default)" "granular (no air)"
-    python examples/work_precision.py                          # then the rest; stored runs are reused
-    python examples/work_precision.py --plot-only              # redraw from the stored CSV
+    python studies/work_precision.py                          # ny = 16, 32, 64 (+ 128 if present)
+    python studies/work_precision.py --ny 16 32 64 128        # the fine reference runs too (hours)
+    python studies/work_precision.py --ny 128 --variants "D-P (default)" "granular (no air)"
+    python studies/work_precision.py                          # then the rest; stored runs are reused
+    python studies/work_precision.py --plot-only              # redraw from the stored CSV
 
 Each run is the paper's column (``granrs run column``, docs/reference-data.md) to t = 3 s, one
 thread, fluidised and not, kept in ``OUT/<variant>/<fluidised|dry>-<ny>/`` and skipped when the
-script is run again (the same layout as ``examples/column_convergence.py``, whose runs can be
+script is run again (the same layout as ``studies/column_convergence.py``, whose runs can be
 pointed at with ``--reference-from``). Errors, for each run:
 
 * ``runout_err_ref``: |run-out − run-out of the finest D-P run| / that run-out (the finest grid

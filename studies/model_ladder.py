@@ -1,8 +1,8 @@
 """The model ladder on the observables: how far is each cheaper model from the two-phase reference?
 
-    python examples/model_ladder.py                                   # every run (30 min on a shared 2-core machine)
-    python examples/model_ladder.py --reference-from out/convergence  # a = 2 references of column_convergence.py
-    python examples/model_ladder.py --replot                          # redraw the figure from the stored table
+    python studies/model_ladder.py                                   # every run (30 min on a shared 2-core machine)
+    python studies/model_ladder.py --reference-from out/convergence  # a = 2 references of column_convergence.py
+    python studies/model_ladder.py --replot                          # redraw the figure from the stored table
 
 For the column of the paper (L_c = 0.20 m, glass beads, α_b = 15°, κ_f = 0.035 m² s⁻¹,
 β_s = 0.9) at aspect ratios a = H_c/L_c = 0.5, 1, 2, 4, fluidised and not, this script runs four
@@ -19,7 +19,7 @@ rungs at ny = 32,
 and the reference, the two-phase model at ny = REFERENCE_NY = 64 on the open active window of the
 grid study (``--active-region 4 --active-region-sides open-right-top``, 4.3 times cheaper than the
 whole domain at ny = 64, docs/models.md). At a = 2 the whole domain at ny = 64 is run too (or read
-from ``--reference-from``, the folder of examples/column_convergence.py) and tabulated as the rung
+from ``--reference-from``, the folder of studies/column_convergence.py) and tabulated as the rung
 ``two-phase-64``: the reference's own error. For every
 rung and scene it tabulates the relative error (rung − reference)/reference of the
 well-conditioned observables of summary.json["observables"] (granrs.observables, docs/validation.md
@@ -56,7 +56,7 @@ RUNGS = {
 WINDOW_BAND = RUNGS["window"]["active_region"].band
 REFERENCE_NY = 64
 #: the reference's numerics: the open window of the grid study from ny = 128 up
-#: (examples/column_convergence.py), BAND = REFERENCE_NY/16 cells of air with open right and top
+#: (studies/column_convergence.py), BAND = REFERENCE_NY/16 cells of air with open right and top
 #: sides; its error against the whole domain is measured at a = 2 (rung "two-phase-64")
 REFERENCE_WINDOW = dict(active_region=ActiveRegion(REFERENCE_NY // 16, sides="open-right-top"))
 #: the observables compared (summary.json["observables"] keys, and the lowest-row run-out)
@@ -120,7 +120,7 @@ def main() -> None:
         "--reference-from",
         dest="reference_from",
         default=None,
-        help="a folder of examples/column_convergence.py whose {fluidised,dry}-64 runs are the a = 2 references",
+        help="a folder of studies/column_convergence.py whose {fluidised,dry}-64 runs are the a = 2 references",
     )
     ap.add_argument("--read-only", dest="read_only", action="store_true", help="tabulate the finished runs only")
     ap.add_argument(

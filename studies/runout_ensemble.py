@@ -1,11 +1,11 @@
 """How predictable is the column's run-out? An ensemble of runs perturbed at round-off level.
 
-    python examples/runout_ensemble.py --ny 32 --members 8                 # about 2 min
-    python examples/runout_ensemble.py --ny 64 --members 4                 # about 12 min
-    python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8 --compare-with out/ensemble-two-phase-fluidised-64
-    python examples/runout_ensemble.py --ny 64 --members 4 --active-region 8 --active-region-sides open-right --compare-with out/ensemble-two-phase-fluidised-64
-    python examples/runout_ensemble.py --ny 32 --members 8 --model granular --out out/ensemble-g32
-    python examples/runout_ensemble.py --ny 32 --members 8 --option proximal_restarts=20 --compare-with out/ensemble-two-phase-fluidised-32
+    python studies/runout_ensemble.py --ny 32 --members 8                 # about 2 min
+    python studies/runout_ensemble.py --ny 64 --members 4                 # about 12 min
+    python studies/runout_ensemble.py --ny 64 --members 4 --active-region 8 --compare-with out/ensemble-two-phase-fluidised-64
+    python studies/runout_ensemble.py --ny 64 --members 4 --active-region 8 --active-region-sides open-right --compare-with out/ensemble-two-phase-fluidised-64
+    python studies/runout_ensemble.py --ny 32 --members 8 --model granular --out out/ensemble-g32
+    python studies/runout_ensemble.py --ny 32 --members 8 --option proximal_restarts=20 --compare-with out/ensemble-two-phase-fluidised-32
 
 Member k runs the paper's column (`granrs run column`, fluidised unless ``--dry``) with the column
 width multiplied by 1 + k·ε (ε = 1e-12 by default: a relative change of the size of the

@@ -1,11 +1,11 @@
 """Grid convergence of the column collapse: run-out against the cell size, fluidised and not.
 
-    python examples/column_convergence.py                      # ny = 32, 64, 128, 256: what docs/validation.md reports
-    python examples/column_convergence.py --ny 32 64 --threads 2 --out out/convergence
-    python examples/column_convergence.py --ny 32 64 128 --jobs 2 --out out/convergence   # two runs at a time
-    python examples/column_convergence.py --channel-width 0.1 --out out/convergence-walls   # with side walls
-    python examples/column_convergence.py --ny 32 64 --literal-sign --out out/convergence  # + the literal air supply
-    python examples/column_convergence.py --ensemble fluidised=out/ens-fl32 dry=out/ens-dry32   # round-off spreads
+    python studies/column_convergence.py                      # ny = 32, 64, 128, 256: what docs/validation.md reports
+    python studies/column_convergence.py --ny 32 64 --threads 2 --out out/convergence
+    python studies/column_convergence.py --ny 32 64 128 --jobs 2 --out out/convergence   # two runs at a time
+    python studies/column_convergence.py --channel-width 0.1 --out out/convergence-walls   # with side walls
+    python studies/column_convergence.py --ny 32 64 --literal-sign --out out/convergence  # + the literal air supply
+    python studies/column_convergence.py --ensemble fluidised=out/ens-fl32 dry=out/ens-dry32   # round-off spreads
 
 Grids from ny = 128 up run on the active region with open right and top sides (BAND = ny/16
 cells of air, the same 28 mm at every grid; `--active-region BAND --active-region-sides
@@ -50,7 +50,7 @@ from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, 
 from granrs.observables import observable_keys
 
 #: the round-off spread of every observable at ny = 32 (std over the members of
-#: examples/runout_ensemble.py, tests/data/column_observables_ensemble.csv)
+#: studies/runout_ensemble.py, tests/data/column_observables_ensemble.csv)
 ENSEMBLE = Path(__file__).resolve().parents[1] / "tests" / "data" / "column_observables_ensemble.csv"
 
 
@@ -130,7 +130,7 @@ def convergence_rows(state: str, summaries: list) -> list:
 
 def write_ensemble_statistics(specs: list, path: Path = ENSEMBLE) -> None:
     """``--ensemble STATE=DIR ...``: the mean, standard deviation (ddof = 1), min and max of every
-    observable over the members ``DIR/member-K/summary.json`` of examples/runout_ensemble.py
+    observable over the members ``DIR/member-K/summary.json`` of studies/runout_ensemble.py
     ensembles, into ``path`` (tests/data/column_observables_ensemble.csv)."""
     rows = []
     for spec in specs:
@@ -156,8 +156,8 @@ def write_ensemble_statistics(specs: list, path: Path = ENSEMBLE) -> None:
     with open(path, "w", newline="") as f:
         f.write(
             '# Round-off ensembles of the column\'s observables (granrs.observables; summary.json["observables"]):\n'
-            "# examples/runout_ensemble.py --ny 32 --members 8 [--dry], member k with the column width scaled by\n"
-            "# 1 + k*1e-12, then examples/column_convergence.py --ensemble fluidised=DIR dry=DIR.\n"
+            "# studies/runout_ensemble.py --ny 32 --members 8 [--dry], member k with the column width scaled by\n"
+            "# 1 + k*1e-12, then studies/column_convergence.py --ensemble fluidised=DIR dry=DIR.\n"
             "# 2-core x86-64 VM, 2026-12-01. Statistics over the members (std with ddof = 1): regression reference.\n"
         )
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
