@@ -92,6 +92,7 @@ def _validate(args) -> int:
         "dt",
         "theta",
         "air",
+        "mass_correction",
     ):
         val = getattr(args, key)
         if val is not None:
@@ -413,6 +414,13 @@ def main(argv=None) -> int:
         "--air",
         choices=["resolved", "free-surface"],
         help="dam-break: the two-phase model (resolved, default) or the granular-only model's free surface",
+    )
+    v.add_argument(
+        "--no-mass-correction",
+        dest="mass_correction",
+        action="store_false",
+        default=None,
+        help="dam-break: without the global mass correction (it is on by default)",
     )
     v.add_argument("--threads", type=_key_type("--threads", "numerics.threads"), default=1)
     v.add_argument("--json", help="write the JSON record to this file")
