@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
+from . import options
 from ._granrs import ParameterError
 
 
@@ -78,8 +79,6 @@ class Coulomb:
     friction_angle: Optional[float] = None
 
     def __post_init__(self):
-        from . import options
-
         object.__setattr__(self, "friction_angle", options.spec("friction_angle", "coulomb").check(self.friction_angle))
 
     def spec(self):

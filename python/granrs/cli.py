@@ -9,8 +9,16 @@ import math
 import sys
 from pathlib import Path
 
-from . import __version__, build_info
-from ._granrs import ParameterError, SimulationError, SolverError
+from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
+from .cases.cavity import run_cavity_case
+from .cases.column import run_column
+from .config import apply_sets, column_case, describe, key as config_key, load_config, resolve, set_value
+from .io.animation import make_animation
+from .io.outputs import commit_output_dir, plan_output_dir
+from .io.provenance import command_line
+from .runner import run_config
+from .sweep import run_sweep
+from .validation import CASES, run_case
 
 
 def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False):
@@ -40,23 +48,17 @@ def _number(flag: str, kind: str, lo: float, hi: float, lo_open: bool = False, h
 
 def _key_type(flag: str, dotted: str):
     """The argparse type of a flag that sets a run-file key: that key's range (``granrs keys``)."""
-    from .config import key
-
-    k = key(dotted)
+    k = config_key(dotted)
     lo, hi = -math.inf if k.lo is None else k.lo, math.inf if k.hi is None else k.hi
     return _number(flag, k.kind, lo, hi, k.lo_open, k.hi_open)
 
 
 def _choices(dotted: str) -> tuple:
     """The allowed values of a choice key of the run files."""
-    from .config import key
-
-    return key(dotted).choices
+    return config_key(dotted).choices
 
 
 def _out_plan(out, overwrite: bool, append: bool = False):
-    from .io.outputs import plan_output_dir
-
     return plan_output_dir(out, overwrite=overwrite, append=append, name="--out")
 
 
@@ -68,8 +70,6 @@ def _interrupted(out, progress: bool = False) -> int:
 
 
 def _validate(args) -> int:
-    from .validation import CASES, run_case
-
     if args.name == "list":
         for name, (_, defaults, doc) in sorted(CASES.items()):
             print(f"{name:16s} {doc}  (defaults: {defaults})")
@@ -177,10 +177,6 @@ def _column_set(item: str) -> str:
 
 
 def _run_file(args, parser) -> int:
-    from .config import load_config
-    from .io.provenance import command_line
-    from .runner import run_config
-
     given = [f"--{k.replace('_', '-')}" for k in _COLUMN_OPTIONS if getattr(args, k) != parser.get_default(k)]
     if given:
         raise ParameterError(
@@ -211,9 +207,6 @@ def _run_file(args, parser) -> int:
 
 
 def _sweep(args) -> int:
-    from .config import load_config
-    from .sweep import run_sweep
-
     cfg = load_config(args.file, args.set or [])
     result = run_sweep(
         cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out, overwrite=args.overwrite
@@ -263,8 +256,6 @@ def _run(args, parser) -> int:
             f"allowed {allowed}, --threads, --out, --overwrite, --quiet"
         )
     if args.case == "column":
-        from .cases.column import run_column
-
         if args.active_region_sides is not None and args.active_region is None:
             raise ParameterError(
                 f"invalid parameter `--active-region-sides` = {args.active_region_sides!r}: allowed only "
@@ -294,8 +285,6 @@ def _run(args, parser) -> int:
                     f"{'no such folder' if not compare.is_dir() else 'no ' + ' or '.join(missing) + ' there'}"
                     "; allowed the output folder of a finished column run"
                 )
-        from .config import apply_sets, column_case, resolve, set_value
-
         raw: dict = {}
         for name, dotted in _COLUMN_KEYS.items():
             value = getattr(args, name)
@@ -313,8 +302,6 @@ def _run(args, parser) -> int:
                     f"invalid parameter `--length` = {lx!r}: allowed a length (m) greater than --width "
                     f"= {case.width!r} m (the gate)"
                 )
-        from .io.outputs import commit_output_dir
-
         commit_output_dir(_out_plan(args.out, args.overwrite))
         try:
             summary = run_column(case, Path(args.out), progress=not args.quiet, compare_with=compare)
@@ -335,9 +322,6 @@ def _run(args, parser) -> int:
         )
         print(json.dumps({k: summary[k] for k in keys}, indent=2))
         return 0
-    from .cases.cavity import run_cavity_case
-    from .io.outputs import commit_output_dir
-
     commit_output_dir(_out_plan(args.out, args.overwrite))
     try:
         run_cavity_case(
@@ -570,13 +554,9 @@ def main(argv=None) -> int:
         if args.command == "sweep":
             return _sweep(args)
         if args.command == "keys":
-            from .config import describe
-
             print(describe(), end="")
             return 0
         if args.command == "animate":
-            from .io.animation import make_animation
-
             path = make_animation(Path(args.dir))
             if path is None:
                 raise ParameterError(

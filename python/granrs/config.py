@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -38,7 +39,16 @@ from .boundary import CoulombWall
 from .cases.column import ColumnCase
 from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, jop_mu_i
 from .model import PorePressure, SideWalls
-from .options import ActiveRegion, BiProjection, Numerics, OptionInfo, TimeStepping, Variants
+from .options import (
+    ActiveRegion,
+    BiProjection,
+    Numerics,
+    OptionInfo,
+    TimeStepping,
+    Variants,
+    parse_options as parse_options,
+    parse_scalar as parse_scalar,
+)
 from .rheology import DruckerPrager
 
 
@@ -447,28 +457,6 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
         out["animation"] = False  # the default animates saved fields: with none saved there is nothing to animate
 
 
-def parse_scalar(text: str):
-    """A value given on the command line, parsed as a TOML value (``0.3``, ``true``, ``"a"``,
-    ``["vtk"]``); text that is not valid TOML is taken as a bare string (``mu-i``)."""
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
-def parse_options(items: Iterable[str], flag: str = "--option") -> dict:
-    """``KEY=VALUE`` items of a command line (``flag`` names them in an error) as a dict of model
-    options by their schema keys (``ColumnCase.with_options``), each value parsed by
-    ``parse_scalar``. An item without ``=`` raises ``ParameterError`` before any work."""
-    options = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ParameterError(f"invalid parameter `{flag}` = {item!r}: allowed KEY=VALUE, e.g. proximal_restarts=20")
-        options[key.strip()] = parse_scalar(value.strip())
-    return options
-
-
 def apply_sets(raw: dict, sets: Iterable[str]) -> dict:
     """A copy of ``raw`` with ``section.key=value`` overrides applied (values parsed by ``parse_scalar``)."""
     raw = {s: dict(t) if isinstance(t, dict) else t for s, t in raw.items()}
@@ -498,6 +486,33 @@ def key(dotted: str) -> Key:
     if dotted not in _BY_NAME:
         raise ParameterError(f"invalid parameter `{dotted}`: unknown key; allowed keys " + ", ".join(_BY_NAME))
     return _BY_NAME[dotted]
+
+
+#: The run-file key of each name the model's and the case's errors use (a schema option's key,
+#: a ColumnCase field) where it differs from the key's own name in its section.
+_FULL_NAMES: dict[str, str] = {
+    name: fulls.pop()
+    for name, fulls in (
+        (n, {k.full for k in KEYS if k.name == n or (k.option is not None and k.option.key == n)})
+        for n in {k.name for k in KEYS} | {k.option.key for k in KEYS if k.option is not None}
+    )
+    if len(fulls) == 1
+} | {
+    "model": "case.model",
+    "active_region": "active_region.band",
+    "side_walls": "side_walls.width",
+    "rheology": "rheology.law",
+}
+
+
+def full_key_message(message: str) -> str:
+    """``message`` with each parameter it names in backticks as its run-file key
+    (`pressure_update` → `numerics.pressure_update`); names that are not keys are kept."""
+    def full(m: re.Match) -> str:
+        name = m.group(1)
+        return f"`{_FULL_NAMES.get(name, name)}`"
+
+    return re.sub(r"`([A-Za-z_][A-Za-z0-9_]*)`", full, message)
 
 
 def read_raw(path: Union[str, Path]) -> dict:

@@ -20,6 +20,7 @@ from .grid import Grid
 from .materials import Material
 from .options import ActiveRegion, Numerics, TimeStepping, Variants
 from .rheology import RHEOLOGIES, Bingham, DruckerPrager, MuI, Newtonian
+from .shapes import Shape
 
 HALO = _granrs.build_info()["halo"]
 ArrayOrFn = Union[np.ndarray, Callable[[np.ndarray, np.ndarray], np.ndarray], float]
@@ -280,6 +281,8 @@ class Model:
         # memory before any work: the Rust count of this configuration (models/memory.rs)
         self.memory_estimate = int(_granrs.RustModel.estimate_memory(self.config)[0])
         memory_check(grid, self.memory_estimate)
+        if getattr(self, "_check_only", False):
+            return
         self._rust = _granrs.RustModel(self.config)
         self.air = air
         self.threads = threads
@@ -292,6 +295,16 @@ class Model:
         if self._has_plastic:
             for name in ("sigma_xx", "sigma_xy", "trial_norm", "yield_stress"):
                 self._views[name] = self._view(name)
+
+    @classmethod
+    def check(cls, *args, **kwargs) -> int:
+        """Checks ``Model(*args, **kwargs)`` as the constructor does (every argument, every option
+        and every rule between them, in Rust, and the memory) without allocating the model;
+        returns the memory estimate in bytes. Raises the constructor's ``ParameterError``."""
+        model = cls.__new__(cls)
+        model._check_only = True
+        model.__init__(*args, **kwargs)
+        return model.memory_estimate
 
     def _view(self, name: str) -> np.ndarray:
         full = self._rust.field_storage(name)
@@ -460,8 +473,6 @@ class Model:
 
     def set_shape(self, shape, balance_pressure: bool = True) -> None:
         """Sets Φ to the exact signed distance of a :mod:`granrs.shapes` shape (Φ > 0 inside)."""
-        from .shapes import Shape
-
         if not isinstance(shape, Shape):
             raise ParameterError(f"invalid parameter `shape` = {shape!r}: allowed a granrs.shapes shape")
         self._rust.set_shape(shape.spec())

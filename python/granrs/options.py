@@ -26,8 +26,15 @@ holds it is refused (:func:`merge`).
 from __future__ import annotations
 
 import dataclasses
+import sys
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Optional
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # the same parser, before it joined the standard library
+    import tomli as tomllib
 
 from . import _granrs
 from ._granrs import ParameterError
@@ -200,3 +207,25 @@ Numerics: Any = _options_class(
     [(s.key, s) for s in SCHEMA if not s.object and s.key not in MODEL_ARGUMENTS],
     "granrs",
 )
+
+
+def parse_scalar(text: str):
+    """A value given on the command line, parsed as a TOML value (``0.3``, ``true``, ``"a"``,
+    ``["vtk"]``); text that is not valid TOML is taken as a bare string (``mu-i``)."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def parse_options(items: Iterable[str], flag: str = "--option") -> dict:
+    """``KEY=VALUE`` items of a command line (``flag`` names them in an error) as a dict of model
+    options by their schema keys (``ColumnCase.with_options``), each value parsed by
+    ``parse_scalar``. An item without ``=`` raises ``ParameterError`` before any work."""
+    options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ParameterError(f"invalid parameter `{flag}` = {item!r}: allowed KEY=VALUE, e.g. proximal_restarts=20")
+        options[key.strip()] = parse_scalar(value.strip())
+    return options

@@ -25,11 +25,13 @@ import numpy as np
 
 from ._granrs import ParameterError, SimulationError, SolverError
 from .cases.column import run_column
-from .config import Config, column_case, dumps, resolve, write_config
+from .config import Config, column_case, dumps, resolve, tomllib, write_config
 from .io import checkpoint as ckpt
+from .io.animation import make_animation
 from .io.netcdf import available as netcdf_available
-from .io.outputs import RunOutputs, commit_output_dir, plan_output_dir, resume_outputs
+from .io.outputs import OutputError, RunOutputs, commit_output_dir, plan_output_dir, resume_outputs
 from .io.provenance import header_lines, provenance
+from .io.writer import FieldWriter
 from .simulation import Callback
 
 
@@ -65,15 +67,47 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
             f"configuration's {grid.nx} x {grid.ny} on {grid.lx:g} m x {grid.ly:g} m; allowed a "
             "checkpoint of the same grid"
         )
-    changes = ckpt.configuration_changes(ck, cfg)
+    changes = configuration_changes(ck, cfg)
     if changes and not allow_changes:
         raise ParameterError(
             f"invalid parameter `--restart` = {str(restart)!r}: the configuration differs from the "
             f"checkpoint's in {'; '.join(changes)}; allowed the same configuration (except "
-            f"{', '.join(ckpt.RESTART_FREE_KEYS)} and output.*), or --allow-changes to restart with "
+            f"{', '.join(RESTART_FREE_KEYS)} and output.*), or --allow-changes to restart with "
             "these changes"
         )
     return ck
+
+
+#: Keys that may differ between a checkpoint's configuration and its restart's without
+#: ``allow_changes`` (they change neither the state nor the equations).
+RESTART_FREE_KEYS = ("time.t_end", "numerics.threads")
+
+
+def configuration_changes(ck: ckpt.Checkpoint, cfg: dict) -> list[str]:
+    """The keys (``section.key: old -> new``) whose value in ``cfg`` differs from the configuration
+    the checkpoint was written with (its provenance); output.* and RESTART_FREE_KEYS are not
+    compared. Empty when the checkpoint holds no configuration."""
+    text = (ck.meta.get("provenance") or {}).get("configuration") or ""
+    if not text:
+        return []
+    try:
+        old = tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        return ["(the checkpoint's configuration cannot be read)"]
+    try:  # with its defaults: the sections of an object that is off are not written
+        old = resolve(old)
+    except ParameterError:
+        pass  # compared as written
+    changes = []
+    for section, table in cfg.items():
+        if section == "output" or not isinstance(table, dict):
+            continue
+        for key, value in table.items():
+            name = f"{section}.{key}"
+            before = old.get(section, {}).get(key)
+            if name not in RESTART_FREE_KEYS and before != value:
+                changes.append(f"{name}: {before!r} -> {value!r}")
+    return changes
 
 
 def _own_run(out: Path, restart) -> bool:
@@ -132,8 +166,6 @@ def run_config(
     callbacks = list(extra_callbacks or [])
     writer = None
     if out_cfg["fields_every_s"] > 0 and out_cfg["formats"]:
-        from .io.writer import FieldWriter
-
         writer = FieldWriter(
             out, case.grid(), out_cfg["formats"], prov, append_after=t_start if plan.mode == "append" else None
         )
@@ -164,7 +196,7 @@ def run_config(
             else f"the restart at t = {t_start:g} s",
             "mass_rel_error_from": "the run's start (the checkpoint's reference area)",
             "energy_from": f"the restart at t = {t_start:g} s (the budget starts again from a restored state)",
-            "configuration_changes": ckpt.configuration_changes(ck, cfg),
+            "configuration_changes": configuration_changes(ck, cfg),
         }
     try:
         summary = run_column(
@@ -179,13 +211,9 @@ def run_config(
 
 def _animate(out_cfg: dict, out: Path, writer) -> None:
     if out_cfg["animation"] and writer is not None and writer.frames > 0:
-        from .io.animation import make_animation
-
         try:
             make_animation(out)
         except OSError as err:
-            from .io.outputs import OutputError
-
             raise OutputError(
                 f"cannot write {out / 'animation.gif'} ({err.strerror or err}); the files written before "
                 f"are kept in {out}"

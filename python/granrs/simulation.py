@@ -19,8 +19,11 @@ step before that state.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
 import sys
+import threading
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -29,8 +32,25 @@ from typing import Optional
 import numpy as np
 
 from ._granrs import ParameterError, SimulationError
-from .io.writer import deferred_interrupt
 from .model import Model
+
+
+@contextlib.contextmanager
+def deferred_interrupt():
+    """Holds SIGINT (KeyboardInterrupt) until the block ends, then raises it (main thread only).
+    A process that ignores SIGINT (started in the background by a shell without job control, or
+    under ``nohup``-like launchers that set it so) keeps ignoring it inside the block too."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        yield
+        return
+    received = []
+    previous = signal.signal(signal.SIGINT, lambda *args: received.append(args))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if received:
+        raise KeyboardInterrupt
 
 
 @dataclass

@@ -23,6 +23,7 @@ from __future__ import annotations
 import csv
 import itertools
 import json
+import logging
 import math
 import signal
 import subprocess
@@ -36,8 +37,11 @@ from typing import Optional, Union
 import numpy as np
 
 from ._granrs import ParameterError
-from .config import Config, dumps, key as config_key, load_config, parse_scalar, resolve, set_value
+from .cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM
+from .config import Config, column_case, dumps, key as config_key, load_config, parse_scalar, resolve, set_value
+from .io.outputs import atomic_write, clear_run, commit_output_dir, plan_output_dir
 from .io.provenance import provenance
+from .runner import run_config
 
 RECORD_KEYS = ("status", "runout_m", "t_end_s", "steps", "stop_reason", "wall_s", "mass_rel_error", "error")
 
@@ -134,8 +138,6 @@ def _read_summary(cfg: Config) -> dict:
 def run_member_here(cfg: Config) -> dict:
     """Runs one member in this process; never raises: a failure becomes status 'failed' with its
     error text, plus what the run computed before failing (its summary.json, when written)."""
-    from .runner import run_config
-
     t0 = time.perf_counter()
     rec = {"status": "ok", "error": ""}
     summary = {}
@@ -207,15 +209,11 @@ def run_sweep(
 ) -> SweepResult:
     """Runs every member on dask.distributed and gathers the results (see the module docstring).
     Writes ``<out>/sweep.csv`` (after every finished member), ``sweep.nc`` and ``sweep_runout.png``."""
-    from .io.outputs import commit_output_dir, plan_output_dir
-
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
         raise ParameterError(f"invalid parameter `workers` = {workers!r}: allowed an integer in [1, 256]")
     base = load_config(config) if isinstance(config, (str, Path)) else resolve(config)
     out = Path(out) if out is not None else Path(base["output"]["dir"])
     mems = members(base, params, out)
-    from .config import column_case
-
     for m in mems:  # memory and the other checks of the case, before any member runs
         try:
             column_case(m.config).validate()
@@ -225,8 +223,6 @@ def run_sweep(
     commit_output_dir(plan)
     if plan.mode == "overwrite":
         for old in out.glob("member-*/"):
-            from .io.outputs import clear_run
-
             clear_run(old)
     table = [
         {
@@ -256,10 +252,8 @@ def run_sweep(
 
 def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished) -> None:
     """Runs ``run_member`` on every configuration; ``finished(index, record)`` as each ends."""
-    import logging
-
-    import dask
-    from dask.distributed import Client, LocalCluster, as_completed
+    import dask  # deferred: optional dependency (the io extra)
+    from dask.distributed import Client, LocalCluster, as_completed  # deferred: optional dependency (the io extra)
 
     cluster = None
     if scheduler is None:
@@ -297,8 +291,6 @@ def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished
 
 
 def _write_csv(path: Path, table: list) -> Path:
-    from .io.outputs import atomic_write
-
     def write(f):
         w = csv.DictWriter(f, fieldnames=list(table[0]))
         w.writeheader()
@@ -309,7 +301,7 @@ def _write_csv(path: Path, table: list) -> Path:
 
 def to_dataset(table: list, keys: list, prov: Optional[dict] = None):
     """The table as an xarray.Dataset with one dimension per swept key (cartesian product)."""
-    import xarray as xr
+    import xarray as xr  # deferred: optional dependency (the io extra)
 
     coords = {k: list(dict.fromkeys(row[k] for row in table)) for k in keys}
     shape = tuple(len(v) for v in coords.values())
@@ -335,12 +327,10 @@ def to_dataset(table: list, keys: list, prov: Optional[dict] = None):
 def plot_runout(table: list, keys: list, path) -> Path:
     """Run-out against the first swept key, one line per combination of the others; failed
     members (stopped early: their run-out is a lower bound) are drawn as open markers."""
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
     first, rest = keys[0], keys[1:]
     groups: dict = {}

@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..validation.navier_stokes import _ghia, run_cavity
+from ..validation.navier_stokes import ghia_re100, run_cavity
 
 
 def run_cavity_case(re: float, n: int, out: Path, threads: int = 1) -> dict:
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -40,7 +40,7 @@ def run_cavity_case(re: float, n: int, out: Path, threads: int = 1) -> dict:
     ax.plot(model.u[:, grid.nx // 2], yu, "C0-", label="u(0.5, y)  granrs")
     ax.plot(xv, model.v[grid.ny // 2, :], "C1-", label="v(x, 0.5)  granrs")
     if abs(re - 100) < 1e-9:
-        gu, gv = _ghia()
+        gu, gv = ghia_re100()
         ax.plot(gu[:, 1], gu[:, 0], "C0o", mfc="none", label="u  Ghia et al. 1982")
         ax.plot(gv[:, 0], gv[:, 1], "C1s", mfc="none", label="v  Ghia et al. 1982")
     ax.set(

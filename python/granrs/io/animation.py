@@ -53,11 +53,11 @@ def load_frames(out) -> Optional[dict]:
 
 def make_animation(out, path=None, fps: int = 8, dpi: int = 90) -> Optional[Path]:
     """Writes the GIF (default ``out/animation.gif``); returns its path, or None without saved fields."""
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.animation import PillowWriter
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
+    from matplotlib.animation import PillowWriter  # deferred: with pyplot, after its backend is chosen
 
     data = load_frames(out)
     if data is None:

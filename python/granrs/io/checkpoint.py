@@ -27,6 +27,7 @@ import numpy as np
 
 from .._granrs import ParameterError
 from .fields import snapshot
+from .outputs import atomic_write
 
 FORMAT, FORMAT_VERSION = "granrs-checkpoint", 1
 
@@ -59,8 +60,6 @@ def save_checkpoint(model, path, provenance: Optional[dict] = None) -> Path:
         "scalar_types": {k: type(v).__name__ for k, v in scalars.items()},
         "provenance": provenance or {},
     }
-    from .outputs import atomic_write
-
     # numpy's stub lets **kwargs reach savez's allow_pickle flag: the keys here are field names
     return atomic_write(
         path,
@@ -114,41 +113,6 @@ def load_checkpoint(path) -> Checkpoint:
     state.update(scalars)
     fields = {k[len("fields/") :]: v for k, v in arrays.items() if k.startswith("fields/")}
     return Checkpoint(meta, state, fields)
-
-
-#: Keys that may differ between a checkpoint's configuration and its restart's without
-#: ``allow_changes`` (they change neither the state nor the equations).
-RESTART_FREE_KEYS = ("time.t_end", "numerics.threads")
-
-
-def configuration_changes(ck: Checkpoint, cfg: dict) -> list[str]:
-    """The keys (``section.key: old -> new``) whose value in ``cfg`` differs from the configuration
-    the checkpoint was written with (its provenance); output.* and RESTART_FREE_KEYS are not
-    compared. Empty when the checkpoint holds no configuration."""
-    from .._granrs import ParameterError
-    from ..config import resolve, tomllib
-
-    text = (ck.meta.get("provenance") or {}).get("configuration") or ""
-    if not text:
-        return []
-    try:
-        old = tomllib.loads(text)
-    except tomllib.TOMLDecodeError:
-        return ["(the checkpoint's configuration cannot be read)"]
-    try:  # with its defaults: the sections of an object that is off are not written
-        old = resolve(old)
-    except ParameterError:
-        pass  # compared as written
-    changes = []
-    for section, table in cfg.items():
-        if section == "output" or not isinstance(table, dict):
-            continue
-        for key, value in table.items():
-            name = f"{section}.{key}"
-            before = old.get(section, {}).get(key)
-            if name not in RESTART_FREE_KEYS and before != value:
-                changes.append(f"{name}: {before!r} -> {value!r}")
-    return changes
 
 
 def restore_checkpoint(model, checkpoint) -> Checkpoint:

@@ -25,7 +25,7 @@ REFERENCE = (
 
 def available() -> bool:
     try:
-        import netCDF4  # noqa: F401
+        import netCDF4  # noqa: F401  # deferred: optional dependency (the io extra)
     except ImportError:
         return False
     return True
@@ -42,7 +42,7 @@ class NetCDFWriter:
         self.records = 0
 
     def _create(self, fields: dict):
-        import netCDF4
+        import netCDF4  # deferred: optional dependency (the io extra)
 
         ds = netCDF4.Dataset(self.path, "w", format="NETCDF4")
         prov = self.provenance
@@ -78,7 +78,7 @@ class NetCDFWriter:
         return ds
 
     def append(self, time: float, fields: dict) -> None:
-        import netCDF4
+        import netCDF4  # deferred: optional dependency (the io extra)
 
         ds = self._create(fields) if self.records == 0 else netCDF4.Dataset(self.path, "a")
         try:
@@ -93,7 +93,7 @@ class NetCDFWriter:
 
 def read_netcdf(path) -> dict:
     """{"time": (nt,), "x", "y", "fields": {name: (nt, ny, nx)}, "attrs"} read with netCDF4."""
-    import netCDF4
+    import netCDF4  # deferred: optional dependency (the io extra)
 
     with netCDF4.Dataset(path) as ds:
         names = [n for n in ds.variables if n not in ("time", "x", "y")]

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Optional
 
-from .. import __version__
+from .._granrs import __version__
 
 _SOURCE = Path(__file__).resolve().parents[3]  # the repository root of an editable install
 

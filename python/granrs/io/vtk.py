@@ -17,6 +17,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .outputs import atomic_write
 from .provenance import from_xml, xml_comment
 
 _VTK_TYPES: dict[np.dtype, str] = {
@@ -46,8 +47,6 @@ def _data_array(name: str, data: np.ndarray, components: int = 1) -> str:
 
 def _atomic_write(path: Path, text: str) -> None:
     """Writes through a temporary file and a rename, so a reader never sees half a file."""
-    from .outputs import atomic_write
-
     atomic_write(path, lambda f: f.write(text))
 
 

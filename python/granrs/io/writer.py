@@ -11,43 +11,23 @@ written is held until the snapshot is complete, so the files on disk are always 
 from __future__ import annotations
 
 import contextlib
-import signal
-import threading
 from collections.abc import Iterable
 from pathlib import Path
 
 from .._granrs import ParameterError
+from ..simulation import deferred_interrupt
 from .fields import coordinates, snapshot
 from .netcdf import NetCDFWriter, available
+from .outputs import OutputError
 from .provenance import provenance as make_provenance
-from .vtk import write_pvd, write_vti
+from .vtk import read_pvd, write_pvd, write_vti
 
 FORMATS = ("vtk", "netcdf")
 
 
 @contextlib.contextmanager
-def deferred_interrupt():
-    """Holds SIGINT (KeyboardInterrupt) until the block ends, then raises it (main thread only).
-    A process that ignores SIGINT (started in the background by a shell without job control, or
-    under ``nohup``-like launchers that set it so) keeps ignoring it inside the block too."""
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        yield
-        return
-    received = []
-    previous = signal.signal(signal.SIGINT, lambda *args: received.append(args))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    if received:
-        raise KeyboardInterrupt
-
-
-@contextlib.contextmanager
 def _output_errors(out: Path):
     """An OSError of a snapshot's write (a full disk) as an OutputError naming the folder."""
-    from .outputs import OutputError
-
     try:
         yield
     except OutputError:
@@ -91,8 +71,6 @@ class FieldWriter:
             for stale in [self.out / "fields.pvd", self.out / "fields.nc", *self.out.glob("fields/fields_*.vti")]:
                 stale.unlink(missing_ok=True)  # a previous run's snapshots in the same folder
         else:
-            from .vtk import read_pvd
-
             if (self.out / "fields.pvd").exists():
                 self.entries = [
                     (t, str(Path(name).relative_to(self.out)))
@@ -100,7 +78,7 @@ class FieldWriter:
                     if t <= append_after * (1 + 1e-12)
                 ]
             if (self.out / "fields.nc").exists():
-                import netCDF4
+                import netCDF4  # deferred: optional dependency (the io extra)
 
                 with netCDF4.Dataset(self.out / "fields.nc") as ds:
                     kept_nc = int((ds["time"][:] <= append_after * (1 + 1e-12)).sum())

@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+from .._granrs import ParameterError
 from . import levelset, navier_stokes, peer, pore_pressure, rheology
 
 #: name → (function(**params) → (metrics, reference, passed), default params, help)
@@ -112,8 +113,6 @@ def run_case(name: str, threads: int = 1, **params) -> dict:
         ``{"case", "kind", "params", "metrics", "reference", "passed", "wall_s"}``; ``passed`` is
         None where the parameters lie outside the reference's range.
     """
-    from .._granrs import ParameterError
-
     if name not in CASES:
         raise ParameterError(f"invalid parameter `case` = {name!r}: allowed one of {', '.join(sorted(CASES))}")
     func, defaults, _ = CASES[name]

@@ -141,10 +141,10 @@ def run_dam_break(
     aligned_err = np.interp(MARTIN_MOYCE[:, 0] + t_align, T, Z) - MARTIN_MOYCE[:, 1]
     sel = (MARTIN_MOYCE[:, 0] >= 1.19) & (MARTIN_MOYCE[:, 0] + t_align <= T[-1])
     if out is not None:
-        import matplotlib
+        import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
         out.mkdir(parents=True, exist_ok=True)
         fig, ax = plt.subplots(figsize=(6, 4.2))

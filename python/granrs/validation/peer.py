@@ -34,6 +34,7 @@ definitions do not converge (docs/validation.md, "Cross-code check: Basilisk").
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import math
@@ -44,6 +45,10 @@ from typing import Any, Optional
 import numpy as np
 
 from .. import observables as obs
+from .._granrs import ParameterError
+from ..boundary import CoulombWall
+from ..cases.column import ColumnCase, column_rheology, run_column
+from ..options import parse_options
 
 DATA = Path(__file__).parent / "data" / "basilisk_dry_column"
 #: the shared set-up (data/basilisk_dry_column/README.md)
@@ -64,10 +69,6 @@ def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0, options: 
     ``options``: model options changed from granrs's defaults by their schema keys
     (``ColumnCase.with_options``, e.g. ``{"proximal_restarts": 20}``), for a sensitivity run; the
     validation case itself runs the defaults."""
-    from .._granrs import ParameterError
-    from ..boundary import CoulombWall
-    from ..cases.column import ColumnCase, column_rheology
-
     if not isinstance(cells_per_hc, int) or isinstance(cells_per_hc, bool) or not 4 <= cells_per_hc <= 512:
         raise ParameterError(
             f"invalid parameter `n` = {cells_per_hc!r}: allowed an integer number of cells per H_c in [4, 512]"
@@ -238,8 +239,6 @@ def run_or_load(
 ) -> dict:
     """granrs's run of the shared set-up in ``out/n{cells_per_hc}`` (run first if its summary is not
     there), as :func:`read_run`."""
-    from ..cases.column import run_column
-
     folder = Path(out) / f"n{cells_per_hc}"
     if not (folder / "summary.json").exists():
         run_column(peer_case(cells_per_hc, threads, t_end, options), folder, progress=progress)
@@ -306,10 +305,10 @@ def peer_dry_column(
 def plot_comparison(runs: dict, png: Path) -> None:
     """One figure: both codes' final deposits (top) and fronts against time (bottom) at each
     resolution of ``runs`` (cells per H_c → :func:`read_run`)."""
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
     fig, (a, b) = plt.subplots(2, 1, figsize=(9, 7.5))
     for c, (k, run) in enumerate(sorted(runs.items())):
@@ -349,10 +348,6 @@ def main(argv=None) -> int:
     ...]``: the case with its runs kept in DIR (reused when run again), its JSON record in
     DIR/record.json, and the figure. ``--option`` changes a model option from its default (a
     schema key of ``granrs.options``, the value in TOML syntax) for a sensitivity run."""
-    import argparse
-
-    from ..config import parse_options
-
     ap = argparse.ArgumentParser(description="granrs's dry column against Basilisk")
     ap.add_argument("--out", required=True)
     ap.add_argument("--png", default=None)

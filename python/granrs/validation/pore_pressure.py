@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import math
+import time as _t
 
 import numpy as np
 
-from ..boundary import BoundaryConditions, FreeSlip, Outflow
+from ..boundary import BoundaryConditions, FreeSlip, FullyDeveloped, NoSlip, Outflow
 from ..grid import Grid
 from ..materials import AIR, Material
 from ..model import Model, Numerics, PorePressure
+from ..rheology import DruckerPrager
+from ..shapes import Rectangle
 
 #: a layer of thickness H = 0.8 in a unit-height box, κ = 1, basal gradient G = −1:
 #: ∂_t p = κ ∂²p/∂y², p(H) = 0, ∂p/∂y(0) = G, p(y, 0) = 0. Non-dimensional.
@@ -112,10 +115,6 @@ def _collapse_pf(formulation: str, ny: int, t_end: float, threads: int, kappa_ai
     """A fluidised heavy column (φρ_s = 1450 kg m⁻³, Newtonian η = 0.1 Pa s here: the comparison
     concerns the pore-pressure solve, not the rheology) collapsing under air in a 1.0 m × 0.45 m
     box; β = 0.9, κ_f = 0.035 m² s⁻¹, air supply under the column."""
-    import time as _t
-
-    from ..shapes import Rectangle
-
     rho, g, lc, hc, beta = 1450.0, 9.81, 0.2, 0.4, 0.9
     grid = Grid(int(round(ny * 1.0 / 0.45 / 2)) * 2, ny, 1.0, 0.45)
     grid = Grid(grid.nx, ny, grid.nx * 0.45 / ny, 0.45)
@@ -200,9 +199,6 @@ def fluidised_layer_speed(
       developed sides (docs/validation.md, fluidised layer).
 
     Returns the largest speed over the run, the model and the balance report (None without)."""
-    from ..boundary import FullyDeveloped, NoSlip
-    from ..rheology import DruckerPrager
-
     rho, g, hl = 1450.0, 9.81, 0.1
     th = math.radians(slope_deg)
     gx, gy = g * math.sin(th), -g * math.cos(th)

@@ -21,6 +21,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from .._granrs import ParameterError
 from ..boundary import BoundaryConditions, Coulomb, FullyDeveloped, NoSlip, Outflow, Velocity
 from ..grid import Grid
 from ..materials import Material
@@ -444,8 +445,6 @@ def run_cessation(
 
 def cessation(geometry, tau_y, dt, n, threads: int = 1, regularisation: float = 100.0):
     if geometry not in ("couette", "poiseuille"):
-        from .._granrs import ParameterError
-
         raise ParameterError(f"invalid parameter `geometry` = {geometry!r}: allowed 'couette' or 'poiseuille'")
     tau_y = float(tau_y)
     dts = [float(d) for d in (dt if isinstance(dt, (list, tuple)) else [dt])]

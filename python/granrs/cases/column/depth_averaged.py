@@ -11,8 +11,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ... import __version__
-from ..._granrs import SimulationError
+from ..._granrs import SimulationError, __version__
+from ...depth_averaged import DepthAveragedModel, DepthAveragedPore
 from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .measures import deposit_quantile
 from .outputs import write_outputs
@@ -34,8 +34,6 @@ def build_depth_averaged(case: ColumnCase):
     fluidised; k: Savage & Hutter's active coefficient from α and α_b reduced by the pore
     pressure, or the constant ``earth_pressure``) with its initial condition: h = H_c, β = β_s for
     x < L_c."""
-    from ...depth_averaged import DepthAveragedModel, DepthAveragedPore
-
     case.validate()
     hc, lc = case.column_height, case.width
     length = case.domain()[0]

@@ -15,10 +15,10 @@ from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM
 
 def plot_energy(out: Path) -> None:
     """energy.png: where gravity's work goes against time (from energy.csv)."""
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
     d = np.genfromtxt(out / "energy.csv", delimiter=",", names=True)
     meta = json.loads((out / "summary.json").read_text())
@@ -53,10 +53,10 @@ def plot_energy(out: Path) -> None:
 def plot_fluidisation(out: Path) -> None:
     """fluidisation.png: the basal pore pressure over the weight against time, under the
     reservoir and in the channel (from front.csv)."""
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
     d = np.genfromtxt(out / "front.csv", delimiter=",", names=True)
     meta = json.loads((out / "summary.json").read_text())
@@ -119,10 +119,10 @@ def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
     """front.png: the lowest-row front (bold) and the band of the thickness fronts of the volume
     profile (from 1 to 20 mm, shaded; each thickness a thin line) against time, for this run and
     for ``compare_with``."""
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     runs = [out] + ([compare_with] if compare_with is not None and (compare_with / "front.csv").exists() else [])
@@ -170,10 +170,10 @@ def plot_front(out: Path, compare_with: Optional[Path] = None) -> None:
 
 
 def plot_profiles(out: Path) -> None:
-    import matplotlib
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
 
     header = (out / "profiles.csv").read_text().splitlines()[0].split(",")
     data = np.genfromtxt(out / "profiles.csv", delimiter=",", skip_header=1)

@@ -15,11 +15,12 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ... import __version__, observables as obs
-from ..._granrs import ParameterError, SimulationError, SolverError
+from ... import observables as obs
+from ..._granrs import ParameterError, SimulationError, SolverError, __version__
 from ...io.outputs import OutputError, RunOutputs
+from ...model import Model
 from ...simulation import Callback, Simulation
-from .build import build_model
+from .build import build_model, model_arguments
 from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .depth_averaged import run_column_depth_averaged
 from .measures import (
@@ -56,6 +57,28 @@ def whole_records(rec: dict[str, list]) -> None:
         del v[n:]
 
 
+def check_case(case: ColumnCase, field_output: bool = False, restart: bool = False) -> None:
+    """Every check of the case before any work, without allocating its model: the case's fields
+    (``ColumnCase.validate``: ranges, memory), the 2D model's options and every rule between them
+    (``Model.check``, in Rust), and what the depth-averaged model cannot do (``field_output``:
+    snapshots or checkpoints asked for; ``restart``: a restart asked for)."""
+    case.validate()
+    if case.model == "depth-averaged":
+        if field_output or restart:
+            raise ParameterError(
+                "invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
+                "restart: allowed only with the 2D models ('two-phase', 'granular')"
+            )
+        for name, value in (("side_walls", case.side_walls), ("active_region", case.active_region)):
+            if value is not None:
+                raise ParameterError(
+                    f"invalid parameter `{name}` with the depth-averaged model: allowed only with the "
+                    "2D models ('two-phase', 'granular')"
+                )
+        return
+    Model.check(**model_arguments(case))
+
+
 def run_column(
     case: ColumnCase,
     out: str | Path,
@@ -76,21 +99,11 @@ def run_column(
     'incomplete: ...') and before every callback that ``saves_state``. A SimulationError,
     SolverError or KeyboardInterrupt still writes every output from the steps done, with the
     ``stop_reason``, then is raised again."""
-    case.validate()
+    check_case(case, field_output=bool(callbacks), restart=prepare is not None)
     out = Path(out)
     compare_with = None if compare_with is None else Path(compare_with)
     model_name, model_reason = case.model, "requested"
     if model_name == "depth-averaged":
-        if callbacks or prepare is not None:
-            raise ParameterError(
-                "invalid parameter `model` = 'depth-averaged' with field output, checkpoints or a "
-                "restart: allowed only with the 2D models ('two-phase', 'granular')"
-            )
-        if case.side_walls is not None:
-            raise ParameterError(
-                "invalid parameter `side_walls` with the depth-averaged model: allowed only with the "
-                "2D models ('two-phase', 'granular')"
-            )
         return run_column_depth_averaged(
             case, out, progress=progress, compare_with=compare_with, extra_summary=extra_summary, reason=model_reason
         )
