@@ -37,7 +37,8 @@ test-slow: install
 bench: install
 	cargo bench -p granrs-core
 
-# The Rust tree's layout, clippy's lints as errors, and the core's floors (rust/granrs-core/src/lib.rs);
+# The Rust tree's layout, clippy's lints as errors, the core's floors (rust/granrs-core/src/lib.rs) and
+# the Python package's floors (docs/architecture.md);
 # the Python code's lints and layout (ruff), the package's types (mypy) and the extension's stubs
 # against the compiled module (mypy.stubtest; settings in pyproject.toml).
 PY_SOURCES := python tests examples studies scripts benchmarks
@@ -46,6 +47,7 @@ lint: install
 	cargo fmt --all -- --check
 	cargo clippy --workspace --release --all-targets -- -D warnings
 	python3 scripts/check_layers.py
+	python3 scripts/check_python_layers.py
 	$(VENV)/bin/ruff check $(PY_SOURCES)
 	$(VENV)/bin/ruff format --check $(PY_SOURCES)
 	$(VENV)/bin/mypy
