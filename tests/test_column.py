@@ -263,14 +263,15 @@ def test_the_options_switched_on_late_bring_rest_but_not_the_front_back():
     assert s["retreat_cells"] > 1.0, s["retreat_cells"]
 
 
-#: the options of docs/howto/deposit-at-rest.md
+#: the first four of the five options of docs/howto/deposit-at-rest.md (the fifth,
+#: ``redistance_tolerance`` = 0.01, is added where a test says so)
 DEPOSIT_AT_REST = {"proximal_restarts": 20, "anderson_depth": 5, "redistance_every": 1, "piece_removal_cells": 4}
 
 
 @pytest.mark.parametrize("fluidised, arrest", [(True, 2.00), (False, 1.97)])
 def test_the_deposit_at_rest_recipe_stops_the_run_at_rest(tmp_path, fluidised, arrest):
-    """The recipe of docs/howto/deposit-at-rest.md (20 proximal restarts, Anderson mixing of
-    depth 5, redistancing every step, detached pieces of at most 4 cells turned to air) through
+    """The first four options of docs/howto/deposit-at-rest.md (20 proximal restarts, Anderson
+    mixing of depth 5, redistancing every step, detached pieces of at most 4 cells turned to air) through
     run_column: at ny = 16 both columns stop at rest, measured at 2.00 s (fluidised) and 1.97 s
     (dry), and summary.json counts the cells the removal turned to air. Their fronts end more than
     a cell behind their largest values (measured 2.0 cells fluidised, 1.2 dry), which the
@@ -759,13 +760,13 @@ def test_the_global_correction_moves_a_front_at_rest(tmp_path):
 
 @pytest.mark.parametrize("fluidised", [False, True], ids=["dry", "fluidised"])
 def test_the_deposit_at_rest_options_keep_the_front_within_a_cell(tmp_path, fluidised):
-    """The column at ny = 16 with the options of docs/howto/deposit-at-rest.md and
-    ``redistance_tolerance`` = 0.01 stops at rest, and its front on the lowest row ends within one
+    """The column at ny = 16 with the five options of docs/howto/deposit-at-rest.md (the first
+    four and ``redistance_tolerance`` = 0.01) stops at rest, and its front on the lowest row ends within one
     cell of its largest value (measured: dry at rest at 2.03 s, 0.30 cell back; fluidised 1.94 s,
     0.53 cell), and summary.json counts the steps that used every proximal restart (most of
     them). Without the tolerance the same runs end more than a cell back
-    (test_the_deposit_at_rest_recipe_stops_the_run_at_rest; validation.md, "A redistancing that
-    leaves a surface at rest in place")."""
+    (test_the_deposit_at_rest_recipe_stops_the_run_at_rest; validation.md, "Arrest of the
+    deposit")."""
     case = ColumnCase(ny=16, fluidised=fluidised).with_options(**DEPOSIT_AT_REST, redistance_tolerance=0.01)
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] < 2.5, (s["stop_reason"], s["arrest_time_s"])
@@ -781,7 +782,7 @@ def test_the_deposit_at_rest_options_keep_the_front_within_a_cell(tmp_path, flui
 
 def test_the_redistancing_tolerance_keeps_a_surface_at_rest(tmp_path):
     """studies/correction_at_rest.py with and without ``redistance_tolerance`` = 0.01
-    (docs/validation.md, "A redistancing that leaves a surface at rest in place"): the dry column
+    (docs/validation.md, "Arrest of the deposit"): the dry column
     at ny = 16 with the deposit-at-rest options, each run to its arrest and continued to 3 s.
     Redistanced at every step, the closest-point reset moves the surface at rest by 6.9 mm
     (measured); with the tolerance its interface cells keep their values and the surface moves by
@@ -836,7 +837,7 @@ def test_each_face_s_own_r_b_stops_the_tip_sliding_on_stuck_faces(tmp_path):
 
 
 def test_phi_moved_by_the_grains_velocity_holds_a_surface_at_rest(tmp_path):
-    """studies/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
+    """studies/correction_at_rest.py (docs/validation.md, "Arrest of the deposit"):
     the fluidised column at ny = 16 with the deposit-at-rest options and ``redistance_tolerance``
     = 0.01, continued from its arrest to 3 s without the global correction, with Φ moved by the
     one-fluid velocity and by the grains' velocity extended where they rest. The layers under the
@@ -881,7 +882,7 @@ def test_a_continuation_option_reaches_the_continuations_only(tmp_path):
 
 @pytest.mark.slow
 def test_a_converged_iteration_and_phi_moved_by_the_grains_hold_the_surface_to_a_micrometre(tmp_path):
-    """studies/correction_at_rest.py (docs/validation.md, "The surface with the grains at rest"):
+    """studies/correction_at_rest.py (docs/validation.md, "Arrest of the deposit"):
     the fluidised column at ny = 16 with the deposit-at-rest options, ``redistance_tolerance`` =
     0.01, each face's own r_b and the Picard iteration taken to 1e-5 with up to 1000 restarts,
     continued from its arrest (1.92 s) to 3 s without the global correction. With Φ moved by the
