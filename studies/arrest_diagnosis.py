@@ -61,7 +61,7 @@ switched on late (``switch-U-redistance-1-proximal-20-pieces-4-tolerance-0.01``,
 and with the yield stress at
 full strength over the band or its granular side (``density-support-...``,
 ``granular-side-redistance-1-proximal-20-pieces-4``). The runs do not stop at rest (the records go to t_end); the column's
-rest criterion (granular speed below ``rest_speed`` for ``rest_duration``) is evaluated all the
+rest criterion (granular speed below ``rest.speed`` for ``rest.duration``) is evaluated all the
 same, to say when the run would have stopped and what changes after that.
 
 Writes ``OUT/arrest_<variant>.csv`` (the records, with two fronts of the volume profile beside the
@@ -97,7 +97,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion
-from granrs.cases.column import ColumnCase, RestCriterion, build_model, front_position, surface_profile
+from granrs.cases.column import ColumnCase, RestWatch, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, observe_profile, thickness_front, volume_profile
 
 #: 20 proximal restarts of the anchor Σⁿ per step with Anderson mixing of depth 5 (the variants
@@ -367,9 +367,9 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     t0 = time.perf_counter()
     k = 0
     # the column's rest criterion (granrs.cases.column.RestCriterion), evaluated without stopping:
-    # the start of the first quiet window of rest_duration, and the profile then; and the same
+    # the start of the first quiet window of rest.duration, and the profile then; and the same
     # criterion on the deposit alone (deposit_mask: without the detached pieces)
-    rest, deposit_rest = (RestCriterion(case.rest_speed, case.rest_duration) for _ in range(2))
+    rest, deposit_rest = (RestWatch(case.rest) for _ in range(2))
     arrest = deposit_arrest = arrest_profile = None
     while m.time < t_end - 1e-12:
         k += 1
@@ -479,10 +479,10 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     out["pieces_removed_first_time_s"] = next((r["t"] for r in rows if r["pieces_removed"]), None)
     out["deposit_arrest_time_s"] = deposit_arrest
     if deposit_arrest is not None:
-        after = t > deposit_arrest + case.rest_duration
+        after = t > deposit_arrest + case.rest.duration
         out["deposit_speed_after_deposit_arrest_max"] = largest_after(rows, after, "speed_deposit")
     if arrest is not None:
-        after = t > arrest + case.rest_duration
+        after = t > arrest + case.rest.duration
         out["profile_change_after_arrest_m"] = float(np.max(np.abs(surface_profile(m.phi, g.dy) - arrest_profile[0])))
         out["volume_profile_change_after_arrest_m"] = float(
             np.max(np.abs(volume_profile(m.phi, g.dy) - arrest_profile[1]))
@@ -496,7 +496,7 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
         # its shifts δ (Φ ← Φ + δ), and of their magnitudes
         out["mass_shift_after_arrest_m"] = float(sum(r["mass_shift"] for r, a in zip(rows, after) if a))
         out["mass_shift_abs_after_arrest_m"] = float(sum(r["mass_shift_abs"] for r, a in zip(rows, after) if a))
-        out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest_duration + 1e-9][-1] - front[-1])
+        out["front_retreat_after_arrest_m"] = float(front[t <= arrest + case.rest.duration + 1e-9][-1] - front[-1])
         # the columns whose volume profile fell by more than 1 mm after the arrest, in two groups:
         # "thin", with no granular cell on the lowest row at the arrest (Φ ≤ 0 there: a film
         # thinner than half a cell, which the smoothed Heaviside still counts), and "thick"; for

@@ -10,7 +10,7 @@ the grains' velocity where they rest).
 The column (``granrs.cases.column``) runs with the options of docs/howto/deposit-at-rest.md (20
 proximal restarts, Anderson mixing of depth 5, redistancing at every step, detached pieces of at
 most 4 cells turned to air), and any ``--option`` besides, until its rest criterion holds
-(``RestCriterion``: the largest granular speed below ``rest_speed`` for ``rest_duration``). Its
+(``RestCriterion``: the largest granular speed below ``rest.speed`` for ``rest.duration``). Its
 whole state is then taken
 (``Model.state``) and continued to ``--t-end`` from that same state, in
 each of ``--continuations``: ``with_correction``, the run itself with the global mass correction
@@ -21,7 +21,7 @@ whose Picard tolerance (``picard_tol``) is the run's over ``TIGHTER`` (100);
 ``extended_at_rest`` and ``extended_at_rest_without_correction``, models whose level set is
 moved by the dense phase's velocity extended along the normal where the grains move slower than
 the column's rest speed (``interface_velocity = "extended"``, ``extension_rest_speed`` =
-``ColumnCase.rest_speed``, 5 mm/s), with and without the correction. Any
+``RestCriterion().speed``, 5 mm/s), with and without the correction. Any
 ``--continuation-option`` applies to the continuations only (``with_correction`` is then
 continued in a model built with it). The records every 0.01 s (at
 the run's own times) give, for each continuation, the range of the front on the lowest row of
@@ -52,6 +52,7 @@ import numpy as np
 from granrs.cases.column import (
     ColumnCase,
     RestCriterion,
+    RestWatch,
     build_model,
     front_cell,
     front_position,
@@ -89,7 +90,7 @@ def run_to_rest(model, case: ColumnCase) -> float:
     """Advances ``model`` record by record until the column's rest criterion holds; returns the
     start of the quiet window (the run's ``arrest_time_s``). Refuses a run that does not come to
     rest by ``case.t_end``."""
-    rest = RestCriterion(case.rest_speed, case.rest_duration)
+    rest = RestWatch(case.rest)
     k = 0
     while model.time < case.t_end - 1e-12:
         k += 1
@@ -172,7 +173,7 @@ def continue_to(model, t_start: float, t_end: float, front0: float, area0: float
 TIGHTER = 100.0
 #: Φ moved by the dense phase's velocity extended where the grains move slower than the column's
 #: rest speed
-EXTENDED_AT_REST = {"interface_velocity": "extended", "extension_rest_speed": ColumnCase.rest_speed}
+EXTENDED_AT_REST = {"interface_velocity": "extended", "extension_rest_speed": RestCriterion().speed}
 #: the continuations from the arrested state: the run itself, and models built with these
 #: options changed, into which the state is restored
 CONTINUATIONS = {

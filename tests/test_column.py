@@ -22,6 +22,7 @@ from granrs import ActiveRegion, ParameterError, SideWalls, SimulationError, Tim
 from granrs.cases.column import (
     PAPER_RUNOUT_SIM,
     ColumnCase,
+    RestCriterion,
     basal_pore_pressure_ratio,
     deposit_quantile,
     farthest_material,
@@ -163,18 +164,18 @@ def test_a_run_stopped_at_rest_reports_its_arrest_time(tmp_path):
     """The rest criterion with a rest speed the dry ny = 16 column falls below (0.3 m/s, 11 % of
     √(2 g H_c)): the run stops with stop_reason "rest"; arrest_time_s is the start of the quiet
     window, every recorded speed from it on is below the rest speed, the one before it is not, and
-    the run ended rest_duration after it (to one record interval, 0.01 s)."""
-    case = ColumnCase(ny=16, fluidised=False, rest_speed=0.3, rest_duration=0.05)
+    the run ended rest.duration after it (to one record interval, 0.01 s)."""
+    case = ColumnCase(ny=16, fluidised=False, rest=RestCriterion(speed=0.3, duration=0.05))
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest", s["stop_reason"]
     d = np.genfromtxt(tmp_path / "front.csv", delimiter=",", names=True)
     t, speed = d["t_s"], d["max_granular_speed_m_s"]
     ta = s["arrest_time_s"]
     quiet = t >= ta - 1e-9
-    assert np.all(speed[quiet] < case.rest_speed)
-    assert speed[~quiet][-1] >= case.rest_speed or t[~quiet][-1] <= 0.1 + 1e-9
-    assert s["t_end_s"] - ta == pytest.approx(case.rest_duration, abs=0.01 + 1e-9)
-    assert s["final_granular_speed_m_s"] < case.rest_speed
+    assert np.all(speed[quiet] < case.rest.speed)
+    assert speed[~quiet][-1] >= case.rest.speed or t[~quiet][-1] <= 0.1 + 1e-9
+    assert s["t_end_s"] - ta == pytest.approx(case.rest.duration, abs=0.01 + 1e-9)
+    assert s["final_granular_speed_m_s"] < case.rest.speed
 
 
 @pytest.mark.parametrize("fluidised", [True, False])
@@ -187,7 +188,7 @@ def test_proximal_restarts_bring_the_column_to_rest(tmp_path, fluidised):
     case = ColumnCase(ny=16, fluidised=fluidised, variants=Variants(proximal_restarts=5))
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] < 2.5, (s["stop_reason"], s["arrest_time_s"])
-    assert s["final_granular_speed_m_s"] < case.rest_speed
+    assert s["final_granular_speed_m_s"] < case.rest.speed
     if not fluidised:
         assert s["front_retreat_m"] <= case.grid().dx, s["front_retreat_m"]
 
@@ -220,10 +221,10 @@ def test_the_bursts_after_the_arrest_are_detached_pieces_not_the_deposit():
     case = ColumnCase(ny=16, fluidised=False, t_end=3.0)
     s, _ = diag["run_variant"](case, "redistance-1-proximal-20", case.t_end)
     assert s["arrest_time_s"] is not None and s["arrest_time_s"] < 2.5
-    assert s["detached_speed_after_arrest_max"] > 20 * case.rest_speed
+    assert s["detached_speed_after_arrest_max"] > 20 * case.rest.speed
     assert s["granular_speed_after_arrest_max"] == s["detached_speed_after_arrest_max"]
     assert 1 <= s["detached_cells_after_arrest_max"] <= 4
-    assert s["deposit_speed_after_arrest_max"] < case.rest_speed
+    assert s["deposit_speed_after_arrest_max"] < case.rest.speed
 
 
 def test_removing_detached_pieces_keeps_the_arrested_column_at_rest():
@@ -238,7 +239,7 @@ def test_removing_detached_pieces_keeps_the_arrested_column_at_rest():
     s, rows = diag["run_variant"](case, "redistance-1-proximal-20-pieces-4", case.t_end)
     assert s["arrest_time_s"] is not None and s["arrest_time_s"] < 2.5
     assert s["detached_cells_after_arrest_max"] == 0
-    assert s["granular_speed_after_arrest_max"] < case.rest_speed
+    assert s["granular_speed_after_arrest_max"] < case.rest.speed
     assert s["area_rel_drift"] < 1e-9
     assert s["pieces_removed_cells"] > 0
     _, rows2 = diag["run_variant"](case.with_options(threads=2), "redistance-1-proximal-20-pieces-4", case.t_end)
@@ -280,7 +281,7 @@ def test_the_deposit_at_rest_recipe_stops_the_run_at_rest(tmp_path, fluidised, a
     case = ColumnCase(ny=16, fluidised=fluidised).with_options(**DEPOSIT_AT_REST)
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] == pytest.approx(arrest, abs=1e-9)
-    assert s["final_granular_speed_m_s"] < case.rest_speed
+    assert s["final_granular_speed_m_s"] < case.rest.speed
     assert s["pieces_removed_total"] > 0
     assert int(np.load(tmp_path / "history.npz")["pieces_removed"].sum()) == s["pieces_removed_total"]
     assert s["front_retreat_m"] / s["observables"]["cell_m"] > 1.0

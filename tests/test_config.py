@@ -8,7 +8,7 @@ import pytest
 import tomllib
 
 from granrs import ParameterError
-from granrs.cases.column import ColumnCase
+from granrs.cases.column import ColumnCase, RestCriterion
 from granrs.config import (
     KEYS,
     apply_sets,
@@ -45,6 +45,22 @@ def test_defaults_are_the_papers_case_and_resolve_every_key():
     case = column_case(cfg)
     case.validate()
     assert case == ColumnCase(length=3.5) and case.grid().nx == ColumnCase().grid().nx
+
+
+def test_the_rest_section_is_the_cases_rest_criterion():
+    case = column_case(resolve({"rest": {"speed": 0.02, "duration": 0.1}}))
+    assert case.rest == RestCriterion(speed=0.02, duration=0.1, after=RestCriterion().after)
+    assert column_case(resolve({})).rest == ColumnCase().rest == RestCriterion(speed=5e-3, duration=0.05, after=0.1)
+    with pytest.raises(ParameterError, match=r"`rest.duration` = -1.0: allowed a number in \[0, 10000\]"):
+        RestCriterion(duration=-1.0)
+
+
+def test_the_column_flags_of_the_rest_criterion_take_the_keys_ranges(tmp_path):
+    run = cli("run", "column", "--rest-speed", "0", "--out", str(tmp_path / "out"))
+    assert run.returncode == 2 and "`--rest-speed` = '0': allowed a number in [1e-09, 10]" in run.stderr
+    run = cli("run", "column", "--rest-duration", "-1", "--out", str(tmp_path / "out"))
+    assert run.returncode == 2 and "`--rest-duration` = '-1': allowed a number in [0, 10000]" in run.stderr
+    assert not (tmp_path / "out").exists()
 
 
 def test_integers_are_accepted_for_float_keys_and_written_as_floats():
@@ -113,6 +129,8 @@ MALFORMED = [
     ("[output]\nfields_every_s = 0.0\nanimation = true", "`output.animation`", "fields_every_s > 0"),
     ('[output]\ndir = ""', "`output.dir`", "non-empty string"),
     ("[time]\nstep_retries = 21", "`time.step_retries`", "[0, 20]"),
+    ("[rest]\nspeed = 0", "`rest.speed`", "[1e-09, 10]"),
+    ("[rest]\nrest_speed = 0.01", "`rest.rest_speed`", "unknown key"),
     ("numerics = 3", "`numerics`", "a table"),
     ("[numerics.extra]\na = 1", "`numerics.extra`", "unknown key"),
     ("[time]\ncfl = ", "", "not valid TOML"),

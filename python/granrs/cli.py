@@ -167,6 +167,8 @@ def _column_set(item: str) -> str:
         raise ParameterError(
             f"invalid parameter `--set {item}` with `granrs run column`: allowed keys without a flag of "
             f"their own; use {_COLUMN_FLAG_KEYS[dotted]}"
+    "rest_speed",
+    "rest_duration",
         )
     if dotted == "case.name" or dotted.startswith("output."):
         raise ParameterError(
@@ -189,6 +191,8 @@ def _run_file(args, parser) -> int:
         _out_plan(args.out, args.overwrite)  # names the empty --out
     sets = list(args.set or [])
     cfg = load_config(args.case, sets + ([f"output.dir={json.dumps(args.out)}"] if args.out else []))
+    "rest_speed": "rest.speed",
+    "rest_duration": "rest.duration",
     try:
         summary = run_config(
             cfg,
@@ -524,6 +528,18 @@ def main(argv=None) -> int:
         action="append",
         required=True,
         metavar="KEY=SPEC",
+    r.add_argument(
+        "--rest-speed",
+        dest="rest_speed",
+        type=_key_type("--rest-speed", "rest.speed"),
+        help="the run stops at rest: granular speed below this (m/s) for --rest-duration (column; 0.005; rest.speed)",
+    )
+    r.add_argument(
+        "--rest-duration",
+        dest="rest_duration",
+        type=_key_type("--rest-duration", "rest.duration"),
+        help="how long (s) the granular speed stays below --rest-speed before the run stops (column; rest.duration)",
+    )
         help="swept key: KEY=a:b:n (n values from a to b) or KEY=v1,v2,... (repeat for a product)",
     )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a key of the base file (repeat)")

@@ -37,7 +37,7 @@ else:  # the same parser, before it joined the standard library
 from ._granrs import ParameterError
 from .boundary import CoulombWall
 from .cases.column import ColumnCase
-from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, jop_mu_i
+from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, RestCriterion, jop_mu_i
 from .model import PorePressure, SideWalls
 from .options import (
     ActiveRegion,
@@ -311,6 +311,33 @@ KEYS: tuple[Key, ...] = (
         *_R["t_end"],
     ),
     *_object_keys("time", _C.time),
+    Key(
+        "rest",
+        "speed",
+        "float",
+        _C.rest.speed,
+        "m/s",
+        "the run stops at rest: the largest granular speed below this for rest.duration",
+        *RestCriterion.RANGES["speed"],
+    ),
+    Key(
+        "rest",
+        "duration",
+        "float",
+        _C.rest.duration,
+        "s",
+        "how long the granular speed stays below rest.speed before the run stops",
+        *RestCriterion.RANGES["duration"],
+    ),
+    Key(
+        "rest",
+        "after",
+        "float",
+        _C.rest.after,
+        "s",
+        "the time after the release from which the rest criterion is applied",
+        *RestCriterion.RANGES["after"],
+    ),
     _from_schema("numerics", "threads", options.spec("threads"), _C.threads),
     *(k for k in _NUMERICS if k.section == "numerics"),
     *(k for k in _NUMERICS if k.section == "variants"),
@@ -612,6 +639,7 @@ def column_case(cfg: Config) -> ColumnCase:
         back_wall=c["back_wall"],
         ny=g["ny"],
         t_end=cfg["time"]["t_end"],
+        rest=RestCriterion(**cfg["rest"]),
         model=c["model"],
         base=CoulombWall(cfg["base"]["friction_angle"]),
         pore_pressure=PorePressure(**cfg["pore_pressure"]),

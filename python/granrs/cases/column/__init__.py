@@ -14,10 +14,11 @@ column's default objects (``column_rheology``: θ = 0.8, Picard tolerance 1e-3;
 state theirs; a free-slip lid at the top of the domain (with an open top the inner viscous
 solves stall near 1e-3 relative and floor the Picard increment above its tolerance).
 
-Rest criterion (documented): the run stops when the largest velocity in the granular phase
-(cells with Φ > 0; the air side of the smoothed interface band, Φ ≤ 0, where H_ε still gives a
-cell some grains, is explicitly not looked at) stays below ``rest_speed`` (default 5e-3 m/s,
-0.18 % of √(2 g H_c)) for ``rest_duration`` (default 0.05 s) after t > 0.1 s, or at ``t_end``.
+Rest criterion (``ColumnCase.rest``, a :class:`RestCriterion`; the run file's [rest] section):
+the run stops when the largest velocity in the granular phase (cells with Φ > 0; the air side of
+the smoothed interface band, Φ ≤ 0, where H_ε still gives a cell some grains, is explicitly not
+looked at) stays below ``rest.speed`` (default 5e-3 m/s, 0.18 % of √(2 g H_c)) for
+``rest.duration`` (default 0.05 s) after ``rest.after`` (default 0.1 s), or at ``t_end``.
 summary.json says when (:func:`arrest_summary`): ``stop_reason`` is ``"rest"`` and
 ``arrest_time_s`` the start of that quiet window (None for a run that did not come to rest),
 with the largest front, when it was reached and how far the front then moved back
@@ -43,7 +44,7 @@ The package, one file a task: ``case`` (:class:`ColumnCase`, its validation, dom
 outputs; :func:`run_columns`: several cases, one after the other or side by side;
 :func:`run_finished`: whether a folder holds a run that ended),
 ``measures`` (front, deposit quantile, surface profile, basal pore-pressure ratio),
-``summaries`` (summary.json's derived entries, :class:`RestCriterion`, the stop reasons), ``outputs`` (the output files), ``plots``,
+``summaries`` (summary.json's derived entries, :class:`RestWatch`, the stop reasons), ``outputs`` (the output files), ``plots``,
 and ``depth_averaged`` (the depth-averaged variant).
 """
 
@@ -54,6 +55,7 @@ from .case import (
     PAPER_RUNOUT_SIM,
     ColumnCase,
     G,
+    RestCriterion,
     column_numerics,
     column_pore_pressure,
     column_rheology,
@@ -85,7 +87,7 @@ from .run import FLUSH_RECORDS, run_column, run_columns, run_finished
 from .summaries import (
     ENERGY_COLUMNS,
     UNFINISHED_REASONS,
-    RestCriterion,
+    RestWatch,
     _energy_row as _energy_row,
     _observables_summary as _observables_summary,
     _record_observables as _record_observables,
@@ -131,6 +133,7 @@ __all__ = [
     "run_columns",
     "run_finished",
     "RestCriterion",
+    "RestWatch",
     "UNFINISHED_REASONS",
     "surface_profile",
     "write_energy",

@@ -109,6 +109,25 @@ def _instance(name: str, v, kinds: tuple, words: str, optional: bool = False) ->
         raise ParameterError(f"invalid parameter `{name}` = {v!r}: allowed {words}" + (" or None" if optional else ""))
 
 
+@dataclass(frozen=True)
+class RestCriterion:
+    """When the column is at rest and its run stops: after ``after`` [s] (the release), the
+    largest speed of the granular phase stays below ``speed`` [m/s] for ``duration`` [s]. The
+    defaults: 5 mm/s (0.18 % of √(2 g H_c) for the paper's column) for 0.05 s after 0.1 s.
+    ParameterError naming the field (``rest.speed``, ...) and its range when it is made."""
+
+    speed: float = 5e-3
+    duration: float = 0.05
+    after: float = 0.1
+
+    #: the range of each field (the run-file keys ``rest.*`` and ``granrs keys`` read them here)
+    RANGES = {"speed": (1e-9, 10.0), "duration": (0.0, 1e4), "after": (0.0, 1e4)}
+
+    def __post_init__(self):
+        for name, (lo, hi) in self.RANGES.items():
+            _number(f"rest.{name}", getattr(self, name), lo, hi)
+
+
 @dataclass
 class ColumnCase:
     """The column collapse: the scene, with the paper's values as defaults, and its physics.
@@ -122,8 +141,8 @@ class ColumnCase:
     'literal' (the printed ∂p_f/∂n = −β φρ_s g with n the outward normal: an outflow;
     docs/validation.md, "Observables"). Channel: ``back_wall`` at x = 0, 'coulomb' (the base's
     friction, the paper's) or 'free-slip' (the cross-code check against Basilisk). Grid: ``ny``
-    cells over the domain's height. Run: ``t_end`` [s], the rest criterion ``rest_speed`` [m/s]
-    and ``rest_duration`` [s], the ``profile_times`` of profiles.csv [s], the ``model``
+    cells over the domain's height. Run: ``t_end`` [s], the ``rest`` criterion that stops it
+    earlier (:class:`RestCriterion`), the ``profile_times`` of profiles.csv [s], the ``model``
     ('two-phase', 'granular' or 'depth-averaged'; docs/howto/choosing-a-model.md) and, for the
     depth-averaged model, ``earth_pressure`` ('savage-hutter' or a number) and ``da_resolution``
     (cells across min(L_c, H_c)).
@@ -150,8 +169,7 @@ class ColumnCase:
     back_wall: str = "coulomb"
     ny: int = 32
     t_end: float = 3.0
-    rest_speed: float = 5e-3
-    rest_duration: float = 0.05
+    rest: RestCriterion = field(default_factory=RestCriterion)
     profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
     model: str = "two-phase"
     earth_pressure: Union[str, float] = "savage-hutter"
@@ -171,8 +189,7 @@ class ColumnCase:
         memory the model needs is checked against the memory available."""
         for name, (lo, hi) in SCENE_RANGES.items():
             _number(name, getattr(self, name), lo, hi, integer=name == "ny")
-        for name, (lo, hi) in (("rest_speed", (1e-9, 10.0)), ("rest_duration", (0.0, 1e4))):
-            _number(name, getattr(self, name), lo, hi)
+        _instance("rest", self.rest, (RestCriterion,), "a granrs.cases.column.RestCriterion(speed, duration)")
         for name, v, lo, what in (
             ("length", self.length, self.width, "the gate at x = width"),
             ("height", self.height, self.column_height, "the column height aspect_ratio × width"),

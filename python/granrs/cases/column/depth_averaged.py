@@ -17,7 +17,7 @@ from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .measures import deposit_quantile
 from .outputs import write_outputs
 from .plots import plot_front, plot_profiles
-from .summaries import RestCriterion, _observables_summary, _record_observables, arrest_summary, failure_stop_reason
+from .summaries import RestWatch, _observables_summary, _record_observables, arrest_summary, failure_stop_reason
 
 
 def depth_averaged_front_depth(case: ColumnCase) -> float:
@@ -76,7 +76,7 @@ def run_column_depth_averaged(
     rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": []}
     profiles: dict = {}
     pending = sorted(case.profile_times)
-    rest = RestCriterion(case.rest_speed, case.rest_duration)
+    rest = RestWatch(case.rest)
     stop_reason = "t_end"
     error = None
     t0 = time.perf_counter()

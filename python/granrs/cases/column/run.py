@@ -35,7 +35,7 @@ from .outputs import _progress, write_energy, write_outputs
 from .plots import plot_energy, plot_fluidisation, plot_front, plot_profiles
 from .summaries import (
     UNFINISHED_REASONS,
-    RestCriterion,
+    RestWatch,
     _observables_summary,
     _record_observables,
     arrest_summary,
@@ -123,7 +123,7 @@ def run_column(
     if fluid:
         rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
     profiles: dict = {}
-    rest = RestCriterion(case.rest_speed, case.rest_duration)
+    rest = RestWatch(case.rest)
     last_flush = (0, -1)  # (records, steps) written by the last flush
     pending_profiles = sorted(case.profile_times)
 

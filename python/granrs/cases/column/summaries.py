@@ -8,6 +8,7 @@ from typing import Optional
 import numpy as np
 
 from ... import observables as obs
+from .case import RestCriterion
 
 #: How summary.json's ``stop_reason`` begins for a run that did not end: written during the run
 #: (killed, or still running), stopped by Ctrl-C, or stopped by a failure.
@@ -23,22 +24,22 @@ def failure_stop_reason(failure: BaseException, message: str) -> str:
     return f"{ERROR}: {message}"
 
 
-class RestCriterion:
-    """The column's rest criterion (the package's docstring): after t > 0.1 s, the largest
-    granular speed stays below ``rest_speed`` for ``rest_duration``. Give it each record with
-    :meth:`update`; ``since`` is the start of the current quiet window (None while the grains
-    move faster)."""
+class RestWatch:
+    """A run's records against its :class:`RestCriterion` (the package's docstring): give it each
+    record with :meth:`update`; ``since`` is the start of the current quiet window (None while the
+    grains move faster)."""
 
-    def __init__(self, rest_speed: float, rest_duration: float):
-        self.rest_speed, self.rest_duration = rest_speed, rest_duration
+    def __init__(self, criterion: RestCriterion):
+        self.criterion = criterion
         self.since: Optional[float] = None
 
     def update(self, t: float, speed: float) -> bool:
-        """Takes the record at time ``t``; True once the quiet window has lasted ``rest_duration``."""
-        if t > 0.1 and speed < self.rest_speed:
+        """Takes the record at time ``t``; True once the quiet window has lasted ``criterion.duration``."""
+        c = self.criterion
+        if t > c.after and speed < c.speed:
             if self.since is None:
                 self.since = t
-            return t - self.since >= self.rest_duration
+            return t - self.since >= c.duration
         self.since = None
         return False
 
