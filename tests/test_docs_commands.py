@@ -137,7 +137,7 @@ def shown_files(text: str) -> list[str]:
     return found
 
 
-def test_the_pages_and_their_commands_are_found():
+def test_the_pages_and_their_commands_are_found(tmp_path):
     """The test reads the pages it should (a page moved out of its reach would pass silently),
     finds commands of every kind it checks, and a wrong name fails it."""
     names = {page_id(p) for p in pages()}
@@ -146,15 +146,12 @@ def test_the_pages_and_their_commands_are_found():
     heads = {(w[0], w[1]) for w in words if len(w) > 1}
     assert {("granrs", "run"), ("granrs", "validate"), ("cargo", "bench")} <= heads, heads
     assert any(w[:1] == ["python"] and w[1].startswith("studies/") for w in words)
-    page = ROOT / "docs" / "_probe.md"
-    try:
-        page.write_text(
-            "Run `python studies/no_such_study.py --ny 8`, then `granrs validate no-such-case`,\n"
-            "`granrs frobnicate`, `cargo bench -p granrs-core --bench nope`.\n\n![x](img/nope.png)\n"
-        )
-        bad = problems_of(page)
-    finally:
-        page.unlink()
+    page = tmp_path / "probe.md"
+    page.write_text(
+        "Run `python studies/no_such_study.py --ny 8`, then `granrs validate no-such-case`,\n"
+        "`granrs frobnicate`, `cargo bench -p granrs-core --bench nope`.\n\n![x](img/nope.png)\n"
+    )
+    bad = problems_of(page)
     assert len(bad) == 5, bad
 
 
