@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs import ActiveRegion, PorePressure, TimeStepping
+from granrs import ActiveRegion, DepthAveraged, PorePressure, TimeStepping
 from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, jop_mu_i, run_column
 
 # variant name → ColumnCase keyword arguments (the baseline first: the finest of its runs is the
@@ -44,7 +44,7 @@ VARIANTS = {
     "D-P, CFL 0.25": {"time": TimeStepping(cfl=0.25)},
     "D-P, p_f kappa-infinity": {"pore_pressure": PorePressure(0.035, kappa_air=1e8, formulation="kappa-infinity")},
     # the depth-averaged rung of the model ladder (docs/models.md); "ny" sets its cells per column
-    # width in proportion (ColumnCase.da_resolution is left at its default: its run-out changes by
+    # width in proportion (ColumnCase.depth_averaged.resolution is left at its default: its run-out changes by
     # < 1 % with Δx/2)
     "depth-averaged": {"model": "depth-averaged"},
     # the granular-only rung: no air, a free surface at p = 0 (docs/models.md)
@@ -68,7 +68,7 @@ def run_or_load(variant: str, kwargs: dict, ny: int, fluidised: bool, out: Path,
             return None
         print(f"running {variant}, ny = {ny}, {'fluidised' if fluidised else 'dry'} ...", flush=True)
         if kwargs.get("model") == "depth-averaged":  # its resolution: ny cells per column width
-            kwargs = {**kwargs, "da_resolution": ny}
+            kwargs = {**kwargs, "depth_averaged": DepthAveraged(resolution=ny)}
         try:
             run_column(ColumnCase(ny=ny, fluidised=fluidised, **kwargs), folder, progress=False)
         except Exception as e:  # a failed run is a point of the chart too: reported, not plotted

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import granrs
-from granrs import DepthAveragedModel, DepthAveragedPore, ParameterError
+from granrs import DepthAveraged, DepthAveragedModel, DepthAveragedPore, ParameterError, depth_averaged
 from granrs.cases.column import ColumnCase, build_model, front_position, run_column
 from granrs.cli import main
 
@@ -40,7 +40,7 @@ def test_depth_averaged_model_views_are_read_only_and_live():
 
 
 def test_depth_averaged_column_through_the_case_api(tmp_path):
-    case = ColumnCase(aspect_ratio=0.5, model="depth-averaged", da_resolution=32)
+    case = ColumnCase(aspect_ratio=0.5, model="depth-averaged", depth_averaged=DepthAveraged(resolution=32))
     s = run_column(case, tmp_path, progress=False)
     for name in ("summary.json", "front.csv", "profiles.csv", "front.png", "profiles.png"):
         assert (tmp_path / name).stat().st_size > 0, name

@@ -28,7 +28,7 @@ from .boundary import (
     Outflow,
     Velocity,
 )
-from .depth_averaged import DepthAveragedModel, DepthAveragedPore
+from .depth_averaged import DepthAveraged, DepthAveragedModel, DepthAveragedPore
 from .grid import Grid
 from .materials import AIR, WATER, Material
 from .model import Model, PorePressure, SideWalls
@@ -46,6 +46,7 @@ __all__ = [
     "Callback",
     "Coulomb",
     "CoulombWall",
+    "DepthAveraged",
     "DepthAveragedModel",
     "DepthAveragedPore",
     "DruckerPrager",

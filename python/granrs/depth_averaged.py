@@ -1,18 +1,22 @@
 """Depth-averaged (shallow-layer, Savage–Hutter type) model of a granular layer along a channel.
 
-Equations (Savage & Hutter 1989; pore pressure after Gueugneau, Kelfoun, Roche & Chupin 2017),
-on a horizontal channel 0 < x < L with reflective walls at both ends::
+Equations (Savage & Hutter 1989; the pore pressure is the two-phase model's eq. (7d) integrated
+over the depth; the lateral stress of Iverson & Denlinger 2001), on a horizontal channel
+0 < x < L with reflective walls at both ends::
 
     h_t + (h u)_x = 0
-    (h u)_t + (h u² + ½ k g h²)_x = − k g h b_x − g h tan(α_b) (1 − β)⁺ sign(u)
-    (h β)_t + (h β u)_x = − h β / t_d,   t_d = 4 h² / (π² κ),   β ≥ β_s under the air supply
+    (h u)_t + (h u² + ½ K g h²)_x = − K g h b_x − g h tan(α_b) (1 − β)⁺ sign(u)
+    m_t + (m u)_x = − 2 κ m / h² + κ β_s χ_s(x)          m = ∫p_f dz / (ρ g)
+    β = 2 m / h²,   K = k (1 − β̂) + β̂,   β̂ = min(max(β, 0), 1)
 
-β = p_b/(ρ g h) is the basal pore-pressure ratio. k is a constant (``earth_pressure``, 1 by
-default) or, with ``internal_friction_angle`` = φ, Savage & Hutter's active coefficient
-k_act = 2 sec²φ_e (1 − √(1 − cos²φ_e sec²δ_e)) − 1 per cell, tan φ_e = (1 − β) tan φ,
-tan δ_e = (1 − β) tan α_b. Numerics (MUSCL–minmod, hydrostatic
-reconstruction, HLL, SSP-RK2, friction as a projection that can stop a cell but never reverse it)
-and the model's limits are in ``rust/granrs-core/src/models/depth_averaged.rs`` and
+β = p_b/(ρ g h) is the basal pore-pressure ratio (it exceeds 1 where a layer spreads faster than
+it drains), χ_s = 1 under the air supply. k is the earth-pressure coefficient of the effective
+stress, the pore pressure being isotropic: a constant (``earth_pressure``, 1 by default: K = 1)
+or, with ``internal_friction_angle`` = φ, Savage & Hutter's active coefficient
+2 sec²φ (1 − √(1 − cos²φ sec²α_b)) − 1. ``DepthAveragedPore(transport="basal-ratio")`` carries
+h β instead (decay π²κ/4h², β ≥ β_s under the supply). The derivation, the numerics (MUSCL–minmod,
+hydrostatic reconstruction, HLL, SSP-RK2, friction as a projection that can stop a cell but never
+reverse it) and the model's limits are in ``rust/granrs-core/src/models/depth_averaged.rs`` and
 ``docs/models.md``. The time loop runs in Rust with the GIL released.
 
     m = DepthAveragedModel(cells=400, length=2.0, basal_friction_angle=15.0)
@@ -25,30 +29,191 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Optional
+from typing import ClassVar, Optional
 
 import numpy as np
 
 from ._granrs import ParameterError, RustDepthAveraged
+from .rheology import DruckerPrager
 
 #: The defaults of the model's optional parameters: the Rust core's (``DepthAveragedConfig::new``).
 _DEFAULTS = RustDepthAveraged.defaults()
 
 
+#: What the pore-pressure variable carries: the depth-integrated pore pressure (eq. (7d)
+#: integrated over the depth), or h β (β carried with the flow, held at β_s under the supply).
+PORE_TRANSPORTS = ("depth-integrated", "basal-ratio")
+
+
 @dataclass(frozen=True)
 class DepthAveragedPore:
-    """Pore pressure of the depth-averaged model: diffusivity κ (m² s⁻¹), supply ratio β_s and the
-    extent 0 < x < ``supply_x_max`` of the basal air supply (the reservoir; 0: no supply)."""
+    """Pore pressure of the depth-averaged model: diffusivity κ (m² s⁻¹), supply ratio β_s, the
+    extent 0 < x < ``supply_x_max`` of the basal air supply (the reservoir; 0: no supply) and the
+    ``transport`` (:data:`PORE_TRANSPORTS`)."""
 
     diffusivity: float
     supply_ratio: float
     supply_x_max: float = 0.0
+    transport: str = PORE_TRANSPORTS[0]
+
+
+#: The lateral-pressure closures by name: the earth-pressure coefficient k of the effective stress
+#: (the pore pressure isotropic, K = k (1 − β̂) + β̂).
+CLOSURES = {
+    "hydrostatic": "k = 1: the total stress isotropic and hydrostatic, K = 1 whatever β",
+    "savage-hutter": "Savage & Hutter's (1989) active k of the rheology's internal friction angle and the base's",
+    "rankine": "Rankine's active k = (1 − sin φ)/(1 + sin φ) of the rheology's internal friction angle φ",
+}
+
+
+#: Who reads the rheology's friction angle (not the closure 'hydrostatic').
+ANGLE_READERS = "the closures 'savage-hutter' and 'rankine' and the 2D models; the closure 'hydrostatic' has k = 1"
+
+
+def unused_error(name: str, value, reader: str = "the two-phase and granular models") -> ParameterError:
+    """The error of a parameter the depth-averaged model does not read."""
+    return ParameterError(
+        f"invalid parameter `{name}` = {value!r} with the depth-averaged model: not used by it "
+        f"(read by {reader}); allowed only with the model 'two-phase' or 'granular'"
+    )
+
+
+@dataclass(frozen=True)
+class _Field:
+    default: object
+    allowed: str
+    unit: str
+    doc: str
+    lo: Optional[int] = None
+    hi: Optional[int] = None
+
+
+def _one_of(names) -> str:
+    return "one of " + ", ".join(f"'{c}'" for c in names)
+
+
+#: The fields of :class:`DepthAveraged`, each declared once: default, allowed values, unit, doc.
+DEPTH_AVERAGED_FIELDS = {
+    "closure": _Field(
+        "savage-hutter",
+        _one_of(CLOSURES),
+        "",
+        "the lateral-pressure closure: the earth-pressure coefficient k of the effective stress, the pore "
+        "pressure isotropic (hydrostatic: k = 1)",
+    ),
+    "resolution": _Field(64, "an integer in [4, 4096]", "cells", "cells across min(L_c, H_c)", 4, 4096),
+    "pore_transport": _Field(
+        PORE_TRANSPORTS[0],
+        _one_of(PORE_TRANSPORTS),
+        "",
+        "what the pore-pressure variable carries: the depth-integrated pore pressure, or h β",
+    ),
+}
+
+
+@dataclass(frozen=True)
+class DepthAveraged:
+    """The depth-averaged model's own choices in a column case (``ColumnCase.depth_averaged``,
+    the run files' [depth_averaged] section, ``granrs run column --model depth-averaged --set
+    depth_averaged.KEY=VALUE``). Each field is declared once in :data:`DEPTH_AVERAGED_FIELDS`
+    with its default, allowed values, unit and doc; a bad value raises ParameterError naming
+    ``depth_averaged.FIELD`` when the object is made.
+
+    - ``closure``: the lateral-pressure closure (:data:`CLOSURES`), the earth-pressure
+      coefficient k of the effective stress; the default is chosen by measurement against the
+      two-phase model over the ladder's scenes (docs/models.md, "The lateral pressure");
+    - ``resolution``: cells across min(L_c, H_c) (Δx = min(L_c, H_c)/resolution);
+    - ``pore_transport``: what the pore-pressure variable carries (:data:`PORE_TRANSPORTS`;
+      docs/models.md, "The pore pressure")."""
+
+    closure: str = DEPTH_AVERAGED_FIELDS["closure"].default
+    resolution: int = DEPTH_AVERAGED_FIELDS["resolution"].default
+    pore_transport: str = DEPTH_AVERAGED_FIELDS["pore_transport"].default
+
+    FIELDS: ClassVar[dict] = DEPTH_AVERAGED_FIELDS
+
+    def __post_init__(self):
+        if self.closure not in CLOSURES:
+            raise ParameterError(
+                f"invalid parameter `depth_averaged.closure` = {self.closure!r}: allowed {self.FIELDS['closure'].allowed}"
+            )
+        lo, hi = self.FIELDS["resolution"].lo, self.FIELDS["resolution"].hi
+        r = self.resolution
+        if isinstance(r, bool) or not isinstance(r, int) or not lo <= r <= hi:
+            raise ParameterError(
+                f"invalid parameter `depth_averaged.resolution` = {r!r}: allowed {self.FIELDS['resolution'].allowed}"
+            )
+        if self.pore_transport not in PORE_TRANSPORTS:
+            raise ParameterError(
+                f"invalid parameter `depth_averaged.pore_transport` = {self.pore_transport!r}: allowed "
+                f"{self.FIELDS['pore_transport'].allowed}"
+            )
+
+    def refuse_unused(self, case, default) -> None:
+        """ParameterError for the first field of a column ``case`` that its model does not read
+        and that differs from ``default`` (the column's ``ColumnCase()``). The depth-averaged
+        model reads the scene's geometry, ``fluidised``, ``pore_pressure_ratio``, ``ny`` (the
+        depth at which its front is read), ``t_end``, ``rest``, ``profile_times``, the base's
+        friction angle, the pore pressure's diffusivity, the friction angle of a Drucker–Prager
+        rheology (with the closures 'savage-hutter' and 'rankine') and this object; the 2D
+        models do not read this object."""
+        if case.model != "depth-averaged":
+            if self != default.depth_averaged:
+                raise ParameterError(
+                    f"invalid parameter `depth_averaged` = {self!r} with model = {case.model!r}: read only by the "
+                    "depth-averaged model; allowed only with model = 'depth-averaged'"
+                )
+            return
+        if not isinstance(case.rheology, DruckerPrager):
+            raise unused_error(
+                "rheology",
+                case.rheology,
+                "the 2D models; the depth-averaged closures read the friction angle of a granrs.DruckerPrager",
+            )
+        d = default
+        rheology = dataclasses.replace(d.rheology, friction_angle=case.rheology.friction_angle)
+        pore = dataclasses.replace(case.pore_pressure, diffusivity=d.pore_pressure.diffusivity)
+        checks = (
+            ("rheology.viscosity", case.rheology.viscosity, rheology.viscosity),
+            ("rheology.projection", case.rheology.projection, rheology.projection),
+            ("solid_fraction", case.solid_fraction, d.solid_fraction),
+            ("grain_density", case.grain_density, d.grain_density),
+            ("grain_diameter", case.grain_diameter, d.grain_diameter),
+            ("air_supply", case.air_supply, d.air_supply),
+            ("back_wall", case.back_wall, d.back_wall),
+            ("height", case.height, d.height),
+            ("pore_pressure", pore, d.pore_pressure),
+            ("side_walls", case.side_walls, d.side_walls),
+            ("active_region", case.active_region, d.active_region),
+            ("time", case.time, d.time),
+            ("numerics", case.numerics, d.numerics),
+            ("variants", case.variants, d.variants),
+            ("threads", case.threads, d.threads),
+        )
+        for name, value, default_value in checks:
+            if value != default_value:
+                raise unused_error(name, value)
+        if self.closure == "hydrostatic" and case.rheology.friction_angle != d.rheology.friction_angle:
+            raise unused_error("rheology.friction_angle", case.rheology.friction_angle, ANGLE_READERS)
+
+    def earth_pressure(self, internal_friction_angle) -> dict:
+        """The model's ``earth_pressure`` and ``internal_friction_angle`` for this closure;
+        ``internal_friction_angle``: a callable giving the rheology's φ in degrees (called only by
+        the closures that use it)."""
+        if self.closure == "hydrostatic":
+            return {"earth_pressure": 1.0, "internal_friction_angle": None}
+        phi = internal_friction_angle()
+        if self.closure == "rankine":
+            s = np.sin(np.radians(phi))
+            return {"earth_pressure": float((1 - s) / (1 + s)), "internal_friction_angle": None}
+        return {"earth_pressure": 1.0, "internal_friction_angle": phi}
 
 
 class DepthAveragedModel:
     """The depth-averaged model (see the module docstring): ``cells`` over a channel of ``length``
-    [m], ``gravity`` [m s⁻²], a constant ``earth_pressure`` coefficient k (or, with
-    ``internal_friction_angle`` φ in degrees, Savage & Hutter's active one per cell), the
+    [m], ``gravity`` [m s⁻²], a constant ``earth_pressure`` coefficient k of the effective stress
+    (or, with ``internal_friction_angle`` φ in degrees, Savage & Hutter's active one of φ and the
+    basal angle), the
     ``basal_friction_angle`` α_b [degrees], the ``cfl`` number (≤ 0.5), the wet/dry threshold
     ``dry_depth`` [m] and the largest step ``max_dt`` [s]; defaults are the Rust core's.
     ``pore=None``: not fluidised, β ≡ 0 and no pore pressure is solved. ``config`` holds the
@@ -141,8 +306,12 @@ class DepthAveragedModel:
         return self._rust.mass()
 
     def earth_pressure(self) -> np.ndarray:
-        """Earth-pressure coefficient k of each cell (a copy)."""
+        """Lateral pressure coefficient K = k (1 − β̂) + β̂ of each cell (a copy)."""
         return self._rust.earth_pressure()
+
+    def effective_earth_pressure(self) -> float:
+        """The earth-pressure coefficient k of the effective stress."""
+        return self._rust.effective_earth_pressure()
 
     def max_speed(self) -> float:
         return self._rust.max_speed()

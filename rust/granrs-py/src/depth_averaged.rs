@@ -2,7 +2,7 @@
 //! Equations and numerics: granrs-core `models/depth_averaged.rs`.
 
 use granrs_core::models::depth_averaged::GHOSTS;
-use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
+use granrs_core::models::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure, PoreTransport};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -26,9 +26,11 @@ const KEYS: [&str; 10] =
 /// The core's configuration from the one configuration object of `RustDepthAveraged(config)`: a
 /// dict with `cells` and `length` (required) and any of `gravity`, `earth_pressure`,
 /// `basal_friction_angle`, `cfl`, `dry_depth`, `max_dt` (absent: `DepthAveragedConfig::new`'s
-/// defaults), `pore` (None: not fluidised, or {diffusivity, supply_ratio, supply_x_max}) and
-/// `internal_friction_angle` (None: the constant k = earth_pressure; φ in degrees: Savage–Hutter's
-/// active coefficient per cell). Every value is checked in Rust (`DepthAveragedConfig::validate`).
+/// defaults), `pore` (None: not fluidised, or {diffusivity, supply_ratio, supply_x_max, transport}
+/// with transport 'depth-integrated' or 'basal-ratio') and `internal_friction_angle` (None: the
+/// constant k = earth_pressure of the effective stress; φ in degrees: Savage–Hutter's active
+/// coefficient of φ and the basal angle). Every value is checked in Rust
+/// (`DepthAveragedConfig::validate`).
 fn build_config(config: &Bound<'_, PyDict>) -> PyResult<DepthAveragedConfig> {
     for k in config.keys() {
         let k: String = k.extract()?;
@@ -67,14 +69,22 @@ fn build_config(config: &Bound<'_, PyDict>) -> PyResult<DepthAveragedConfig> {
     cfg.pore = match item("pore")? {
         None => None,
         Some(p) => {
-            let d = p.cast::<PyDict>().map_err(|_| param_err("pore", &p, "None or a dict {diffusivity, supply_ratio, supply_x_max}"))?;
+            let d = p.cast::<PyDict>().map_err(|_| param_err("pore", &p, "None or a dict {diffusivity, supply_ratio, supply_x_max, transport}"))?;
             let get = |key: &str| -> PyResult<f64> {
                 match d.get_item(key)? {
                     Some(v) => v.extract::<f64>().map_err(|_| param_err(&format!("pore.{key}"), v, "a number")),
                     None => Err(param_err(&format!("pore.{key}"), "missing", "a number")),
                 }
             };
-            Some(DepthAveragedPore { diffusivity: get("diffusivity")?, supply_ratio: get("supply_ratio")?, supply_x_max: get("supply_x_max")? })
+            let transport = match d.get_item("transport")? {
+                None => PoreTransport::DepthIntegrated,
+                Some(v) => match v.extract::<String>().ok().as_deref() {
+                    Some("depth-integrated") => PoreTransport::DepthIntegrated,
+                    Some("basal-ratio") => PoreTransport::BasalRatio,
+                    _ => return Err(param_err("pore.transport", v, "'depth-integrated' or 'basal-ratio'")),
+                },
+            };
+            Some(DepthAveragedPore { diffusivity: get("diffusivity")?, supply_ratio: get("supply_ratio")?, supply_x_max: get("supply_x_max")?, transport })
         }
     };
     Ok(cfg)
@@ -160,9 +170,14 @@ impl PyDepthAveraged {
         self.inner.mass()
     }
 
-    /// Earth-pressure coefficient k per cell (a copy).
+    /// Lateral pressure coefficient K = k (1 − β̂) + β̂ per cell (a copy).
     fn earth_pressure<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         PyArray1::from_vec(py, self.inner.earth_pressure().collect())
+    }
+
+    /// The earth-pressure coefficient k of the effective stress.
+    fn effective_earth_pressure(&self) -> f64 {
+        self.inner.effective_earth_pressure()
     }
 
     /// Largest |u| [m/s].

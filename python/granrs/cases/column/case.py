@@ -14,11 +14,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Optional, Union
+from typing import Any, Optional
 
 from ... import options
 from ..._granrs import ParameterError
 from ...boundary import Coulomb, CoulombWall
+from ...depth_averaged import DepthAveraged
 from ...grid import Grid
 from ...model import PorePressure, SideWalls, estimate_memory, memory_check
 from ...options import ActiveRegion, BiProjection, Numerics, TimeStepping, Variants
@@ -144,8 +145,10 @@ class ColumnCase:
     cells over the domain's height. Run: ``t_end`` [s], the ``rest`` criterion that stops it
     earlier (:class:`RestCriterion`), the ``profile_times`` of profiles.csv [s], the ``model``
     ('two-phase', 'granular' or 'depth-averaged'; docs/howto/choosing-a-model.md) and, for the
-    depth-averaged model, ``earth_pressure`` ('savage-hutter' or a number) and ``da_resolution``
-    (cells across min(L_c, H_c)).
+    depth-averaged model, its own choices ``depth_averaged`` (``granrs.DepthAveraged``: the
+    lateral-pressure closure, the resolution, the pore-pressure transport). A field that the
+    case's model does not read is refused when it differs from the default
+    (``DepthAveraged.refuse_unused``).
 
     Physics: ``rheology`` (``DruckerPrager``, ``MuI`` or ``Bingham`` with its
     ``BiProjection``; :func:`column_rheology`), ``base`` (the ``CoulombWall`` of the base and of a
@@ -172,8 +175,7 @@ class ColumnCase:
     rest: RestCriterion = field(default_factory=RestCriterion)
     profile_times: list = field(default_factory=lambda: [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0])
     model: str = "two-phase"
-    earth_pressure: Union[str, float] = "savage-hutter"
-    da_resolution: int = 64
+    depth_averaged: DepthAveraged = field(default_factory=DepthAveraged)
     rheology: Any = field(default_factory=column_rheology)
     base: Coulomb = field(default_factory=lambda: CoulombWall(15.0))
     pore_pressure: PorePressure = field(default_factory=column_pore_pressure)
@@ -221,16 +223,9 @@ class ColumnCase:
                 f"invalid parameter `model` = {self.model!r}: allowed 'two-phase', 'granular' or "
                 "'depth-averaged' (no automatic choice: docs/howto/choosing-a-model.md)"
             )
-        if self.earth_pressure != "savage-hutter" and (
-            not isinstance(self.earth_pressure, (int, float))
-            or isinstance(self.earth_pressure, bool)
-            or not 0.01 <= self.earth_pressure <= 100.0
-        ):
-            raise ParameterError(
-                f"invalid parameter `earth_pressure` = {self.earth_pressure!r}: allowed 'savage-hutter' "
-                "or a number in [0.01, 100]"
-            )
-        _number("da_resolution", self.da_resolution, 4, 4096, integer=True)
+        _instance(
+            "depth_averaged", self.depth_averaged, (DepthAveraged,), "a granrs.DepthAveraged(closure, resolution, ...)"
+        )
         _instance(
             "rheology", self.rheology, tuple(RHEOLOGIES.values()), "granrs.DruckerPrager(...), MuI(...) or Bingham(...)"
         )
@@ -265,6 +260,7 @@ class ColumnCase:
             _instance(name, getattr(self, name), (cls,), f"a granrs.{cls.__name__}(...)")
         options.spec("threads").check(self.threads, "threads")
         options.merge(self.numerics, self.objects())  # an option set in two places is refused
+        self.depth_averaged.refuse_unused(self, ColumnCase())  # what the case's model does not read
         if self.model != "depth-averaged":  # memory before any work (granrs.model.estimate_memory)
             grid = self.grid()
             memory_check(

@@ -1,6 +1,9 @@
 """The column with the depth-averaged model (``granrs.depth_averaged``): the model built from a
 :class:`ColumnCase` and its run, with the same records, rest criterion, outputs and plots as the
-2D models."""
+2D models, and the refusal of the run-file keys the model does not read
+(:func:`refuse_unused_keys`; a case's fields: ``DepthAveraged.refuse_unused``): a case, a run
+file or a command line that sets anything the depth-averaged model does not read is refused
+before any work, naming the parameter and the models that read it."""
 
 from __future__ import annotations
 
@@ -11,10 +14,10 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ..._granrs import SimulationError, __version__
-from ...depth_averaged import DepthAveragedModel, DepthAveragedPore
+from ..._granrs import ParameterError, SimulationError, __version__
+from ...depth_averaged import ANGLE_READERS, DepthAveragedModel, DepthAveragedPore, unused_error
 from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
-from .measures import deposit_quantile
+from .measures import basal_pore_pressure_ratio, deposit_quantile
 from .outputs import write_outputs
 from .plots import plot_front, plot_profiles
 from .summaries import RestWatch, _observables_summary, _record_observables, arrest_summary, failure_stop_reason
@@ -28,29 +31,78 @@ def depth_averaged_front_depth(case: ColumnCase) -> float:
     return 0.5 * case.domain()[1] / case.ny
 
 
+#: The run-file keys the depth-averaged model reads (every other key given with
+#: case.model = 'depth-averaged' is refused; ``depth_averaged.*`` with another model too).
+USED_KEYS = frozenset(
+    {
+        "case.name",
+        "case.model",
+        "case.aspect_ratio",
+        "case.width",
+        "case.fluidised",
+        "case.pore_pressure_ratio",
+        "grid.ny",
+        "grid.length",
+        "rheology.friction_angle",
+        "base.friction_angle",
+        "pore_pressure.diffusivity",
+        "time.t_end",
+        "rest.speed",
+        "rest.duration",
+        "rest.after",
+        "depth_averaged.closure",
+        "depth_averaged.resolution",
+        "depth_averaged.pore_transport",
+        "output.dir",
+    }
+)
+def refuse_unused_keys(cfg: dict, given) -> None:
+    """ParameterError for the first run-file key in ``given`` ((section, key) pairs the file or the
+    command line set) that the case's model does not read: with case.model = 'depth-averaged'
+    every key outside :data:`USED_KEYS` (and rheology.friction_angle with the closure
+    'hydrostatic'), with the 2D models every ``depth_averaged.*`` key."""
+    model = cfg["case"]["model"]
+    for section, key in sorted(given):
+        name, value = f"{section}.{key}", cfg.get(section, {}).get(key)
+        if model == "depth-averaged" and name not in USED_KEYS:
+            raise unused_error(name, value)
+        if model == "depth-averaged" and name == "rheology.friction_angle":
+            if cfg["depth_averaged"]["closure"] == "hydrostatic":
+                raise unused_error(name, value, ANGLE_READERS)
+        if model != "depth-averaged" and section == "depth_averaged":
+            raise ParameterError(
+                f"invalid parameter `{name}` = {value!r} with case.model = {model!r}: read only by the "
+                "depth-averaged model; allowed only with case.model = 'depth-averaged'"
+            )
+
+
 def build_depth_averaged(case: ColumnCase):
     """The depth-averaged model of the column (same channel length as the two-phase domain,
-    Δx = min(L_c, H_c)/da_resolution, basal friction α_b of ``case.base``, supply β_s under the reservoir when
-    fluidised; k: Savage & Hutter's active coefficient from α and α_b reduced by the pore
-    pressure, or the constant ``earth_pressure``) with its initial condition: h = H_c, β = β_s for
-    x < L_c."""
+    Δx = min(L_c, H_c)/``case.depth_averaged.resolution``, basal friction α_b of ``case.base``,
+    the pore pressure of ``case.depth_averaged.pore_transport`` with the basal supply β_s under
+    the reservoir when fluidised, the lateral-pressure closure ``case.depth_averaged.closure``)
+    with its initial condition: h = H_c, β = β_s for x < L_c (p_f = β_s ρ g (H_c − z), the 2D
+    model's)."""
     case.validate()
+    da = case.depth_averaged
     hc, lc = case.column_height, case.width
     length = case.domain()[0]
-    cells = int(math.ceil(length / (min(lc, hc) / case.da_resolution)))
+    cells = int(math.ceil(length / (min(lc, hc) / da.resolution)))
     fluidised = bool(case.fluidised and case.pore_pressure_ratio > 0)
-    pore = DepthAveragedPore(case.pore_pressure.diffusivity, case.pore_pressure_ratio, lc) if fluidised else None
-    sh = case.earth_pressure == "savage-hutter"
+    pore = (
+        DepthAveragedPore(case.pore_pressure.diffusivity, case.pore_pressure_ratio, lc, transport=da.pore_transport)
+        if fluidised
+        else None
+    )
     m = DepthAveragedModel(
         cells,
         length,
         gravity=G,
-        earth_pressure=1.0 if sh else float(case.earth_pressure),
         basal_friction_angle=case.base.friction_angle or 0.0,
         cfl=0.4,
         dry_depth=1e-6 * hc,
         pore=pore,
-        internal_friction_angle=case.internal_friction_angle if sh else None,
+        **da.earth_pressure(lambda: case.internal_friction_angle),
     )
     inside = m.x < lc
     m.set_state(h=np.where(inside, hc, 0.0), beta=np.where(inside, case.pore_pressure_ratio if fluidised else 0.0, 0.0))
@@ -74,6 +126,12 @@ def run_column_depth_averaged(
     threshold = depth_averaged_front_depth(case)
     mass0 = m.mass()
     rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": []}
+    # fluidisation: the basal pore pressure over the weight, under the reservoir and in the
+    # channel, Σ p_b / Σ ρ g h as the 2D runs record it (measures.basal_pore_pressure_ratio)
+    fluid = m.pore is not None
+    under_reservoir = m.x < lc
+    if fluid:
+        rec["pf_ratio_reservoir"], rec["pf_ratio_channel"] = [], []
     profiles: dict = {}
     pending = sorted(case.profile_times)
     rest = RestWatch(case.rest)
@@ -96,6 +154,11 @@ def run_column_depth_averaged(
             rec["area"].append(m.mass())
             rec["max_granular_speed"].append(speed)
             _record_observables(rec, m.h, m.dx, 2 * threshold, lc)
+            if fluid:
+                wet = np.where(m.h >= m.config["dry_depth"], m.h, 0.0)
+                pb = m.beta * wet  # p_b / (ρ g)
+                rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pb, wet, 1.0, under_reservoir))
+                rec["pf_ratio_channel"].append(basal_pore_pressure_ratio(pb, wet, 1.0, ~under_reservoir))
             while pending and t >= pending[0] - 1e-9:
                 profiles[round(pending.pop(0), 6)] = m.h.copy()
             if rest.update(t, speed):

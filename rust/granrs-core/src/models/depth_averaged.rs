@@ -1,60 +1,77 @@
 //! Depth-averaged (shallow-layer, Savage–Hutter type) model of a granular layer along a channel,
-//! with a depth-averaged pore pressure.
+//! with the depth-integrated pore pressure of the two-phase model.
 //!
 //! # Equations
 //!
-//! Unknowns h(x, t) (depth), q = h u (discharge) and m = h β (β = p_b / (ρ g h), the basal pore
-//! pressure ratio), on 0 < x < L over a bed b(x) (flat, b = 0, unless set):
+//! Unknowns h(x, t) (depth), q = h u (discharge) and the pore-pressure variable m, on 0 < x < L
+//! over a bed b(x) (flat, b = 0, unless set). With the default transport
+//! ([`PoreTransport::DepthIntegrated`]) m = ∫₀ʰ p_f dz / (ρ g) is the depth-integrated pore
+//! pressure over the weight (m², ρ the bulk density):
 //!
 //! ```text
 //!   h_t + (h u)_x                       = 0
-//!   (h u)_t + (h u² + ½ k g h²)_x        = − k g h b_x − g h tan(α_b) (1 − β)⁺ sign(u)
-//!   (h β)_t + (h β u)_x                 = − h β / t_d,      t_d = 4 h² / (π² κ)
-//!   β ≥ β_s  where  x < x_s (basal air supply under the reservoir)
+//!   (h u)_t + (h u² + ½ K g h²)_x        = − K g h b_x − g h tan(α_b) (1 − β)⁺ sign(u)
+//!   m_t + (m u)_x                       = − 2 κ m / h² + κ β_s χ_s(x)
+//!   β = 2 m / h²,   K = k (1 − β̂) + β̂,   β̂ = min(max(β, 0), 1)
 //! ```
 //!
 //! - Mass and momentum: Savage & Hutter (1989, J. Fluid Mech. 199, 177–215), on a horizontal
-//!   channel (no cos θ / sin θ factors); k is the earth-pressure coefficient: 1 by default (an
-//!   isotropic, hydrostatic pressure), a constant, or Savage & Hutter's *active* coefficient
+//!   channel (no cos θ / sin θ factors). The basal friction is Coulomb with angle α_b on the
+//!   effective normal stress: τ_b = tan α_b (ρ g h − p_b)⁺ = ρ g h tan α_b (1 − β)⁺ (Iverson
+//!   1997, Rev. Geophys. 35). When u = 0 the friction is a threshold: |τ_b| ≤ ρ g h tan α_b
+//!   (1 − β)⁺ (the layer stays at rest while the driving force is below it).
+//! - Lateral pressure: the pore fluid's pressure is isotropic; only the effective (grain) stress
+//!   has an earth-pressure coefficient k (Iverson & Denlinger 2001, J. Geophys. Res. 106;
+//!   Pitman & Le 2005, Phil. Trans. R. Soc. A 363): σ_xx = k (σ_zz − p_f) + p_f with
+//!   σ_zz = ρ g (h − z). Integrated over the depth, ∫σ_xx dz = ½ ρ g h² [k (1 − β) + β] with the
+//!   linear profile below (∫p_f dz = ½ β ρ g h²), hence K. An effective stress cannot pull:
+//!   β̂ = min(β, 1). k is [`EarthPressure`]: a constant (1: the total stress hydrostatic and
+//!   isotropic, K = 1 whatever β), or Savage & Hutter's active coefficient
 //!   k_act = 2 sec²φ (1 − √(1 − cos²φ sec²δ)) − 1 of a spreading layer with internal friction φ
-//!   and basal friction δ (their eq. 3.14; δ > φ is clipped to δ = φ), evaluated per cell with the
-//!   angles reduced by the pore pressure, tan φ_e = tan φ (1 − β), tan δ_e = tan δ (1 − β)
-//!   (friction acts on the effective stress). We use the active value everywhere (a collapsing
-//!   column spreads, ∂u/∂x > 0); the passive one belongs to compressing zones and is not used. The basal friction is Coulomb with angle α_b, its normal
-//!   stress reduced by the basal pore pressure: τ_b = tan α_b (ρ g h − p_b)⁺ = ρ g h tan α_b (1 − β)⁺
-//!   (Iverson 1997, Rev. Geophys. 35; Gueugneau, Kelfoun, Roche & Chupin 2017, GRL 44).
-//!   When u = 0 the friction is a threshold: |τ_b| ≤ ρ g h tan α_b (1 − β)⁺ (the layer stays at
-//!   rest while the driving force is below it).
-//! - Pore pressure, in the spirit of Gueugneau et al. (2017): the basal pore pressure ratio is
-//!   carried with the depth-averaged velocity and relaxes by diffusion through the layer,
-//!   p_t = κ p_zz with an impermeable base (p_z = 0) and a drained surface (p = 0): the leading
-//!   mode cos(π z / 2h) decays at the rate π² κ / (4 h²), hence t_d = 4 h² / (π² κ) (κ = κ_f of the
-//!   two-phase model, m² s⁻¹). Under the reservoir (cell centres x < x_s, 0 < x < L_c for the
-//!   column) the basal air supply of the paper (∂p_f/∂n = −β_s φ ρ_s g) is modelled as keeping
-//!   β ≥ β_s (β_s = 0.9 in the paper): the supply sustains the pressure it was set to sustain;
-//!   outside the reservoir, β only decays. This is our choice, not a published closure.
+//!   and basal friction δ = α_b (their eq. 3.14; δ > φ clipped to δ = φ), of the dry angles:
+//!   friction acts on the effective stress, which the factor (1 − β̂) already carries.
+//! - Pore pressure: eq. (7d) of the two-phase model, ∂_t p_f + div(u_s p_f) = κ Δp_f, integrated
+//!   over 0 < z < h with a drained surface (p_f(h) = 0), grains that do not cross the base (w = 0
+//!   at z = 0) and a depth-uniform u: the boundary terms of Leibniz's rule vanish with p_f(h),
+//!   and with κ ∂_xx p_f neglected against κ ∂_zz p_f (a thin layer),
+//!   P_t + (u P)_x = κ ∂_z p_f|_h − κ ∂_z p_f|_0, P = ∫₀ʰ p_f dz. The base supplies
+//!   −κ ∂_z p_f|_0 = κ β_s ρ g under the reservoir (the paper's ∂p_f/∂y = −β_s φ ρ_s g, gas
+//!   flowing up; χ_s = 1 at cell centres x < x_s) and nothing elsewhere. The surface flux needs a
+//!   profile: p_f = p_b (1 − z/h), the two-phase model's initial profile and its steady state
+//!   under the supply, gives P = ½ p_b h and κ ∂_z p_f|_h = −κ p_b / h = −2 κ P / h², the decay
+//!   rate 2κ/h² (the slowest diffusion mode cos(π z/2h) decays at π²κ/4h², 23 % faster). With
+//!   m = P/(ρ g): β = p_b/(ρ g h) = 2 m / h², and under a steady supply β → β_s exactly. As a
+//!   column spreads faster than it drains (h falls along a path, m/h is carried), β rises above
+//!   1: the friction vanishes, as in the two-phase model (docs/models.md).
+//! - [`PoreTransport::BasalRatio`] carries m = h β instead, relaxing at the slowest mode's rate
+//!   π²κ/4h² and held at β ≥ β_s under the supply; β then never exceeds its initial value. It is
+//!   kept for the comparison of docs/models.md.
 //!
 //! # Numerics
 //!
 //! Finite volumes on n cells (Δx = L/n) with two ghost cells at each end:
-//! - MUSCL reconstruction (minmod slopes) of h, u, β and the free surface η = h + b;
+//! - MUSCL reconstruction (minmod slopes) of h, u, the specific pore variable s = m/h and the free
+//!   surface η = h + b;
 //! - hydrostatic reconstruction (Audusse, Bouchut, Bristeau, Klein & Perthame 2004, SIAM J. Sci.
 //!   Comput. 25) at each face: h* = max(0, h + b − max(b_L, b_R)), with the pressure corrections
-//!   ½ k g (h² − h*²) and the centred bed term −k g h_i (Δη − Δh)_i for second order;
+//!   ½ K g (h² − h*²) and the centred bed term −K g h_i (Δη − Δh)_i for second order;
 //! - HLL flux for (h, h u) with the dry-bed wave speeds u ± 2c (Toro 2001, *Shock-capturing
-//!   methods for free-surface shallow flows*, §10); h β is fluxed upwind with the mass flux, so β
-//!   stays within its neighbours' bounds. Between two states at rest (u_L = u_R = 0) the mass flux
-//!   is zero: HLL's diffusion term S_L S_R (h_R − h_L) would otherwise let a deposit held by
-//!   friction creep. The momentum flux there is HLL's, so a column edge still starts to move;
+//!   methods for free-surface shallow flows*, §10), c = √(K g h) of each side; m is fluxed upwind
+//!   with the mass flux (F_m = F_h s_upwind), so s stays within its neighbours' bounds. Between
+//!   two states at rest (u_L = u_R = 0) the mass flux is zero: HLL's diffusion term
+//!   S_L S_R (h_R − h_L) would otherwise let a deposit held by friction creep. The momentum flux
+//!   there is HLL's, so a column edge still starts to move;
 //! - SSP-RK2 (Heun) in time, Δt = cfl Δx / max |S| from the faces' wave speeds (cfl ≤ 0.5 keeps
 //!   h ≥ 0 for MUSCL + hydrostatic reconstruction);
 //! - Coulomb friction as a projection after each stage with that stage's share of Δt
 //!   (Δt, then Δt/2 in the final convex combination): with J = τ g h tan α_b (1 − β)⁺,
 //!   q ← 0 if |q| ≤ J, else q − J sign(q). Friction can stop a cell, never reverse it, and a cell
 //!   whose driving impulse is below J stays exactly at rest;
-//! - after the step, h β ← h β exp(−Δt / t_d) (exact for frozen h) then β ← max(β, β_s) under the
-//!   supply; cells with h < h_dry (the wet/dry threshold) have u = 0;
-//! - walls (reflective ghosts: h, β mirrored, u reversed) at both ends: the mass flux through a
+//! - after the step the pore source, exact for frozen h: m ← m_eq + (m − m_eq) e^{−2κΔt/h²},
+//!   m_eq = ½ β_s h² under the supply, 0 elsewhere ([`PoreTransport::BasalRatio`]:
+//!   m ← m e^{−Δt π²κ/4h²}, then β ≥ β_s under the supply); cells with h < h_dry (the wet/dry
+//!   threshold) have u = 0 and m = 0;
+//! - walls (reflective ghosts: h, m mirrored, u reversed) at both ends: the mass flux through a
 //!   wall is exactly zero, so Σ h Δx is conserved to round-off.
 //!
 //! A step allocates nothing: every work array is allocated in [`DepthAveragedModel::new`].
@@ -78,38 +95,59 @@ use crate::error::{check_non_negative, check_positive, check_range, Error, Resul
 /// Ghost cells at each end.
 pub const GHOSTS: usize = 2;
 
+/// What the pore-pressure variable m carries (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PoreTransport {
+    /// m = ∫p_f dz/(ρ g), eq. (7d) integrated over the depth with a linear profile: β = 2m/h²,
+    /// decay 2κ/h², the supply κ β_s under the reservoir.
+    DepthIntegrated,
+    /// m = h β: β carried with the flow, decaying at π²κ/4h², held at β ≥ β_s under the supply.
+    BasalRatio,
+}
+
 /// Pore-pressure part of the depth-averaged model (absent: β ≡ 0, nothing solved).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DepthAveragedPore {
-    /// Pore-pressure diffusivity κ [m² s⁻¹] (t_d = 4 h² / (π² κ)).
+    /// Pore-pressure diffusivity κ [m² s⁻¹].
     pub diffusivity: f64,
-    /// Supply ratio β_s in [0, 1]: β ≥ β_s under the supply (0.9 in the paper).
+    /// Supply ratio β_s in [0, 1] (0.9 in the paper): the basal flux κ β_s ρ g under the supply.
     pub supply_ratio: f64,
     /// The supply acts on cells with centre x < `supply_x_max` [m] (L_c for the column; 0: none).
     pub supply_x_max: f64,
+    /// What m carries.
+    pub transport: PoreTransport,
 }
 
-/// The earth-pressure coefficient k of the pressure term ½ k g h².
+/// The earth-pressure coefficient k of the effective stress (the lateral pressure
+/// K = k (1 − β̂) + β̂, the pore pressure isotropic).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum EarthPressure {
-    /// A constant k (1: hydrostatic).
+    /// A constant k (1: the total stress hydrostatic, K = 1 whatever β).
     Constant(f64),
-    /// Savage & Hutter's active coefficient from the internal friction angle φ (degrees) and the
-    /// basal friction angle, both reduced by the pore pressure, per cell.
+    /// Savage & Hutter's active coefficient of the internal friction angle φ (degrees) and the
+    /// basal friction angle.
     SavageHutterActive {
         /// Internal friction angle φ in degrees.
         internal_friction_angle: f64,
     },
 }
 
-/// Savage & Hutter's (1989) active earth-pressure coefficient for tan φ_e = (1 − β) tan φ,
-/// tan δ_e = (1 − β) tan δ (δ_e > φ_e clipped to φ_e).
-pub fn active_earth_pressure(tan_phi: f64, tan_delta: f64, beta: f64) -> f64 {
-    let r = (1.0 - beta).clamp(0.0, 1.0);
-    let (tp, td) = (r * tan_phi, (r * tan_delta).min(r * tan_phi));
+/// Savage & Hutter's (1989) active earth-pressure coefficient of tan φ and tan δ (δ > φ clipped
+/// to φ): 2 sec²φ (1 − √(1 − cos²φ sec²δ)) − 1; δ = 0 gives Rankine's (1 − sin φ)/(1 + sin φ),
+/// δ = φ gives 2 sec²φ − 1.
+pub fn active_earth_pressure(tan_phi: f64, tan_delta: f64) -> f64 {
+    let (tp, td) = (tan_phi, tan_delta.min(tan_phi));
     let cos2_phi = 1.0 / (1.0 + tp * tp);
     let sec2_delta = 1.0 + td * td;
     2.0 / cos2_phi * (1.0 - (1.0 - cos2_phi * sec2_delta).max(0.0).sqrt()) - 1.0
+}
+
+/// The lateral pressure coefficient K = k (1 − β̂) + β̂, β̂ = min(max(β, 0), 1): the effective
+/// stress with the earth-pressure coefficient k, the pore pressure isotropic.
+#[inline]
+pub fn lateral_pressure(k: f64, beta: f64) -> f64 {
+    let b = beta.clamp(0.0, 1.0);
+    k * (1.0 - b) + b
 }
 
 /// Configuration of [`DepthAveragedModel`].
@@ -121,7 +159,7 @@ pub struct DepthAveragedConfig {
     pub length: f64,
     /// Gravity g [m s⁻²].
     pub gravity: f64,
-    /// Earth-pressure coefficient k (`Constant(1.0)`: hydrostatic).
+    /// Earth-pressure coefficient k of the effective stress (`Constant(1.0)`: hydrostatic).
     pub earth_pressure: EarthPressure,
     /// Basal friction angle α_b in degrees.
     pub basal_friction_angle: f64,
@@ -195,18 +233,23 @@ pub struct DepthAveragedModel {
     cfg: DepthAveragedConfig,
     dx: f64,
     tan_b: f64,
-    /// k g per cell (padded; constant unless the Savage–Hutter coefficient is used).
+    /// k of the effective stress.
+    k_eff: f64,
+    /// K g per cell (padded; K = k (1 − β̂) + β̂).
     kg: Vec<f64>,
     /// Depth h, n + 4 entries (2 ghosts each end).
     pub h: Array1<f64>,
     /// Discharge q = h u.
     pub q: Array1<f64>,
-    /// h β (zero without pore pressure).
-    pub hb: Array1<f64>,
+    /// The pore variable m (zero without pore pressure): ∫p_f dz/(ρ g) [m²], or h β with
+    /// [`PoreTransport::BasalRatio`].
+    pub m: Array1<f64>,
     /// Velocity u = q/h (0 where h < h_dry), refreshed after each step.
     pub u: Array1<f64>,
-    /// Basal pore pressure ratio β = hβ/h (0 where h < h_dry), refreshed after each step.
+    /// Basal pore pressure ratio β = p_b/(ρ g h) (0 where h < h_dry), refreshed after each step.
     pub beta: Array1<f64>,
+    /// Specific pore variable s = m/h (0 where h < h_dry).
+    spec: Array1<f64>,
     /// Bed elevation b (ghosts mirrored).
     pub bed: Array1<f64>,
     // work: state at t_n (interior), slopes (padded), face fluxes (n + 1), centred bed term (n)
@@ -240,19 +283,20 @@ impl DepthAveragedModel {
         let z = || Array1::<f64>::zeros(p);
         Ok(DepthAveragedModel {
             dx: cfg.length / n as f64,
-            kg: vec![
-                match cfg.earth_pressure {
-                    EarthPressure::Constant(k) => k * cfg.gravity,
-                    EarthPressure::SavageHutterActive { .. } => 0.0, // set by refresh_primitive
-                };
-                p
-            ],
+            k_eff: match cfg.earth_pressure {
+                EarthPressure::Constant(k) => k,
+                EarthPressure::SavageHutterActive { internal_friction_angle } => {
+                    active_earth_pressure(internal_friction_angle.to_radians().tan(), cfg.basal_friction_angle.to_radians().tan())
+                }
+            },
+            kg: vec![0.0; p], // set by refresh_primitive
             tan_b: cfg.basal_friction_angle.to_radians().tan(),
             h: z(),
             q: z(),
-            hb: z(),
+            m: z(),
             u: z(),
             beta: z(),
+            spec: z(),
             bed: z(),
             h0: vec![0.0; n],
             q0: vec![0.0; n],
@@ -309,8 +353,9 @@ impl DepthAveragedModel {
         &self.beta.as_slice().unwrap()[GHOSTS..GHOSTS + self.cfg.cells]
     }
 
-    /// Sets h, u and β (n values each; h ≥ 0, β in [0, 1], all finite). β is ignored (kept 0)
-    /// without pore pressure. Time and step count are not reset.
+    /// Sets h, u and β (n values each; h ≥ 0, β in [0, 1], all finite): m = β h²/2 (h β with
+    /// [`PoreTransport::BasalRatio`]). β is ignored (kept 0) without pore pressure. Time and step
+    /// count are not reset.
     pub fn set_state(&mut self, h: &[f64], u: &[f64], beta: &[f64]) -> Result<()> {
         let n = self.cfg.cells;
         for (name, a) in [("h", h), ("u", u), ("beta", beta)] {
@@ -327,13 +372,18 @@ impl DepthAveragedModel {
         if let Some(i) = beta.iter().position(|&v| !(0.0..=1.0).contains(&v)) {
             return Err(Error::param("beta", format!("{} at index {i}", beta[i]), "ratios in [0, 1]"));
         }
-        let pore = self.cfg.pore.is_some();
         for i in 0..n {
             let k = i + GHOSTS;
             let wet = h[i] >= self.cfg.dry_depth;
             self.h[k] = h[i];
             self.q[k] = if wet { h[i] * u[i] } else { 0.0 };
-            self.hb[k] = if pore { h[i] * beta[i] } else { 0.0 };
+            self.m[k] = match self.cfg.pore {
+                Some(p) if wet => match p.transport {
+                    PoreTransport::DepthIntegrated => 0.5 * beta[i] * h[i] * h[i],
+                    PoreTransport::BasalRatio => beta[i] * h[i],
+                },
+                _ => 0.0,
+            };
         }
         self.apply_supply();
         self.refresh_primitive();
@@ -403,36 +453,49 @@ impl DepthAveragedModel {
             let (gr, ir) = (GHOSTS + n + g, GHOSTS + n - 1 - g);
             self.h[gl] = self.h[il];
             self.q[gl] = -self.q[il];
-            self.hb[gl] = self.hb[il];
+            self.m[gl] = self.m[il];
             self.h[gr] = self.h[ir];
             self.q[gr] = -self.q[ir];
-            self.hb[gr] = self.hb[ir];
+            self.m[gr] = self.m[ir];
         }
     }
 
-    /// u, β (and k g with the Savage–Hutter coefficient) from (h, q, hβ) everywhere (ghosts
-    /// included).
+    /// β of the pore variable m over a wet depth h.
+    #[inline]
+    fn beta_of(&self, m: f64, h: f64) -> f64 {
+        match self.cfg.pore {
+            None => 0.0,
+            Some(p) => match p.transport {
+                PoreTransport::DepthIntegrated => 2.0 * m / (h * h),
+                PoreTransport::BasalRatio => m / h,
+            },
+        }
+    }
+
+    /// u, s, β and K g from (h, q, m) everywhere (ghosts included).
     fn refresh_primitive(&mut self) {
-        let hd = self.cfg.dry_depth;
+        let (hd, g) = (self.cfg.dry_depth, self.cfg.gravity);
         for k in 0..self.h.len() {
             let h = self.h[k];
             if h >= hd {
                 self.u[k] = self.q[k] / h;
-                self.beta[k] = self.hb[k] / h;
+                self.spec[k] = self.m[k] / h;
+                self.beta[k] = self.beta_of(self.m[k], h);
             } else {
                 self.u[k] = 0.0;
+                self.spec[k] = 0.0;
                 self.beta[k] = 0.0;
             }
-        }
-        if let EarthPressure::SavageHutterActive { internal_friction_angle } = self.cfg.earth_pressure {
-            let tan_phi = internal_friction_angle.to_radians().tan();
-            for k in 0..self.h.len() {
-                self.kg[k] = self.cfg.gravity * active_earth_pressure(tan_phi, self.tan_b, self.beta[k]);
-            }
+            self.kg[k] = g * lateral_pressure(self.k_eff, self.beta[k]);
         }
     }
 
-    /// Earth-pressure coefficient k of the cells (n values).
+    /// The earth-pressure coefficient k of the effective stress.
+    pub fn effective_earth_pressure(&self) -> f64 {
+        self.k_eff
+    }
+
+    /// Lateral pressure coefficient K = k (1 − β̂) + β̂ of the cells (n values).
     pub fn earth_pressure(&self) -> impl Iterator<Item = f64> + '_ {
         self.kg[GHOSTS..GHOSTS + self.cfg.cells].iter().map(move |v| v / self.cfg.gravity)
     }
@@ -448,7 +511,7 @@ impl DepthAveragedModel {
             let (a, b, c) = (k - 1, k, k + 1);
             self.s_h[k] = minmod(self.h[b] - self.h[a], self.h[c] - self.h[b]);
             self.s_u[k] = minmod(self.u[b] - self.u[a], self.u[c] - self.u[b]);
-            self.s_b[k] = minmod(self.beta[b] - self.beta[a], self.beta[c] - self.beta[b]);
+            self.s_b[k] = minmod(self.spec[b] - self.spec[a], self.spec[c] - self.spec[b]);
             let (ea, eb, ec) = (self.h[a] + self.bed[a], self.h[b] + self.bed[b], self.h[c] + self.bed[c]);
             self.s_eta[k] = minmod(eb - ea, ec - eb);
         }
@@ -460,7 +523,7 @@ impl DepthAveragedModel {
             let b_l = self.h[l] + self.bed[l] + 0.5 * self.s_eta[l] - h_l;
             let b_r = self.h[r] + self.bed[r] - 0.5 * self.s_eta[r] - h_r;
             let (u_l, u_r) = (self.u[l] + 0.5 * self.s_u[l], self.u[r] - 0.5 * self.s_u[r]);
-            let (be_l, be_r) = (self.beta[l] + 0.5 * self.s_b[l], self.beta[r] - 0.5 * self.s_b[r]);
+            let (sp_l, sp_r) = (self.spec[l] + 0.5 * self.s_b[l], self.spec[r] - 0.5 * self.s_b[r]);
             // hydrostatic reconstruction
             let b_face = b_l.max(b_r);
             let hs_l = (h_l + b_l - b_face).max(0.0);
@@ -470,7 +533,7 @@ impl DepthAveragedModel {
             smax = smax.max(s);
             let fh = if u_l == 0.0 && u_r == 0.0 { 0.0 } else { fh };
             self.f_h[f] = fh;
-            self.f_m[f] = fh * if fh > 0.0 { be_l } else { be_r };
+            self.f_m[f] = fh * if fh > 0.0 { sp_l } else { sp_r };
             self.f_q_left[f] = fq + 0.5 * kg_l * (h_l * h_l - hs_l * hs_l);
             self.f_q_right[f] = fq + 0.5 * kg_r * (h_r * h_r - hs_r * hs_r);
         }
@@ -489,10 +552,10 @@ impl DepthAveragedModel {
             let k = i + GHOSTS;
             let h1 = self.h[k] - r * (self.f_h[i + 1] - self.f_h[i]);
             let q1 = self.q[k] - r * (self.f_q_left[i + 1] - self.f_q_right[i] - self.bed_src[i]);
-            let m1 = self.hb[k] - r * (self.f_m[i + 1] - self.f_m[i]);
+            let m1 = self.m[k] - r * (self.f_m[i + 1] - self.f_m[i]);
             self.h[k] = a * self.h0[i] + (1.0 - a) * h1;
             self.q[k] = a * self.q0[i] + (1.0 - a) * q1;
-            self.hb[k] = a * self.m0[i] + (1.0 - a) * m1;
+            self.m[k] = a * self.m0[i] + (1.0 - a) * m1;
         }
     }
 
@@ -501,7 +564,6 @@ impl DepthAveragedModel {
     fn friction(&mut self, tau: f64) {
         let n = self.cfg.cells;
         let (g, hd) = (self.cfg.gravity, self.cfg.dry_depth);
-        let pore = self.cfg.pore.is_some();
         for i in 0..n {
             let k = i + GHOSTS;
             let h = self.h[k];
@@ -509,33 +571,51 @@ impl DepthAveragedModel {
                 self.q[k] = 0.0;
                 continue;
             }
-            let beta = if pore { self.hb[k] / h } else { 0.0 };
+            let beta = self.beta_of(self.m[k], h);
             let j = tau * g * h * self.tan_b * (1.0 - beta).max(0.0);
             let q = self.q[k];
             self.q[k] = if q.abs() <= j { 0.0 } else { q - j * q.signum() };
         }
     }
 
-    /// β ≥ β_s on the wet cells under the supply.
+    /// [`PoreTransport::BasalRatio`]: β ≥ β_s on the wet cells under the supply.
     fn apply_supply(&mut self) {
         if let Some(p) = self.cfg.pore {
+            if p.transport != PoreTransport::BasalRatio {
+                return;
+            }
             for i in 0..self.cfg.cells {
                 let k = i + GHOSTS;
                 if self.x(i) < p.supply_x_max && self.h[k] >= self.cfg.dry_depth {
-                    self.hb[k] = self.hb[k].max(p.supply_ratio * self.h[k]);
+                    self.m[k] = self.m[k].max(p.supply_ratio * self.h[k]);
                 }
             }
         }
     }
 
-    /// hβ ← hβ exp(−Δt π² κ / (4 h²)), then the supply.
+    /// The pore source over Δt, exact for frozen h: m ← m_eq + (m − m_eq) e^{−2κΔt/h²}
+    /// (m_eq = ½ β_s h² under the supply, else 0); [`PoreTransport::BasalRatio`]:
+    /// m ← m e^{−Δt π²κ/4h²}, then the supply. Cells thinner than h_dry get m = 0.
     fn pore_relaxation(&mut self, dt: f64) {
         if let Some(p) = self.cfg.pore {
-            let rate = std::f64::consts::PI.powi(2) * p.diffusivity / 4.0;
+            let hd = self.cfg.dry_depth;
             for i in 0..self.cfg.cells {
                 let k = i + GHOSTS;
                 let h = self.h[k];
-                self.hb[k] = if h > 0.0 { self.hb[k] * (-dt * rate / (h * h)).exp() } else { 0.0 };
+                if h < hd {
+                    self.m[k] = 0.0;
+                    continue;
+                }
+                self.m[k] = match p.transport {
+                    PoreTransport::DepthIntegrated => {
+                        let eq = if self.x(i) < p.supply_x_max { 0.5 * p.supply_ratio * h * h } else { 0.0 };
+                        eq + (self.m[k] - eq) * (-2.0 * p.diffusivity * dt / (h * h)).exp()
+                    }
+                    PoreTransport::BasalRatio => {
+                        let rate = std::f64::consts::PI.powi(2) * p.diffusivity / 4.0;
+                        self.m[k] * (-dt * rate / (h * h)).exp()
+                    }
+                };
             }
             self.apply_supply();
         }
@@ -546,9 +626,9 @@ impl DepthAveragedModel {
         let hmax = self.depth().iter().fold(0.0_f64, |a, &v| a.max(v));
         for i in 0..self.cfg.cells {
             let k = i + GHOSTS;
-            let (h, q, m) = (self.h[k], self.q[k], self.hb[k]);
+            let (h, q, m) = (self.h[k], self.q[k], self.m[k]);
             let what = if !(h.is_finite() && q.is_finite() && m.is_finite()) {
-                format!("non-finite state (h = {h}, hu = {q}, h beta = {m})")
+                format!("non-finite state (h = {h}, hu = {q}, pore variable m = {m})")
             } else if h < -1e-14 * hmax {
                 format!("negative depth h = {h:e} (reduce cfl)")
             } else {
@@ -567,7 +647,7 @@ impl DepthAveragedModel {
             let k = i + GHOSTS;
             self.h0[i] = self.h[k];
             self.q0[i] = self.q[k];
-            self.m0[i] = self.hb[k];
+            self.m0[i] = self.m[k];
         }
         let smax = self.fluxes();
         let mut dt = if smax > 0.0 { (self.cfg.cfl * self.dx / smax).min(self.cfg.max_dt) } else { self.cfg.max_dt };
@@ -607,7 +687,7 @@ impl DepthAveragedModel {
             if self.h[k] < 0.0 && self.h[k] > -1e-14 * hmax {
                 self.h[k] = 0.0;
                 self.q[k] = 0.0;
-                self.hb[k] = 0.0;
+                self.m[k] = 0.0;
             }
         }
     }

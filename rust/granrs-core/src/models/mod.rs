@@ -20,6 +20,6 @@ mod window;
 
 pub use crate::grid::StateEntry;
 pub use active_region::{ActiveRegion, WindowSides};
-pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure};
+pub use depth_averaged::{DepthAveragedConfig, DepthAveragedModel, DepthAveragedPore, EarthPressure, PoreTransport};
 pub use memory::available_memory;
 pub use two_phase::{ConvectionScheme, Material, ModelConfig, PressureGauge, TwoPhaseModel};
