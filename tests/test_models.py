@@ -77,8 +77,11 @@ def test_bad_model_is_rejected_with_the_parameter_named(tmp_path, capsys, name, 
     assert "ParameterError" in err and "`model`" in err and needle in err
 
 
-def test_model_option_is_exported():
-    assert granrs.DepthAveragedModel is DepthAveragedModel
+def test_the_depth_averaged_model_is_exported_by_the_package():
+    # the package's front re-exports the classes its module defines, and lists them in __all__
+    assert granrs.DepthAveragedModel is depth_averaged.DepthAveragedModel
+    assert granrs.DepthAveragedPore is depth_averaged.DepthAveragedPore
+    assert {"DepthAveragedModel", "DepthAveragedPore"} <= set(granrs.__all__)
 
 
 def test_granular_model_column_runs_and_says_so(tmp_path):

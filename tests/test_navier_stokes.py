@@ -15,7 +15,12 @@ def test_taylor_green_second_order():
 
 def test_hydrostatic_layer_stays_at_rest():
     rec = run_case("hydrostatic", steps=1000, n=32)
-    assert rec["passed"] and rec["metrics"]["max_speed"] < 1e-8, rec
+    m = rec["metrics"]
+    # round-off speeds (measured 4.8e-13 m/s; bound HYDROSTATIC_REST_SPEED = 1e-10 m/s) and an
+    # interface that stays where it was put (measured 0; bound: that speed over the run's 28 s,
+    # 9e-8 of a cell)
+    assert rec["passed"] and m["max_speed"] < 1e-10, rec
+    assert m["interface_shift_h"] <= m["interface_shift_bound_h"] < 1e-7, m
 
 
 def test_cavity_re100_matches_ghia_at_64():
@@ -57,6 +62,8 @@ def test_dam_break_front_speed_and_mass_at_16(air):
     # the two-phase model, and the granular-only model's free surface (air not resolved)
     rec = run_case("dam-break", n=16, air=air)
     m = rec["metrics"]
-    # Martin & Moyce 1952: dZ/dT over T in [1.5, 3] within 10 %; area within 1 % (mass correction on)
-    assert abs(m["front_speed_rel_error"]) <= 0.10 and m["area_rel_change_max"] <= 0.01, m
+    # Martin & Moyce 1952: dZ/dT over T in [1.5, 3] within 10 % (measured at n = 16: +6.2 % resolved,
+    # +2.6 % free surface). The area: the global mass correction restores it every step to the
+    # secant tolerance 1e-10 relative (levelset/stage.rs); measured 9.9e-11 and 9.3e-11, bound 1e-9
+    assert abs(m["front_speed_rel_error"]) <= 0.10 and m["area_rel_change_max"] <= 1e-9, m
     assert m["air"] == air

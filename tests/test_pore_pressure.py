@@ -43,9 +43,10 @@ def test_pf_is_only_a_field_of_fluidised_models():
 def test_granular_only_agrees_with_kappa_infinity_on_a_collapsing_column():
     rec = run_case("pore-formulations", ny=32, t_end=0.15)
     m = rec["metrics"]
-    # a cross-check of two formulations, bound 1 %; the sharp κ∞ form and the granular-only solve differ only through
-    # the air cells (p_f ≈ 0 to 1e-16 κ_f/κ∞ there), measured 1.4e-7
-    assert m["pf_rel_l2_difference_kappa-infinity"] <= 0.01, m
+    # a cross-check of two formulations; the sharp κ∞ form and the granular-only solve differ only through
+    # the air cells (p_f ≈ 0 to 1e-16 κ_f/κ∞ there) and the solves' tolerances: measured 1.3e-7
+    # (PORE_FORMULATIONS_AGREEMENT = 1e-5 gates the case)
+    assert m["pf_rel_l2_difference_kappa-infinity"] <= 1e-5, m
     # the paper's smoothed κ(Φ) moves the p_f = 0 boundary about ε inside the grains: an O(h)
     # difference (17 % at ny = 32, halving with each refinement: 8.4 % at 64, 4.1 % at 128)
     assert 0.05 < m["pf_rel_l2_difference_kappa-infinity-smoothed"] < 0.3, m
@@ -54,11 +55,15 @@ def test_granular_only_agrees_with_kappa_infinity_on_a_collapsing_column():
 def test_fluidised_layer_at_rest_dry_and_flowing_when_fluidised():
     rec = run_case("fluidised-layer", ny=32, t_end=1.0)
     m = rec["metrics"]
-    # the bounds: at rest below 1e-8 m/s without pore pressure (measured 1e-13 over 1 s),
-    # flowing with β = 0.95 (measured 0.64 m/s at 0.2 s: g sin θ t = 0.67 for a frictionless layer)
+    # the bounds (granrs.validation.pore_pressure): at rest below 1e-11 m/s without pore pressure
+    # (measured 1.0e-13 over 1 s); flowing with β = 0.95 between the Coulomb slider with (1 − β) of
+    # the weight (0.624 m/s at 0.2 s; bound 0.9 of it) and the frictionless layer (g sin θ t =
+    # 0.671 m/s): measured 0.629 m/s
     assert rec["passed"], m
-    assert m["max_speed_beta_0"] < 1e-8 and m["max_speed_beta_0.95"] > 0.3, m
-    # the needed Coulomb ratio is tan 20° / tan 27° = 0.714, + 3 % from sampling ρ on faces
+    assert m["max_speed_beta_0"] < 1e-11, m
+    assert 0.9 * m["flow_speed_coulomb_slider"] < m["max_speed_beta_0.95"] <= m["flow_speed_frictionless"], m
+    # the needed Coulomb ratio is tan 20° / tan 27° = 0.714, + 3.2 % from sampling ρ on faces
+    # (measured; +6.7 % at ny = 16: first order in h); bound 5 % at ny = 32
     assert abs(m["rest_ratio"] / m["rest_ratio_bound"] - 1.0) < 0.05, m
     # the paper's band H_ε(Φ) cannot hold the top of the band (ratio > 1): it slides (5.5 mm/s at 1 s)
     assert m["rest_ratio_paper_band"] > 1.0 and m["max_speed_beta_0_paper_band"] > 1e-4, m

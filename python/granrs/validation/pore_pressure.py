@@ -22,12 +22,24 @@ H, KAPPA, G = 0.8, 1.0, -1.0
 #: boundary condition
 PORE_DIFFUSION_L2_AT_64 = 0.005
 #: the sharp κ_∞ formulation and the granular-only solve must agree within this relative L2
-#: difference of p_f (measured 1.4e-7 at ny = 32): a cross-check of granrs with itself
-PORE_FORMULATIONS_AGREEMENT = 0.01
-#: the fluidised layer: at rest without pore pressure (round-off speeds, 1.2e-13 m/s measured) and
-#: flowing with it (0.638 m/s at 0.2 s, below the frictionless g sin θ t = 0.671 m/s)
-LAYER_REST_SPEED = 1e-8
-LAYER_FLOW_SPEED = 1e-3
+#: difference of p_f: a cross-check of granrs with itself. They differ through the air cells (p_f
+#: of order κ_f/κ_∞ = 3.5e-18 there) and the tolerances of the solves: measured 1.3e-7 at ny = 32
+#: (t_end 0.15 s); the bound is 77 times that
+PORE_FORMULATIONS_AGREEMENT = 1e-5
+#: the fluidised layer at rest without pore pressure: round-off speeds (measured over 1 s: 1.0e-13
+#: m/s at ny = 32, 2.6e-15 m/s at ny = 16, 1.2e-13 m/s with an earlier build); the bound is 100
+#: times the largest
+LAYER_REST_SPEED = 1e-11
+#: the fluidised layer (β = 0.95) flows at t between two exact speeds: the Coulomb slider held by
+#: the friction of the effective pressure left, g (sin θ − (1 − β) cos θ tan α) t (0.624 m/s at
+#: 0.2 s for θ = 20°, α = 27°), and the frictionless g sin θ t (0.671 m/s). Measured 0.630 m/s at
+#: ny = 16 and 0.629 m/s at ny = 32. Acceptance: above this fraction of the slider's speed (a 10 %
+#: margin for the viscous layer at the no-slip base) and not above the frictionless speed
+LAYER_FLOW_FRACTION = 0.9
+#: the Coulomb ratio the balanced dry layer needs exceeds tan θ / tan α (0.714 at 20°) by the
+#: sampling of ρ on faces, first order in h: +6.7 % at ny = 16, +3.2 % at ny = 32 (measured).
+#: Acceptance: |ratio / (tan θ / tan α) − 1| <= this × 16 / ny, 1.5 times the measured excess
+LAYER_REST_RATIO_EXCESS = 0.1
 
 
 def exact_flux(y: np.ndarray, t: float, terms: int = 200) -> np.ndarray:
@@ -164,8 +176,8 @@ def pore_formulations(ny: int = 32, t_end: float = 0.15, kappa_air: float = 1e16
     diff = metrics["pf_rel_l2_difference_kappa-infinity"]
     reference = {
         "kind": "cross-check: granrs against itself, no external reference",
-        "acceptance": "granular-only and kappa-infinity (sharp) agree within 1 % (relative L2 of p_f over the "
-        "granular phase); the smoothed form differs by O(eps) and is reported",
+        "acceptance": f"granular-only and kappa-infinity (sharp) agree within {PORE_FORMULATIONS_AGREEMENT:g} (relative "
+        "L2 of p_f over the granular phase); the smoothed form differs by O(eps) and is reported",
         "kappa_air": kappa_air,
     }
     return metrics, reference, diff <= PORE_FORMULATIONS_AGREEMENT
@@ -241,8 +253,9 @@ def fluidised_layer(ny: int = 32, slope_deg: float = 20.0, t_end: float = 1.0, t
     """β = 0 over ``t_end`` (default 1 s, as heap-at-rest) and β = 0.95 over 0.2 s, with the
     balanced initial Σ and the 'density-support' yield band; beside them, reported, the paper's
     band (H_ε(Φ)) and the start from Σ = 0."""
+    beta, alpha, th, t_wet = 0.95, math.radians(27.0), math.radians(slope_deg), min(t_end, 0.2)
     dry, _, rep = fluidised_layer_speed(0.0, ny, slope_deg, t_end, threads)
-    wet, _, _ = fluidised_layer_speed(0.95, ny, slope_deg, min(t_end, 0.2), threads)
+    wet, _, _ = fluidised_layer_speed(beta, ny, slope_deg, t_wet, threads)
     paper, _, rep_paper = fluidised_layer_speed(0.0, ny, slope_deg, t_end, threads, interface_yield="paper")
     unbalanced, _, _ = fluidised_layer_speed(0.0, ny, slope_deg, min(t_end, 0.2), threads, balance=False)
     metrics = {
@@ -252,6 +265,8 @@ def fluidised_layer(ny: int = 32, slope_deg: float = 20.0, t_end: float = 1.0, t
         "friction_angle_deg": 27.0,
         "rest_ratio": rep["max_ratio"],
         "rest_ratio_bound": math.tan(math.radians(slope_deg)) / math.tan(math.radians(27.0)),
+        "flow_speed_coulomb_slider": 9.81 * (math.sin(th) - (1 - beta) * math.cos(th) * math.tan(alpha)) * t_wet,
+        "flow_speed_frictionless": 9.81 * math.sin(th) * t_wet,
         "max_speed_beta_0_paper_band": paper,
         "rest_ratio_paper_band": rep_paper["max_ratio"],
         "clamped_nodes_paper_band": rep_paper["clamped"],
@@ -261,9 +276,12 @@ def fluidised_layer(ny: int = 32, slope_deg: float = 20.0, t_end: float = 1.0, t
         "source": "continuum: below its friction angle a dry layer rests; with its weight carried by the pore "
         "pressure its yield stress vanishes and it flows",
         "acceptance": f"at rest without pore pressure (max_speed < {LAYER_REST_SPEED:g} m/s over t_end), flowing "
-        f"with it (> {LAYER_FLOW_SPEED:g} m/s within 0.2 s); rest_ratio is tan(slope)/tan(27°) up to "
-        "the discretisation",
+        f"with it (beta = 0.95, over min(t_end, 0.2 s): above {LAYER_FLOW_FRACTION:g} of the Coulomb slider's "
+        "speed with (1 - beta) of the weight, not above the frictionless speed); rest_ratio within "
+        f"{LAYER_REST_RATIO_EXCESS:g} x 16/ny of tan(slope)/tan(27°) (the density sampled on faces, first order in h)",
         "note": "interface_yield 'density-support' and the balanced initial Σ; the paper's band and the start "
         "from Σ = 0 are reported beside (docs/validation.md)",
     }
-    return metrics, reference, dry < LAYER_REST_SPEED and wet > LAYER_FLOW_SPEED
+    flowing = LAYER_FLOW_FRACTION * metrics["flow_speed_coulomb_slider"] < wet <= metrics["flow_speed_frictionless"]
+    holding = abs(metrics["rest_ratio"] / metrics["rest_ratio_bound"] - 1.0) <= LAYER_REST_RATIO_EXCESS * 16 / ny
+    return metrics, reference, dry < LAYER_REST_SPEED and flowing and holding
