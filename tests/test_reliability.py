@@ -431,19 +431,49 @@ def test_a_full_output_folder_is_refused_before_any_work(tmp_path, small_fs, cap
     assert not (fs / "run").exists()
 
 
-def test_a_disk_that_fills_during_the_run_stops_it_with_the_earlier_files_complete(tmp_path, small_fs, capsys):
-    # 1.6 MiB: the probe and the first snapshots fit, the .vti files of a ny = 8 run (about 40 kB
-    # each, fields every 2 ms) fill it within 0.2 s
-    fs = small_fs(1600 << 10)
-    path = run_file(tmp_path, time={"t_end": 0.5}, output={"dir": str(fs / "run"), "fields_every_s": 0.002})
-    rc, err = cli(capsys, "run", str(path), "--quiet")
-    assert rc == 1 and "OutputError: cannot write" in err and "No space left on device" in err, err
-    assert "files written before are kept" in err
+def _fill(folder: Path, after: float):
+    """A callback that fills the file system of ``folder`` (a filler file written until ENOSPC)
+    once the simulated time is past ``after``."""
+
+    def fill(sim):
+        if sim.model.time <= after:
+            return
+        try:
+            with open(folder / "filler", "ab") as f:
+                while True:
+                    f.write(b"x" * 4096)
+                    f.flush()
+        except OSError:  # ENOSPC: the disk is full
+            pass
+
+    return fill
+
+
+@pytest.mark.parametrize("formats", [["vtk"], ["netcdf"]])
+def test_a_disk_that_fills_during_the_run_stops_it_with_the_earlier_files_complete(
+    tmp_path, small_fs, capsys, formats
+):
+    # 4 MiB: the run's estimated snapshots (ny = 8, fields every 10 ms up to 0.3 s: about 1 MB)
+    # fit when it starts; at t = 0.15 s, after the first flush of summary.json (0.09 s), a filler
+    # file takes every byte left
+    fs = small_fs(4 << 20)
+    path = run_file(
+        tmp_path,
+        time={"t_end": 0.3},
+        output={"dir": str(fs / "run"), "fields_every_s": 0.01, "formats": formats},
+    )
+    cfg = load_config(path)
+    with pytest.raises(OutputError) as info:
+        run_config(cfg, progress=False, extra_callbacks=[Callback(_fill(fs, 0.1), every_time=0.05)])
+    message = str(info.value)
+    assert "cannot write" in message and "No space left on device" in message, message
+    assert "files written before are kept" in message and "\n" not in message
     out = fs / "run"
     assert not list(out.glob("*.tmp")) and not list(out.glob("fields/*.tmp"))
     summary = json.loads((out / "summary.json").read_text())  # complete: the last version that fitted
     assert summary["stop_reason"].startswith(("incomplete", "error")), summary["stop_reason"]
     assert (out / "config.resolved.toml").read_text().startswith("# granrs")
+    assert not (out / "granrs.lock").exists()  # the lock is released however the run ends
 
 
 def test_a_failing_writer_keeps_the_previous_complete_file(tmp_path, monkeypatch):

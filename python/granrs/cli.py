@@ -6,17 +6,31 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import signal
 import sys
+import threading
 from pathlib import Path
+from typing import Optional
 
 from ._granrs import ParameterError, SimulationError, SolverError, __version__, build_info
 from .cases.cavity import run_cavity_case
 from .cases.column import run_column
+from .cases.column.run import check_case
 from .config import apply_sets, column_case, describe, key as config_key, load_config, resolve, set_value
 from .io.animation import make_animation
-from .io.outputs import commit_output_dir, plan_output_dir
+from .io.outputs import (
+    atomic_write,
+    check_path_length,
+    check_path_text,
+    commit_output_dir,
+    plan_output_dir,
+    record,
+    release_output_dir,
+)
 from .io.provenance import command_line
 from .runner import run_config
+from .simulation import Terminated, raise_terminated
 from .sweep import run_sweep
 from .validation import CASES, run_case
 
@@ -62,11 +76,45 @@ def _out_plan(out, overwrite: bool, append: bool = False):
     return plan_output_dir(out, overwrite=overwrite, append=append, name="--out")
 
 
-def _interrupted(out, progress: bool = False) -> int:
-    """One line on stderr (after the progress bar's), exit status 130."""
+def _interrupted(out, progress: bool = False, err: Optional[BaseException] = None) -> int:
+    """One line on stderr (after the progress bar's); exit status 128 + the signal: 130 for a
+    Ctrl-C (SIGINT), 143 for SIGTERM, 129 for SIGHUP."""
     where = f"; the outputs written so far are in {out} (summary.json says where it stopped)" if out else ""
-    print(f"{chr(10) if progress else ''}granrs: interrupted (Ctrl-C){where}", file=sys.stderr)
-    return 130
+    what = str(err) if isinstance(err, Terminated) else "interrupted (Ctrl-C)"
+    print(f"{chr(10) if progress else ''}granrs: {what}{where}", file=sys.stderr)
+    return 128 + (err.signum if isinstance(err, Terminated) else signal.SIGINT)
+
+
+def _json_path(text: str) -> Path:
+    """The file of ``granrs validate --json``, checked before the case runs: no control
+    character, not too long, not a folder, in a folder that exists or can be made and is writable."""
+    check_path_text("--json", text)
+    check_path_length("--json", text)
+    path = Path(text)
+    if path.is_dir():
+        raise ParameterError(f"invalid parameter `--json` = {text!r}: it is a folder; allowed a file path")
+    ancestor = Path(os.path.abspath(path)).parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir() or not os.access(ancestor, os.W_OK | os.X_OK):
+        raise ParameterError(
+            f"invalid parameter `--json` = {text!r}: {str(ancestor)!r} is not a writable folder; allowed a "
+            "file in a writable folder"
+        )
+    return path
+
+
+def _plot_backend() -> None:
+    """The plots need matplotlib with its Agg back-end: checked before the work."""
+    try:
+        import matplotlib  # deferred: the plot back-end is checked only by the commands that plot
+
+        matplotlib.use("Agg")
+    except Exception as err:  # noqa: BLE001 - a missing or broken matplotlib: the same refusal
+        raise ParameterError(
+            f"invalid plot back-end: matplotlib with Agg cannot be loaded ({type(err).__name__}: {err}); "
+            "allowed an installation of granrs with matplotlib"
+        ) from None
 
 
 def _validate(args) -> int:
@@ -97,11 +145,12 @@ def _validate(args) -> int:
         val = getattr(args, key)
         if val is not None:
             params[key] = val[0] if isinstance(val, list) and len(val) == 1 else val
+    json_path = _json_path(args.json) if args.json else None
     record = run_case(args.name, threads=args.threads, **params)
     text = json.dumps(record, indent=2)
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(text + "\n")
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(json_path, lambda f: f.write(text + "\n"))
     print(text)
     if record["passed"] is None:
         print(
@@ -118,6 +167,8 @@ _COLUMN_OPTIONS = (
     "pore_pressure_ratio",
     "ny",
     "t_end",
+    "rest_speed",
+    "rest_duration",
     "rheology",
     "cfl",
     "cfl_light",
@@ -140,6 +191,8 @@ _COLUMN_KEYS = {
     "pore_pressure_ratio": "case.pore_pressure_ratio",
     "ny": "grid.ny",
     "t_end": "time.t_end",
+    "rest_speed": "rest.speed",
+    "rest_duration": "rest.duration",
     "cfl": "time.cfl",
     "cfl_light": "time.cfl_light",
     "rheology": "rheology.law",
@@ -167,8 +220,6 @@ def _column_set(item: str) -> str:
         raise ParameterError(
             f"invalid parameter `--set {item}` with `granrs run column`: allowed keys without a flag of "
             f"their own; use {_COLUMN_FLAG_KEYS[dotted]}"
-    "rest_speed",
-    "rest_duration",
         )
     if dotted == "case.name" or dotted.startswith("output."):
         raise ParameterError(
@@ -190,9 +241,10 @@ def _run_file(args, parser) -> int:
     if args.out is not None and not args.out.strip():
         _out_plan(args.out, args.overwrite)  # names the empty --out
     sets = list(args.set or [])
+    if args.out is not None:
+        check_path_text("--out", args.out)
     cfg = load_config(args.case, sets + ([f"output.dir={json.dumps(args.out)}"] if args.out else []))
-    "rest_speed": "rest.speed",
-    "rest_duration": "rest.duration",
+    _plot_backend()
     try:
         summary = run_config(
             cfg,
@@ -202,9 +254,10 @@ def _run_file(args, parser) -> int:
             overwrite=args.overwrite,
             allow_changes=args.allow_changes,
             out_name="--out" if args.out else "output.dir",
+            source=args.case,
         )
-    except KeyboardInterrupt:
-        return _interrupted(cfg["output"]["dir"], not args.quiet)
+    except KeyboardInterrupt as err:
+        return _interrupted(cfg["output"]["dir"], not args.quiet, err)
     keys = ("runout_m", "t_end_s", "steps", "nx", "ny", "wall_s", "mass_rel_error", "fluidised", "stop_reason")
     print(json.dumps({k: summary[k] for k in keys} | {"out": cfg["output"]["dir"]}, indent=2))
     return 0
@@ -306,11 +359,18 @@ def _run(args, parser) -> int:
                     f"invalid parameter `--length` = {lx!r}: allowed a length (m) greater than --width "
                     f"= {case.width!r} m (the gate)"
                 )
-        commit_output_dir(_out_plan(args.out, args.overwrite))
+        check_case(case)
+        _plot_backend()
+        plan = _out_plan(args.out, args.overwrite)
+        commit_output_dir(plan, command_line())
+        for note in plan.notes:
+            print(f"granrs: {note}", file=sys.stderr)
         try:
             summary = run_column(case, Path(args.out), progress=not args.quiet, compare_with=compare)
-        except KeyboardInterrupt:
-            return _interrupted(args.out, not args.quiet)
+        except KeyboardInterrupt as err:
+            return _interrupted(args.out, not args.quiet, err)
+        finally:
+            release_output_dir(args.out)
         keys = (
             "model",
             "model_reason",
@@ -326,13 +386,21 @@ def _run(args, parser) -> int:
         )
         print(json.dumps({k: summary[k] for k in keys}, indent=2))
         return 0
-    commit_output_dir(_out_plan(args.out, args.overwrite))
+    _plot_backend()
+    plan = _out_plan(args.out, args.overwrite)
+    commit_output_dir(plan, command_line())
+    for note in plan.notes:
+        print(f"granrs: {note}", file=sys.stderr)
     try:
+        for name in ("cavity.png", "summary.json"):
+            record(Path(args.out) / name)
         run_cavity_case(
             re=_given(args.re, 100.0), n=_given(args.n, 64), out=Path(args.out), threads=_given(args.threads, 1)
         )
-    except KeyboardInterrupt:
-        return _interrupted(args.out)
+    except KeyboardInterrupt as err:
+        return _interrupted(args.out, False, err)
+    finally:
+        release_output_dir(args.out)
     return 0
 
 
@@ -461,6 +529,18 @@ def main(argv=None) -> int:
     )
     r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "time.t_end"), help="end time in s (column; 3)")
     r.add_argument(
+        "--rest-speed",
+        dest="rest_speed",
+        type=_key_type("--rest-speed", "rest.speed"),
+        help="the run stops at rest: granular speed below this (m/s) for --rest-duration (column; 0.005; rest.speed)",
+    )
+    r.add_argument(
+        "--rest-duration",
+        dest="rest_duration",
+        type=_key_type("--rest-duration", "rest.duration"),
+        help="how long (s) the granular speed stays below --rest-speed before the run stops (column; rest.duration)",
+    )
+    r.add_argument(
         "--rheology", choices=_choices("rheology.law"), help="column: drucker-prager (default) or mu-i (rheology.law)"
     )
     r.add_argument(
@@ -528,18 +608,6 @@ def main(argv=None) -> int:
         action="append",
         required=True,
         metavar="KEY=SPEC",
-    r.add_argument(
-        "--rest-speed",
-        dest="rest_speed",
-        type=_key_type("--rest-speed", "rest.speed"),
-        help="the run stops at rest: granular speed below this (m/s) for --rest-duration (column; 0.005; rest.speed)",
-    )
-    r.add_argument(
-        "--rest-duration",
-        dest="rest_duration",
-        type=_key_type("--rest-duration", "rest.duration"),
-        help="how long (s) the granular speed stays below --rest-speed before the run stops (column; rest.duration)",
-    )
         help="swept key: KEY=a:b:n (n values from a to b) or KEY=v1,v2,... (repeat for a product)",
     )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a key of the base file (repeat)")
@@ -562,6 +630,9 @@ def main(argv=None) -> int:
     a.add_argument("dir")
     sub.add_parser("info", help="version and build profile")
     args = parser.parse_args(argv)
+    for signum in (signal.SIGTERM, signal.SIGHUP):  # a batch scheduler's stop, as a Ctrl-C
+        if signal.getsignal(signum) is signal.SIG_DFL and threading.current_thread() is threading.main_thread():
+            signal.signal(signum, raise_terminated)
     try:
         if args.command == "validate":
             return _validate(args)
@@ -589,8 +660,8 @@ def main(argv=None) -> int:
         newline = chr(10) if args.command == "run" and not args.quiet else ""
         print(f"{newline}granrs: {type(err).__name__}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        return _interrupted(None)
+    except KeyboardInterrupt as err:
+        return _interrupted(None, False, err)
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ from ._granrs import ParameterError
 from .boundary import CoulombWall
 from .cases.column import ColumnCase
 from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, RestCriterion, jop_mu_i
+from .io.outputs import control_character
 from .model import PorePressure, SideWalls
 from .options import (
     ActiveRegion,
@@ -403,6 +404,9 @@ def _check_value(key: Key, value):
         return list(value)
     if not isinstance(value, str) or not value.strip():
         raise _bad(key, value)
+    bad = control_character(value)
+    if bad is not None:
+        raise _bad(key, value, f" without control characters (it holds a {bad})")
     return value
 
 
@@ -488,6 +492,12 @@ def apply_sets(raw: dict, sets: Iterable[str]) -> dict:
     """A copy of ``raw`` with ``section.key=value`` overrides applied (values parsed by ``parse_scalar``)."""
     raw = {s: dict(t) if isinstance(t, dict) else t for s, t in raw.items()}
     for item in sets:
+        bad = control_character(item)
+        if bad is not None:
+            raise ParameterError(
+                f"invalid parameter `--set {item!r}`: it holds a {bad}; allowed one line section.key=value "
+                "without control characters"
+            )
         if "=" not in item:
             raise ParameterError(f"invalid parameter `--set {item}`: allowed section.key=value, e.g. time.cfl=0.3")
         dotted, text = item.split("=", 1)

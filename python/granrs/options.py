@@ -213,9 +213,10 @@ def parse_scalar(text: str):
     """A value given on the command line, parsed as a TOML value (``0.3``, ``true``, ``"a"``,
     ``["vtk"]``); text that is not valid TOML is taken as a bare string (``mu-i``)."""
     try:
-        return tomllib.loads(f"v = {text}")["v"]
+        parsed = tomllib.loads(f"v = {text}")
     except tomllib.TOMLDecodeError:
         return text
+    return parsed["v"] if list(parsed) == ["v"] else text  # one value, never a table more
 
 
 def parse_options(items: Iterable[str], flag: str = "--option") -> dict:

@@ -18,6 +18,8 @@ stopped (``stop_reason``); the exception is then raised again.
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 from typing import Optional
 
@@ -25,36 +27,73 @@ import numpy as np
 
 from ._granrs import ParameterError, SimulationError, SolverError
 from .cases.column import run_column
-from .config import Config, column_case, dumps, resolve, tomllib, write_config
+from .cases.column.build import build_model
+from .cases.column.run import check_case
+from .config import Config, column_case, dumps, full_key_message, resolve, tomllib, write_config
 from .io import checkpoint as ckpt
 from .io.animation import make_animation
 from .io.netcdf import available as netcdf_available
-from .io.outputs import OutputError, RunOutputs, commit_output_dir, plan_output_dir, resume_outputs
+from .io.outputs import (
+    OutputError,
+    RunOutputs,
+    check_path_text,
+    commit_output_dir,
+    plan_output_dir,
+    read_columns,
+    record,
+    release_output_dir,
+    resume_outputs,
+)
 from .io.provenance import header_lines, provenance
+from .io.vtk import read_pvd
 from .io.writer import FieldWriter
 from .simulation import Callback
 
 
-def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = False):
-    """Checks that need more than the schema: optional dependencies, checkpoint support, the
-    restart file (readable, finite, after t_end, same configuration unless ``allow_changes``).
-    Returns the loaded ``Checkpoint`` (None without a restart)."""
+def _named(err: ParameterError, source: Optional[str]) -> ParameterError:
+    """The error of a configuration's key with its run-file key (`numerics.pressure_update`) and
+    the run file (``source``) named."""
+    text = full_key_message(str(err))
+    if source is not None and not text.startswith(f"{source}: "):
+        text = f"{source}: {text}"
+    return ParameterError(text)
+
+
+def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = False, source: Optional[str] = None):
+    """Checks that need more than the schema: optional dependencies, the model's options and the
+    rules between them (``check_case``, without allocating), the restart file (readable, finite,
+    after t_end, same configuration unless ``allow_changes``, a state this configuration's model
+    can take). Returns the loaded ``Checkpoint`` (None without a restart). ``source``: the run
+    file, named with the keys in the errors."""
     out = cfg["output"]
     if "netcdf" in out["formats"] and out["fields_every_s"] > 0 and not netcdf_available():
-        raise ParameterError(
-            "invalid parameter `output.formats` item 'netcdf': needs the optional dependency netCDF4 "
-            "(pip install 'granrs[io]')"
+        raise _named(
+            ParameterError(
+                "invalid parameter `output.formats` item 'netcdf': needs the optional dependency netCDF4 "
+                "(pip install 'granrs[io]')"
+            ),
+            source,
         )
+    case = column_case(cfg)
+    saves = bool(out["fields_every_s"] > 0 and out["formats"]) or out["checkpoint_every_s"] > 0
+    try:
+        check_case(case, field_output=saves, restart=restart is not None)
+    except ParameterError as err:
+        raise _named(err, source) from None
     if restart is None:
         return None
+    check_path_text("--restart", restart)
     ck = ckpt.load_checkpoint(restart)
     meta = ck.meta
     if meta["time"] >= cfg["time"]["t_end"]:
-        raise ParameterError(
-            f"invalid parameter `time.t_end` = {cfg['time']['t_end']!r}: allowed a time "
-            f"after the checkpoint's t = {meta['time']!r} s"
+        raise _named(
+            ParameterError(
+                f"invalid parameter `time.t_end` = {cfg['time']['t_end']!r}: allowed a time "
+                f"after the checkpoint's t = {meta['time']!r} s"
+            ),
+            source,
         )
-    grid = column_case(cfg).grid()
+    grid = case.grid()
     want = meta["grid"]
     if (
         (grid.nx, grid.ny) != (want["nx"], want["ny"])
@@ -75,7 +114,103 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
             f"{', '.join(RESTART_FREE_KEYS)} and output.*), or --allow-changes to restart with "
             "these changes"
         )
+    if changes:  # the state must fit this configuration's model: restored into it, in memory only
+        try:
+            ckpt.restore_checkpoint(build_model(case), ck)
+        except ParameterError as err:
+            raise ParameterError(
+                f"invalid parameter `--allow-changes` with --restart {str(restart)!r}: the checkpoint's "
+                f"state does not fit the changed configuration ({'; '.join(changes)}): {err}; allowed "
+                "changes that keep the model's state (not fluidised <-> dry, not the active region <-> "
+                "the whole domain, not the model)"
+            ) from None
     return ck
+
+
+def check_run_files(out: Path, restart) -> None:
+    """A restart that appends to the run in ``out`` reads its front.csv, history.npz, fields.pvd
+    and fields.nc: each one there must be readable, or the restart is refused naming it."""
+    damaged = []
+    if (out / "front.csv").exists():
+        try:
+            cols = read_columns(out / "front.csv")
+            if "t_s" not in cols:
+                raise ValueError("no column t_s")
+        except (OSError, ValueError, StopIteration, UnicodeDecodeError) as err:
+            damaged.append(("front.csv", err))
+    if (out / "history.npz").exists():
+        try:
+            with np.load(out / "history.npz") as z:
+                if "time" not in z.files:
+                    raise ValueError("no entry time")
+                {k: z[k] for k in z.files}  # noqa: B018 - every entry read: a truncated one fails here
+        except Exception as err:  # noqa: BLE001 - zipfile, zlib, EOF: all "damaged"
+            damaged.append(("history.npz", err))
+    if (out / "fields.pvd").exists():
+        try:
+            read_pvd(out / "fields.pvd")
+        except Exception as err:  # noqa: BLE001 - XML and attribute errors: all "damaged"
+            damaged.append(("fields.pvd", err))
+    if (out / "fields.nc").exists():
+        try:
+            import netCDF4  # deferred: optional dependency (the io extra)
+
+            with netCDF4.Dataset(out / "fields.nc") as ds:
+                ds["time"][:]
+        except ImportError:
+            pass
+        except Exception as err:  # noqa: BLE001 - HDF5 and NetCDF errors: all "damaged"
+            damaged.append(("fields.nc", err))
+    if damaged:
+        name, err = damaged[0]
+        raise ParameterError(
+            f"invalid parameter `--restart` = {str(restart)!r}: the run's {out / name} cannot be read "
+            f"({type(err).__name__}: {str(err)[:200]}), so the restart cannot append to it; nothing was "
+            f"changed; allowed a run folder whose files are whole (move {name} away: the restart then "
+            "writes it again from the restart time), or a restart into another --out"
+        )
+
+
+#: Bytes per cell of one snapshot: a .vti holds phi, p, pf (8 bytes each), the velocity (3 x 8)
+#: and the yielded mask (1), base64-encoded (4/3); fields.nc at most the 6 fields uncompressed.
+_VTI_BYTES_PER_CELL = (3 * 8 + 3 * 8 + 1) * 4 / 3
+_NC_BYTES_PER_CELL = 6 * 8
+
+
+def output_volume(cfg: Config) -> tuple[int, int]:
+    """(snapshots, bytes): the field snapshots a run writes up to t_end and their size."""
+    out = cfg["output"]
+    if not (out["fields_every_s"] > 0 and out["formats"]) or cfg["case"]["model"] == "depth-averaged":
+        return 0, 0
+    grid = column_case(cfg).grid()
+    n = int(cfg["time"]["t_end"] / out["fields_every_s"]) + 1
+    per = ("vtk" in out["formats"]) * _VTI_BYTES_PER_CELL + ("netcdf" in out["formats"]) * _NC_BYTES_PER_CELL
+    return n, int(n * per * grid.cells)
+
+
+def check_output_volume(cfg: Config, plan, source: Optional[str] = None) -> None:
+    """Refuses a run whose snapshots (``output_volume``) need more than the free space of the
+    file system of its folder, naming both."""
+    n, size = output_volume(cfg)
+    if not size:
+        return
+    ancestor = Path(os.path.abspath(plan.path))
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    st = os.statvfs(ancestor)
+    free = st.f_bavail * st.f_frsize
+    if size > free:
+        every = cfg["output"]["fields_every_s"]
+        raise _named(
+            ParameterError(
+                f"invalid parameter `output.fields_every_s` = {every!r}: the run would write about "
+                f"{size / 1e9:.3g} GB of field snapshots ({n} up to t_end = {cfg['time']['t_end']:g} s, about "
+                f"{size / n / 1e6:.3g} MB each), more than the {free / 1e9:.3g} GB free on the file system of "
+                f"{str(ancestor)!r}; allowed a larger output.fields_every_s (at least "
+                f"{every * size / free:.3g} s), fewer output.formats or a folder on a larger disk"
+            ),
+            source,
+        )
 
 
 #: Keys that may differ between a checkpoint's configuration and its restart's without
@@ -128,6 +263,7 @@ def run_config(
     overwrite: bool = False,
     allow_changes: bool = False,
     out_name: str = "output.dir",
+    source: Optional[str] = None,
 ) -> dict:
     """Runs the configuration (validated again here) and returns the case's summary dict.
 
@@ -135,20 +271,35 @@ def run_config(
     ``restart``: a checkpoint file to start from; ``extra_callbacks``: more ``Callback``s;
     ``overwrite``: replace the outputs of a run already in output.dir; ``allow_changes``: restart
     with a configuration that differs from the checkpoint's; ``out_name``: the parameter the
-    output folder's errors name (``--out`` on the command line)."""
+    output folder's errors name (``--out`` on the command line); ``source``: the run file the
+    configuration came from, which the errors of its keys name."""
     cfg = resolve(cfg)
-    ck = preflight(cfg, restart, allow_changes)
+    ck = preflight(cfg, restart, allow_changes, source=source)
     case = column_case(cfg)
-    case.validate()
     out_cfg = cfg["output"]
     out = Path(out_cfg["dir"])
     append = restart is not None and _own_run(out, restart)
     plan = plan_output_dir(out, overwrite=overwrite, append=append, name=out_name)
+    if append:
+        check_run_files(out, restart)
+    check_output_volume(cfg, plan, source)
     # ---- every check has passed: from here on the run writes
-    commit_output_dir(plan)
+    commit_output_dir(plan, command)
+    for note in plan.notes:
+        print(f"granrs: {note}", file=sys.stderr)
+    try:
+        return _run(cfg, case, ck, plan, command, progress, restart, extra_callbacks)
+    finally:
+        release_output_dir(out)
+
+
+def _run(cfg: Config, case, ck, plan, command, progress: bool, restart, extra_callbacks) -> dict:
+    out_cfg = cfg["output"]
+    out = plan.path
     prov = provenance(dumps(cfg), command)
     t_start = ck.meta["time"] if ck is not None else None
     name = f"config.restart-{ck.meta['step_count']:06d}.toml" if plan.mode == "append" else "config.resolved.toml"
+    record(out / name)
     write_config(cfg, out / name, header_lines(prov))
     front_prefix = history_prefix = None
     if plan.mode == "append":

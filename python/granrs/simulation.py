@@ -35,22 +35,47 @@ from ._granrs import ParameterError, SimulationError
 from .model import Model
 
 
+class Terminated(KeyboardInterrupt):
+    """A SIGTERM or SIGHUP (what a batch scheduler or a closed terminal sends), raised where a
+    Ctrl-C's KeyboardInterrupt would be, so that a run stops the same way: ``signum``, and the
+    message "terminated by SIGTERM"."""
+
+    def __init__(self, signum: int):
+        super().__init__(f"terminated by {signal.Signals(signum).name}")
+        self.signum = int(signum)
+
+
+def raise_terminated(signum: int, frame=None) -> None:
+    """A signal handler raising ``Terminated`` (``granrs`` on the command line installs it for
+    SIGTERM and SIGHUP)."""
+    raise Terminated(signum)
+
+
+#: The signals ``deferred_interrupt`` holds when their handler raises (a Python function).
+HELD_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+
 @contextlib.contextmanager
 def deferred_interrupt():
-    """Holds SIGINT (KeyboardInterrupt) until the block ends, then raises it (main thread only).
-    A process that ignores SIGINT (started in the background by a shell without job control, or
-    under ``nohup``-like launchers that set it so) keeps ignoring it inside the block too."""
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    """Holds SIGINT (KeyboardInterrupt), and SIGTERM and SIGHUP where a Python handler takes them
+    (``raise_terminated``), until the block ends, then hands the first one received to its
+    handler (main thread only). A signal that is ignored (SIGINT of a process started in the
+    background by a shell without job control, SIGHUP under ``nohup``) or left to the system
+    keeps that disposition inside the block too."""
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    received = []
-    previous = signal.signal(signal.SIGINT, lambda *args: received.append(args))
+    held = [s for s in HELD_SIGNALS if callable(signal.getsignal(s))]
+    received: list = []
+    previous = {s: signal.signal(s, lambda signum, frame: received.append(signum)) for s in held}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     if received:
-        raise KeyboardInterrupt
+        handler = previous[received[0]]
+        handler(received[0], None)
 
 
 @dataclass

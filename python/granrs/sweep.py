@@ -39,7 +39,7 @@ import numpy as np
 from ._granrs import ParameterError
 from .cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM
 from .config import Config, column_case, dumps, key as config_key, load_config, parse_scalar, resolve, set_value
-from .io.outputs import atomic_write, clear_run, commit_output_dir, plan_output_dir
+from .io.outputs import atomic_write, commit_output_dir, plan_output_dir, record, release_output_dir
 from .io.provenance import provenance
 from .runner import run_config
 
@@ -221,9 +221,15 @@ def run_sweep(
             raise ParameterError(f"sweep member {m.index} ({m.values}): {err}") from None
     plan = plan_output_dir(out, overwrite=overwrite, name="--out")
     commit_output_dir(plan)
-    if plan.mode == "overwrite":
-        for old in out.glob("member-*/"):
-            clear_run(old)
+    try:
+        return _run_members(base, mems, out, scheduler, workers, plot)
+    finally:
+        release_output_dir(out)
+
+
+def _run_members(base: Config, mems: list, out: Path, scheduler, workers: int, plot: bool) -> SweepResult:
+    for m in mems:
+        record(m.config["output"]["dir"], folder=True)
     table = [
         {
             "member": m.index,
@@ -243,9 +249,11 @@ def run_sweep(
     prov = provenance(dumps(base))
     files = {"csv": _write_csv(out / "sweep.csv", table)}
     ds = to_dataset(table, list(mems[0].values), prov)
+    record(out / "sweep.nc")
     ds.to_netcdf(out / "sweep.nc")
     files["nc"] = out / "sweep.nc"
     if plot:
+        record(out / "sweep_runout.png")
         files["png"] = plot_runout(table, list(mems[0].values), out / "sweep_runout.png")
     return SweepResult(table, ds, files)
 

@@ -14,6 +14,7 @@ from typing import Optional
 import numpy as np
 
 from .netcdf import available, read_netcdf
+from .outputs import record
 from .vtk import read_pvd, read_vti
 
 
@@ -63,6 +64,7 @@ def make_animation(out, path=None, fps: int = 8, dpi: int = 90) -> Optional[Path
     if data is None:
         return None
     path = Path(path) if path is not None else Path(out) / "animation.gif"
+    record(path)
     x, y, phi = data["x"], data["y"], data["phi"]
     speed = np.where(phi > 0, data["speed"], np.nan)
     panels = [("granular speed (m/s)", speed, "viridis")]

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .fields import FIELDS
+from .outputs import OutputError, record
 
 REFERENCE = (
     "Aravena, Chupin, Dubois & Roche, Fluidisation by pore pressure of dense granular flows: "
@@ -78,16 +79,26 @@ class NetCDFWriter:
         return ds
 
     def append(self, time: float, fields: dict) -> None:
+        """One record more; a failure of the NetCDF library (a full disk: an HDF error) is an
+        ``OutputError`` naming the file."""
         import netCDF4  # deferred: optional dependency (the io extra)
 
-        ds = self._create(fields) if self.records == 0 else netCDF4.Dataset(self.path, "a")
+        if self.records == 0:
+            record(self.path)
         try:
-            n = self.records  # a restart's writer starts after the records it keeps
-            ds["time"][n] = time
-            for name, arr in fields.items():
-                ds[name][n, :, :] = arr
-        finally:
-            ds.close()
+            ds = self._create(fields) if self.records == 0 else netCDF4.Dataset(self.path, "a")
+            try:
+                n = self.records  # a restart's writer starts after the records it keeps
+                ds["time"][n] = time
+                for name, arr in fields.items():
+                    ds[name][n, :, :] = arr
+            finally:
+                ds.close()
+        except (OSError, RuntimeError) as err:
+            raise OutputError(
+                f"cannot write {self.path} ({getattr(err, 'strerror', None) or err}); the files written before "
+                f"are kept in {self.path.parent}"
+            ) from None
         self.records += 1
 
 

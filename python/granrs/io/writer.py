@@ -18,7 +18,7 @@ from .._granrs import ParameterError
 from ..simulation import deferred_interrupt
 from .fields import coordinates, snapshot
 from .netcdf import NetCDFWriter, available
-from .outputs import OutputError
+from .outputs import OutputError, read_manifest, record
 from .provenance import provenance as make_provenance
 from .vtk import read_pvd, write_pvd, write_vti
 
@@ -67,9 +67,14 @@ class FieldWriter:
         self.entries: list[tuple[float, str]] = []
         self.times: list[float] = []
         kept_nc = 0
+        #: the time of the last snapshot kept by a restart: the restart's first one, at the same
+        #: time, is not written again
+        self._kept_last: float | None = None
         if append_after is None:
+            listed = read_manifest(self.out) or set()  # only what the folder's manifest lists as granrs's
             for stale in [self.out / "fields.pvd", self.out / "fields.nc", *self.out.glob("fields/fields_*.vti")]:
-                stale.unlink(missing_ok=True)  # a previous run's snapshots in the same folder
+                if stale.relative_to(self.out).as_posix() in listed and not stale.is_symlink():
+                    stale.unlink(missing_ok=True)  # a previous run's snapshots in the same folder
         else:
             if (self.out / "fields.pvd").exists():
                 self.entries = [
@@ -81,7 +86,12 @@ class FieldWriter:
                 import netCDF4  # deferred: optional dependency (the io extra)
 
                 with netCDF4.Dataset(self.out / "fields.nc") as ds:
-                    kept_nc = int((ds["time"][:] <= append_after * (1 + 1e-12)).sum())
+                    times = ds["time"][:]
+                    kept_nc = int((times <= append_after * (1 + 1e-12)).sum())
+                    if kept_nc:
+                        self._kept_last = float(times[kept_nc - 1])
+            if self.entries:
+                self._kept_last = self.entries[-1][0]
         x, y = coordinates(grid)
         # the NetCDF attributes need a provenance: this process's when none is given
         nc_provenance = provenance if provenance is not None else make_provenance()
@@ -89,14 +99,20 @@ class FieldWriter:
         if self.netcdf is not None:
             self.netcdf.records = kept_nc
         if "vtk" in self.formats:
+            record(self.out / "fields", folder=True)
             (self.out / "fields").mkdir(parents=True, exist_ok=True)
 
     def __call__(self, sim) -> None:
         self.write(sim.model)
 
     def write(self, model) -> None:
-        fields = snapshot(model)
         t = float(model.time)
+        if self._kept_last is not None and abs(t - self._kept_last) <= 1e-12 * max(1.0, abs(t)):
+            self._kept_last = None  # the restart's state at the time of the last kept snapshot
+            self.times.append(t)
+            return
+        self._kept_last = None
+        fields = snapshot(model)
         with deferred_interrupt(), _output_errors(self.out):
             if "vtk" in self.formats:
                 name = f"fields/fields_{len(self.entries):05d}.vti"

@@ -29,16 +29,12 @@ def pore_pressure(case: ColumnCase) -> PorePressure | None:
     )
 
 
-def build_model(case: ColumnCase) -> Model:
-    """The two-phase model of the column case (or, with ``model='granular'``, the granular-only
-    model: the same 2D model with the air not resolved), with its initial condition."""
+def model_arguments(case: ColumnCase) -> dict:
+    """The arguments of the column's ``Model`` (``Model.check`` checks them without allocating)."""
     case.validate()
-    hc, lc = case.column_height, case.width
-    rho = case.mixture_density
-    pore = pore_pressure(case)
-    model = Model(
-        case.grid(),
-        Material(rho, case.rheology.viscosity),
+    return dict(
+        grid=case.grid(),
+        dense=Material(case.mixture_density, case.rheology.viscosity),
         light=AIR,
         gravity=(0.0, -G),
         bc=BoundaryConditions(
@@ -52,11 +48,21 @@ def build_model(case: ColumnCase) -> Model:
         active_region=case.active_region,
         variants=case.variants,
         threads=case.threads,
-        pore_pressure=pore,
+        pore_pressure=pore_pressure(case),
         air="free-surface" if case.model == "granular" else "resolved",
         side_walls=case.side_walls,
         rheology=case.rheology,
     )
+
+
+def build_model(case: ColumnCase) -> Model:
+    """The two-phase model of the column case (or, with ``model='granular'``, the granular-only
+    model: the same 2D model with the air not resolved), with its initial condition."""
+    args = model_arguments(case)
+    hc, lc = case.column_height, case.width
+    rho = case.mixture_density
+    pore = args["pore_pressure"]
+    model = Model(**args)
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
     if pore is not None:
         beta = case.pore_pressure_ratio

@@ -17,9 +17,9 @@ import numpy as np
 
 from ... import observables as obs
 from ..._granrs import ParameterError, SimulationError, SolverError, __version__
-from ...io.outputs import OutputError, RunOutputs
+from ...io.outputs import OutputError, RunOutputs, record
 from ...model import Model
-from ...simulation import Callback, Simulation
+from ...simulation import Callback, Simulation, Terminated, deferred_interrupt
 from .build import build_model, model_arguments
 from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .depth_averaged import run_column_depth_averaged
@@ -44,6 +44,8 @@ from .summaries import (
     fluidisation_summary,
 )
 
+#: The start of the ``stop_reason`` of a run stopped by SIGTERM or SIGHUP ("terminated by SIGTERM").
+TERMINATED = "terminated by"
 #: run_column rewrites summary.json, front.csv and history.npz every this many records (0.1 s)
 FLUSH_RECORDS = 10
 
@@ -104,6 +106,8 @@ def run_column(
     compare_with = None if compare_with is None else Path(compare_with)
     model_name, model_reason = case.model, "requested"
     if model_name == "depth-averaged":
+        for name in ("front.png", "profiles.png"):  # its other files are recorded as they are written
+            record(out / name)
         return run_column_depth_averaged(
             case, out, progress=progress, compare_with=compare_with, extra_summary=extra_summary, reason=model_reason
         )
@@ -232,7 +236,11 @@ def run_column(
         "active_region_sides": None if region is None else region.sides,
         "threads": case.threads,
         "version": __version__,
-        "stop_reason": sim.stop_reason if failure is None else failure_stop_reason(failure, str(error)),
+        "stop_reason": sim.stop_reason
+        if failure is None
+        else str(failure)
+        if isinstance(failure, Terminated)
+        else failure_stop_reason(failure, str(error)),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,
         "pressure_iterations_max": int(np.max(hist["pressure_iterations"])) if "time" in hist else 0,
         "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
@@ -264,6 +272,9 @@ def run_column(
     if fluid and rec["t"]:
         summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
     summary.update(extra_summary or {})
+    names = ("front.png", "profiles.png") + (("energy.csv", "energy.png") if rec["energy"] else ())
+    for name in names + (("fluidisation.png",) if fluid and rec["t"] else ()):
+        record(out / name)  # the plots and energy.csv, written without granrs.io.outputs
     try:
         write_outputs(out, summary, rec, profiles, xs_c - lc, outputs)
         outputs.write_history(history)
@@ -280,6 +291,10 @@ def run_column(
             + (f"; the run had stopped with: {error}" if error else "")
         ) from None
     if isinstance(failure, KeyboardInterrupt):
+        for cb in callbacks or []:  # a checkpoint of the state reached, where checkpoints are on
+            if cb.saves_state:
+                with deferred_interrupt():
+                    cb.func(sim)
         raise failure
     if error is not None:
         kind = SolverError if isinstance(failure, SolverError) else SimulationError
@@ -289,7 +304,7 @@ def run_column(
 
 def run_finished(out) -> bool:
     """Whether the folder ``out`` holds a column run that ended: its summary.json can be read and
-    its ``stop_reason`` is not one of :data:`UNFINISHED_REASONS` (a run that reached ``t_end`` or
+    its ``stop_reason`` is not one of :data:`UNFINISHED_REASONS` or :data:`TERMINATED` (a run that reached ``t_end`` or
     came to rest). A folder without summary.json, with one that cannot be read, or with the
     summary of a run that was killed, interrupted or failed is not finished: a study that
     resumes runs it again."""
@@ -298,7 +313,7 @@ def run_finished(out) -> bool:
     except (OSError, ValueError):
         return False
     reason = summary.get("stop_reason") if isinstance(summary, dict) else None
-    return isinstance(reason, str) and not reason.startswith(UNFINISHED_REASONS)
+    return isinstance(reason, str) and not reason.startswith(UNFINISHED_REASONS + (TERMINATED,))
 
 
 def run_columns(runs: list, jobs: int = 1, progress: bool = False) -> list[dict]:
