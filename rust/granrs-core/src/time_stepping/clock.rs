@@ -22,7 +22,7 @@
 //! the CFL number C_cfl, the air beyond is advanced at up to `cfl_light`, a stability bound
 //! rather than an accuracy one (WENO5 with TVD-RK3 for Φ, WENO5 with the extrapolated BDF2
 //! convection for u; `cfl_abort` still guards every step). It changes the answer by the time
-//! step's error, not by round-off (docs/benchmarks.md, "The light phase's CFL number").
+//! step's error, not by round-off (docs/benchmarks.md, "What options cost").
 //!
 //! **Rejected steps.** With the adaptive rule, a step whose Picard iteration (eq. 12) does not
 //! converge, or whose advective CFL number after the step exceeds `cfl_abort` (the rule chose δt
