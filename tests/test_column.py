@@ -88,13 +88,16 @@ def test_observables_are_reported_for_the_two_phase_runs(coarse_runs):
         fronts = [o[k] for k in ("front_h20mm_m", "front_h10mm_m", "front_h5mm_m", "front_h2mm_m", "front_h1mm_m")]
         assert fronts == sorted(fronts), (name, fronts)
         assert o["q50_m"] < o["q90_m"] < o["q95_m"] < o["q99_m"] <= o["front_h1mm_m"] + o["cell_m"]
-        # the column starts centred L_c/2 behind the gate and its centre of mass moves downstream
+        # the column starts centred L_c/2 behind the gate and its centre of mass moves downstream;
+        # the start's centre on the grid is −0.1 m up to its sub-cell fill (measured 1.2e-4 m off at
+        # ny = 32, wet and dry), bound 1e-3 m
         assert o["centre_of_mass_travel_m"] > 0.1 and o["centre_of_mass_m"] == pytest.approx(
-            -0.1 + o["centre_of_mass_travel_m"], abs=0.011
+            -0.1 + o["centre_of_mass_travel_m"], abs=1e-3
         )
         # the volume profile holds the dense area: Σ h Δx against the sub-cell dense_area(),
-        # measured −0.03 % at ny = 32 (the fill fraction ½ + Φ/Δy is exact for level interfaces only)
-        assert o["profile_area_m2"] == pytest.approx(0.08, rel=0.01)
+        # measured −0.030 % wet and +0.018 % dry at ny = 32 (the fill fraction ½ + Φ/Δy is exact for
+        # level interfaces only), bound 0.2 %
+        assert o["profile_area_m2"] == pytest.approx(0.08, rel=2e-3)
         assert 0.0 < o["h_gate_m"] < 0.4 and 0.0 < o["h_back_wall_m"] < 0.4
         if name == "dry":  # the dry deposit is thickest at the back wall (0.173 m against 0.116 m at the gate)
             assert o["h_gate_m"] < o["h_back_wall_m"]
@@ -280,6 +283,10 @@ def test_the_deposit_at_rest_recipe_stops_the_run_at_rest(tmp_path, fluidised, a
     (test_the_deposit_at_rest_options_keep_the_front_within_a_cell)."""
     case = ColumnCase(ny=16, fluidised=fluidised).with_options(**DEPOSIT_AT_REST)
     s = run_column(case, tmp_path, progress=False)
+    # the arrest times are a regression, not a reference: recorded from `granrs run column --ny 16
+    # [--no-fluidised] --set variants.proximal_restarts=20 --set bi_projection.anderson_depth=5 --set
+    # numerics.redistance_every=1 --set variants.piece_removal_cells=4` (summary.json's
+    # arrest_time_s: 2.00 and 1.97); the records are 0.01 s apart, so a change moves them by records
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] == pytest.approx(arrest, abs=1e-9)
     assert s["final_granular_speed_m_s"] < case.rest.speed
     assert s["pieces_removed_total"] > 0
@@ -304,18 +311,22 @@ def test_each_step_reports_the_mass_corrections_shift(tmp_path):
 
 
 def test_mass_is_conserved_with_the_default_correction(coarse_runs):
-    # the global correction solves for the area to the secant tolerance (1e-10 in the dam break)
+    # the global correction restores the dense area every step to its secant tolerance, 1e-10
+    # relative (levelset/stage.rs): measured 8.1e-11 dry and 1.0e-10 wet at ny = 32; bound 1e-9
     _, dry, wet = coarse_runs
-    assert dry["mass_rel_error"] < 1e-6 and wet["mass_rel_error"] < 1e-6
+    assert dry["mass_rel_error"] < 1e-9 and wet["mass_rel_error"] < 1e-9
 
 
 def test_fluidisation_lengthens_the_runout(coarse_runs):
-    # paper: the non-fluidised run-out is "almost halved"; at ny = 32 the measured ratio is 2.07,
-    # at the paper's grid 1.7–2.2 (the paper's "almost doubled", ≈ 2, within 15 %). The coarse test asks only for the sign and
-    # size of the effect: a ratio above 1.5, and run-outs within 50 % of the paper's (coarse grid).
+    # paper: the non-fluidised run-out is "almost halved", a ratio ≈ 2: within 15 %, 1.7–2.2, as at
+    # ny = 64 (test_ny64_runouts_ratio_and_mass); at ny = 32 the ratio is 2.05–2.10 over the round-off
+    # ensembles' members (tests/data/column_ensemble.csv).
     _, dry, wet = coarse_runs
-    assert wet["runout_m"] / dry["runout_m"] > 1.5
-    assert abs(wet["runout_m"] / PAPER_RUNOUT_SIM - 1) < 0.5
+    assert 1.7 <= wet["runout_m"] / dry["runout_m"] <= 2.2
+    # The known gap to the paper's run-out (1.6874 m): +37 % at ny = 32 (docs/validation.md). A
+    # regression, not a validation: the ensemble's mean ± 3 std, 2.289–2.339 m, is +35.6 % to +38.6 %
+    gap = wet["runout_m"] / PAPER_RUNOUT_SIM - 1
+    assert 0.35 < gap < 0.39, gap
 
 
 def test_front_has_three_phases(coarse_runs):
@@ -507,8 +518,8 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
     # tests/data/column_ensemble.csv (r_neighbourhood = 0): run-outs within
     # mean ± 3 std, but at least ± 0.5 % (fluidised 2.5316–2.5330 m, std 0.0006; dry 1.244–1.258 m,
     # std 0.006), fronts at t = 1.0 s within 1 % (members identical to 5 digits); the ratio within
-    # 1.7–2.2 (the paper's "almost doubled", ≈ 2, within 15 %) (2.01–2.04 over all pairs of members); dense area within 1 % (measured 1e-10
-    # with the correction)
+    # 1.7–2.2 (the paper's "almost doubled", ≈ 2, within 15 %) (2.01–2.04 over all pairs of members); dense area within 1e-9
+    # (the correction's secant tolerance is 1e-10 relative: levelset/stage.rs; measured 1e-10)
     # The known gap at ny = 64: the fluidised front 2.532 m against the paper's 1.6874 m. A change
     # that moves it beyond its round-off spread, in either direction, fails here loudly.
     wet = run_column(ColumnCase(ny=64), tmp_path / "wet", progress=False)
@@ -524,7 +535,7 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
         folder = tmp_path / ("wet" if fluidised else "dry")
         assert _front_at(folder, 1.0) == pytest.approx(e["front_1s_mean_m"], rel=0.01), fluidised
     assert 1.7 <= wet["runout_m"] / dry["runout_m"] <= 2.2
-    assert max(wet["mass_rel_error"], dry["mass_rel_error"]) < 0.01
+    assert max(wet["mass_rel_error"], dry["mass_rel_error"]) < 1e-9
 
 
 @pytest.mark.slow
@@ -1022,10 +1033,12 @@ def test_run_columns_side_by_side_gives_the_same_runs_and_keeps_them_when_one_fa
 
 def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):
     """energy.csv, energy.png and summary['energy'] (diagnostics/energy.rs): the shares of
-    gravity's work add up to 1 by construction, so the checks are on what could be wrong: the
-    work of gravity, integrated from the face velocities, against the drop of potential energy
-    measured on Φ (independent; they differ by the level set's transport and mass correction:
-    measured 0.2 % wet and 1.0 % dry at ny = 32), and the signs of the dissipations. Measured
+    gravity's work add up to 1 by construction (the numerical share is the residual), so the checks
+    are on what could be wrong: the work of gravity, integrated from the face velocities, against
+    the drop of potential energy measured on Φ (independent; they differ by the level set's
+    transport and mass correction: measured 0.17 % wet and 0.97 % dry at ny = 32, bound 2 %), the
+    kinetic energy left at 3 s (1e-4 of gravity's work measured, bound 1e-3), no side-wall work
+    without side walls, and the signs of the dissipations. Measured
     shares at ny = 32 with the default r_neighbourhood = 0 (docs/validation.md, "The step size and the band under the surface"):
     friction 0.72 / 0.23, plastic 0.16 / 0.72 (its negative part −0.005 / −0.033), numerical
     0.12 / 0.05 (wet / dry). With the soft band of the option r_neighbourhood = 2 the numerical share is
@@ -1035,9 +1048,8 @@ def test_energy_budget_is_written_and_accounts_for_gravity(coarse_runs):
     for run, s in (("dry", dry), ("wet", wet)):
         assert (base / run / "energy.csv").stat().st_size > 0 and (base / run / "energy.png").stat().st_size > 0
         e = s["energy"]
-        assert e["gravity_work_J_per_m"] == pytest.approx(e["potential_drop_J_per_m"], rel=0.05)
-        shares = e["kinetic"] + e["plastic"] + e["wall"] + e["viscous"] + e["numerical"]
-        assert shares == pytest.approx(1.0, abs=1e-9)
+        assert e["gravity_work_J_per_m"] == pytest.approx(e["potential_drop_J_per_m"], rel=0.02)
+        assert 0.0 <= e["kinetic"] < 1e-3 and e["side_walls"] == 0.0, e
         assert e["wall"] > 0.2 and e["viscous"] >= 0.0 and e["plastic_negative"] < 0.0
         assert e["plastic"] - e["plastic_negative"] > 0.1, "the stress dissipates where it is not given back"
         assert e["numerical"] < 0.25, "numerical dissipation (0.12 / 0.05 measured; 0.47 with the soft band)"
