@@ -90,7 +90,9 @@ def test_granular_model_column_runs_and_says_so(tmp_path):
     assert saved["model"] == "granular" and saved["model_reason"] == "requested"
     for name in ("front.csv", "profiles.csv", "front.png", "profiles.png"):
         assert (tmp_path / name).stat().st_size > 0, name
-    assert s["stop_reason"] == "stop_time" and s["mass_rel_error"] < 1e-6
+    # the global mass correction holds the dense area to its secant tolerance, 1e-10 relative
+    # (levelset/stage.rs): measured 5.3e-11 at ny = 16 to 0.4 s, bound 1e-9
+    assert s["stop_reason"] == "stop_time" and s["mass_rel_error"] < 1e-9
     assert 0.4 < s["max_front_m"] < 1.5
 
 
