@@ -112,7 +112,7 @@ def test_heap_stays_at_rest_and_regularised_creeps():
     rec = run_case("heap-at-rest", slope=20.0, n=32, regularised=True)
     m = rec["metrics"]
     # the case's rest criterion, REST_SPEED = 1e-8 m/s: measured 5.2e-10 m/s at 1 s (4.2e-9 m/s at
-    # most over the run, while the first steps' Picard iterations build up the stress)
+    # most over the run)
     assert m["max_speed"] < 1e-8, m
     assert m["regularised_max_speed"] > 1e-5, m  # Papanastasiou m = 1000 s creeps at 2.5e-4 m/s
 
