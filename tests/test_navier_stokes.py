@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import granrs
-from granrs.validation import run_case
+from granrs.validation import navier_stokes, run_case
 
 
 def test_taylor_green_second_order():
@@ -21,6 +21,21 @@ def test_hydrostatic_layer_stays_at_rest():
     # 9e-8 of a cell)
     assert rec["passed"] and m["max_speed"] < 1e-10, rec
     assert m["interface_shift_h"] <= m["interface_shift_bound_h"] < 1e-7, m
+
+
+def test_hydrostatic_fails_on_an_interface_away_from_where_it_was_put(monkeypatch):
+    # the layer set 0.1 cell above the level the case checks stays at rest (a flat interface is
+    # balanced anywhere), so only the interface's gate can fail it
+    class Shifted(navier_stokes.Model):
+        def set_initial(self, phi=None, **kwargs):
+            shifted = None if phi is None else (lambda x, y: phi(x, y) + 0.1 * self.grid.h)
+            return super().set_initial(phi=shifted, **kwargs)
+
+    monkeypatch.setattr(navier_stokes, "Model", Shifted)
+    rec = run_case("hydrostatic", steps=20, n=8)
+    m = rec["metrics"]
+    assert m["max_speed"] < 1e-10 and m["interface_shift_h"] == pytest.approx(0.1, abs=1e-9), m
+    assert rec["passed"] is False
 
 
 def test_cavity_re100_matches_ghia_at_64():
