@@ -10,17 +10,19 @@ from granrs.validation.pore_pressure import pore_diffusion_error
 def test_pore_diffusion_second_order_and_accurate():
     rec = run_case("pore-diffusion")
     m = rec["metrics"]
-    # second order in space (least-squares slope over 16..128 cells) and 0.5 % at n = 64
-    assert m["observed_order"] >= 1.8, m
-    assert m["l2_rel_error"][m["n"].index(64)] <= 0.005, m
+    # second order in space (least-squares slope over 16..128 cells: 2.2 measured) and the error at
+    # n = 64 (7.9e-5 measured) below PORE_DIFFUSION_L2_AT_64 = 2e-4
+    assert rec["passed"] and m["observed_order"] >= 1.8, m
+    assert m["l2_rel_error"][m["n"].index(64)] <= 2e-4, m
 
 
 def test_pore_diffusion_time_step_ten_times_the_explicit_limit():
     big, _, _ = pore_diffusion_error(64, dt_factor=10.0)
     small, _, _ = pore_diffusion_error(64, dt_factor=1.0)
-    # implicit diffusion: 10 × h²/(4κ) gives the same answer as the explicit limit itself
-    # (both errors are at the 1e-4 level of the spatial discretisation)
-    assert abs(big - small) < 2e-4 and big < 5e-4, (big, small)
+    # implicit diffusion: 10 × h²/(4κ) gives the answer of the explicit limit itself up to the time
+    # error: errors 7.9e-5 and 8.7e-5 against the exact series (the spatial error), 7.9e-6 apart
+    # (measured); bounds 2.5 times each
+    assert abs(big - small) < 2e-5 and big < 2e-4, (big, small)
 
 
 def test_static_layer_with_pore_pressure_stays_at_rest():

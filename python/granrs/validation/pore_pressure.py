@@ -18,9 +18,9 @@ from ..shapes import Rectangle
 #: ∂_t p = κ ∂²p/∂y², p(H) = 0, ∂p/∂y(0) = G, p(y, 0) = 0. Non-dimensional.
 H, KAPPA, G = 0.8, 1.0, -1.0
 #: the bound on the relative L2 error at n = 64 against the exact series: the measured error is
-#: 7.9e-5 there (second order from 2.4e-3 at n = 16), so 0.5 % fails only a broken solve or a lost
-#: boundary condition
-PORE_DIFFUSION_L2_AT_64 = 0.005
+#: 7.9e-5 there (2.3e-3, 2.5e-4, 7.9e-5, 2.1e-5 at n = 16, 32, 64, 128: least-squares order 2.2);
+#: the bound is 2.5 times the measured
+PORE_DIFFUSION_L2_AT_64 = 2e-4
 #: the sharp κ_∞ formulation and the granular-only solve must agree within this relative L2
 #: difference of p_f: a cross-check of granrs with itself. They differ through the air cells (p_f
 #: of order κ_f/κ_∞ = 3.5e-18 there) and the tolerances of the solves: measured 1.3e-7 at ny = 32
@@ -99,7 +99,7 @@ def pore_diffusion(n, dt_factor: float = 10.0, formulation: str = "granular-only
     ns = [int(x) for x in (n if isinstance(n, (list, tuple)) else [n])]
     errs = [pore_diffusion_error(k, dt_factor, formulation, threads)[0] for k in ns]
     metrics = {"n": ns, "l2_rel_error": errs if len(ns) > 1 else errs[0]}
-    # judged against the exact series: the order needs two or more n, the 0.5 % bound is stated at
+    # judged against the exact series: the order needs two or more n, the error bound is stated at
     # n = 64; one n other than 64 has neither, and passed is None
     passed = None
     if len(ns) > 1:
@@ -116,7 +116,7 @@ def pore_diffusion(n, dt_factor: float = 10.0, formulation: str = "granular-only
         passed = (passed is not False) and e64 <= PORE_DIFFUSION_L2_AT_64
     reference = {
         "solution": "1D series, flux at the base, p_f = 0 on the interface",
-        "acceptance": "l2_rel_error <= 0.5 % at n = 64; observed_order (least-squares slope) >= 1.8 "
+        "acceptance": f"l2_rel_error <= {PORE_DIFFUSION_L2_AT_64:g} at n = 64; observed_order (least-squares slope) >= 1.8 "
         "(two or more n); one n other than 64: passed null",
         "dt": f"{dt_factor} x h^2/(4 kappa)",
     }
