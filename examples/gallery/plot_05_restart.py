@@ -52,9 +52,9 @@ assert restarted["runout_m"] == whole["runout_m"]
 # The fronts of the three runs
 # ----------------------------
 fig, ax = plt.subplots(figsize=(6, 3.5), layout="constrained")
-for name, style in (("whole", "-"), ("first", "--"), ("restarted", ":")):
+for name, style in (("whole", "-"), ("first", "--"), ("restarted", "o")):
     front = np.genfromtxt(work / name / "front.csv", delimiter=",", names=True)
-    ax.plot(front["t_s"], front["front_m"], style, lw=2, label=name)
+    ax.plot(front["t_s"], front["front_m"], style, lw=2, ms=3, label=name)
 ax.set_xlabel("t (s)")
 ax.set_ylabel("front from the gate (m)")
 ax.legend()
