@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from granrs.validation import CASES, CROSS_CHECKS, levelset, navier_stokes, pore_pressure, rheology, run_case
+from granrs.validation import CASES, CROSS_CHECKS, levelset, navier_stokes, peer, pore_pressure, rheology, run_case
 
 
 def _scale(func, factor):
@@ -23,6 +23,9 @@ def _shift_ghia(shift):
 # case → (small parameters at which it passes against the true reference,
 #         monkeypatch that perturbs the reference so that the same run must fail)
 PERTURBED = {
+    # the depth-averaged dry column against IMEX_SfloW2D: its 1 mm run-out is 0.54 % short; a
+    # bar of 0.5 % fails
+    "peer-depth-averaged": ({"n": 100}, lambda mp: mp.setattr(peer, "DA_RUNOUT_TOLERANCE", 0.005)),
     # observed order 2.00 on 8/16: demanding third order fails
     "taylor-green": ({"n": [8, 16]}, lambda mp: mp.setattr(navier_stokes, "TAYLOR_GREEN_ORDER", 3.0)),
     # Ghia's centreline u moved by 5 % of the lid speed (the acceptance is 1 %; granrs is within 0.65 % at n = 32)

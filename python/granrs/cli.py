@@ -348,6 +348,8 @@ def _run(args, parser) -> int:
             if value is not None:
                 set_value(raw, dotted, value)
         raw = apply_sets(raw, [_column_set(item) for item in args.set or []])
+        if args.model in _choices("case.model"):  # the keys the model does not read are refused with it
+            set_value(raw, "case.model", args.model)
         case = column_case(resolve(raw))
         case.length = args.length  # None: the column's own domain (ColumnCase.domain)
         case.model = args.model  # checked by the case: its error says there is no automatic choice

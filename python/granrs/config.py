@@ -37,6 +37,8 @@ else:  # the same parser, before it joined the standard library
 from ._granrs import ParameterError
 from .boundary import CoulombWall
 from .cases.column import ColumnCase
+from .cases.column.depth_averaged import refuse_unused_keys
+from .depth_averaged import DEPTH_AVERAGED_CHOICES, DEPTH_AVERAGED_FIELDS, DepthAveraged
 from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, RestCriterion, jop_mu_i
 from .io.outputs import control_character
 from .model import PorePressure, SideWalls
@@ -339,6 +341,20 @@ KEYS: tuple[Key, ...] = (
         "the time after the release from which the rest criterion is applied",
         *RestCriterion.RANGES["after"],
     ),
+    *(
+        Key(
+            "depth_averaged",
+            name,
+            "int" if f.lo is not None else "choice",
+            f.default,
+            f.unit,
+            f"{f.doc} (the depth-averaged model only)",
+            f.lo,
+            f.hi,
+            choices=DEPTH_AVERAGED_CHOICES.get(name, ()),
+        )
+        for name, f in DEPTH_AVERAGED_FIELDS.items()
+    ),
     _from_schema("numerics", "threads", options.spec("threads"), _C.threads),
     *(k for k in _NUMERICS if k.section == "numerics"),
     *(k for k in _NUMERICS if k.section == "variants"),
@@ -456,6 +472,9 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
     set; a default that another key makes meaningless gives way (the animation's default when no
     fields are saved) instead of being refused."""
     case, grid, out = cfg["case"], cfg["grid"], cfg["output"]
+    # a key set away from its default that the model does not read, before any work (a resolved
+    # configuration resolved again gives every key: those at their defaults are not refused)
+    refuse_unused_keys(cfg, {(s, k) for s, k in given if k in cfg[s] and cfg[s][k] != _BY_NAME[f"{s}.{k}"].default})
     if grid["length"] is None:
         length = ColumnCase(aspect_ratio=case["aspect_ratio"], width=case["width"]).domain()[0]
         grid["length"] = float(f"{length:.12g}")  # 3.5, not 3.5000000000000004
@@ -651,6 +670,7 @@ def column_case(cfg: Config) -> ColumnCase:
         t_end=cfg["time"]["t_end"],
         rest=RestCriterion(**cfg["rest"]),
         model=c["model"],
+        depth_averaged=DepthAveraged(**cfg["depth_averaged"]),
         base=CoulombWall(cfg["base"]["friction_angle"]),
         pore_pressure=PorePressure(**cfg["pore_pressure"]),
         time=TimeStepping(**{k: v for k, v in cfg["time"].items() if k != "t_end"}),

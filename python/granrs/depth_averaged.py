@@ -111,6 +111,10 @@ DEPTH_AVERAGED_FIELDS = {
 }
 
 
+#: The allowed values of the choice fields of :class:`DepthAveraged`.
+DEPTH_AVERAGED_CHOICES = {"closure": tuple(CLOSURES), "pore_transport": PORE_TRANSPORTS}
+
+
 @dataclass(frozen=True)
 class DepthAveraged:
     """The depth-averaged model's own choices in a column case (``ColumnCase.depth_averaged``,
@@ -133,7 +137,7 @@ class DepthAveraged:
     FIELDS: ClassVar[dict] = DEPTH_AVERAGED_FIELDS
 
     def __post_init__(self):
-        if self.closure not in CLOSURES:
+        if self.closure not in DEPTH_AVERAGED_CHOICES["closure"]:
             raise ParameterError(
                 f"invalid parameter `depth_averaged.closure` = {self.closure!r}: allowed {self.FIELDS['closure'].allowed}"
             )
@@ -143,7 +147,7 @@ class DepthAveraged:
             raise ParameterError(
                 f"invalid parameter `depth_averaged.resolution` = {r!r}: allowed {self.FIELDS['resolution'].allowed}"
             )
-        if self.pore_transport not in PORE_TRANSPORTS:
+        if self.pore_transport not in DEPTH_AVERAGED_CHOICES["pore_transport"]:
             raise ParameterError(
                 f"invalid parameter `depth_averaged.pore_transport` = {self.pore_transport!r}: allowed "
                 f"{self.FIELDS['pore_transport'].allowed}"
@@ -192,6 +196,14 @@ class DepthAveraged:
         )
         for name, value, default_value in checks:
             if value != default_value:
+                if dataclasses.is_dataclass(value) and type(value) is type(default_value):
+                    # the first field of an object that differs: variants.proximal_restarts = 5
+                    f = next(
+                        f.name
+                        for f in dataclasses.fields(value)
+                        if getattr(value, f.name) != getattr(default_value, f.name)
+                    )
+                    name, value = f"{name}.{f}", getattr(value, f)
                 raise unused_error(name, value)
         if self.closure == "hydrostatic" and case.rheology.friction_angle != d.rheology.friction_angle:
             raise unused_error("rheology.friction_angle", case.rheology.friction_angle, ANGLE_READERS)

@@ -75,7 +75,11 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
             source,
         )
     case = column_case(cfg)
-    saves = bool(out["fields_every_s"] > 0 and out["formats"]) or out["checkpoint_every_s"] > 0
+    # the depth-averaged model writes no fields: output.* away from their defaults are refused
+    # with it (config.refuse_unused_keys), their defaults ignored
+    saves = case.model != "depth-averaged" and (
+        bool(out["fields_every_s"] > 0 and out["formats"]) or out["checkpoint_every_s"] > 0
+    )
     try:
         check_case(case, field_output=saves, restart=restart is not None)
     except ParameterError as err:
@@ -316,7 +320,7 @@ def _run(cfg: Config, case, ck, plan, command, progress: bool, restart, extra_ca
 
     callbacks = list(extra_callbacks or [])
     writer = None
-    if out_cfg["fields_every_s"] > 0 and out_cfg["formats"]:
+    if out_cfg["fields_every_s"] > 0 and out_cfg["formats"] and case.model != "depth-averaged":  # no 2D fields
         writer = FieldWriter(
             out, case.grid(), out_cfg["formats"], prov, append_after=t_start if plan.mode == "append" else None
         )

@@ -88,6 +88,11 @@ CASES: dict[str, tuple[Callable, dict, str]] = {
         {"n": [32, 64], "t_end": 3.0},
         "dry column, free-slip back wall, against Basilisk (n: cells per H_c; docs/validation.md)",
     ),
+    "peer-depth-averaged": (
+        peer.peer_depth_averaged,
+        {"n": 100},
+        "depth-averaged dry column, k = 1, tan 15°, against IMEX_SfloW2D (n: cells per L_c; docs/models.md)",
+    ),
 }
 
 

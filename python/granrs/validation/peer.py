@@ -1,4 +1,6 @@
-"""Cross-code check: granrs's dry column collapse against the same column computed with Basilisk.
+"""Cross-code checks: granrs's dry column collapse against the same column computed with Basilisk
+(the 2D models, :func:`peer_dry_column`), and against IMEX_SfloW2D v2, an independent shallow-layer
+code (the depth-averaged model, :func:`peer_depth_averaged`, at the end of this module).
 
 The reference (data/basilisk_dry_column/, README.md there) is the final deposit and the fronts of a
 dry column computed with Basilisk, an independent solver (VOF interface, regularised
@@ -47,7 +49,8 @@ import numpy as np
 from .. import observables as obs
 from .._granrs import ParameterError
 from ..boundary import CoulombWall
-from ..cases.column import ColumnCase, column_rheology, run_column
+from ..cases.column import ColumnCase, build_depth_averaged, column_rheology, run_column
+from ..depth_averaged import DepthAveraged
 from ..options import parse_options
 
 DATA = Path(__file__).parent / "data" / "basilisk_dry_column"
@@ -343,6 +346,181 @@ def plot_comparison(runs: dict, png: Path) -> None:
     plt.close(fig)
 
 
+# ---- the depth-averaged model against an independent shallow-layer code (IMEX_SfloW2D v2)
+
+#: the shallow-layer reference (data/imex_sflow2d_dry_column/README.md): the dry column with k = 1
+#: and a Coulomb base at tan 15° on a 6 m channel, cells of 2 mm (and 1 mm)
+DA_DATA = Path(__file__).parent / "data" / "imex_sflow2d_dry_column"
+#: the reference's resolutions in cells across L_c = 0.20 m (2 mm and 1 mm cells) and their files
+DA_REFERENCE_FILES = {
+    100: ("front_tan15.csv", "deposit_tan15.csv"),
+    200: ("front_tan15_dx1mm.csv", "deposit_tan15_dx1mm.csv"),
+}
+DA_LENGTH, DA_BASE_ANGLE, DA_T_END = 6.0, 15.0, 3.0
+#: the fronts compared, by thickness (m)
+DA_FRONT_THICKNESSES_M = (1e-3, 5e-3)
+#: acceptance: run-outs and the centre of mass within 2 % (the two codes' run-outs at 2 and 1 mm
+#: cells differ by 0.2 %, the reference's own discretisation error), the deposit's profile within
+#: 5 % in L1 (Σ|h − h_ref| / Σ h_ref over the channel)
+DA_RUNOUT_TOLERANCE = 0.02
+DA_CENTRE_OF_MASS_TOLERANCE = 0.02
+DA_PROFILE_TOLERANCE = 0.05
+
+
+def peer_depth_averaged_case(n: int = 100):
+    """The ColumnCase of the shared scene with the depth-averaged model: the paper's column
+    (0.20 × 0.40 m), dry, Coulomb base at 15°, the closure 'hydrostatic' (k = 1, the peer's
+    only one), a 6 m channel, ``n`` cells across L_c (100: the reference's 2 mm cells)."""
+    if not isinstance(n, int) or isinstance(n, bool) or not 10 <= n <= 1000:
+        raise ParameterError(
+            f"invalid parameter `n` = {n!r}: allowed an integer number of cells across L_c in [10, 1000]"
+        )
+    return ColumnCase(
+        aspect_ratio=HEIGHT / WIDTH,
+        width=WIDTH,
+        length=DA_LENGTH,
+        fluidised=False,
+        model="depth-averaged",
+        base=CoulombWall(DA_BASE_ANGLE),
+        depth_averaged=DepthAveraged(closure="hydrostatic", resolution=n),
+        t_end=DA_T_END,
+    )
+
+
+def load_depth_averaged_reference(n: int) -> dict:
+    """The peer's fronts (``t``, ``front_1mm``, ``front_5mm``: x from the back wall) and deposit
+    (``x``, ``h``) at ``n`` cells across L_c (the 1 mm cells for any n but 100)."""
+    front, deposit = DA_REFERENCE_FILES[100 if n == 100 else 200]
+    f = read_csv_columns(DA_DATA / front)
+    d = read_csv_columns(DA_DATA / deposit)
+    return {
+        "t": f["t_s"],
+        "front_1mm": f["front_1mm_x_m"],
+        "front_5mm": f["front_5mm_x_m"],
+        "x": d["x_m"],
+        "h": d["h_m"],
+        "file": deposit,
+    }
+
+
+def cell_front(x: np.ndarray, h: np.ndarray, tau: float) -> float:
+    """The peer's front: the centre of the last cell whose thickness exceeds ``tau``."""
+    above = np.nonzero(h > tau)[0]
+    return float(x[above[-1]]) if above.size else math.nan
+
+
+def run_depth_averaged_peer(n: int = 100, times=None) -> dict:
+    """The shared scene run with granrs's depth-averaged model to t = 3 s: the fronts at ``times``
+    (the reference's, every 0.05 s) and the final deposit."""
+    m = build_depth_averaged(peer_depth_averaged_case(n))
+    times = np.arange(0.0, DA_T_END + 1e-9, 0.05) if times is None else np.asarray(times)
+    fronts = {tau: [] for tau in DA_FRONT_THICKNESSES_M}
+    for t in times:
+        if t > m.time:
+            m.advance(float(t))
+        for tau in DA_FRONT_THICKNESSES_M:
+            fronts[tau].append(cell_front(m.x, m.h, tau))
+    return {
+        "t": times,
+        "front_1mm": np.array(fronts[1e-3]),
+        "front_5mm": np.array(fronts[5e-3]),
+        "x": m.x.copy(),
+        "h": m.h.copy(),
+        "mass_rel_error": abs(m.mass() - WIDTH * HEIGHT) / (WIDTH * HEIGHT),
+        "steps": m.step_count,
+    }
+
+
+def peer_depth_averaged(n: int = 100, threads: int = 1):
+    """``granrs validate peer-depth-averaged``: the dry column of the shared scene with granrs's
+    depth-averaged model (k = 1, Coulomb base at tan 15°) against IMEX_SfloW2D v2: the 1 mm and
+    5 mm fronts against time, the run-outs, the deposit's centre of mass and its profile.
+    Returns (metrics, reference, passed). ``threads`` is unused (the model is serial)."""
+    ref = load_depth_averaged_reference(n)
+    run = run_depth_averaged_peer(n, ref["t"])
+    h = np.interp(ref["x"], run["x"], run["h"], right=0.0)
+    com, com_ref = float(np.sum(h * ref["x"]) / np.sum(h)), float(np.sum(ref["h"] * ref["x"]) / np.sum(ref["h"]))
+    metrics: dict[str, Any] = {
+        "n_cells_across_width": n,
+        "dx_m": WIDTH / n,
+        "reference_file": ref["file"],
+        "steps": run["steps"],
+        "mass_rel_error": run["mass_rel_error"],
+        "centre_of_mass_x_m": {"granrs": com, "peer": com_ref, "rel_diff": (com - com_ref) / com_ref},
+        "profile_l1_rel_diff": float(np.sum(np.abs(h - ref["h"])) / np.sum(ref["h"])),
+        "runout_m": {},
+        "front_vs_time": {},
+    }
+    for key in ("front_1mm", "front_5mm"):
+        got, want = run[key] - WIDTH, ref[key] - WIDTH
+        moving = ref["t"] > 0
+        metrics["runout_m"][key] = {
+            "granrs": float(got[-1]),
+            "peer": float(want[-1]),
+            "rel_diff": float((got[-1] - want[-1]) / want[-1]),
+        }
+        metrics["front_vs_time"][key] = {
+            "max_abs_diff_m": float(np.max(np.abs(got - want)[moving])),
+            "max_rel_diff_after_0.25s": float(np.max((np.abs(got - want) / want)[ref["t"] >= 0.25])),
+        }
+    failures = []
+    for key, r in metrics["runout_m"].items():
+        if not abs(r["rel_diff"]) <= DA_RUNOUT_TOLERANCE:
+            failures.append(f"{key} run-out {r['granrs']:.4f} m vs {r['peer']:.4f} m ({r['rel_diff']:+.1%})")
+    if not abs(metrics["centre_of_mass_x_m"]["rel_diff"]) <= DA_CENTRE_OF_MASS_TOLERANCE:
+        failures.append(f"centre of mass {com:.4f} m vs {com_ref:.4f} m")
+    if not metrics["profile_l1_rel_diff"] <= DA_PROFILE_TOLERANCE:
+        failures.append(f"profile L1 {metrics['profile_l1_rel_diff']:.1%} > {DA_PROFILE_TOLERANCE:.0%}")
+    metrics["failures"] = failures
+    reference = {
+        "solver": "IMEX_SfloW2D v2 (central-upwind FV, IMEX Runge-Kutta, k = 1, Coulomb tan 15°), "
+        "data/imex_sflow2d_dry_column/README.md",
+        "acceptance": f"run-outs at 1 and 5 mm and the deposit's centre of mass within {DA_RUNOUT_TOLERANCE:.0%}, "
+        f"the deposit's profile within {DA_PROFILE_TOLERANCE:.0%} in L1",
+        "gravity": "granrs g = 9.81 m/s², the peer's buoyancy-reduced 9.802 (times differ by 0.04 %)",
+    }
+    return _finite(metrics), reference, not failures
+
+
+def plot_depth_averaged(n: int, png: Path) -> dict:
+    """The figure of the depth-averaged comparison: the deposits (top) and the 1 mm and 5 mm fronts
+    against time (bottom), granrs against the peer; returns the case's metrics."""
+    import matplotlib  # deferred: pyplot's backend is chosen (Agg) when a figure is made, not on import
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # deferred: after its backend is chosen
+
+    ref = load_depth_averaged_reference(n)
+    run = run_depth_averaged_peer(n, ref["t"])
+    metrics, _, passed = peer_depth_averaged(n)
+    fig, (a, b) = plt.subplots(2, 1, figsize=(9, 7))
+    a.plot(ref["x"] - WIDTH, ref["h"], "k-", lw=2.2, label="IMEX_SfloW2D v2 (k = 1)")
+    a.plot(
+        run["x"] - WIDTH,
+        run["h"],
+        "C1--",
+        lw=1.4,
+        label=f"granrs depth-averaged, closure 'hydrostatic' ({n} cells per L_c)",
+    )
+    a.set(xlabel="x − L_c (m), gate at 0", ylabel="deposit h (m)", xlim=(-0.25, 2.8), yscale="log", ylim=(1e-4, 0.2))
+    a.set_title(f"Dry column, Coulomb base tan 15°: granrs against IMEX_SfloW2D ({'passes' if passed else 'fails'})")
+    a.grid(alpha=0.3)
+    a.legend(fontsize=8)
+    for key, mk in (("front_1mm", "o"), ("front_5mm", "s")):
+        b.plot(ref["t"], ref[key] - WIDTH, f"k{mk}", ms=3.5, mfc="none", label=f"IMEX: h > {key[6:]}")
+        b.plot(
+            run["t"], run[key] - WIDTH, "C1-" if key == "front_1mm" else "C0-", lw=1.3, label=f"granrs: h > {key[6:]}"
+        )
+    b.set(xlabel="t (s)", ylabel="front from the gate (m)")
+    b.grid(alpha=0.3)
+    b.legend(fontsize=8)
+    fig.tight_layout()
+    Path(png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return metrics
+
+
 def main(argv=None) -> int:
     """``python -m granrs.validation.peer --out DIR [--png FILE] [--n 32 64] [--option KEY=VALUE
     ...]``: the case with its runs kept in DIR (reused when run again), its JSON record in
@@ -360,7 +538,19 @@ def main(argv=None) -> int:
         metavar="KEY=VALUE",
         help="change a model option from its default, e.g. --option proximal_restarts=20 (repeat)",
     )
+    ap.add_argument(
+        "--depth-averaged",
+        dest="depth_averaged",
+        type=int,
+        default=None,
+        metavar="N",
+        help="the depth-averaged case instead, N cells across L_c (100: the peer's 2 mm): its figure in --png",
+    )
     args = ap.parse_args(argv)
+    if args.depth_averaged is not None:
+        png = Path(args.png) if args.png else Path(args.out) / "peer_depth_averaged.png"
+        print(json.dumps(plot_depth_averaged(args.depth_averaged, png), indent=2))
+        return 0
     options = parse_options(args.option)
     metrics, reference, passed = peer_dry_column(args.n, threads=args.threads, out=args.out, options=options)
     record = {"case": "peer-dry-column", "metrics": metrics, "reference": reference, "passed": passed}

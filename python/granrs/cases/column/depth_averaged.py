@@ -56,6 +56,8 @@ USED_KEYS = frozenset(
         "output.dir",
     }
 )
+
+
 def refuse_unused_keys(cfg: dict, given) -> None:
     """ParameterError for the first run-file key in ``given`` ((section, key) pairs the file or the
     command line set) that the case's model does not read: with case.model = 'depth-averaged'
@@ -126,8 +128,10 @@ def run_column_depth_averaged(
     threshold = depth_averaged_front_depth(case)
     mass0 = m.mass()
     rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": []}
-    # fluidisation: the basal pore pressure over the weight, under the reservoir and in the
-    # channel, Σ p_b / Σ ρ g h as the 2D runs record it (measures.basal_pore_pressure_ratio)
+    # fluidisation: the pore pressure over the weight, under the reservoir and in the channel,
+    # Σ p_f / Σ ρ g h as the 2D runs record it (measures.basal_pore_pressure_ratio), with p_f read
+    # where the 2D runs read it, on their lowest row of cells, half a cell (the front's depth)
+    # above the base: p_b (1 − threshold/h)⁺ with the linear profile of the pore pressure
     fluid = m.pore is not None
     under_reservoir = m.x < lc
     if fluid:
@@ -156,7 +160,7 @@ def run_column_depth_averaged(
             _record_observables(rec, m.h, m.dx, 2 * threshold, lc)
             if fluid:
                 wet = np.where(m.h >= m.config["dry_depth"], m.h, 0.0)
-                pb = m.beta * wet  # p_b / (ρ g)
+                pb = m.beta * np.maximum(wet - threshold, 0.0)  # p_f / (ρ g) at the 2D lowest row
                 rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pb, wet, 1.0, under_reservoir))
                 rec["pf_ratio_channel"].append(basal_pore_pressure_ratio(pb, wet, 1.0, ~under_reservoir))
             while pending and t >= pending[0] - 1e-9:
