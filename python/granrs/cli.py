@@ -25,13 +25,14 @@ from .io.outputs import (
     check_path_text,
     commit_output_dir,
     plan_output_dir,
+    read_columns,
     record,
     release_output_dir,
 )
 from .io.provenance import command_line
 from .runner import run_config
 from .simulation import Terminated, raise_terminated
-from .sweep import run_sweep
+from .sweep import MAX_MEMBERS, run_sweep
 from .validation import CASES, run_case
 
 
@@ -264,10 +265,27 @@ def _run_file(args, parser) -> int:
 
 
 def _sweep(args) -> int:
+    if args.out is not None:
+        check_path_text("--out", args.out)
     cfg = load_config(args.file, args.set or [])
-    result = run_sweep(
-        cfg, args.param, scheduler=args.scheduler, workers=args.workers, out=args.out, overwrite=args.overwrite
-    )
+    _plot_backend()
+    out = args.out if args.out is not None else cfg["output"]["dir"]
+    try:
+        result = run_sweep(
+            cfg,
+            args.param,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            out=args.out,
+            overwrite=args.overwrite,
+            max_members=args.max_members,
+            fixed=tuple(item.partition("=")[0].strip() for item in args.set or []),
+            source=args.file,
+        )
+    except KeyboardInterrupt as err:
+        where = f"; the members that ran are in {out}, sweep.csv says which were interrupted"
+        print(f"granrs: {'interrupted (Ctrl-C)' if not isinstance(err, Terminated) else err}{where}", file=sys.stderr)
+        return 128 + (err.signum if isinstance(err, Terminated) else signal.SIGINT)
     keys = [
         k for k in result.table[0] if k not in ("dir", "error", "member", "stop_reason", "wall_s", "mass_rel_error")
     ]
@@ -335,6 +353,7 @@ def _run(args, parser) -> int:
         compare = None
         if args.compare_with is not None:
             compare = Path(args.compare_with)
+            check_path_text("--compare-with", args.compare_with)
             missing = [n for n in ("summary.json", "front.csv") if not (compare / n).is_file()]
             if missing:
                 raise ParameterError(
@@ -342,6 +361,14 @@ def _run(args, parser) -> int:
                     f"{'no such folder' if not compare.is_dir() else 'no ' + ' or '.join(missing) + ' there'}"
                     "; allowed the output folder of a finished column run"
                 )
+            for name, read in (("summary.json", lambda p: json.loads(p.read_text())), ("front.csv", read_columns)):
+                try:
+                    read(compare / name)
+                except (OSError, ValueError, StopIteration) as err:
+                    raise ParameterError(
+                        f"invalid parameter `--compare-with` = {args.compare_with!r}: its {name} cannot be read "
+                        f"({type(err).__name__}: {str(err)[:120]}); allowed the output folder of a finished column run"
+                    ) from None
         raw: dict = {}
         for name, dotted in _COLUMN_KEYS.items():
             value = getattr(args, name)
@@ -626,6 +653,13 @@ def main(argv=None) -> int:
         "(default: the file's output.dir; new or empty unless --overwrite)",
     )
     s.add_argument("--overwrite", action="store_true", help="replace a sweep already in --out")
+    s.add_argument(
+        "--max-members",
+        dest="max_members",
+        type=_number("--max-members", "int", 1, 10**9),
+        default=MAX_MEMBERS,
+        help=f"the most members the sweep may have ({MAX_MEMBERS}): a larger product is refused before any run",
+    )
 
     sub.add_parser("keys", help="the keys of a run file: type, range, unit, default")
     a = sub.add_parser("animate", help="(re)make animation.gif from the fields saved in an output folder")

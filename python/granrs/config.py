@@ -505,6 +505,23 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
                 "> 0 and a non-empty output.formats (the animation is made from the saved fields)"
             )
         out["animation"] = False  # the default animates saved fields: with none saved there is nothing to animate
+    # keys that the options chosen would not use: refused, naming what would use them
+    inert = (
+        (
+            ("bi_projection", "regularisation"),
+            cfg["bi_projection"]["plastic"] == "projection",
+            "allowed only with bi_projection.plastic = 'papanastasiou' or 'bi-viscous', whose regularisation it is "
+            "(bi_projection.plastic is 'projection')",
+        ),
+        (
+            ("time", "cfl_light"),
+            cfg["time"]["dt"] is not None,
+            f"allowed only with the adaptive step, time.dt absent (time.dt = {cfg['time']['dt']!r} s fixes the step)",
+        ),
+    )
+    for (section, name), unused, why in inert:
+        if unused and (section, name) in given and cfg[section][name] is not None:
+            raise ParameterError(f"invalid parameter `{section}.{name}` = {cfg[section][name]!r}: not used; {why}")
 
 
 def apply_sets(raw: dict, sets: Iterable[str]) -> dict:
@@ -564,6 +581,7 @@ _FULL_NAMES: dict[str, str] = {
 def full_key_message(message: str) -> str:
     """``message`` with each parameter it names in backticks as its run-file key
     (`pressure_update` → `numerics.pressure_update`); names that are not keys are kept."""
+
     def full(m: re.Match) -> str:
         name = m.group(1)
         return f"`{_FULL_NAMES.get(name, name)}`"

@@ -192,10 +192,15 @@ def output_volume(cfg: Config) -> tuple[int, int]:
     return n, int(n * per * grid.cells)
 
 
-def check_output_volume(cfg: Config, plan, source: Optional[str] = None) -> None:
+def check_output_volume(cfg: Config, plan, source: Optional[str] = None, total: Optional[dict] = None) -> None:
     """Refuses a run whose snapshots (``output_volume``) need more than the free space of the
-    file system of its folder, naming both."""
+    file system of its folder, naming both. ``total``: a dict that sums the volumes of several
+    runs into one folder (a sweep's members), each checked with those before it."""
     n, size = output_volume(cfg)
+    if total is not None:
+        total["snapshots"] = total.get("snapshots", 0) + n
+        total["bytes"] = total.get("bytes", 0) + size
+        n, size = total["snapshots"], total["bytes"]
     if not size:
         return
     ancestor = Path(os.path.abspath(plan.path))

@@ -92,6 +92,10 @@ class Callback:
     saves_state: bool = False
 
     def __post_init__(self):
+        if not callable(self.func):
+            raise ParameterError(
+                f"invalid parameter `func` = {self.func!r}: allowed a callable func(simulation), called at each output"
+            )
         if (self.every_time is None) == (self.every_steps is None):
             raise ParameterError("invalid parameter `Callback`: give exactly one of every_time, every_steps")
         if self.every_time is not None and not (math.isfinite(self.every_time) and self.every_time > 0):
@@ -124,6 +128,13 @@ class Simulation:
         speed_limit: Optional[float] = None,
         dt_collapse: float = 1e-6,
     ):
+        if not isinstance(model, Model):
+            raise ParameterError(f"invalid parameter `model` = {model!r}: allowed a granrs.Model")
+        if callbacks is not None and not isinstance(callbacks, (list, tuple)):
+            raise ParameterError(
+                f"invalid parameter `callbacks` = {callbacks!r}: allowed a list of granrs.Callback "
+                "(one callback too: callbacks=[Callback(...)])"
+            )
         if stop_time is None and stop_iteration is None:
             raise ParameterError("invalid parameter `stop_time/stop_iteration`: allowed at least one of them")
         if stop_time is not None and (
@@ -180,9 +191,21 @@ class Simulation:
         self.flush_outputs: Optional[Callable[[Simulation], object]] = None
 
     def _call(self, cb: Callback) -> None:
+        """Calls a callback; an exception of its own (not granrs's SimulationError, not an
+        interrupt) stops the run as a SimulationError naming the callback, chained to it."""
         if cb.saves_state and self.flush_outputs is not None:
             self.flush_outputs(self)
-        cb.func(self)
+        try:
+            cb.func(self)
+        except SimulationError:
+            raise
+        except Exception as err:
+            name = getattr(cb.func, "__qualname__", None) or type(cb.func).__name__
+            self.stop_reason = f"error: the callback {name} raised {type(err).__name__}: {err}"
+            raise SimulationError(
+                f"the callback {name} raised {type(err).__name__}: {err} at t = {self.model.time:.6g} s (step "
+                f"{self.model.step_count}); the run stops there"
+            ) from err
 
     def _next_stop(self):
         m = self.model
@@ -207,7 +230,20 @@ class Simulation:
 
     def run(self) -> Simulation:
         """Runs to the stop condition. A failure (SimulationError, SolverError) propagates after
-        the history gathered so far is kept in ``history``."""
+        the history gathered so far is kept in ``history``. A model runs in one thread at a time:
+        a second run of the same model while one goes on is a ParameterError naming it."""
+        busy = self.model.__dict__.setdefault("_run_lock", threading.Lock())
+        if not busy.acquire(blocking=False):
+            raise ParameterError(
+                f"invalid parameter `model` = {_model_words(self.model)}: it is running in another thread; "
+                "allowed one run at a time per model (a Model of its own for each thread)"
+            )
+        try:
+            return self._run()
+        finally:
+            busy.release()
+
+    def _run(self) -> Simulation:
         m = self.model
         start = _time.perf_counter()
         for cb in self.callbacks:
@@ -230,6 +266,11 @@ class Simulation:
                 try:
                     log = m.advance(t_end=t_next, max_steps=n_next)
                 except Exception as err:  # keep the steps done before the failure
+                    if type(err) is RuntimeError and "borrowed" in str(err):
+                        raise ParameterError(  # the core's state is held by a call from another thread
+                            f"invalid parameter `model` = {_model_words(m)}: it is in use by another thread; "
+                            "allowed one thread at a time per model (a Model of its own for each thread)"
+                        ) from None
                     for k, v in getattr(err, "history", {}).items():
                         self.history.setdefault(k, []).extend(v)
                     self.wall_time = _time.perf_counter() - start
@@ -311,6 +352,12 @@ class Simulation:
 
     def history_arrays(self) -> dict:
         return {k: np.asarray(v) for k, v in self.history.items()}
+
+
+def _model_words(model: Model) -> str:
+    """The model named for an error: its class, grid and identity."""
+    g = model.grid
+    return f"<{type(model).__name__} {g.nx} x {g.ny} cells at {id(model):#x}>"
 
 
 def _default_speed_limit(model: Model) -> float:

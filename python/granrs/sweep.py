@@ -25,10 +25,14 @@ import itertools
 import json
 import logging
 import math
+import os
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,10 +42,19 @@ import numpy as np
 
 from ._granrs import ParameterError
 from .cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM
-from .config import Config, column_case, dumps, key as config_key, load_config, parse_scalar, resolve, set_value
-from .io.outputs import atomic_write, commit_output_dir, plan_output_dir, record, release_output_dir
+from .config import Config, dumps, full_key_message, key as config_key, load_config, parse_scalar, resolve, set_value
+from .io.outputs import (
+    atomic_write,
+    commit_output_dir,
+    control_character,
+    lock_holder,
+    plan_output_dir,
+    record,
+    release_output_dir,
+)
 from .io.provenance import provenance
-from .runner import run_config
+from .runner import check_output_volume, preflight, run_config
+from .simulation import raise_terminated
 
 RECORD_KEYS = ("status", "runout_m", "t_end_s", "steps", "stop_reason", "wall_s", "mass_rel_error", "error")
 
@@ -51,8 +64,18 @@ def parse_param(text: str) -> tuple[str, list]:
     against the key's type later, when the members are resolved."""
     if "=" not in text:
         raise ParameterError(f"invalid parameter `--param {text}`: allowed key=a:b:n or key=v1,v2,...")
+    bad = control_character(text)
+    if bad is not None:
+        raise ParameterError(
+            f"invalid parameter `--param {text!r}`: it holds a {bad}; allowed one line key=a:b:n or key=v1,v2,..."
+        )
     name, spec = (s.strip() for s in text.split("=", 1))
     k = config_key(name)
+    if name == "output.dir":
+        raise ParameterError(
+            f"invalid parameter `--param {text}`: output.dir is not swept (each member writes into "
+            "<out>/member-NNN); allowed a key of the model or the run (granrs keys), and --out for the sweep's folder"
+        )
     if spec.count(":") == 2 and "[" not in spec and '"' not in spec:
         a, b, n = (parse_scalar(s.strip()) for s in spec.split(":"))
         if (
@@ -78,16 +101,41 @@ def parse_param(text: str) -> tuple[str, list]:
     return name, values
 
 
-def _params(params) -> dict[str, list]:
+#: The most members a sweep runs unless ``max_members`` (``--max-members``) says more.
+MAX_MEMBERS = 1000
+
+
+def _params(params, max_members: int = MAX_MEMBERS) -> dict[str, list]:
+    """The swept keys and their values; a key given twice, ``output.dir`` and a product of more
+    than ``max_members`` members are refused."""
     if isinstance(params, Mapping):
         out = {}
         for name, values in params.items():
             config_key(name)
+            if name == "output.dir":
+                raise ParameterError("invalid parameter `params` key 'output.dir': allowed a key other than output.dir")
             out[name] = list(values)
     else:
-        out = dict(parse_param(p) for p in params)
+        out = {}
+        for p in params:
+            name, values = parse_param(p)
+            if name in out:
+                raise ParameterError(
+                    f"invalid parameter `--param {p}`: {name} is already swept by another --param; allowed "
+                    "each key once (its values in one --param: key=v1,v2,...)"
+                )
+            out[name] = values
     if not out or any(len(v) == 0 for v in out.values()):
         raise ParameterError("invalid parameter `params`: allowed at least one key with at least one value")
+    if isinstance(max_members, bool) or not isinstance(max_members, int) or max_members < 1:
+        raise ParameterError(f"invalid parameter `max_members` = {max_members!r}: allowed an integer >= 1")
+    count = math.prod(len(v) for v in out.values())
+    if count > max_members:
+        raise ParameterError(
+            f"invalid parameter `--param`: the sweep has {count} members "
+            f"({' x '.join(f'{len(v)} {k}' for k, v in out.items())}), more than the limit of {max_members}; "
+            "allowed at most that many, or --max-members N (max_members=N) to raise the limit"
+        )
     return out
 
 
@@ -98,11 +146,24 @@ class Member:
     config: Config
 
 
-def members(config: Union[str, Path, Config], params, out: Optional[Union[str, Path]] = None) -> list[Member]:
+def members(
+    config: Union[str, Path, Config],
+    params,
+    out: Optional[Union[str, Path]] = None,
+    max_members: int = MAX_MEMBERS,
+    fixed: tuple = (),
+) -> list[Member]:
     """The resolved configuration of every member (validated now: a bad value fails here, before
-    any run). ``out`` (default: the base output.dir) holds member-NNN folders."""
+    any run). ``out`` (default: the base output.dir) holds member-NNN folders; ``fixed``: keys
+    the base was given on the command line (--set), which a swept key may not be."""
     base = load_config(config) if isinstance(config, (str, Path)) else resolve(config)
-    params = _params(params)
+    params = _params(params, max_members)
+    both = sorted(set(params) & set(fixed))
+    if both:
+        raise ParameterError(
+            f"invalid parameter `--param {both[0]}=...` with `--set {both[0]}=...`: the key is both swept and "
+            "fixed; allowed one of them"
+        )
     out = Path(out) if out is not None else Path(base["output"]["dir"])
     result = []
     for i, combo in enumerate(itertools.product(*params.values())):
@@ -118,6 +179,34 @@ def members(config: Union[str, Path, Config], params, out: Optional[Union[str, P
         values = {name: cfg[name.split(".")[0]][name.split(".")[1]] for name in params}  # as resolved (ints to floats)
         result.append(Member(i, values, cfg))
     return result
+
+
+def _summary_of(folder) -> dict:
+    """The row entries of a member from its summary.json as it is on disk (none without one)."""
+    summary = _read_summary({"output": {"dir": folder}})
+    return {k: summary[k] for k in ("runout_m", "t_end_s", "steps", "stop_reason", "mass_rel_error") if k in summary}
+
+
+def _stop_members(configs: list, wait: float = 60.0) -> None:
+    """Sends SIGTERM to the member processes running on this host (the process each member's
+    folder lock names) and waits up to ``wait`` seconds for their locks to go: each writes its
+    outputs and stops as a run stopped by SIGTERM does."""
+    running = []
+    for cfg in configs:
+        holder = lock_holder(cfg["output"]["dir"])
+        if holder is None or holder[0] != "held":
+            continue
+        info = holder[1]
+        if info.get("host") == socket.gethostname() and isinstance(info.get("pid"), int):
+            try:
+                os.kill(info["pid"], signal.SIGTERM)
+                running.append(cfg["output"]["dir"])
+            except OSError:
+                pass
+    t0 = time.perf_counter()
+    while running and time.perf_counter() - t0 < wait:
+        running = [d for d in running if (h := lock_holder(d)) is not None and h[0] == "held"]
+        time.sleep(0.05)
 
 
 def _record(rec: dict, summary: dict, t0: float) -> dict:
@@ -180,10 +269,18 @@ def run_member(cfg: Config) -> dict:
 
 
 def _member_main(out: str) -> int:
+    for signum in (signal.SIGTERM, signal.SIGHUP):  # the sweep stops its members with SIGTERM
+        signal.signal(signum, raise_terminated)
     cfg = json.loads(sys.stdin.read())
     if str(cfg["output"]["dir"]) != out:
         raise SystemExit(f"granrs.sweep member: the folder {out!r} is not the configuration's {cfg['output']['dir']!r}")
-    rec = run_member_here(cfg)
+    t0 = time.perf_counter()
+    try:
+        rec = run_member_here(cfg)
+    except KeyboardInterrupt as err:  # a Ctrl-C or the sweep's SIGTERM: the member's outputs are kept
+        rec = _record(
+            {"status": "interrupted", "error": f"interrupted: {err or 'KeyboardInterrupt'}"}, _read_summary(cfg), t0
+        )
     print(json.dumps(rec))
     return 0
 
@@ -206,20 +303,30 @@ def run_sweep(
     out: Optional[Union[str, Path]] = None,
     plot: bool = True,
     overwrite: bool = False,
+    max_members: int = MAX_MEMBERS,
+    fixed: tuple = (),
+    source: Optional[str] = None,
 ) -> SweepResult:
     """Runs every member on dask.distributed and gathers the results (see the module docstring).
-    Writes ``<out>/sweep.csv`` (after every finished member), ``sweep.nc`` and ``sweep_runout.png``."""
+    Writes ``<out>/sweep.csv`` (after every finished member), ``sweep.nc`` and ``sweep_runout.png``.
+    ``max_members``: the most members allowed; ``fixed``: the keys --set gave; ``source``: the
+    run file, named in the errors."""
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
         raise ParameterError(f"invalid parameter `workers` = {workers!r}: allowed an integer in [1, 256]")
     base = load_config(config) if isinstance(config, (str, Path)) else resolve(config)
     out = Path(out) if out is not None else Path(base["output"]["dir"])
-    mems = members(base, params, out)
-    for m in mems:  # memory and the other checks of the case, before any member runs
-        try:
-            column_case(m.config).validate()
-        except ParameterError as err:
-            raise ParameterError(f"sweep member {m.index} ({m.values}): {err}") from None
     plan = plan_output_dir(out, overwrite=overwrite, name="--out")
+    mems = members(base, params, out, max_members, fixed)
+    total = {"output": {"fields_every_s": 0.0}}  # the volume of all members together, below
+    for m in mems:  # every check of a run, before any member runs
+        try:
+            preflight(m.config)
+            check_output_volume(m.config, plan, total=total)
+        except ParameterError as err:
+            text = full_key_message(str(err))
+            raise ParameterError(
+                f"{source + ': ' if source else ''}sweep member {m.index} ({m.values}): {text}"
+            ) from None
     commit_output_dir(plan)
     try:
         return _run_members(base, mems, out, scheduler, workers, plot)
@@ -245,7 +352,16 @@ def _run_members(base: Config, mems: list, out: Path, scheduler, workers: int, p
         _write_csv(out / "sweep.csv", table)
 
     _write_csv(out / "sweep.csv", table)
-    _run_on_dask([m.config for m in mems], scheduler, workers, finished)
+    try:
+        _run_on_dask([m.config for m in mems], scheduler, workers, finished)
+    except KeyboardInterrupt:
+        for row in table:  # the members that had started and not ended
+            if row["status"] == "pending" and Path(row["dir"]).exists():
+                row.update(
+                    status="interrupted", error="interrupted: the sweep was interrupted", **_summary_of(row["dir"])
+                )
+        _write_csv(out / "sweep.csv", table)
+        raise
     prov = provenance(dumps(base))
     files = {"csv": _write_csv(out / "sweep.csv", table)}
     ds = to_dataset(table, list(mems[0].values), prov)
@@ -265,15 +381,26 @@ def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished
 
     cluster = None
     if scheduler is None:
-        with dask.config.set({"distributed.scheduler.allowed-failures": 0}):  # a dead worker: report, not retry
-            cluster = LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=True,
-                host="127.0.0.1",
-                dashboard_address=None,
-                silence_logs=logging.ERROR,
-            )
+        # the workers (and the members they start) ignore SIGINT: a Ctrl-C reaches this process, which
+        # stops the members with SIGTERM (_stop_members), without a worker's traceback
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
+        try:
+            with (
+                dask.config.set({"distributed.scheduler.allowed-failures": 0}),  # a dead worker: report, not retry
+                warnings.catch_warnings(),
+            ):
+                warnings.filterwarnings("ignore", message="Port .* is already in use")  # no dashboard is served
+                cluster = LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    host="127.0.0.1",
+                    dashboard_address=None,
+                    silence_logs=logging.ERROR,
+                )
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
         client = Client(cluster)
     else:
         client = Client(scheduler)
@@ -292,10 +419,17 @@ def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished
                 )
                 rec["wall_s"] = math.nan
             finished(i, rec)
+    except KeyboardInterrupt:
+        _stop_members(configs)
+        raise
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
 
 
 def _write_csv(path: Path, table: list) -> Path:

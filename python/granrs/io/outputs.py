@@ -123,15 +123,16 @@ def check_path_length(name: str, path, inside: str = "") -> None:
     writes below it) is too long for the file system that would hold it: a component longer than
     its NAME_MAX, or the whole longer than its PATH_MAX."""
     absolute = Path(os.path.abspath(Path(str(path)).expanduser()))
+    name_max, path_max = 255, 4096
     ancestor = absolute
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
-    probe = ancestor if ancestor.is_dir() else ancestor.parent
     try:
+        while not ancestor.exists() and ancestor != ancestor.parent:
+            ancestor = ancestor.parent
+        probe = ancestor if ancestor.is_dir() else ancestor.parent
         name_max = os.pathconf(probe, "PC_NAME_MAX")
         path_max = os.pathconf(probe, "PC_PATH_MAX")
     except (OSError, ValueError):
-        name_max, path_max = 255, 4096
+        pass  # a name too long to look up: the defaults of Linux file systems judge it below
     full = absolute / inside if inside else absolute
     for part in full.parts:
         if len(os.fsencode(part)) > name_max:

@@ -61,11 +61,22 @@ def provenance(config_text: str = "", command: Optional[str] = None) -> dict:
     }
 
 
+def one_line(text: str) -> str:
+    """``text`` with every control character written as its escape (a newline as ``\\n``), so
+    that it stays on one line of a comment."""
+    return "".join(
+        ch.encode("unicode_escape").decode("ascii")
+        if ord(ch) < 32 or 127 <= ord(ch) < 160 or ch in "\u2028\u2029"
+        else ch
+        for ch in text
+    )
+
+
 def header_lines(prov: dict) -> list[str]:
-    """Provenance as comment lines (for the resolved TOML file)."""
+    """Provenance as comment lines (for the resolved TOML file), each on one line."""
     return [
-        f"granrs {prov['granrs_version']}, git {prov['git_revision'] or 'unknown'}, {prov['created_utc']}",
-        f"command: {prov['command_line']}",
+        one_line(f"granrs {prov['granrs_version']}, git {prov['git_revision'] or 'unknown'}, {prov['created_utc']}"),
+        one_line(f"command: {prov['command_line']}"),
     ]
 
 

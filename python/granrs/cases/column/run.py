@@ -297,7 +297,7 @@ def run_column(
                     cb.func(sim)
         raise failure
     if error is not None:
-        kind = SolverError if isinstance(failure, SolverError) else SimulationError
+        kind = type(failure) if isinstance(failure, (SolverError, OutputError)) else SimulationError
         raise kind(error + f" (outputs written to {out})") from failure
     return summary
 
