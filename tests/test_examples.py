@@ -36,3 +36,14 @@ def test_the_calibration_example_sweeps_and_reports_its_closest_member(tmp_path)
     assert [(row["rheology.viscosity"], row["status"]) for row in rows] == [("0.1", "ok"), ("0.3", "ok")]
     assert "closest to the experiment (1.8443 m) among 2 finished members" in r.stdout
     assert "not at rest" in r.stdout
+
+
+def test_every_study_and_benchmark_script_is_in_its_readme_table():
+    """studies/README.md and benchmarks/README.md name each of their scripts in a table row (the
+    figure or table it makes, where the docs show it, how long it runs)."""
+    for folder in ("studies", "benchmarks"):
+        readme = (ROOT / folder / "README.md").read_text()
+        rows = {line.split("|")[1].strip().strip("`") for line in readme.splitlines() if line.startswith("| `")}
+        scripts = {p.name for p in (ROOT / folder).glob("*.py")}
+        assert scripts <= rows, (folder, sorted(scripts - rows))
+        assert rows <= scripts, (folder, sorted(rows - scripts))
