@@ -176,8 +176,14 @@ def test_a_run_stopped_at_rest_reports_its_arrest_time(tmp_path):
     ta = s["arrest_time_s"]
     quiet = t >= ta - 1e-9
     assert np.all(speed[quiet] < case.rest.speed)
-    assert speed[~quiet][-1] >= case.rest.speed or t[~quiet][-1] <= 0.1 + 1e-9
+    assert speed[~quiet][-1] >= case.rest.speed or t[~quiet][-1] <= case.rest.after + 1e-9
     assert s["t_end_s"] - ta == pytest.approx(case.rest.duration, abs=0.01 + 1e-9)
+    # the criterion is applied from rest.after on: asked from 0.2 s after that arrest, the same
+    # column's quiet window starts at the first record after it
+    rest = RestCriterion(speed=0.3, duration=0.05, after=round(ta + 0.2, 6))
+    later = ColumnCase(ny=16, fluidised=False, t_end=ta + 0.5, rest=rest)
+    s = run_column(later, tmp_path / "later", progress=False)
+    assert s["stop_reason"] == "rest" and later.rest.after < s["arrest_time_s"] <= later.rest.after + 0.01 + 1e-9, s
     assert s["final_granular_speed_m_s"] < case.rest.speed
 
 
