@@ -5,7 +5,8 @@ Every import statement of the package's code (parsed with ``ast``; a relative im
 against its module) that names a module of the package is an import of that module, or of a
 package's ``__init__`` when it names a package or a name a package's ``__init__`` defines. A
 module may import a module on a lower floor, or one on its own floor as long as the modules of
-that floor import each other without a cycle. No module imports the ``__init__`` of a package it
+that floor import each other without a cycle (an import of ``a.b.c`` runs ``a.b``'s ``__init__``
+too, which counts). No module imports the ``__init__`` of a package it
 is part of (``granrs`` itself, its own subpackage): that ``__init__`` is the package's front,
 which imports the modules, never the other way round. An import inside a function or a class
 (a deferred import) of a module of the package is refused, and so is a private name (``_x``)
@@ -222,7 +223,16 @@ def check(root: Path) -> tuple[list[str], dict[str, set[str]]]:
                     f"{at}: {label(name)} (floor {f_from}, {FLOORS[f_from][0]}) imports {label(target)} "
                     f"(floor {f_to}, {FLOORS[f_to][0]}), a floor up"
                 )
-    for cycle in cycles(graph):
+    # importing a.b.c runs the __init__ of a.b first: a cycle may close through it
+    run = {name: set(targets) for name, targets in graph.items()}
+    for name, targets in graph.items():
+        for target in targets:
+            parts = target.split(".")
+            for k in range(1, len(parts)):
+                package = ".".join(parts[:k])
+                if package in files and not (name + ".").startswith(package + "."):
+                    run[name].add(package)
+    for cycle in cycles(run):
         problems.append("import cycle: " + " -> ".join(label(c) for c in cycle))
     return problems, graph
 
