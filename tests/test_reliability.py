@@ -275,6 +275,8 @@ if given is not None:
             raw[key.section][main[0]] = main[1]  # the object's own key: it is off while absent
         if key.full == "grid.length":
             raw["case"] = {"width": 0.001}  # below the key's range: any length in range is beyond the gate
+        if key.section == "depth_averaged":
+            raw["case"] = {"model": "depth-averaged"}  # the only model that reads them
         try:
             cfg = resolve(raw)
         except ParameterError as err:
