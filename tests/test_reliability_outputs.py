@@ -545,3 +545,77 @@ def test_a_callback_that_raises_stops_the_run_chained_with_its_outputs_kept(tmp_
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["stop_reason"].startswith("error: the callback") and "ValueError" in summary["stop_reason"]
     assert (tmp_path / "out" / "front.csv").exists() and not (tmp_path / "out" / LOCK).exists()
+
+
+# ---- the property: outside the manifest, nothing changes ---------------------------------------
+hypothesis = pytest.importorskip("hypothesis")
+st = hypothesis.strategies
+
+
+def _owned(rel: str, manifest: set) -> bool:
+    """Whether a path of the folder is the manifest's (listed, a listed file's .tmp, the manifest, the lock)."""
+    base = rel[:-4] if rel.endswith(".tmp") else rel
+    return rel in (MANIFEST, LOCK) or base in manifest or base + "/" in manifest
+
+
+@hypothesis.settings(
+    max_examples=15,
+    deadline=None,
+    suppress_health_check=[hypothesis.HealthCheck.function_scoped_fixture],
+)
+@hypothesis.given(
+    earlier=st.booleans(),
+    foreign=st.lists(
+        st.sampled_from(
+            ["notes.txt", "holiday.png", "front.png", "summary.json", "fields/mine.txt", "fields/fields_00009.vti"]
+        ),
+        unique=True,
+        max_size=3,
+    ),
+    links=st.lists(st.sampled_from(["fields", "link.png", "elsewhere"]), unique=True, max_size=2),
+    drop=st.sampled_from([None, "front.png", "fields/fields_00001.vti"]),
+    action=st.sampled_from(["overwrite", "plain", "refused"]),
+)
+def test_outside_the_manifest_nothing_changes(
+    tmp_path_factory, capsys, finished, earlier, foreign, links, drop, action
+):
+    base = tmp_path_factory.mktemp("property")
+    other = base / "other"
+    other.mkdir()
+    (other / "fields_00000.vti").write_text("theirs")
+    (other / "x.png").write_text("theirs")
+    run = copy_run(finished, base / "run") if earlier else base / "run"
+    run.mkdir(exist_ok=True)
+    for name in links:  # symbolic links out of the folder (fields/ replaced by one, as a user might)
+        target = run / name
+        if target.is_dir() and not target.is_symlink():
+            shutil.rmtree(target)
+        target.symlink_to(other if name != "link.png" else other / "x.png")
+    for name in foreign:
+        path = run / name
+        if any(p.is_symlink() for p in [path, *path.parents][: len(Path(name).parts)]):
+            continue  # not through a link: the files out of the folder are the link's target's
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(f"the user's {name}")
+    if earlier and drop is not None:
+        lines = (run / MANIFEST).read_text().splitlines()
+        (run / MANIFEST).write_text("\n".join(line for line in lines if line != drop) + "\n")
+    manifest = read_manifest(run) or set()
+    before, before_other = tree(run), tree(other)
+    kept = {rel: v for rel, v in before.items() if not _owned(rel, manifest)}
+    argv = {
+        "overwrite": ["--overwrite", "--set", "time.t_end=0.02"],
+        "plain": ["--set", "time.t_end=0.02"],
+        "refused": ["--overwrite", "--set", "time.cfl=5"],
+    }[action]
+    rc, err = cli(capsys, "run", finished[0], "--quiet", "--out", run, *argv)
+    hypothesis.event(f"exit status {rc}")
+    after = tree(run)
+    assert tree(other) == before_other  # nothing out of the folder is ever touched
+    for rel, value in kept.items():  # nothing the manifest did not list changed
+        assert after.get(rel) == value, (rel, rc, err)
+    if rc != 0:
+        assert rc == 2 and after == before, err  # a refused run writes nothing
+    else:
+        new = read_manifest(run)
+        assert all(_owned(rel, new) or rel in kept for rel in after), (sorted(after), sorted(new))
