@@ -6,6 +6,8 @@ model or method variant granrs offers.
     python studies/work_precision.py --ny 128 --variants "D-P (default)" "granular (no air)"
     python studies/work_precision.py                          # then the rest; stored runs are reused
     python studies/work_precision.py --plot-only              # redraw from the stored CSV
+    python studies/work_precision.py --rows-of depth-averaged --reference-from docs/img/ny256
+                                                              # one variant's rows rerun in the stored CSV
 
 Each run is the paper's column (``granrs run column``, docs/reference-data.md) to t = 3 s, one
 thread, fluidised and not, kept in ``OUT/<variant>/<fluidised|dry>-<ny>/`` and skipped when the
@@ -154,6 +156,61 @@ def plot(rows: list[dict], png: Path) -> None:
     plt.close(fig)
 
 
+def load_reference(folder: Path, fluidised: bool, ny: int) -> dict:
+    """The finest D-P run's summary and front curve: FOLDER/{fluidised,dry}-NY/ (a run folder), or
+    FOLDER/observables_{fluidised,dry}_summary.json and _front.csv (docs/img/ny256)."""
+    state = "fluidised" if fluidised else "dry"
+    run = folder / f"{state}-{ny}"
+    summary, front = (
+        (run / "summary.json", run / "front.csv")
+        if run.is_dir()
+        else (folder / f"observables_{state}_summary.json", folder / f"observables_{state}_front.csv")
+    )
+    s = json.loads(summary.read_text())
+    data = np.genfromtxt(front, delimiter=",", skip_header=1)
+    s["front_t"], s["front_x"] = data[:, 0], data[:, 1]
+    return s
+
+
+def update_rows(variants: list, nys: list, out: Path, csv_path: Path, png: Path, reference_from: Path) -> None:
+    """The stored CSV with the rows of ``variants`` rerun at ``nys`` (the other rows kept), and the
+    figure redrawn."""
+    with open(csv_path) as f:
+        rows = list(csv.DictReader(f))
+    finest = int(rows[0]["reference_ny"])
+    refs = {fl: load_reference(reference_from, fl, finest) for fl in (True, False)}
+    kept = [r for r in rows if r["variant"] not in variants]
+    for v in variants:
+        for ny in nys:
+            for fl in (True, False):
+                r = run_or_load(v, VARIANTS[v], ny, fl, out, allow_run=True)
+                if r is None:
+                    continue
+                ref = refs[fl]
+                kept.append(
+                    {
+                        "variant": v,
+                        "ny": ny,
+                        "fluidised": int(fl),
+                        "wall_s": r["wall_s"],
+                        "steps": r["steps"],
+                        "runout_m": r["runout_m"],
+                        "runout_err_ref": abs(r["runout_m"] / ref["runout_m"] - 1),
+                        "runout_err_exp": abs(r["runout_m"] / PAPER_RUNOUT_EXP - 1) if fl else "",
+                        "front_err_ref": front_error(r, ref),
+                        "reference_ny": finest,
+                    }
+                )
+    order = {v: k for k, v in enumerate(dict.fromkeys(r["variant"] for r in rows))}
+    kept.sort(key=lambda r: (order[r["variant"]], int(r["ny"]), -int(r["fluidised"])))
+    with open(csv_path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(kept)
+    plot([{k: (float(v) if k != "variant" and v != "" else v) for k, v in r.items()} for r in kept], png)
+    print(f"wrote {csv_path} and {png}: the rows of {', '.join(variants)} (reference: D-P at ny = {finest})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ny", type=int, nargs="+", default=[16, 32, 64])
@@ -166,9 +223,22 @@ def main() -> None:
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     ap.add_argument("--docs", default="docs/img")
     ap.add_argument("--plot-only", action="store_true")
+    ap.add_argument(
+        "--rows-of",
+        dest="rows_of",
+        nargs="+",
+        choices=list(VARIANTS),
+        default=None,
+        help="rerun only these variants and replace their rows in the stored CSV; the finest D-P run's "
+        "front curves from --reference-from (FOLDER/{fluidised,dry}-NY/, or the observables_*_front.csv and "
+        "_summary.json of docs/img/ny256)",
+    )
     args = ap.parse_args()
     out, docs = Path(args.out), Path(args.docs)
     csv_path, png = docs / "work_precision.csv", docs / "work_precision.png"
+    if args.rows_of:
+        update_rows(args.rows_of, sorted(args.ny), out, csv_path, png, Path(args.reference_from))
+        return
     if args.plot_only:
         with open(csv_path) as f:
             rows = [
