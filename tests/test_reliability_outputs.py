@@ -262,25 +262,27 @@ def test_the_volume_refusal_names_the_estimate_and_the_free_disk(tmp_path, capsy
     assert rc == 2 and "about 3.35e+05 GB of field snapshots" in err and "GB free on the file system of" in err, err
 
 
-def test_a_restart_whose_state_does_not_fit_the_changed_model_is_refused_before_any_write(tmp_path, capsys, finished):
+@pytest.mark.parametrize(
+    "region, change, message",
+    [
+        (False, ["case.fluidised=false"], "(case.fluidised: True -> False)"),
+        (True, [], "(active_region.band: 8 -> None)"),
+    ],
+)
+def test_a_restart_whose_state_does_not_fit_the_changed_model_is_refused_before_any_write(
+    tmp_path, capsys, finished, region, change, message
+):
     path, out = finished
-    rc, err = cli(
-        capsys,
-        "run",
-        path,
-        "--quiet",
-        "--restart",
-        out / "checkpoint.npz",
-        "--allow-changes",
-        "--set",
-        "case.fluidised=false",
-        "--set",
-        "time.t_end=0.06",
-        "--out",
-        tmp_path / "dry",
-    )
-    assert rc == 2 and "does not fit the changed configuration (case.fluidised: True -> False)" in err, err
-    assert not (tmp_path / "dry").exists()
+    if region:  # a checkpoint of a run on an active region, restarted on the whole domain
+        assert (
+            main(["run", str(path), "--quiet", "--out", str(tmp_path / "region"), "--set", "active_region.band=8"]) == 0
+        )
+        out = tmp_path / "region"
+    sets = [a for item in change + ["time.t_end=0.06"] for a in ("--set", item)]
+    restart = ["--restart", out / "checkpoint.npz", "--allow-changes", "--out", tmp_path / "changed"]
+    rc, err = cli(capsys, "run", path, "--quiet", *restart, *sets)
+    assert rc == 2 and f"the checkpoint's state does not fit the changed configuration {message}" in err, err
+    assert "`object`" not in err and not (tmp_path / "changed").exists()
 
 
 @pytest.mark.parametrize(

@@ -124,7 +124,8 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
         except ParameterError as err:
             raise ParameterError(
                 f"invalid parameter `--allow-changes` with --restart {str(restart)!r}: the checkpoint's "
-                f"state does not fit the changed configuration ({'; '.join(changes)}): {err}; allowed "
+                f"state does not fit the changed configuration ({'; '.join(changes)}): "
+                f"{str(err).removeprefix('invalid checkpoint `object`: ')}; allowed "
                 "changes that keep the model's state (not fluidised <-> dry, not the active region <-> "
                 "the whole domain, not the model)"
             ) from None
