@@ -265,7 +265,9 @@ if given is not None:
         inside = (
             not isinstance(value, (bool, str))
             and (key.kind == "float" or isinstance(value, int))
-            and math.isfinite(value)
+            # an infinite value is inside a range closed at that infinity ('[0, inf]': time.max_dt)
+            and not math.isnan(value)
+            and (math.isfinite(value) or (key.hi == math.inf and not key.hi_open and value > 0))
             and (value > key.lo if key.lo_open else value >= key.lo)
             and (value < key.hi if key.hi_open else value <= key.hi)
         )
@@ -452,9 +454,7 @@ def _fill(folder: Path, after: float):
 
 
 @pytest.mark.parametrize("formats", [["vtk"], ["netcdf"]])
-def test_a_disk_that_fills_during_the_run_stops_it_with_the_earlier_files_complete(
-    tmp_path, small_fs, capsys, formats
-):
+def test_a_disk_that_fills_during_the_run_stops_it_with_the_earlier_files_complete(tmp_path, small_fs, capsys, formats):
     # 4 MiB: the run's estimated snapshots (ny = 8, fields every 10 ms up to 0.3 s: about 1 MB)
     # fit when it starts; at t = 0.15 s, after the first flush of summary.json (0.09 s), a filler
     # file takes every byte left

@@ -74,7 +74,10 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
             ),
             source,
         )
-    case = column_case(cfg)
+    try:
+        case = column_case(cfg)
+    except ParameterError as err:
+        raise _named(err, source) from None
     # the depth-averaged model writes no fields: output.* away from their defaults are refused
     # with it (config.refuse_unused_keys), their defaults ignored
     saves = case.model != "depth-averaged" and (
