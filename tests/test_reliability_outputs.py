@@ -399,7 +399,11 @@ def test_a_restart_writes_no_snapshot_twice(tmp_path, capsys, finished):
     assert times == pytest.approx([0.0, 0.02, 0.04, 0.06]) and len(set(times)) == len(times)
     with netCDF4.Dataset(run / "fields.nc") as ds:
         assert np.asarray(ds["time"][:]) == pytest.approx([0.0, 0.02, 0.04, 0.06])
-    assert "config.restart-" in "".join(read_manifest(run))
+    (restart_config,) = run.glob("config.restart-*.toml")  # written by the restart, and readable
+    assert restart_config.relative_to(run).as_posix() in read_manifest(run)
+    assert load_config(restart_config) == load_config(
+        finished[0], ["time.t_end=0.06", f"output.dir={json.dumps(str(run))}"]
+    )
 
 
 # ---- the signals of a batch scheduler ----------------------------------------------------------

@@ -530,7 +530,12 @@ def main(argv=None) -> int:
         action="store_true",
         help="with --restart: allow a configuration that differs from the checkpoint's",
     )
-    r.add_argument("--overwrite", action="store_true", help="replace the outputs of a run already in --out")
+    r.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the run already in --out: remove exactly the files its granrs-manifest.txt lists, "
+        "keep every other (docs/failures.md)",
+    )
     r.add_argument("--re", type=_number("--re", "float", 0.0, 1e5, lo_open=True), help="Reynolds number (cavity; 100)")
     r.add_argument("--n", type=_number("--n", "int", 8, 1024), help="cells per side (cavity; 64)")
     r.add_argument(
@@ -652,7 +657,11 @@ def main(argv=None) -> int:
         help="sweep folder: member-NNN/, sweep.csv, sweep.nc, sweep_runout.png "
         "(default: the file's output.dir; new or empty unless --overwrite)",
     )
-    s.add_argument("--overwrite", action="store_true", help="replace a sweep already in --out")
+    s.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the sweep already in --out: remove exactly the files its manifests list",
+    )
     s.add_argument(
         "--max-members",
         dest="max_members",
