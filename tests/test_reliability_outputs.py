@@ -242,6 +242,9 @@ BEFORE_ANY_WRITE = [
     ),
     ({"bi_projection": {"regularisation": 0.01}}, "`bi_projection.regularisation` = 0.01: not used"),
     ({"time": {"dt": 1e-4, "cfl_light": 0.5}}, "`time.cfl_light` = 0.5: not used"),
+    ({"time": {"dt": 1e-4, "cfl": 0.3}}, "`time.cfl` = 0.3: not used; allowed only with the adaptive step"),
+    ({"time": {"dt": 1e-4, "max_dt": 1e-3}}, "`time.max_dt` = 0.001: not used"),
+    ({"case": {"model": "granular"}, "time": {"cfl_light": 0.9}}, "allowed only with the two-phase model"),
     ({"output": {"fields_every_s": 1e-6}, "time": {"t_end": 1e4}}, "GB of field snapshots"),
 ]
 

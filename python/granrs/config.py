@@ -37,9 +37,9 @@ else:  # the same parser, before it joined the standard library
 from ._granrs import ParameterError
 from .boundary import CoulombWall
 from .cases.column import ColumnCase
+from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, RestCriterion, jop_mu_i
 from .cases.column.depth_averaged import refuse_unused_keys
 from .depth_averaged import DEPTH_AVERAGED_CHOICES, DEPTH_AVERAGED_FIELDS, DepthAveraged
-from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, RestCriterion, jop_mu_i
 from .io.outputs import control_character
 from .model import PorePressure, SideWalls
 from .options import (
@@ -506,6 +506,8 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
             )
         out["animation"] = False  # the default animates saved fields: with none saved there is nothing to animate
     # keys that the options chosen would not use: refused, naming what would use them
+    fixed = cfg["time"]["dt"]
+    adaptive = f"allowed only with the adaptive step, time.dt absent (time.dt = {fixed!r} s fixes the step)"
     inert = (
         (
             ("bi_projection", "regularisation"),
@@ -513,10 +515,12 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
             "allowed only with bi_projection.plastic = 'papanastasiou' or 'bi-viscous', whose regularisation it is "
             "(bi_projection.plastic is 'projection')",
         ),
+        *((("time", name), fixed is not None, adaptive) for name in ("cfl", "cfl_light", "max_dt", "max_growth")),
         (
             ("time", "cfl_light"),
-            cfg["time"]["dt"] is not None,
-            f"allowed only with the adaptive step, time.dt absent (time.dt = {cfg['time']['dt']!r} s fixes the step)",
+            case["model"] == "granular",
+            "allowed only with the two-phase model, which resolves the light phase whose step it sets "
+            "(case.model = 'granular' does not)",
         ),
     )
     for (section, name), unused, why in inert:
