@@ -24,6 +24,7 @@ from granrs.io.outputs import (
     MANIFEST,
     OutputError,
     commit_output_dir,
+    lock_output_dir,
     plan_output_dir,
     read_manifest,
     release_output_dir,
@@ -169,6 +170,21 @@ def test_a_run_into_a_locked_folder_is_refused_naming_the_folder_and_the_process
     finally:
         release_output_dir(run)
     assert not (run / LOCK).exists()
+
+
+def test_animate_records_its_file_and_waits_for_no_run(tmp_path, capsys, finished):
+    run = copy_run(finished, tmp_path / "run")
+    lock_output_dir(run, command="a run")  # as a run writing there holds it
+    try:
+        rc, err = cli(capsys, "animate", run)
+        assert rc == 2 and "`dir`" in err and f"locked by process {os.getpid()}" in err, err
+        assert not (run / "animation.gif").exists()
+    finally:
+        release_output_dir(run)
+    rc, err = cli(capsys, "animate", run)
+    assert rc == 0, err
+    # the manifest lists it: --overwrite removes it, and does not take it for the user's
+    assert "animation.gif" in read_manifest(run) and not (run / LOCK).exists()
 
 
 def _dead_pid() -> int:

@@ -24,6 +24,7 @@ from .io.outputs import (
     check_path_length,
     check_path_text,
     commit_output_dir,
+    lock_output_dir,
     plan_output_dir,
     read_columns,
     record,
@@ -689,7 +690,14 @@ def main(argv=None) -> int:
             print(describe(), end="")
             return 0
         if args.command == "animate":
-            path = make_animation(Path(args.dir))
+            if not Path(args.dir).is_dir():
+                raise ParameterError(f"invalid parameter `dir` = {args.dir!r}: no such folder; allowed a run's folder")
+            _plot_backend()
+            lock_output_dir(args.dir, "dir", command_line())
+            try:
+                path = make_animation(Path(args.dir))
+            finally:
+                release_output_dir(args.dir)
             if path is None:
                 raise ParameterError(
                     f"invalid parameter `dir` = {args.dir!r}: allowed a folder with fields.nc or fields.pvd"

@@ -358,6 +358,28 @@ def _acquire_lock(folder: Path, name: str, command: Optional[str]) -> None:
     _LOCKS[os.path.abspath(folder)] = fd
 
 
+def lock_output_dir(folder, name: str = "dir", command: Optional[str] = None) -> None:
+    """Locks an existing output folder for a write into the run there (``granrs animate``): a
+    folder another run writes into is refused (``ParameterError`` naming ``name``); a stale lock
+    is cleared; the folder's manifest, where it has one, records what is written.
+    ``release_output_dir`` ends it."""
+    folder = Path(folder)
+    check_path_text(name, folder)
+    holder = lock_holder(folder)
+    if holder is not None and holder[0] == "held":
+        raise _bad(
+            name,
+            folder,
+            f"another granrs run writes there: the folder is locked by {_holder_words(holder[1])}; nothing was changed",
+            "a folder no run writes into",
+        )
+    if holder is not None:
+        (folder / LOCK).unlink(missing_ok=True)
+    _acquire_lock(folder, name, command)
+    if read_manifest(folder) is not None:
+        open_manifest(folder)
+
+
 def release_output_dir(folder) -> None:
     """Ends this process's writing into ``folder``: its manifest closed, its lock removed."""
     key = os.path.abspath(folder)
