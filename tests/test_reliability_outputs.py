@@ -597,7 +597,7 @@ def _owned(rel: str, manifest: set) -> bool:
         unique=True,
         max_size=3,
     ),
-    links=st.lists(st.sampled_from(["fields", "link.png", "elsewhere"]), unique=True, max_size=2),
+    links=st.lists(st.sampled_from(["fields", "link.png", "elsewhere", MANIFEST]), unique=True, max_size=2),
     drop=st.sampled_from([None, "front.png", "fields/fields_00001.vti"]),
     action=st.sampled_from(["overwrite", "plain", "refused"]),
 )
@@ -615,7 +615,9 @@ def test_outside_the_manifest_nothing_changes(
         target = run / name
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
-        target.symlink_to(other if name != "link.png" else other / "x.png")
+        elif target.exists():
+            target.unlink()
+        target.symlink_to(other if name in ("fields", "elsewhere") else other / "x.png")
     for name in foreign:
         path = run / name
         if any(p.is_symlink() for p in [path, *path.parents][: len(Path(name).parts)]):

@@ -179,12 +179,13 @@ class Manifest:
         self.folder = Path(os.path.abspath(folder))
         self.names: set = set(names or ())
         self.path = self.folder / MANIFEST
-        if not self.path.exists():
+        if not self.path.is_file() or self.path.is_symlink():
             self._append([], header=True)
 
     def _append(self, lines: list, header: bool = False) -> None:
         try:
-            with open(self.path, "a", encoding="utf-8") as f:
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+            with open(fd, "a", encoding="utf-8") as f:
                 if header:
                     f.write(_MANIFEST_HEADER)
                 f.writelines(line + "\n" for line in lines)
@@ -455,6 +456,15 @@ def plan_output_dir(
         )
     if not p.is_dir():
         return OutputPlan(p, "fresh", name=name)
+    for own in (MANIFEST, LOCK):
+        if (p / own).is_symlink():
+            raise _bad(
+                name,
+                p,
+                f"its {own} is a symbolic link (to {os.readlink(p / own)!r}), which granrs does not make; nothing "
+                "was changed",
+                f"a folder whose {own} is granrs's own file",
+            )
     stale = None
     holder = None if _locked else lock_holder(p)
     if holder is not None and holder[0] == "held":
