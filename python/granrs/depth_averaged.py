@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import ClassVar, Optional
+from typing import Any, ClassVar, Optional
 
 import numpy as np
 
@@ -80,7 +80,7 @@ def unused_error(name: str, value, reader: str = "the two-phase and granular mod
 
 @dataclass(frozen=True)
 class _Field:
-    default: object
+    default: Any
     allowed: str
     unit: str
     doc: str

@@ -414,7 +414,7 @@ def run_depth_averaged_peer(n: int = 100, times=None) -> dict:
     (the reference's, every 0.05 s) and the final deposit."""
     m = build_depth_averaged(peer_depth_averaged_case(n))
     times = np.arange(0.0, DA_T_END + 1e-9, 0.05) if times is None else np.asarray(times)
-    fronts = {tau: [] for tau in DA_FRONT_THICKNESSES_M}
+    fronts: dict[float, list] = {tau: [] for tau in DA_FRONT_THICKNESSES_M}
     for t in times:
         if t > m.time:
             m.advance(float(t))
