@@ -114,8 +114,8 @@ def test_peer_depth_averaged_at_the_peers_1_mm_cells():
 @pytest.mark.parametrize("angle", [10.0, 15.0, 20.0, 25.0, 30.0])
 def test_fluidisation_never_shortens_the_run_out_whatever_the_base_friction(angle):
     # β = 0.9 and the default closure: the fluidised run-out is at least the dry one. Measured
-    # ratios 2.47, 2.23, 1.87, 1.45, 1.15 at 10-30° (docs/img/depth_averaged_angle_sweep.csv;
-    # the former closure, k of the angles reduced by β on the whole pressure, gave 0.81 at 27°)
+    # ratios 2.47, 2.23, 1.87, 1.45, 1.15 at 10-30° (docs/img/depth_averaged_angle_sweep.csv): the
+    # bound is the experiment's and the two-phase model's: fluidisation lengthens a flow
     runs = {}
     for fluidised in (True, False):
         case = ColumnCase(model="depth-averaged", fluidised=fluidised, base=CoulombWall(angle))
