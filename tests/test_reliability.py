@@ -275,6 +275,8 @@ if given is not None:
         main = {"side_walls": ("width", 0.1), "active_region": ("band", 8)}.get(key.section)
         if main is not None and key.name != main[0]:
             raw[key.section][main[0]] = main[1]  # the object's own key: it is off while absent
+        if key.full == "bi_projection.regularisation":
+            raw[key.section]["plastic"] = "papanastasiou"  # the treatment that uses it (refused as not used otherwise)
         if key.full == "grid.length":
             raw["case"] = {"width": 0.001}  # below the key's range: any length in range is beyond the gate
         if key.section == "depth_averaged":
