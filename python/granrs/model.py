@@ -176,6 +176,9 @@ class Model:
     (``granrs.options``); ``model.numerics`` holds the options in force.
     """
 
+    #: set by ``Model.check``: the constructor stops before allocating the model
+    _check_only: bool = False
+
     def __init__(
         self,
         grid: Grid,
@@ -281,7 +284,7 @@ class Model:
         # memory before any work: the Rust count of this configuration (models/memory.rs)
         self.memory_estimate = int(_granrs.RustModel.estimate_memory(self.config)[0])
         memory_check(grid, self.memory_estimate)
-        if getattr(self, "_check_only", False):
+        if self._check_only:
             return
         self._rust = _granrs.RustModel(self.config)
         self.air = air
@@ -303,7 +306,7 @@ class Model:
         returns the memory estimate in bytes. Raises the constructor's ``ParameterError``."""
         model = cls.__new__(cls)
         model._check_only = True
-        model.__init__(*args, **kwargs)
+        cls.__init__(model, *args, **kwargs)
         return model.memory_estimate
 
     def _view(self, name: str) -> np.ndarray:

@@ -135,48 +135,48 @@ def preflight(cfg: Config, restart: Optional[str] = None, allow_changes: bool = 
     return ck
 
 
+def _read_front(path: Path) -> None:
+    if "t_s" not in read_columns(path):
+        raise ValueError("no column t_s")
+
+
+def _read_history(path: Path) -> None:
+    with np.load(path) as z:
+        if "time" not in z.files:
+            raise ValueError("no entry time")
+        for k in z.files:  # every entry read: a truncated one fails here
+            z[k]
+
+
+def _read_fields_nc(path: Path) -> None:
+    try:
+        import netCDF4  # deferred: optional dependency (the io extra)
+    except ImportError:
+        return  # not readable here, not known to be damaged: FieldWriter refuses NetCDF without it
+    with netCDF4.Dataset(path) as ds:
+        ds["time"][:]
+
+
 def check_run_files(out: Path, restart) -> None:
     """A restart that appends to the run in ``out`` reads its front.csv, history.npz, fields.pvd
     and fields.nc: each one there must be readable, or the restart is refused naming it."""
-    damaged = []
-    if (out / "front.csv").exists():
+    for name, read in (
+        ("front.csv", _read_front),
+        ("history.npz", _read_history),
+        ("fields.pvd", read_pvd),
+        ("fields.nc", _read_fields_nc),
+    ):
+        if not (out / name).exists():
+            continue
         try:
-            cols = read_columns(out / "front.csv")
-            if "t_s" not in cols:
-                raise ValueError("no column t_s")
-        except (OSError, ValueError, StopIteration, UnicodeDecodeError) as err:
-            damaged.append(("front.csv", err))
-    if (out / "history.npz").exists():
-        try:
-            with np.load(out / "history.npz") as z:
-                if "time" not in z.files:
-                    raise ValueError("no entry time")
-                {k: z[k] for k in z.files}  # noqa: B018 - every entry read: a truncated one fails here
-        except Exception as err:  # noqa: BLE001 - zipfile, zlib, EOF: all "damaged"
-            damaged.append(("history.npz", err))
-    if (out / "fields.pvd").exists():
-        try:
-            read_pvd(out / "fields.pvd")
-        except Exception as err:  # noqa: BLE001 - XML and attribute errors: all "damaged"
-            damaged.append(("fields.pvd", err))
-    if (out / "fields.nc").exists():
-        try:
-            import netCDF4  # deferred: optional dependency (the io extra)
-
-            with netCDF4.Dataset(out / "fields.nc") as ds:
-                ds["time"][:]
-        except ImportError:
-            pass
-        except Exception as err:  # noqa: BLE001 - HDF5 and NetCDF errors: all "damaged"
-            damaged.append(("fields.nc", err))
-    if damaged:
-        name, err = damaged[0]
-        raise ParameterError(
-            f"invalid parameter `--restart` = {str(restart)!r}: the run's {out / name} cannot be read "
-            f"({type(err).__name__}: {str(err)[:200]}), so the restart cannot append to it; nothing was "
-            f"changed; allowed a run folder whose files are whole (move {name} away: the restart then "
-            "writes it again from the restart time), or a restart into another --out"
-        )
+            read(out / name)
+        except Exception as err:  # noqa: BLE001 - zipfile, zlib, EOF, XML, CSV, HDF5: all "cannot be read"
+            raise ParameterError(
+                f"invalid parameter `--restart` = {str(restart)!r}: the run's {out / name} cannot be read "
+                f"({type(err).__name__}: {str(err)[:200]}), so the restart cannot append to it; nothing was "
+                f"changed; allowed a run folder whose files are whole (move {name} away: the restart then "
+                "writes it again from the restart time), or a restart into another --out"
+            ) from None
 
 
 #: Bytes per cell of one snapshot: a .vti holds phi, p, pf (8 bytes each), the velocity (3 x 8)

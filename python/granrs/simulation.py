@@ -75,7 +75,8 @@ def deferred_interrupt():
             signal.signal(s, handler)
     if received:
         handler = previous[received[0]]
-        handler(received[0], None)
+        if callable(handler):  # always: only the signals with a Python handler are held
+            handler(received[0], None)
 
 
 @dataclass

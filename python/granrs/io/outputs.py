@@ -256,7 +256,8 @@ def _survey(folder: Path, owned: Optional[set], prefix: str = "") -> tuple[list,
     link: an entry is owned when ``owned`` (the manifest's paths) lists it, or it is the
     ``.tmp`` sibling of a listed file, the manifest or the lock; a folder is descended only when
     listed (a listed folder holding a manifest of its own, a sweep's member, by that one)."""
-    files, foreign = [], []
+    files: list[str] = []
+    foreign: list[tuple[str, str]] = []
     try:
         entries = sorted(os.scandir(folder), key=lambda e: e.name)
     except OSError:
