@@ -19,7 +19,7 @@ from ... import observables as obs
 from ..._granrs import ParameterError, SimulationError, SolverError, __version__
 from ...io.outputs import OutputError, RunOutputs, record
 from ...model import Model
-from ...simulation import Callback, Simulation, Terminated, deferred_interrupt
+from ...simulation import Callback, Simulation, deferred_interrupt
 from .build import build_model, model_arguments
 from .case import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, G
 from .depth_averaged import run_column_depth_averaged
@@ -44,8 +44,6 @@ from .summaries import (
     fluidisation_summary,
 )
 
-#: The start of the ``stop_reason`` of a run stopped by SIGTERM or SIGHUP ("terminated by SIGTERM").
-TERMINATED = "terminated by"
 #: run_column rewrites summary.json, front.csv and history.npz every this many records (0.1 s)
 FLUSH_RECORDS = 10
 
@@ -236,11 +234,7 @@ def run_column(
         "active_region_sides": None if region is None else region.sides,
         "threads": case.threads,
         "version": __version__,
-        "stop_reason": sim.stop_reason
-        if failure is None
-        else str(failure)
-        if isinstance(failure, Terminated)
-        else failure_stop_reason(failure, str(error)),
+        "stop_reason": sim.stop_reason if failure is None else failure_stop_reason(failure, str(error)),
         "pressure_iterations_median": float(np.median(hist["pressure_iterations"])) if "time" in hist else 0.0,
         "pressure_iterations_max": int(np.max(hist["pressure_iterations"])) if "time" in hist else 0,
         "viscous_iterations_median": float(np.median(hist["viscous_iterations"])) if "time" in hist else 0.0,
@@ -304,7 +298,7 @@ def run_column(
 
 def run_finished(out) -> bool:
     """Whether the folder ``out`` holds a column run that ended: its summary.json can be read and
-    its ``stop_reason`` is not one of :data:`UNFINISHED_REASONS` or :data:`TERMINATED` (a run that reached ``t_end`` or
+    its ``stop_reason`` is not one of :data:`UNFINISHED_REASONS` (a run that reached ``t_end`` or
     came to rest). A folder without summary.json, with one that cannot be read, or with the
     summary of a run that was killed, interrupted or failed is not finished: a study that
     resumes runs it again."""
@@ -313,7 +307,7 @@ def run_finished(out) -> bool:
     except (OSError, ValueError):
         return False
     reason = summary.get("stop_reason") if isinstance(summary, dict) else None
-    return isinstance(reason, str) and not reason.startswith(UNFINISHED_REASONS + (TERMINATED,))
+    return isinstance(reason, str) and not reason.startswith(UNFINISHED_REASONS)
 
 
 def run_columns(runs: list, jobs: int = 1, progress: bool = False) -> list[dict]:

@@ -8,17 +8,23 @@ from typing import Optional
 import numpy as np
 
 from ... import observables as obs
+from ...simulation import Terminated
 from .case import RestCriterion
 
 #: How summary.json's ``stop_reason`` begins for a run that did not end: written during the run
 #: (killed, or still running), stopped by Ctrl-C, or stopped by a failure.
 INCOMPLETE, INTERRUPTED, ERROR = "incomplete", "interrupted", "error"
-UNFINISHED_REASONS = (INCOMPLETE, INTERRUPTED, ERROR)
+#: The start of the ``stop_reason`` of a run stopped by SIGTERM or SIGHUP ("terminated by SIGTERM").
+TERMINATED = "terminated by"
+UNFINISHED_REASONS = (INCOMPLETE, INTERRUPTED, ERROR, TERMINATED)
 
 
 def failure_stop_reason(failure: BaseException, message: str) -> str:
     """summary.json's ``stop_reason`` for a run that ``failure`` stopped: ``interrupted:
-    KeyboardInterrupt`` for a Ctrl-C, ``error: <message>`` otherwise."""
+    KeyboardInterrupt`` for a Ctrl-C, ``terminated by SIGTERM`` (or SIGHUP) for a
+    ``Terminated``, ``error: <message>`` otherwise."""
+    if isinstance(failure, Terminated):
+        return str(failure)  # "terminated by SIGTERM"
     if isinstance(failure, KeyboardInterrupt):
         return f"{INTERRUPTED}: {type(failure).__name__}"
     return f"{ERROR}: {message}"
