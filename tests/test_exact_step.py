@@ -36,8 +36,8 @@ from granrs.cases.column import ColumnCase, build_model, column_rheology
 #: from granrs's (ny = 8, fluidised, second step): the objective's gap controls x only through its
 #: square root. With the settings below x agrees to 3.4e-8 or better on every state (measured), and
 #: Clarabel's own accuracy is asserted separately (`_clarabel`). Clarabel's equilibration is off:
-#: the problem is scaled here (`_clarabel`); with both, x agreed to 2.6e-6 only (ny = 8, dry,
-#: t = 0.25 s).
+#: the problem is scaled here (`_clarabel`); with both scalings (and the tolerances 1e-12), x agreed
+#: to 2.6e-6 only (ny = 8, dry, t = 0.25 s).
 CLARABEL_SETTINGS = {
     "verbose": False,
     "max_iter": 1000,
