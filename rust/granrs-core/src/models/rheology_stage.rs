@@ -98,7 +98,6 @@ impl TwoPhaseModel {
         let newton = cfg.rheology.solver == crate::rheology::BiProjectionSolver::Newton;
         let result = match self.rheology.as_mut().filter(|r| r.iterates()) {
             Some(rs) if newton => {
-                drop(solve);
                 let at = (self.step_count + 1, self.time);
                 let t = Instant::now();
                 let info = rs.exact_step(&cfg.rheology, (&wk.c_u, &wk.c_v, eta_c, eta_n), &mut self.u, &mut self.v, (&wk.rhs_u, &wk.rhs_v), grid, bc, at, exec);

@@ -844,7 +844,11 @@ impl RheologyConfig {
             return Err(Error::param("solver", "'newton'", "'picard' with side walls (the exact step has no side-wall friction term)"));
         }
         if self.solver == BiProjectionSolver::Newton && self.treatment != YieldTreatment::Projection {
-            return Err(Error::param("solver", "'newton'", "'picard' with a regularised yield stress (plastic = 'papanastasiou' or 'bi-viscous': no bi-projection to solve)"));
+            return Err(Error::param(
+                "solver",
+                "'newton'",
+                "'picard' with a regularised yield stress (plastic = 'papanastasiou' or 'bi-viscous': no bi-projection to solve)",
+            ));
         }
         if self.anderson_depth > 0 && self.sigma_location == SigmaLocation::Centres {
             return Err(Error::param("anderson_depth", self.anderson_depth, "0 with sigma_location = 'centres' (Anderson mixing acts on the staggered Σ)"));

@@ -20,8 +20,8 @@
 
 use super::anderson::Anderson;
 use super::exact::{ExactStep, NewtonInfo};
-use super::BiProjectionSolver;
 use super::plastic::{not_converged, IncrementSite, PicardInfo, PlasticState};
+use super::BiProjectionSolver;
 use super::{RheologyConfig, WallNormalStress, YieldPressure, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
