@@ -11,7 +11,7 @@ $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q "maturin>=1.5,<2" "numpy>=1.23" "matplotlib>=3.6" "pytest>=7" "hypothesis>=6" \
-		"netCDF4>=1.6" "xarray>=2023.1" "dask[distributed]>=2023.1" "vtk>=9.2" "ruff>=0.6" "mypy>=1.10"
+		"netCDF4>=1.6" "xarray>=2023.1" "dask[distributed]>=2023.1" "vtk>=9.2" "ruff>=0.6" "mypy>=1.10" "clarabel>=0.9"
 	touch $@
 
 # Builds the Rust extension in release mode into .venv (re-run after changing Rust code).

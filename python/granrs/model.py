@@ -389,6 +389,18 @@ class Model:
         """Increments max |τ(Σ^{k+1} − Σ^k)|/τ_max of the Picard iterations of the last step."""
         return np.asarray(self._rust.picard_history())
 
+    def exact_step_problem(self) -> Optional[dict]:
+        """The discrete problem of the last step taken with ``BiProjection(solver="newton")``, for an
+        independent check of its solution, or None.
+
+        Minimise ½xᵀAx − bᵀx + Σ_k w_k |B_k x + β_k| over the unknown faces x: ``A`` as triplets
+        (``a_rows``, ``a_cols``, ``a_vals``, duplicates summed, size ``n``), ``b``, the terms' weights
+        ``w`` and sizes ``dim`` (2: a plastic location, 1: a friction face), their rows of B stacked
+        in compressed rows (``b_indptr``, ``b_indices``, ``b_data``) with offsets ``beta``, and the
+        solution the step returned: ``x`` and the multipliers ``sigma`` (stacked like B's rows)."""
+        out = self._rust.exact_step_problem()
+        return None if out is None else dict(out)
+
     def wall_friction(self, side: str):
         """(s, τ_b) along a Coulomb side's tangential faces (arrays), or None without friction."""
         out = self._rust.wall_friction(side)

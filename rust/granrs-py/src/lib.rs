@@ -13,7 +13,7 @@ use granrs_core::solvers::SolveInfo;
 use granrs_core::time_stepping::{StepInfo, TimeConfig};
 use granrs_core::walls::side::SideWalls;
 use granrs_core::Error;
-use numpy::{PyArray2, PyReadonlyArray2};
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -713,6 +713,20 @@ impl PyModel {
     /// Increments of the Picard iterations of the last step.
     fn picard_history(&self) -> Vec<f64> {
         self.inner.picard_history().to_vec()
+    }
+
+    /// The last exact step's discrete problem and solution (a dict of arrays), or None.
+    fn exact_step_problem<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(pb) = self.inner.exact_problem() else { return Ok(None) };
+        let d = PyDict::new(py);
+        d.set_item("n", pb.n)?;
+        for (k, v) in [("a_rows", &pb.a_rows), ("a_cols", &pb.a_cols), ("dim", &pb.dim), ("b_indptr", &pb.b_indptr), ("b_indices", &pb.b_indices)] {
+            d.set_item(k, v.iter().map(|&i| i as i64).collect::<Vec<i64>>().into_pyarray(py))?;
+        }
+        for (k, v) in [("a_vals", &pb.a_vals), ("b", &pb.b), ("w", &pb.w), ("b_data", &pb.b_data), ("beta", &pb.beta), ("x", &pb.x), ("sigma", &pb.sigma)] {
+            d.set_item(k, v.clone().into_pyarray(py))?;
+        }
+        Ok(Some(d))
     }
 
     /// (nx, ny) of the active window the last step ran on, or None (whole domain).

@@ -95,7 +95,20 @@ impl TwoPhaseModel {
             solves += t.elapsed().as_secs_f64();
             info
         };
+        let newton = cfg.rheology.solver == crate::rheology::BiProjectionSolver::Newton;
         let result = match self.rheology.as_mut().filter(|r| r.iterates()) {
+            Some(rs) if newton => {
+                let at = (self.step_count + 1, self.time);
+                let t = Instant::now();
+                let info = rs.exact_step(&cfg.rheology, (&wk.c_u, &wk.c_v, eta_c, eta_n), &mut self.u, &mut self.v, (&wk.rhs_u, &wk.rhs_v), grid, bc, at, exec);
+                solves += t.elapsed().as_secs_f64();
+                info.map(|i| {
+                    (
+                        SolveInfo { iterations: i.iterations, residual: i.momentum_residual, initial_residual: 0.0, rhs_mean_removed: 0.0 },
+                        PicardInfo { iterations: i.iterations, increment: i.residual(), r: 0.0, r_wall: 0.0, r_halvings: 0, restarts: 0 },
+                    )
+                })
+            }
             Some(rs) => {
                 let at = (self.step_count + 1, self.time);
                 rs.bi_projection(&cfg.rheology, solve, explicit, &mut self.u, &mut self.v, &wk.rhs_u, &wk.rhs_v, grid, bc, at, exec)
@@ -125,6 +138,12 @@ impl TwoPhaseModel {
     /// of the last step (empty without plastic stress or wall friction).
     pub fn picard_history(&self) -> &[f64] {
         self.rheology.as_ref().map(|r| &r.history[..]).unwrap_or(&[])
+    }
+
+    /// The discrete problem and solution of the last exact step (`bi_projection.solver` =
+    /// "newton"), if one was taken.
+    pub fn exact_problem(&self) -> Option<&crate::rheology::exact::ExactProblem> {
+        self.rheology.as_ref().and_then(|r| r.exact.as_ref()).and_then(|e| e.last.as_ref())
     }
 
     /// The yield stress τ(Φ) at cell centres of the last step.

@@ -457,6 +457,9 @@ impl ModelConfig {
             pc.validate()?;
         }
         self.rheology.validate()?;
+        if self.rheology.solver == crate::rheology::BiProjectionSolver::Newton && self.viscous == ViscousScheme::Explicit {
+            return Err(Error::param("solver", "'newton'", "'picard' with viscous = 'explicit' (the exact step solves the implicit predictor)"));
+        }
         if self.free_surface && self.light.is_none() {
             return Err(Error::param("free_surface", "true", "false for a single-phase model (the free surface is the interface Φ = 0 with a light phase)"));
         }

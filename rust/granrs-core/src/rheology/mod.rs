@@ -36,6 +36,7 @@
 //! Coulomb friction walls (paper eq. 8–9) are in [`crate::walls`].
 
 pub mod anderson;
+pub mod exact;
 pub mod plastic;
 pub mod rest;
 pub(crate) mod stage;
@@ -437,6 +438,38 @@ pub struct RheologyConfig {
     /// Friction of a channel's side walls on the 2D flow (`walls/side.rs`); `None` (default,
     /// the paper's 2D model): no side walls.
     pub side_walls: Option<crate::walls::side::SideWalls>,
+    /// How the step of eq. (11) is solved: the Picard iteration of eq. (12), or the exact step
+    /// ([`exact`]).
+    pub solver: BiProjectionSolver,
+    /// The exact step stops when both residuals of eq. (11) are below this.
+    pub newton_tol: f64,
+    /// Iteration cap of the exact step's Newton loop (reaching it rejects the step, or stops
+    /// the run).
+    pub newton_max_iterations: usize,
+}
+
+/// How the bi-projection's step (eq. 11) is solved.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BiProjectionSolver {
+    /// The Picard iteration with pseudo-relaxation θ of eq. (12) (`rheology/stage.rs`).
+    #[default]
+    Picard,
+    /// Eq. (11) itself, by the semismooth Newton method of [`exact`] on the two-location plastic
+    /// functional, to the residual `newton_tol`.
+    Newton,
+}
+
+impl BiProjectionSolver {
+    /// Every value, in the order of the names.
+    pub const ALL: [BiProjectionSolver; 2] = [BiProjectionSolver::Picard, BiProjectionSolver::Newton];
+
+    /// Name used in Python and the docs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            BiProjectionSolver::Picard => "picard",
+            BiProjectionSolver::Newton => "newton",
+        }
+    }
 }
 
 /// The options of the bi-projection (the Picard iteration of eq. 12) and of how the yield
@@ -460,6 +493,23 @@ pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
     )
     .open(true, true)
     .off_by_default(),
+    options::choice(
+        "bi_projection",
+        "solver",
+        "picard",
+        &["picard", "newton"],
+        "how eq. (11) is solved: the Picard iteration of eq. (12), or the exact step by semismooth Newton (rheology/exact.rs)",
+    ),
+    options::float(
+        "bi_projection",
+        "newton_tol",
+        1e-9,
+        1e-14,
+        1e-2,
+        "1",
+        "the exact step stops when the relative momentum residual and the projection residual of eq. (11) are below this",
+    ),
+    options::int("bi_projection", "newton_max_iterations", 100, 1, 100_000, "1", "iteration cap of the exact step's Newton loop"),
     options::float("bi_projection", "r", 1.0, 0.0, f64::INFINITY, "s", "r of Σ = P(Σ + r D(u)) (None: the local contraction bound of rheology/plastic.rs)")
         .open(true, true)
         .off_by_default(),
@@ -609,6 +659,9 @@ impl Default for RheologyConfig {
             yield_pressure: YieldPressure::default(),
             sigma_location: SigmaLocation::default(),
             side_walls: None,
+            solver: BiProjectionSolver::default(),
+            newton_tol: b("newton_tol").float(),
+            newton_max_iterations: b("newton_max_iterations").usize(),
         }
     }
 }
@@ -666,6 +719,9 @@ impl RheologyConfig {
             "r_neighbourhood" => Value::Int(self.r_neighbourhood.min(i64::MAX as usize) as i64),
             "proximal_restarts" => Value::Int(self.proximal_restarts.min(i64::MAX as usize) as i64),
             "wall_r" => Value::str(self.wall_r.name()),
+            "solver" => Value::str(self.solver.name()),
+            "newton_tol" => Value::Float(self.newton_tol),
+            "newton_max_iterations" => Value::Int(self.newton_max_iterations.min(i64::MAX as usize) as i64),
             _ => Value::None,
         }
     }
@@ -738,6 +794,15 @@ impl RheologyConfig {
         if let Some(v) = checked("proximal_restarts")? {
             self.proximal_restarts = options::as_usize(&v);
         }
+        if let Some(v) = checked("solver")? {
+            self.solver = BiProjectionSolver::ALL.into_iter().find(|x| x.name() == options::as_name(&v)).unwrap_or_default();
+        }
+        if let Some(v) = checked("newton_tol")? {
+            self.newton_tol = v.as_f64().unwrap_or(self.newton_tol);
+        }
+        if let Some(v) = checked("newton_max_iterations")? {
+            self.newton_max_iterations = options::as_usize(&v);
+        }
         if let Some(v) = checked("wall_r")? {
             self.wall_r = crate::walls::WallR::ALL.into_iter().find(|x| x.name() == options::as_name(&v)).unwrap_or_default();
         }
@@ -774,6 +839,16 @@ impl RheologyConfig {
         if let Some(w) = self.side_walls {
             options::spec(SIDE_WALL_OPTIONS, "width").check_named("side_walls.width", &Value::Float(w.width))?;
             options::spec(SIDE_WALL_OPTIONS, "friction_angle").check_named("side_walls.friction_angle", &Value::Float(w.friction_angle))?;
+        }
+        if self.solver == BiProjectionSolver::Newton && self.side_walls.is_some() {
+            return Err(Error::param("solver", "'newton'", "'picard' with side walls (the exact step has no side-wall friction term)"));
+        }
+        if self.solver == BiProjectionSolver::Newton && self.treatment != YieldTreatment::Projection {
+            return Err(Error::param(
+                "solver",
+                "'newton'",
+                "'picard' with a regularised yield stress (plastic = 'papanastasiou' or 'bi-viscous': no bi-projection to solve)",
+            ));
         }
         if self.anderson_depth > 0 && self.sigma_location == SigmaLocation::Centres {
             return Err(Error::param("anderson_depth", self.anderson_depth, "0 with sigma_location = 'centres' (Anderson mixing acts on the staggered Σ)"));

@@ -19,7 +19,9 @@
 //!   Σ^{k+1} = P(Σ^k + r D(ũ^{k+1}) + θ(Σ^n − Σ^k)),   s^{k+1} = P_b(s^k − r_b ũ_t^{k+1} + θ(s^n − s^k)).
 
 use super::anderson::Anderson;
+use super::exact::{ExactStep, NewtonInfo};
 use super::plastic::{not_converged, IncrementSite, PicardInfo, PlasticState};
+use super::BiProjectionSolver;
 use super::{RheologyConfig, WallNormalStress, YieldPressure, YieldTreatment};
 use crate::error::Result;
 use crate::exec::Exec;
@@ -94,6 +96,8 @@ pub struct RheologyState {
     pub(crate) surface_partials: Vec<[f64; 2]>,
     /// Anderson mixing of Σ (`RheologyConfig::anderson_depth` > 0 with a projected yield stress).
     pub(crate) anderson: Option<Anderson>,
+    /// The exact step's multipliers and work arrays (`RheologyConfig::solver` = Newton).
+    pub(crate) exact: Option<ExactStep>,
 }
 
 impl RheologyState {
@@ -133,6 +137,7 @@ impl RheologyState {
             p_surface: 0.0,
             surface_partials: vec![[0.0; 2]; partials_len(grid.ny)],
             anderson,
+            exact: (cfg.solver == BiProjectionSolver::Newton).then(|| ExactStep::new(grid, bc)),
         })
     }
 }
@@ -433,6 +438,51 @@ impl RheologyState {
             }
         }
         Err(self.picard_failure(&rc, inc, rc.picard_max_iterations, step, time))
+    }
+
+    /// The bi-projection's step by the exact solver (`rheology/exact.rs`): ũ^{n+1}, Σ^{n+1} and
+    /// s^{n+1} of eq. (11) to the residual `newton_tol`. `sys` is the predictor's (c_u, c_v, η_c,
+    /// η_n); `u`, `v` hold the initial guess and receive ũ^{n+1}.
+    #[allow(clippy::too_many_arguments)]
+    pub fn exact_step(
+        &mut self,
+        rc: &RheologyConfig,
+        sys: (&Field, &Field, &Field, &Field),
+        u: &mut Field,
+        v: &mut Field,
+        rhs: (&Field, &Field),
+        grid: &Grid,
+        bc: &BoundaryConditions,
+        at: (u64, f64),
+        exec: Exec,
+    ) -> Result<NewtonInfo> {
+        let exact = self.exact.as_mut().expect("the exact step's state (solver = newton)");
+        self.walls.begin_step();
+        let tau_n_zero;
+        let (tau_c, tau_n) = if self.projection {
+            (&self.plastic.tau_c, &self.plastic.tau_n)
+        } else {
+            tau_n_zero = Field::zeros(grid, Location::Node);
+            self.plastic.tau_c.fill(0.0);
+            (&self.plastic.tau_c, &tau_n_zero)
+        };
+        let info = exact.solve(
+            sys,
+            grid,
+            bc,
+            u,
+            v,
+            rhs,
+            (tau_c, tau_n),
+            &mut self.walls,
+            (&mut self.plastic.sigma_xx, &mut self.plastic.sigma_xy, &mut self.trial_norm),
+            (rc.newton_tol, rc.newton_max_iterations),
+            at,
+            exec,
+        )?;
+        self.history.clear();
+        self.history.push(info.residual());
+        Ok(info)
     }
 
     /// The non-convergence error after `iterations`, naming where the stresses moved most.

@@ -259,6 +259,19 @@ impl CoulombWalls {
         }
     }
 
+    /// The friction faces (τ_b > 0) of every side: (side, face, τ_b, s), for the exact step
+    /// (`rheology/exact.rs`).
+    pub fn friction_faces(&self) -> Vec<(Side, usize, f64, f64)> {
+        self.sides.iter().flat_map(|w| w.faces.clone().filter(|&f| w.tau_b[f] > 0.0).map(move |f| (w.side, f, w.tau_b[f], w.s[f]))).collect()
+    }
+
+    /// Sets s on face `face` of `side` (the exact step's multiplier, −σ_f).
+    pub fn set_direction(&mut self, side: Side, face: usize, s: f64) {
+        if let Some(w) = self.sides.iter_mut().find(|w| w.side == side) {
+            w.s[face] = s;
+        }
+    }
+
     /// One Picard update s^{k+1} = P_b(s^k − r_b u_t + θ(s^n − s^k)) from the velocity ũ^{k+1},
     /// with each face's r_b of [`CoulombWalls::set_r`]; returns max |τ_b (s^{k+1} − s^k)| / max
     /// τ_b (the increment of the wall stress). Faces with τ_b = 0 keep s = 0.

@@ -1,0 +1,796 @@
+//! The exact step of the bi-projection: eq. (11) of Aravena et al. solved as one convex problem
+//! by a semismooth Newton method (Hintermüller, Ito & Kunisch 2002, *SIAM J. Optim.* 13; for
+//! viscoplastic flows: Saramito 2016, *J. Non-Newton. Fluid Mech.* 238; the two-location plastic
+//! functional: Muravleva & Olshanskii 2008, *Russ. J. Numer. Anal. Math. Model.* 23).
+//!
+//! **The discrete problem.** With the yield stress τ = tan(α) p^n H_ε(Φ^{n+1}) and the walls'
+//! τ_b lagged (fixed during the step), the predictor ũ of eq. (11) is the minimiser of
+//!
+//!   J(u) = ½ uᵀA u − bᵀu + Σ_c τ_c |B_c u + β_c| + Σ_n f_n τ_n |B_n u + β_n| + Σ_f (τ_b,f/h_n) |u_f|,
+//!
+//! per unit volume of a face, over the unknown faces u: A = c + Dᵀ(2η)D is the predictor's
+//! operator (c = a₀ρ/δt), b its right-hand side. The plastic dissipation 2τ|D| is split half
+//! at the cell centres c and half at the nodes n, each location with the full deviatoric rate:
+//! B_c u = (½(D_xx − D_yy), D_xy averaged from the four corners) at a centre and
+//! B_n u = (½(D_xx − D_yy) averaged over the in-domain neighbour cells, D_xy) at a node
+//! (f_n: the node's share of a cell area inside the domain; nodes on free-slip and Coulomb
+//! sides carry no plastic term: their tangential stress is the wall's); β the affine part of
+//! the boundary data. The friction term runs over the Coulomb walls' tangential faces (the row
+//! next to the wall, `walls/mod.rs`). J is strictly convex (A ≥ c > 0) and each term is a
+//! Euclidean norm, so ũ is unique and is a second-order cone program's solution.
+//!
+//! Its optimality conditions are eq. (11) with one multiplier σ_k per term, |σ_k| ≤ 1:
+//!
+//!   F_u = A u − b + Σ_k w_k B_kᵀ σ_k = 0,    F_k = σ_k − P(σ_k + r_k (B_k u + β_k)) = 0,
+//!
+//! P the projection on the unit ball (of R² for a plastic location, R for a face), any r_k > 0:
+//! σ_c is Σ at the centre, σ_n at the node, and a wall's σ_f = −s (s of eq. 9). The plastic force
+//! −Σ w_k B_kᵀσ_k is div(τΣ) with τΣ_xx = ½(τ_c σ_c,xx + Σ_n f_n τ_n σ_n,xx/m_n) at a centre and
+//! τΣ_xy = ½(τ_n σ_n,xy + Σ_c τ_c σ_c,xy/4) at a node (m_n the node's in-domain cells); those
+//! are the Σ_xx, Σ_xy that the model stores and shows.
+//!
+//! **Semismooth Newton.** With z_k = σ_k + r_k(B_k u + β_k), G_k the generalised derivative of
+//! P at z_k (I inside the ball, (I − nnᵀ)/|z_k| outside, n = z_k/|z_k|) and a small δ > 0, one
+//! step eliminates the multipliers: dσ_k = S_k B_k du − t_k with
+//! S_k = r_k (I − G_k + δI)⁻¹ G_k, t_k = (I − G_k + δI)⁻¹ F_k, and
+//!
+//!   (A + Σ_k w_k B_kᵀ S_k B_k) du = −F_u + Σ_k w_k B_kᵀ t_k,
+//!
+//! a sparse system factorised by faer's sparse LU. A flowing location adds the Hessian of
+//! w|B u| (the viscosity w/|B u| across the flow direction); a rigid one adds the penalty
+//! (w r/δ) BᵀB that holds B u = 0, whose multiplier σ is updated from it. δ changes the step,
+//! not the fixed point: at convergence F = 0 exactly. The step is damped by backtracking on
+//! the merit ‖F_u‖²/s² + Σ|F_k|². A and B are read from the model's own matrix-free kernels
+//! (`viscous_helmholtz`, `strain_rate`) by probing them with coloured unit vectors (faces five
+//! apart in each direction never share a stencil), so the boundary rules are those of the
+//! predictor and of the strain rate.
+//!
+//! The iteration starts from the previous step's u and σ; if it has not converged after
+//! [`SSN_TRIES`] iterations it restarts once from the predictor without yield stress or friction
+//! (every location flowing, σ_k = n_k).
+//!
+//! **Limits (measured, docs/validation.md "The exact step").** At ny ≤ 16 the loop converges in
+//! a few iterations per step (dry column, ny = 16: median 6, 90 % 11) and its solution agrees
+//! with an independent interior-point solution of the same cone program to 3.4e-8 (x). The
+//! count grows with the grid (ny = 32: hundreds per step), and on the dry column's later steps
+//! the loop can stall with the projection residual near 1e-4 (a location at the edge of its
+//! ball, |z_k| ≈ 1): the solver is not the column's default.
+//!
+//! **Stopping test: the residual of eq. (11).** The loop stops when
+//! ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w_k B_kᵀσ_k‖₂) and max_k |F_k| are both below `newton_tol`, with
+//! r_k = d_k/(w_k ‖B_k‖²) (d_k the largest diagonal of A on the term's faces: the scale at
+//! which a unit change of σ_k and of r_k B_k u are comparable). It fails with the step, time and
+//! residual after `newton_max_iterations`.
+
+#![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::sparse::{SparseColMat, Triplet};
+
+use crate::error::{Error, Result};
+use crate::exec::Exec;
+use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
+use crate::operators::{fill_velocity_ghosts, periodic_pair, strain_rate, unknown_face_range, viscous_helmholtz, BcMode};
+use crate::walls::CoulombWalls;
+use std::ops::Range;
+
+/// δ of the Newton matrix (module doc): the relative stiffness 1/δ of a rigid location's penalty.
+pub const NEWTON_DELTA: f64 = 1e-4;
+
+/// Semismooth Newton iterations from the warm start before the smoothed path takes over.
+const SSN_TRIES: usize = 15;
+
+/// Backtracking halvings of one Newton step at most.
+const MAX_HALVINGS: usize = 12;
+
+/// Colour period of the probes along a non-periodic direction.
+const PERIOD: usize = 5;
+
+/// The symbolic LU of the last Newton matrix with its pattern (column pointers, row indices).
+type SymbolicCache = std::sync::Mutex<Option<(Vec<usize>, Vec<usize>, SymbolicLu<usize>)>>;
+
+/// What the exact step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NewtonInfo {
+    /// Newton iterations (sparse factorisations) taken.
+    pub iterations: usize,
+    /// Relative momentum residual ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w Bᵀσ‖₂) at the end.
+    pub momentum_residual: f64,
+    /// max_k |σ_k − P(σ_k + r_k(B_k u + β_k))| at the end.
+    pub projection_residual: f64,
+    /// Number of unknown faces and of terms (plastic locations and friction faces).
+    pub unknowns: usize,
+    pub terms: usize,
+}
+
+impl NewtonInfo {
+    /// The larger of the two residuals of eq. (11).
+    pub fn residual(&self) -> f64 {
+        self.momentum_residual.max(self.projection_residual)
+    }
+}
+
+/// The discrete problem of the last exact step, for an independent check of its solution
+/// (module doc): minimise ½xᵀAx − bᵀx + Σ_k w_k |B_k x + β_k| over the unknown faces x (u faces
+/// row by row, then v faces). B's rows are stacked term by term (`dim` rows each) in compressed
+/// rows; `x` and `sigma` (stacked like B's rows) are the solution the exact step returned.
+#[derive(Clone, Debug, Default)]
+pub struct ExactProblem {
+    pub n: usize,
+    /// A as triplets (duplicates summed).
+    pub a_rows: Vec<usize>,
+    pub a_cols: Vec<usize>,
+    pub a_vals: Vec<f64>,
+    pub b: Vec<f64>,
+    pub w: Vec<f64>,
+    pub dim: Vec<usize>,
+    pub b_indptr: Vec<usize>,
+    pub b_indices: Vec<usize>,
+    pub b_data: Vec<f64>,
+    pub beta: Vec<f64>,
+    pub x: Vec<f64>,
+    pub sigma: Vec<f64>,
+}
+
+/// Where a term's multiplier is kept between steps.
+#[derive(Clone, Copy, Debug)]
+enum Slot {
+    Centre(usize, usize),
+    Node(usize, usize),
+    Wall(Side, usize),
+}
+
+/// One term w|B u + β| of J.
+#[derive(Clone, Debug)]
+struct Term {
+    w: f64,
+    dim: usize,
+    /// The rows of B: `rows[c]` indexes `cols`/`vals`.
+    rows: [Range<usize>; 2],
+    beta: [f64; 2],
+    r: f64,
+    sigma: [f64; 2],
+    slot: Slot,
+}
+
+/// Sparse rows of one location's strain-rate component, built by probing.
+#[derive(Clone, Debug, Default)]
+struct RowSet {
+    /// For each location (row-major over its grid), its (unknown, value) entries.
+    entries: Vec<Vec<(usize, f64)>>,
+}
+
+/// The exact step's state: the multipliers of every location (warm start of the next step) and
+/// the work arrays (allocated once).
+pub struct ExactStep {
+    /// σ at centres and nodes: (xx, xy) components, row-major.
+    sigma_c: Vec<[f64; 2]>,
+    sigma_n: Vec<[f64; 2]>,
+    ru: Range<usize>,
+    rv: Range<usize>,
+    n_u: usize,
+    n: usize,
+    periods: (usize, usize),
+    periodic: (bool, bool),
+    probe_u: Field,
+    probe_v: Field,
+    out_u: Field,
+    out_v: Field,
+    dxx: Field,
+    dyy: Field,
+    dxy: Field,
+    /// The last step's problem and solution.
+    pub last: Option<ExactProblem>,
+    /// The symbolic LU of the last Newton matrix and its pattern, reused while it is unchanged.
+    symbolic: SymbolicCache,
+}
+
+impl ExactStep {
+    /// The state for `grid` and `bc`, with σ = 0.
+    pub fn new(grid: &Grid, bc: &BoundaryConditions) -> Self {
+        let ru = unknown_face_range(bc.get(Side::Left), bc.get(Side::Right), grid.nx);
+        let rv = unknown_face_range(bc.get(Side::Bottom), bc.get(Side::Top), grid.ny);
+        let n_u = ru.len() * grid.ny;
+        let n = n_u + rv.len() * grid.nx;
+        let periodic = (periodic_pair(bc.get(Side::Left), bc.get(Side::Right)), periodic_pair(bc.get(Side::Bottom), bc.get(Side::Top)));
+        let period = |periodic: bool, m: usize| if !periodic || m % PERIOD == 0 { PERIOD } else { m };
+        let periods = (period(periodic.0, grid.nx), period(periodic.1, grid.ny));
+        ExactStep {
+            sigma_c: vec![[0.0; 2]; grid.nx * grid.ny],
+            sigma_n: vec![[0.0; 2]; (grid.nx + 1) * (grid.ny + 1)],
+            ru,
+            rv,
+            n_u,
+            n,
+            periods,
+            periodic,
+            probe_u: Field::zeros(grid, Location::XFace),
+            probe_v: Field::zeros(grid, Location::YFace),
+            out_u: Field::zeros(grid, Location::XFace),
+            out_v: Field::zeros(grid, Location::YFace),
+            dxx: Field::zeros(grid, Location::Centre),
+            dyy: Field::zeros(grid, Location::Centre),
+            dxy: Field::zeros(grid, Location::Node),
+            last: None,
+            symbolic: std::sync::Mutex::new(None),
+        }
+    }
+
+    fn index_u(&self, i: usize, j: usize) -> usize {
+        j * self.ru.len() + (i - self.ru.start)
+    }
+
+    fn index_v(&self, nx: usize, i: usize, j: usize) -> usize {
+        self.n_u + (j - self.rv.start) * nx + i
+    }
+
+    /// The unknown of component `comp` (0: u, 1: v) of colour (ci, cj) next to index (i, j) of
+    /// an output location, if there is one.
+    fn source(&self, grid: &Grid, comp: usize, (ci, cj): (usize, usize), i: isize, j: isize) -> Option<usize> {
+        let (px, py) = self.periods;
+        // the index ≡ c (mod p) within two of k (the probes' stencils reach one index, their
+        // ghosts two); across a periodic pair, modulo its length (p = m: one face per colour)
+        let pick = |c: usize, k: isize, p: usize, m: usize, periodic: bool| -> isize {
+            if periodic && p == m {
+                return c as isize;
+            }
+            let lo = k - 2;
+            let x = lo + (c as isize - lo).rem_euclid(p as isize);
+            if periodic {
+                x.rem_euclid(m as isize)
+            } else {
+                x
+            }
+        };
+        let (si, sj) = (pick(ci, i, px, grid.nx, self.periodic.0), pick(cj, j, py, grid.ny, self.periodic.1));
+        if si < 0 || sj < 0 {
+            return None;
+        }
+        let (si, sj) = (si as usize, sj as usize);
+        if comp == 0 {
+            (self.ru.contains(&si) && sj < grid.ny).then(|| self.index_u(si, sj))
+        } else {
+            (si < grid.nx && self.rv.contains(&sj)).then(|| self.index_v(grid.nx, si, sj))
+        }
+    }
+
+    /// Probes A (matrix-free `viscous_helmholtz` with homogeneous ghosts) and the strain rate:
+    /// returns A's triplets and the rows of ½(D_xx − D_yy) at centres and of D_xy at nodes.
+    #[allow(clippy::too_many_arguments)]
+    fn probe(
+        &mut self,
+        grid: &Grid,
+        bc: &BoundaryConditions,
+        eta_c: &Field,
+        eta_n: &Field,
+        c_u: &Field,
+        c_v: &Field,
+        exec: Exec,
+    ) -> (Vec<Triplet<usize, usize, f64>>, RowSet, RowSet) {
+        let (nx, ny) = (grid.nx, grid.ny);
+        let mut a = Vec::with_capacity(14 * self.n);
+        let mut dev = RowSet { entries: vec![Vec::new(); nx * ny] };
+        let mut shear = RowSet { entries: vec![Vec::new(); (nx + 1) * (ny + 1)] };
+        let (px, py) = self.periods;
+        for comp in 0..2 {
+            for cj in 0..py {
+                for ci in 0..px {
+                    self.probe_u.fill(0.0);
+                    self.probe_v.fill(0.0);
+                    let mut any = false;
+                    if comp == 0 {
+                        for j in (cj..ny).step_by(py) {
+                            for i in self.ru.clone().filter(|i| i % px == ci) {
+                                self.probe_u.set(i, j, 1.0);
+                                any = true;
+                            }
+                        }
+                    } else {
+                        for j in self.rv.clone().filter(|j| j % py == cj) {
+                            for i in (ci..nx).step_by(px) {
+                                self.probe_v.set(i, j, 1.0);
+                                any = true;
+                            }
+                        }
+                    }
+                    if !any {
+                        continue;
+                    }
+                    fill_velocity_ghosts(&mut self.probe_u, &mut self.probe_v, bc, grid, BcMode::Homogeneous);
+                    viscous_helmholtz(&self.probe_u, &self.probe_v, eta_c, eta_n, c_u, c_v, grid, &mut self.out_u, &mut self.out_v, exec);
+                    strain_rate(&self.probe_u, &self.probe_v, grid, &mut self.dxx, &mut self.dyy, &mut self.dxy, exec);
+                    for j in 0..ny {
+                        for i in self.ru.clone() {
+                            let q = self.out_u.at(i as isize, j as isize);
+                            if q != 0.0 {
+                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                    a.push(Triplet::new(self.index_u(i, j), s, q));
+                                }
+                            }
+                        }
+                    }
+                    for j in self.rv.clone() {
+                        for i in 0..nx {
+                            let q = self.out_v.at(i as isize, j as isize);
+                            if q != 0.0 {
+                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                    a.push(Triplet::new(self.index_v(nx, i, j), s, q));
+                                }
+                            }
+                        }
+                    }
+                    for j in 0..ny {
+                        for i in 0..nx {
+                            let d = 0.5 * (self.dxx.at(i as isize, j as isize) - self.dyy.at(i as isize, j as isize));
+                            if d != 0.0 {
+                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                    dev.entries[j * nx + i].push((s, d));
+                                }
+                            }
+                        }
+                    }
+                    for j in 0..=ny {
+                        for i in 0..=nx {
+                            let d = self.dxy.at(i as isize, j as isize);
+                            if d != 0.0 {
+                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                    shear.entries[j * (nx + 1) + i].push((s, d));
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (a, dev, shear)
+    }
+
+    /// Solves eq. (11) for ũ (module doc). `u`, `v` hold the initial guess on entry and receive ũ
+    /// (ghosts filled); `rhs_u`, `rhs_v` the predictor's right-hand side without the plastic and
+    /// friction forces; `tau_c`, `tau_n` the yield stress; `walls` the Coulomb walls (their s
+    /// receives −σ_f). Writes Σ's stored equivalents into `sigma_xx` (centres), `sigma_xy`
+    /// (nodes) and |z_c| into `trial_norm`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve(
+        &mut self,
+        sys: (&Field, &Field, &Field, &Field),
+        grid: &Grid,
+        bc: &BoundaryConditions,
+        u: &mut Field,
+        v: &mut Field,
+        (rhs_u, rhs_v): (&Field, &Field),
+        (tau_c, tau_n): (&Field, &Field),
+        walls: &mut CoulombWalls,
+        (sigma_xx, sigma_xy, trial_norm): (&mut Field, &mut Field, &mut Field),
+        (tol, max_iterations): (f64, usize),
+        (step, time): (u64, f64),
+        exec: Exec,
+    ) -> Result<NewtonInfo> {
+        let (c_u, c_v, eta_c, eta_n) = sys;
+        let (nx, ny) = (grid.nx, grid.ny);
+        let n = self.n;
+        let (a_trip, dev, shear) = self.probe(grid, bc, eta_c, eta_n, c_u, c_v, exec);
+        // the affine parts: A and D of the boundary data alone (unknowns zero)
+        self.probe_u.assign(u);
+        self.probe_v.assign(v);
+        for j in 0..ny {
+            for i in self.ru.clone() {
+                self.probe_u.set(i, j, 0.0);
+            }
+        }
+        for j in self.rv.clone() {
+            for i in 0..nx {
+                self.probe_v.set(i, j, 0.0);
+            }
+        }
+        fill_velocity_ghosts(&mut self.probe_u, &mut self.probe_v, bc, grid, BcMode::Full);
+        viscous_helmholtz(&self.probe_u, &self.probe_v, eta_c, eta_n, c_u, c_v, grid, &mut self.out_u, &mut self.out_v, exec);
+        strain_rate(&self.probe_u, &self.probe_v, grid, &mut self.dxx, &mut self.dyy, &mut self.dxy, exec);
+        let mut b = vec![0.0; n];
+        let mut x = vec![0.0; n];
+        for j in 0..ny {
+            for i in self.ru.clone() {
+                let k = self.index_u(i, j);
+                b[k] = rhs_u.at(i as isize, j as isize) - self.out_u.at(i as isize, j as isize);
+                x[k] = u.at(i as isize, j as isize);
+            }
+        }
+        for j in self.rv.clone() {
+            for i in 0..nx {
+                let k = self.index_v(nx, i, j);
+                b[k] = rhs_v.at(i as isize, j as isize) - self.out_v.at(i as isize, j as isize);
+                x[k] = v.at(i as isize, j as isize);
+            }
+        }
+        let beta_dev = |s: &Self, i: usize, j: usize| 0.5 * (s.dxx.at(i as isize, j as isize) - s.dyy.at(i as isize, j as isize));
+        // A as a compressed matrix (for products) and its diagonal
+        let a_mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &a_trip)
+            .map_err(|e| Error::SolverFailure { solver: "sparse LU of the exact step (faer)".into(), message: format!("{e:?}") })?;
+        let mut diag = vec![0.0; n];
+        for t in &a_trip {
+            if t.row == t.col {
+                diag[t.row] += t.val;
+            }
+        }
+        // the terms
+        let held = |side: Side| matches!(bc.get(side), VelocityBc::FreeSlip | VelocityBc::Coulomb);
+        let (mut cols, mut vals) = (Vec::<usize>::new(), Vec::<f64>::new());
+        let mut terms: Vec<Term> = Vec::new();
+        let push_row = |cols: &mut Vec<usize>, vals: &mut Vec<f64>, parts: &[(&[(usize, f64)], f64)]| -> Range<usize> {
+            let start = cols.len();
+            for (entries, weight) in parts {
+                for &(k, val) in entries.iter() {
+                    cols.push(k);
+                    vals.push(weight * val);
+                }
+            }
+            start..cols.len()
+        };
+        for j in 0..ny {
+            for i in 0..nx {
+                let w = tau_c.at(i as isize, j as isize);
+                if w <= 0.0 {
+                    continue;
+                }
+                let corners = [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)];
+                let r0 = push_row(&mut cols, &mut vals, &[(&dev.entries[j * nx + i], 1.0)]);
+                let parts: Vec<(&[(usize, f64)], f64)> = corners.iter().map(|&(a, c)| (&shear.entries[c * (nx + 1) + a][..], 0.25)).collect();
+                let r1 = push_row(&mut cols, &mut vals, &parts);
+                let b1 = corners.iter().map(|&(a, c)| 0.25 * self.dxy.at(a as isize, c as isize)).sum();
+                terms.push(Term {
+                    w,
+                    dim: 2,
+                    rows: [r0, r1],
+                    beta: [beta_dev(self, i, j), b1],
+                    r: 0.0,
+                    sigma: self.sigma_c[j * nx + i],
+                    slot: Slot::Centre(i, j),
+                });
+            }
+        }
+        let (hl, hr, hb, ht) = (held(Side::Left), held(Side::Right), held(Side::Bottom), held(Side::Top));
+        for j in 0..=ny {
+            for i in 0..=nx {
+                if (i == 0 && hl) || (i == nx && hr) || (j == 0 && hb) || (j == ny && ht) {
+                    continue;
+                }
+                let tau = tau_n.at(i as isize, j as isize);
+                if tau <= 0.0 {
+                    continue;
+                }
+                let cells: Vec<(usize, usize)> =
+                    [(i as isize - 1, j as isize - 1), (i as isize, j as isize - 1), (i as isize - 1, j as isize), (i as isize, j as isize)]
+                        .into_iter()
+                        .filter(|&(a, c)| a >= 0 && c >= 0 && (a as usize) < nx && (c as usize) < ny)
+                        .map(|(a, c)| (a as usize, c as usize))
+                        .collect();
+                let m = cells.len() as f64;
+                let parts: Vec<(&[(usize, f64)], f64)> = cells.iter().map(|&(a, c)| (&dev.entries[c * nx + a][..], 1.0 / m)).collect();
+                let r0 = push_row(&mut cols, &mut vals, &parts);
+                let r1 = push_row(&mut cols, &mut vals, &[(&shear.entries[j * (nx + 1) + i], 1.0)]);
+                let b0 = cells.iter().map(|&(a, c)| beta_dev(self, a, c)).sum::<f64>() / m;
+                let b1 = self.dxy.at(i as isize, j as isize);
+                terms.push(Term {
+                    w: tau * m / 4.0,
+                    dim: 2,
+                    rows: [r0, r1],
+                    beta: [b0, b1],
+                    r: 0.0,
+                    sigma: self.sigma_n[j * (nx + 1) + i],
+                    slot: Slot::Node(i, j),
+                });
+            }
+        }
+        for (side, f, tau_b, s) in walls.friction_faces() {
+            let (k, h) = match side {
+                Side::Bottom => (self.index_u(f, 0), grid.dy),
+                Side::Top => (self.index_u(f, ny - 1), grid.dy),
+                Side::Left => (self.index_v(nx, 0, f), grid.dx),
+                Side::Right => (self.index_v(nx, nx - 1, f), grid.dx),
+            };
+            let r0 = push_row(&mut cols, &mut vals, &[(&[(k, 1.0)], 1.0)]);
+            terms.push(Term { w: tau_b / h, dim: 1, rows: [r0, 0..0], beta: [0.0; 2], r: 0.0, sigma: [-s, 0.0], slot: Slot::Wall(side, f) });
+        }
+        // r_k = d_k/(w_k‖B_k‖²)
+        for t in terms.iter_mut() {
+            let (mut d, mut norm2) = (0.0f64, 0.0);
+            for c in 0..t.dim {
+                for e in t.rows[c].clone() {
+                    d = d.max(diag[cols[e]]);
+                    norm2 += vals[e] * vals[e];
+                }
+            }
+            t.r = if norm2 > 0.0 { d / (t.w * norm2) } else { 0.0 };
+            let s = t.sigma[0].hypot(t.sigma[1]);
+            if s > 1.0 {
+                t.sigma = [t.sigma[0] / s, t.sigma[1] / s];
+            }
+        }
+        let apply_b = |t: &Term, x: &[f64]| -> [f64; 2] {
+            let mut y = t.beta;
+            for c in 0..t.dim {
+                for e in t.rows[c].clone() {
+                    y[c] += vals[e] * x[cols[e]];
+                }
+            }
+            y
+        };
+        // F_u, F_k and the residuals at (x, σ)
+        let residuals = |x: &[f64], sig: &[[f64; 2]], fu: &mut Vec<f64>, fk: &mut Vec<[f64; 2]>| -> (f64, f64, f64) {
+            let mut ax = vec![0.0; n];
+            faer::sparse::linalg::matmul::sparse_dense_matmul(
+                faer::MatMut::from_column_major_slice_mut(&mut ax, n, 1),
+                faer::Accum::Replace,
+                a_mat.as_ref(),
+                faer::MatRef::from_column_major_slice(x, n, 1),
+                1.0,
+                faer::Par::Seq,
+            );
+            let mut force = vec![0.0; n];
+            let mut proj = 0.0f64;
+            fk.clear();
+            for (t, s) in terms.iter().zip(sig) {
+                let y = apply_b(t, x);
+                let z = [s[0] + t.r * y[0], s[1] + t.r * y[1]];
+                let nz = z[0].hypot(z[1]);
+                let p = if nz > 1.0 { [z[0] / nz, z[1] / nz] } else { z };
+                let f = [s[0] - p[0], s[1] - p[1]];
+                proj = proj.max(f[0].hypot(f[1]));
+                fk.push(f);
+                for c in 0..t.dim {
+                    for e in t.rows[c].clone() {
+                        force[cols[e]] += t.w * vals[e] * s[c];
+                    }
+                }
+            }
+            fu.clear();
+            let (mut n_b, mut n_a, mut n_f, mut n_r) = (0.0, 0.0, 0.0, 0.0);
+            for k in 0..n {
+                let r = ax[k] - b[k] + force[k];
+                fu.push(r);
+                n_b += b[k] * b[k];
+                n_a += ax[k] * ax[k];
+                n_f += force[k] * force[k];
+                n_r += r * r;
+            }
+            let scale = n_b.sqrt() + n_a.sqrt() + n_f.sqrt();
+            let mom = if scale > 0.0 { n_r.sqrt() / scale } else { 0.0 };
+            (mom, proj, scale)
+        };
+        let mut sig: Vec<[f64; 2]> = terms.iter().map(|t| t.sigma).collect();
+        let (mut fu, mut fk) = (Vec::with_capacity(n), Vec::with_capacity(terms.len()));
+        let (mut mom, mut proj, mut scale) = residuals(&x, &sig, &mut fu, &mut fk);
+        let mut iterations = 0;
+        let mut s_mat: Vec<[[f64; 2]; 2]> = vec![[[0.0; 2]; 2]; terms.len()];
+        let mut t_vec: Vec<[f64; 2]> = vec![[0.0; 2]; terms.len()];
+        let (mut fu_trial, mut fk_trial) = (Vec::with_capacity(n), Vec::with_capacity(terms.len()));
+        let mut globalised = false;
+        while mom > tol || proj > tol {
+            if !globalised && (iterations == SSN_TRIES || !mom.is_finite() || !proj.is_finite()) {
+                // a start the semismooth iteration does not take from: the smoothed problems'
+                // path (module doc, "Globalisation") from the step's initial guess
+                globalised = true;
+                // restart from the predictor without yield stress or friction (every location
+                // flowing), σ_k = n_k
+                x.copy_from_slice(&b);
+                Self::factor_solve(&std::sync::Mutex::new(None), n, &a_trip, &mut x)?;
+                for (t, s) in terms.iter().zip(sig.iter_mut()) {
+                    let y = apply_b(t, &x);
+                    let m = y[0].hypot(y[1]);
+                    *s = if m > 0.0 { [y[0] / m, y[1] / m] } else { [0.0; 2] };
+                }
+                (mom, proj, scale) = residuals(&x, &sig, &mut fu, &mut fk);
+                continue;
+            }
+            if iterations >= max_iterations || !mom.is_finite() || !proj.is_finite() {
+                return Err(Error::PicardNotConverged {
+                    what: format!(
+                        "the semismooth Newton solver of eq. (11) did not converge: momentum residual {mom:.3e}, projection residual {proj:.3e} after {iterations} iterations (newton_tol {tol:.1e})"
+                    ),
+                    step,
+                    time,
+                });
+            }
+            iterations += 1;
+            // S_k, t_k and the Newton matrix
+            let delta = NEWTON_DELTA;
+            let mut k_trip = a_trip.clone();
+            let mut rhs: Vec<f64> = fu.iter().map(|r| -r).collect();
+            for (idx, t) in terms.iter().enumerate() {
+                let y = apply_b(t, &x);
+                let s = sig[idx];
+                let z = [s[0] + t.r * y[0], s[1] + t.r * y[1]];
+                let nz = if t.dim == 1 { z[0].abs() } else { z[0].hypot(z[1]) };
+                let f = fk[idx];
+                let (sm, tv) = if nz <= 1.0 {
+                    let a = t.r / delta;
+                    ([[a, 0.0], [0.0, a]], [f[0] / delta, f[1] / delta])
+                } else {
+                    let rho = 1.0 / nz;
+                    let nv = [z[0] / nz, z[1] / nz];
+                    // (I − G + δI)⁻¹ = (I − nnᵀ)/(1 − ρ + δ) + nnᵀ/(1 + δ)
+                    let (p, q) = (1.0 / (1.0 - rho + delta), 1.0 / (1.0 + delta));
+                    let perp = [[1.0 - nv[0] * nv[0], -nv[0] * nv[1]], [-nv[1] * nv[0], 1.0 - nv[1] * nv[1]]];
+                    let par = [[nv[0] * nv[0], nv[0] * nv[1]], [nv[1] * nv[0], nv[1] * nv[1]]];
+                    let g = t.r * rho * p;
+                    let sm = if t.dim == 1 { [[0.0; 2]; 2] } else { [[g * perp[0][0], g * perp[0][1]], [g * perp[1][0], g * perp[1][1]]] };
+                    let inv = |a: usize, c: usize| p * perp[a][c] + q * par[a][c];
+                    let tv = if t.dim == 1 { [q * f[0], 0.0] } else { [inv(0, 0) * f[0] + inv(0, 1) * f[1], inv(1, 0) * f[0] + inv(1, 1) * f[1]] };
+                    (sm, tv)
+                };
+                s_mat[idx] = sm;
+                t_vec[idx] = tv;
+                // w Bᵀ S B and w Bᵀ t
+                for c in 0..t.dim {
+                    for e in t.rows[c].clone() {
+                        rhs[cols[e]] += t.w * vals[e] * tv[c];
+                    }
+                    // every coefficient, zero ones too: the pattern (and its symbolic
+                    // factorisation) is the same for every iteration of the step
+                    for d in 0..t.dim {
+                        let coef = t.w * sm[c][d];
+                        for e in t.rows[c].clone() {
+                            for g in t.rows[d].clone() {
+                                k_trip.push(Triplet::new(cols[e], cols[g], coef * vals[e] * vals[g]));
+                            }
+                        }
+                    }
+                }
+            }
+            let mut dx = rhs;
+            Self::factor_solve(&self.symbolic, n, &k_trip, &mut dx)?;
+            let dsig: Vec<[f64; 2]> = terms
+                .iter()
+                .enumerate()
+                .map(|(idx, t)| {
+                    let by = apply_b(t, &dx);
+                    let bd = [by[0] - t.beta[0], by[1] - t.beta[1]];
+                    let sm = s_mat[idx];
+                    [sm[0][0] * bd[0] + sm[0][1] * bd[1] - t_vec[idx][0], sm[1][0] * bd[0] + sm[1][1] * bd[1] - t_vec[idx][1]]
+                })
+                .collect();
+            // backtracking on the merit
+            let merit = |m: f64, p: &Vec<[f64; 2]>| m * m + p.iter().map(|f| f[0] * f[0] + f[1] * f[1]).sum::<f64>();
+            let m0 = merit(mom, &fk);
+            let mut alpha = 1.0;
+            // (merit, x, σ) of the best trial
+            let mut best: Option<(f64, Vec<f64>, Vec<[f64; 2]>)> = None;
+            for _ in 0..=MAX_HALVINGS {
+                let xt: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
+                let st: Vec<[f64; 2]> = sig.iter().zip(&dsig).map(|(a, d)| [a[0] + alpha * d[0], a[1] + alpha * d[1]]).collect();
+                let (mt, _, _) = residuals(&xt, &st, &mut fu_trial, &mut fk_trial);
+                let m = merit(mt, &fk_trial);
+                if best.as_ref().is_none_or(|b| m < b.0) {
+                    best = Some((m, xt, st));
+                }
+                if m <= (1.0 - 1e-4 * alpha) * m0 {
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            let (_, xt, st) = best.expect("one trial at least");
+            x = xt;
+            sig = st;
+            (mom, proj, scale) = residuals(&x, &sig, &mut fu, &mut fk);
+        }
+        let _ = scale;
+        let mut pb = ExactProblem { n, b: b.clone(), x: x.clone(), ..Default::default() };
+        for t in &a_trip {
+            pb.a_rows.push(t.row);
+            pb.a_cols.push(t.col);
+            pb.a_vals.push(t.val);
+        }
+        pb.b_indptr.push(0);
+        for (t, s) in terms.iter().zip(&sig) {
+            pb.w.push(t.w);
+            pb.dim.push(t.dim);
+            for c in 0..t.dim {
+                for e in t.rows[c].clone() {
+                    pb.b_indices.push(cols[e]);
+                    pb.b_data.push(vals[e]);
+                }
+                pb.b_indptr.push(pb.b_indices.len());
+                pb.beta.push(t.beta[c]);
+                pb.sigma.push(s[c]);
+            }
+        }
+        self.last = Some(pb);
+        // write back ũ, σ and the stored equivalents
+        for j in 0..ny {
+            for i in self.ru.clone() {
+                u.set(i, j, x[self.index_u(i, j)]);
+            }
+        }
+        for j in self.rv.clone() {
+            for i in 0..nx {
+                v.set(i, j, x[self.index_v(nx, i, j)]);
+            }
+        }
+        fill_velocity_ghosts(u, v, bc, grid, BcMode::Full);
+        self.sigma_c.iter_mut().for_each(|s| *s = [0.0; 2]);
+        self.sigma_n.iter_mut().for_each(|s| *s = [0.0; 2]);
+        sigma_xx.fill(0.0);
+        sigma_xy.fill(0.0);
+        trial_norm.fill(0.0);
+        // τΣ_xx at centres and τΣ_xy at nodes (module doc), divided by τ below
+        let mut txx = vec![0.0; nx * ny];
+        let mut txy = vec![0.0; (nx + 1) * (ny + 1)];
+        for (t, s) in terms.iter().zip(&sig) {
+            match t.slot {
+                Slot::Centre(i, j) => {
+                    self.sigma_c[j * nx + i] = *s;
+                    txx[j * nx + i] += 0.5 * t.w * s[0];
+                    for (a, c) in [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)] {
+                        txy[c * (nx + 1) + a] += 0.125 * t.w * s[1];
+                    }
+                    let y = apply_b(t, &x);
+                    let z = [s[0] + t.r * y[0], s[1] + t.r * y[1]];
+                    trial_norm.set(i, j, z[0].hypot(z[1]));
+                }
+                Slot::Node(i, j) => {
+                    self.sigma_n[j * (nx + 1) + i] = *s;
+                    txy[j * (nx + 1) + i] += 0.5 * t.w * s[1];
+                    let cells: Vec<(usize, usize)> =
+                        [(i as isize - 1, j as isize - 1), (i as isize, j as isize - 1), (i as isize - 1, j as isize), (i as isize, j as isize)]
+                            .into_iter()
+                            .filter(|&(a, c)| a >= 0 && c >= 0 && (a as usize) < nx && (c as usize) < ny)
+                            .map(|(a, c)| (a as usize, c as usize))
+                            .collect();
+                    let m = cells.len() as f64;
+                    for (a, c) in cells {
+                        txx[c * nx + a] += 0.5 * t.w * s[0] / m;
+                    }
+                }
+                Slot::Wall(side, f) => walls.set_direction(side, f, -s[0]),
+            }
+        }
+        for j in 0..ny {
+            for i in 0..nx {
+                let tau = tau_c.at(i as isize, j as isize);
+                if tau > 0.0 {
+                    sigma_xx.set(i, j, txx[j * nx + i] / tau);
+                }
+            }
+        }
+        for j in 0..=ny {
+            for i in 0..=nx {
+                let tau = tau_n.at(i as isize, j as isize);
+                if tau > 0.0 {
+                    sigma_xy.set(i, j, txy[j * (nx + 1) + i] / tau);
+                }
+            }
+        }
+        Ok(NewtonInfo { iterations, momentum_residual: mom, projection_residual: proj, unknowns: n, terms: terms.len() })
+    }
+
+    /// Factorises the matrix of `trip` (duplicates summed) by sparse LU, reusing the symbolic
+    /// factorisation of `cache` while the pattern is the same, and solves in place.
+    fn factor_solve(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], x: &mut [f64]) -> Result<()> {
+        let fail = |e: String| Error::SolverFailure { solver: "sparse LU of the exact step (faer)".into(), message: e };
+        let mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip).map_err(|e| fail(format!("{e:?}")))?;
+        let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
+        let same = cache.as_ref().is_some_and(|(p, r, _)| p[..] == *mat.symbolic().col_ptr() && r[..] == *mat.symbolic().row_idx());
+        if !same {
+            let symbolic = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
+            *cache = Some((mat.symbolic().col_ptr().to_vec(), mat.symbolic().row_idx().to_vec(), symbolic));
+        }
+        let symbolic = cache.as_ref().expect("set above").2.clone();
+        let lu = Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?;
+        lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
+        Ok(())
+    }
+}
+
+impl crate::grid::StateArrays for ExactStep {
+    /// The multipliers σ at centres and nodes (the warm start of the next step).
+    fn visit_state(&self, f: &mut dyn FnMut(&str, &[f64])) {
+        f("exact_sigma_centre", self.sigma_c.as_flattened());
+        f("exact_sigma_node", self.sigma_n.as_flattened());
+    }
+
+    fn visit_state_mut(&mut self, f: &mut dyn FnMut(&str, &mut [f64])) {
+        f("exact_sigma_centre", self.sigma_c.as_flattened_mut());
+        f("exact_sigma_node", self.sigma_n.as_flattened_mut());
+    }
+}
