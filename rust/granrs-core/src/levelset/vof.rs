@@ -320,6 +320,24 @@ impl VolumeFraction {
     }
 }
 
+impl crate::grid::WindowState for VolumeFraction {
+    /// F.
+    fn state_fields(&self) -> Vec<&Field> {
+        vec![&self.f]
+    }
+
+    fn state_fields_mut(&mut self) -> Vec<&mut Field> {
+        vec![&mut self.f]
+    }
+
+    /// The last step's budget goes back with the window's state.
+    fn copy_other_state(&mut self, src: &Self, back: bool) {
+        if back {
+            self.budget = src.budget;
+        }
+    }
+}
+
 /// Σ F δx δy over the interior of `f`, in the fixed row blocks of [`Exec::sum_rows`].
 pub fn fraction_volume(f: &Field, grid: &Grid, exec: Exec) -> f64 {
     let (fs, st, nx) = (f.slice(), f.stride(), f.nx);

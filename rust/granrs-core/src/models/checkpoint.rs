@@ -2,7 +2,8 @@
 //! bit for bit as the uninterrupted one would.
 //!
 //! The state of step n → n+1 is: u^n, v^n and the BDF2 history u^{n−1}, v^{n−1}, (u·∇u)^{n−1};
-//! p^n and the last pressure increment δp^n (the warm start of the next projection); Φ^n; the
+//! p^n and the last pressure increment δp^n (the warm start of the next projection); Φ^n and,
+//! with `interface_transport = "clsvof"`, the volume fraction F^n; the
 //! pore pressure p_f^n, p_f^{n−1} and its advection at n−1; the plastic tensor Σ^n and the
 //! Coulomb wall directions s^n (the anchors of the Picard iteration, eq. 12); the clock t_n, n,
 //! δt_{n−1}; the area the mass correction restores; with an active region, the window's size
@@ -52,6 +53,9 @@ impl TwoPhaseModel {
         f("conv_prev_v", self.conv_prev_v.slice());
         f("p", self.p.slice());
         f("phi", self.phi.slice());
+        if let Some(vof) = &self.levelset.vof {
+            f("volume_fraction", vof.f.slice());
+        }
         // the rooms' own state arrays
         self.pressure.visit_state(&mut f);
         if let Some(pore) = &self.pore {
@@ -121,6 +125,9 @@ impl TwoPhaseModel {
         self.conv_prev_v.slice_mut().copy_from_slice(get("conv_prev_v"));
         self.p.slice_mut().copy_from_slice(get("p"));
         self.phi.slice_mut().copy_from_slice(get("phi"));
+        if let Some(vof) = &mut self.levelset.vof {
+            vof.f.slice_mut().copy_from_slice(get("volume_fraction"));
+        }
         let mut put = |name: &str, data: &mut [f64]| data.copy_from_slice(get(name));
         self.pressure.visit_state_mut(&mut put);
         if let Some(pore) = &mut self.pore {
