@@ -41,7 +41,7 @@
 //!
 //! Level set from F (Sussman & Puckett 2000, *J. Comput. Phys.* 162, 301–337, §3.3): at each
 //! cell centre Φ = ±d, d the distance to the nearest PLIC segment within [`SEARCH_CELLS`] cells,
-//! + on the dense side of the cell's own line (a cell without a line: F > ½). Where d exceeds
+//! positive on the dense side of the cell's own line (a cell without a line: F > ½). Where d exceeds
 //! [`BAND_CELLS`] h (no segment near enough for d to be exact) Φ keeps the magnitude of the
 //! transported Φ, at least [`BAND_CELLS`] h, with the sign of F. Φ's zero level is then the
 //! fractions' interface and Φ the exact distance to it in the band |Φ| ≤ 3h that H_ε(Φ)
@@ -147,9 +147,10 @@ pub struct VolumeFraction {
     pub normal: PlicNormal,
     /// F after the first sweep.
     half: Field,
-    /// The cells' PLIC segments: end points relative to the cell centre (m); NaN in `seg[0]`
-    /// where the cell has none.
-    seg: [Field; 4],
+    /// The cells' PLIC segments, end points (a_x, a_y, b_x, b_y) relative to the cell centre (m):
+    /// for storage row r (F's layout, stride s) component c of cell i at `seg[(4r + c) s + i]`;
+    /// a_x NaN where the cell has none.
+    seg: Vec<f64>,
     /// Per row, the columns [first, last + 1) that hold a segment ((0, 0): none).
     rows: Vec<(usize, usize)>,
     /// The last step's budget.
@@ -160,7 +161,9 @@ impl VolumeFraction {
     /// F = 0 on `grid`, with its work fields.
     pub fn new(grid: &Grid, normal: PlicNormal) -> Self {
         let c = || Field::zeros(grid, Location::Centre);
-        VolumeFraction { f: c(), normal, half: c(), seg: [c(), c(), c(), c()], rows: vec![(0, 0); grid.ny], budget: VolumeBudget::default() }
+        let f = c();
+        let seg = vec![f64::NAN; 4 * f.slice().len()];
+        VolumeFraction { f, normal, half: c(), seg, rows: vec![(0, 0); grid.ny], budget: VolumeBudget::default() }
     }
 
     /// The dense volume Σ F δx δy (m² per unit depth), summed in the fixed row blocks.
@@ -216,7 +219,7 @@ impl VolumeFraction {
             }
             m
         });
-        if !(courant <= 1.0) {
+        if courant.is_nan() || courant > 1.0 {
             return Err(Error::param(
                 "dt",
                 dt,
@@ -251,33 +254,30 @@ impl VolumeFraction {
         let (fs, ps, st) = (self.f.slice(), phi.slice(), self.f.stride());
         let (dx, dy, nx, ny) = (grid.dx, grid.dy, grid.nx, grid.ny);
         let normal = self.normal;
-        // the segments: one row of each of the four fields per cell row
-        let [s0, s1, s2, s3] = &mut self.seg;
-        let mut fields = [s0, s1, s2, s3];
-        for (c, sf) in fields.iter_mut().enumerate() {
-            exec.for_each_row(sf.slice_mut(), st, |r, row| {
-                if r < HALO || r >= ny + HALO {
-                    return;
+        // the segments: the four rows of storage row r hold one component each
+        exec.for_each_row(&mut self.seg, 4 * st, |r, rows4| {
+            if r < HALO || r >= ny + HALO {
+                return;
+            }
+            for i in HALO..HALO + nx {
+                let s = segment(fs, ps, r * st + i, st, normal, dx, dy).unwrap_or([f64::NAN; 4]);
+                for (c, x) in s.into_iter().enumerate() {
+                    rows4[c * st + i] = x;
                 }
-                for i in HALO..HALO + nx {
-                    let k = r * st + i;
-                    row[i] = match segment(fs, ps, k, st, normal, dx, dy) {
-                        Some(s) => s[c],
-                        None => f64::NAN,
-                    };
-                }
-            });
-        }
+            }
+        });
         // the columns of each row that hold a segment
-        let s0 = self.seg[0].slice();
         for (j, range) in self.rows.iter_mut().enumerate() {
-            let row = &s0[(j + HALO) * st + HALO..(j + HALO) * st + HALO + nx];
+            let b = 4 * (j + HALO) * st + HALO;
+            let row = &self.seg[b..b + nx];
             *range = match (row.iter().position(|x| !x.is_nan()), row.iter().rposition(|x| !x.is_nan())) {
                 (Some(a), Some(b)) => (a, b + 1),
                 _ => (0, 0),
             };
         }
-        let seg = [self.seg[0].slice(), self.seg[1].slice(), self.seg[2].slice(), self.seg[3].slice()];
+        let seg = &self.seg;
+        // component c of the cell at flat index k = r st + i
+        let at = move |k: usize, c: usize| seg[4 * (k / st) * st + c * st + k % st];
         let rows = &self.rows;
         let band = BAND_CELLS * grid.h();
         exec.for_each_row(phi.slice_mut(), st, |r, row| {
@@ -288,27 +288,28 @@ impl VolumeFraction {
             let (jlo, jhi) = (j.saturating_sub(SEARCH_CELLS), (j + SEARCH_CELLS + 1).min(ny));
             for i in 0..nx {
                 let k = r * st + i + HALO;
-                let dense = if seg[0][k].is_nan() {
+                let dense = if at(k, 0).is_nan() {
                     fs[k] > 0.5
                 } else {
                     // the centre (0, 0) on the left of a → b (or on it): dense
-                    let (ax, ay, bx, by) = (seg[0][k], seg[1][k], seg[2][k], seg[3][k]);
+                    let (ax, ay, bx, by) = (at(k, 0), at(k, 1), at(k, 2), at(k, 3));
                     (bx - ax) * (-ay) - (by - ay) * (-ax) >= 0.0
                 };
                 let (ilo, ihi) = (i.saturating_sub(SEARCH_CELLS), (i + SEARCH_CELLS + 1).min(nx));
                 let mut d2 = f64::INFINITY;
-                for jj in jlo..jhi {
-                    let (a, b) = rows[jj];
+                for (jj, &(a, b)) in rows.iter().enumerate().take(jhi).skip(jlo) {
                     let (lo, hi) = (ilo.max(a), ihi.min(b));
+                    let base = 4 * (jj + HALO) * st + HALO;
                     for ii in lo..hi {
-                        let kk = (jj + HALO) * st + ii + HALO;
-                        if seg[0][kk].is_nan() {
+                        let ax = seg[base + ii];
+                        if ax.is_nan() {
                             continue;
                         }
                         // the point: the centre of (i, j) relative to the centre of (ii, jj)
                         let px = (i as f64 - ii as f64) * dx;
                         let py = (j as f64 - jj as f64) * dy;
-                        d2 = d2.min(segment_distance2(px, py, seg[0][kk], seg[1][kk], seg[2][kk], seg[3][kk]));
+                        let (ay, bx, by) = (seg[base + st + ii], seg[base + 2 * st + ii], seg[base + 3 * st + ii]);
+                        d2 = d2.min(segment_distance2(px, py, ax, ay, bx, by));
                     }
                 }
                 let d = d2.sqrt();
@@ -317,6 +318,17 @@ impl VolumeFraction {
             }
         });
         phi.extrapolate_ghosts_linear();
+    }
+}
+
+impl crate::grid::StateArrays for VolumeFraction {
+    /// F.
+    fn visit_state(&self, f: &mut dyn FnMut(&str, &[f64])) {
+        f("volume_fraction", self.f.slice());
+    }
+
+    fn visit_state_mut(&mut self, f: &mut dyn FnMut(&str, &mut [f64])) {
+        f("volume_fraction", self.f.slice_mut());
     }
 }
 
@@ -464,7 +476,7 @@ fn segment(fs: &[f64], ps: &[f64], k: usize, st: usize, normal: PlicNormal, dx: 
             return None;
         }
     }
-    if !(lo <= hi) {
+    if lo.is_nan() || hi.is_nan() || lo > hi {
         return None;
     }
     // d = (−m₂, m₁) is m turned left, so m points to the right of a → b and the dense side

@@ -53,10 +53,10 @@ impl TwoPhaseModel {
         f("conv_prev_v", self.conv_prev_v.slice());
         f("p", self.p.slice());
         f("phi", self.phi.slice());
-        if let Some(vof) = &self.levelset.vof {
-            f("volume_fraction", vof.f.slice());
-        }
         // the rooms' own state arrays
+        if let Some(vof) = &self.levelset.vof {
+            vof.visit_state(&mut f);
+        }
         self.pressure.visit_state(&mut f);
         if let Some(pore) = &self.pore {
             pore.visit_state(&mut f);
@@ -125,10 +125,10 @@ impl TwoPhaseModel {
         self.conv_prev_v.slice_mut().copy_from_slice(get("conv_prev_v"));
         self.p.slice_mut().copy_from_slice(get("p"));
         self.phi.slice_mut().copy_from_slice(get("phi"));
-        if let Some(vof) = &mut self.levelset.vof {
-            vof.f.slice_mut().copy_from_slice(get("volume_fraction"));
-        }
         let mut put = |name: &str, data: &mut [f64]| data.copy_from_slice(get(name));
+        if let Some(vof) = &mut self.levelset.vof {
+            vof.visit_state_mut(&mut put);
+        }
         self.pressure.visit_state_mut(&mut put);
         if let Some(pore) = &mut self.pore {
             pore.visit_state_mut(&mut put);
