@@ -153,6 +153,9 @@ pub struct VolumeFraction {
     seg: Vec<f64>,
     /// Per row, the columns [first, last + 1) that hold a segment ((0, 0): none).
     rows: Vec<(usize, usize)>,
+    /// Per row j, the union of `rows` over the rows j ± [`SEARCH_CELLS`] (a cell farther than
+    /// that from it along x has no segment in its search window).
+    near: Vec<(usize, usize)>,
     /// The last step's budget.
     pub budget: VolumeBudget,
 }
@@ -163,7 +166,7 @@ impl VolumeFraction {
         let c = || Field::zeros(grid, Location::Centre);
         let f = c();
         let seg = vec![f64::NAN; 4 * f.slice().len()];
-        VolumeFraction { f, normal, half: c(), seg, rows: vec![(0, 0); grid.ny], budget: VolumeBudget::default() }
+        VolumeFraction { f, normal, half: c(), seg, rows: vec![(0, 0); grid.ny], near: vec![(0, 0); grid.ny], budget: VolumeBudget::default() }
     }
 
     /// The dense volume Σ F δx δy (m² per unit depth), summed in the fixed row blocks.
@@ -275,6 +278,11 @@ impl VolumeFraction {
                 _ => (0, 0),
             };
         }
+        for j in 0..ny {
+            let (lo, hi) = (j.saturating_sub(SEARCH_CELLS), (j + SEARCH_CELLS + 1).min(ny));
+            self.near[j] = self.rows[lo..hi].iter().filter(|r| r.1 > r.0).fold((usize::MAX, 0), |(a, b), r| (a.min(r.0), b.max(r.1)));
+        }
+        let near = &self.near;
         let seg = &self.seg;
         // component c of the cell at flat index k = r st + i
         let at = move |k: usize, c: usize| seg[4 * (k / st) * st + c * st + k % st];
@@ -297,6 +305,13 @@ impl VolumeFraction {
                 };
                 let (ilo, ihi) = (i.saturating_sub(SEARCH_CELLS), (i + SEARCH_CELLS + 1).min(nx));
                 let mut d2 = f64::INFINITY;
+                let (nlo, nhi) = near[j];
+                if ihi <= nlo || ilo >= nhi {
+                    // no segment in the window
+                    let mag = row[i + HALO].abs().max(band);
+                    row[i + HALO] = if dense { mag } else { -mag };
+                    continue;
+                }
                 for (jj, &(a, b)) in rows.iter().enumerate().take(jhi).skip(jlo) {
                     let (lo, hi) = (ilo.max(a), ihi.min(b));
                     let base = 4 * (jj + HALO) * st + HALO;
@@ -529,6 +544,11 @@ fn sweep(
             return 0.0;
         }
         let k = if c > 0.0 { kl } else { kh };
+        let f = ss[k];
+        if f <= 0.0 || f >= 1.0 {
+            // a pure cell: F|c| signed, without its normal (the same value as swept_volume's)
+            return f * c;
+        }
         let (m1, m2) = cell_normal(ss, ps, k, st, normal);
         match axis {
             Axis::X => swept_volume(c, ss[k], m1, m2),
