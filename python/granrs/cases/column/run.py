@@ -133,8 +133,9 @@ def run_column(
         rec["t"].append(t)
         rec["front"].append(xf - lc)
         rec["area"].append(model.dense_area())
-        if volume0:
-            volume_change[0] = max(volume_change[0], abs(model.dense_volume() / volume0 - 1.0))
+        volume = model.dense_volume()
+        if volume0 and volume is not None:
+            volume_change[0] = max(volume_change[0], abs(volume / volume0 - 1.0))
         rec["max_granular_speed"].append(speed)
         rec["energy"].append(model.energy_budget())
         _record_observables(rec, obs.model_volume_profile(model), grid.dx, grid.dy, lc)
