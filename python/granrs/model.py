@@ -291,6 +291,8 @@ class Model:
         self.threads = threads
         names = ("u", "v", "p", "phi") + (("pf",) if pore_pressure is not None else ())
         self._views = {name: self._view(name) for name in names}
+        if opts.get("interface_transport") == "clsvof" and light is not None:
+            self._views["volume_fraction"] = self._view("volume_fraction")
         self._has_plastic = isinstance(rheology, (Bingham, DruckerPrager, MuI)) or any(
             isinstance(getattr(self.bc, s), Coulomb) and getattr(self.bc, s).friction_angle is not None
             for s in ("left", "right", "bottom", "top")
@@ -336,6 +338,12 @@ class Model:
     def phi(self) -> np.ndarray:
         """Level set at cell centres (> 0 in the dense phase), shape (ny, nx), read-only live view."""
         return self._views["phi"]
+
+    @property
+    def volume_fraction(self) -> Optional[np.ndarray]:
+        """Dense volume fraction F at cell centres, shape (ny, nx), read-only live view; None
+        unless ``interface_transport = "clsvof"``."""
+        return self._views.get("volume_fraction")
 
     @property
     def pf(self) -> np.ndarray:
@@ -497,6 +505,11 @@ class Model:
     def dense_area(self) -> float:
         """Area of the dense phase {Φ > 0} (sub-cell accurate), m²."""
         return self._rust.dense_area()
+
+    def dense_volume(self) -> Optional[float]:
+        """The conserved dense volume Σ F dx dy (m² per metre of width) with
+        ``interface_transport = "clsvof"``; None otherwise."""
+        return self._rust.dense_volume()
 
     def energy_budget(self) -> dict:
         """The mechanical energy budget since the state was last set, J per metre of width

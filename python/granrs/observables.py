@@ -83,6 +83,39 @@ def volume_profile(phi: np.ndarray, dy: float) -> np.ndarray:
     return np.clip(0.5 + phi / dy, 0.0, 1.0).sum(axis=0) * dy
 
 
+def fraction_profile(fraction: np.ndarray, dy: float) -> np.ndarray:
+    """Granular volume per column of cells from the volume fractions, h_i = Σ_j F_ij Δy.
+
+    Parameters
+    ----------
+    fraction : ndarray, shape (ny, nx)
+        Volume fraction F of the grains in each cell (rows j = 0 at the base), in [0, 1].
+    dy : float
+        Cell height Δy (m).
+
+    Returns
+    -------
+    ndarray, shape (nx,)
+        h_i (m).
+    """
+    fraction = np.asarray(fraction, dtype=float)
+    if fraction.ndim != 2:
+        raise ValueError(f"invalid parameter `fraction`: allowed a 2D array (ny, nx), got shape {fraction.shape}")
+    if not dy > 0:
+        raise ValueError(f"invalid parameter `dy` = {dy!r}: allowed a positive number")
+    return fraction.sum(axis=0) * dy
+
+
+def model_volume_profile(model) -> np.ndarray:
+    """The granular volume per column of a model: :func:`fraction_profile` of its conserved
+    volume fractions when it has them (``interface_transport = "clsvof"``), else
+    :func:`volume_profile` of its level set."""
+    fraction = getattr(model, "volume_fraction", None)
+    if fraction is not None:
+        return fraction_profile(fraction, model.grid.dy)
+    return volume_profile(model.phi, model.grid.dy)
+
+
 def thickness_front(h, dx: float, thickness: float, x0: float = 0.0) -> float:
     """Farthest x where h(x) > τ.
 

@@ -1,8 +1,9 @@
 """The fields saved at each output time, all at cell centres, and their names, units and meanings.
 
 ``snapshot(model)`` copies the live views into a dict ``name -> (ny, nx) array``:
-phi (level set), u and v (velocity averaged to cell centres), p (pressure), pf (pore pressure,
-fluidised models only) and yielded (1 where the granular phase has yielded, models with a
+phi (level set), volume_fraction (the conserved dense volume fraction F, models with
+``interface_transport = "clsvof"`` only), u and v (velocity averaged to cell centres), p (pressure),
+pf (pore pressure, fluidised models only) and yielded (1 where the granular phase has yielded, models with a
 plastic tensor only).
 """
 
@@ -15,6 +16,7 @@ import numpy as np
 # CF-style attributes (UDUNITS units) of each field; the order is the order in the files.
 FIELDS: dict[str, dict[str, Any]] = {
     "phi": {"long_name": "level set: signed distance to the interface, positive in the granular phase", "units": "m"},
+    "volume_fraction": {"long_name": "volume fraction of the granular phase in the cell", "units": "1"},
     "u": {"long_name": "x-velocity at cell centres (along the channel)", "units": "m s-1"},
     "v": {"long_name": "y-velocity at cell centres (upwards)", "units": "m s-1"},
     "p": {"long_name": "pressure", "units": "Pa"},
@@ -35,7 +37,10 @@ def snapshot(model) -> dict[str, np.ndarray]:
     plastic projection, <= 1 exactly where the material is rigid; in the air (no yield stress)
     it is meaningless, so the mask is 0 there."""
     uc, vc = model.centre_velocity()
-    out = {"phi": np.array(model.phi), "u": np.array(uc), "v": np.array(vc), "p": np.array(model.p)}
+    out = {"phi": np.array(model.phi)}
+    if getattr(model, "volume_fraction", None) is not None:
+        out["volume_fraction"] = np.array(model.volume_fraction)
+    out |= {"u": np.array(uc), "v": np.array(vc), "p": np.array(model.p)}
     if getattr(model, "pore_pressure", None) is not None:
         out["pf"] = np.array(model.pf)
     if getattr(model, "_has_plastic", False):

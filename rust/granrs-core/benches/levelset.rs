@@ -1,13 +1,16 @@
 //! Level-set kernels on the paper's grid (1280 × 256 cells, h = 0.45/256 m): one TVD-RK3
-//! advection step and one redistancing call (20 pseudo-time iterations, the default), serial and
-//! on a 2-thread pool. State: the collapsed-column-like interface of a 0.2 m × 0.4 m column
+//! advection step, one redistancing call (20 pseudo-time iterations, the default), and the
+//! volume fraction's step of `interface_transport = "clsvof"` (the two split sweeps, and the
+//! rebuild of Φ from F), serial and on a 2-thread pool. State: the collapsed-column-like interface of a 0.2 m × 0.4 m column
 //! sheared by a smooth velocity field.
 //!
 //! Run: `cargo bench -p granrs-core --bench levelset`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use granrs_core::exec::build_pool;
-use granrs_core::levelset::{init_signed_distance, stable_dt, InterfaceTreatment, LevelSetTransport, RedistanceSettings, Redistancer, Shape, WenoWeights};
+use granrs_core::levelset::{
+    init_signed_distance, stable_dt, InterfaceTreatment, LevelSetTransport, PlicNormal, RedistanceSettings, Redistancer, Shape, VolumeFraction, WenoWeights,
+};
 use granrs_core::{Exec, Field, Grid, Location};
 use std::hint::black_box;
 use std::time::Duration;
@@ -64,6 +67,28 @@ fn bench(c: &mut Criterion) {
                 pool.install(|| rd.redistance(black_box(&mut phi), &grid, Exec { parallel: true }).unwrap())
             })
         });
+    }
+    // the volume fraction: F from the column's Φ, transported (restored before each call) and Φ
+    // rebuilt from it
+    for (name, normal) in [("vof_levelset_normal", PlicNormal::LevelSet), ("vof_youngs", PlicNormal::Youngs)] {
+        let mut vof = VolumeFraction::new(&grid, normal);
+        let mut phi = phi0.clone();
+        vof.set_from_level_set(&mut phi, &grid);
+        let f0 = vof.f.clone();
+        for (threads, exec) in [("serial", Exec::SERIAL), ("2threads", Exec { parallel: true })] {
+            group.bench_function(format!("{name}_transport_{threads}"), |b| {
+                b.iter(|| {
+                    vof.f.assign(&f0);
+                    pool.install(|| vof.transport(black_box(&mut phi), &u, &v, &grid, dt, true, exec).unwrap())
+                })
+            });
+            group.bench_function(format!("{name}_rebuild_{threads}"), |b| {
+                b.iter(|| {
+                    phi.assign(&phi0);
+                    pool.install(|| vof.rebuild_level_set(black_box(&mut phi), &grid, exec))
+                })
+            });
+        }
     }
     group.finish();
 }

@@ -19,6 +19,7 @@
 //! | (10e) | σ_t = τ_b s, s = P_b(s − r_b u_t), the Coulomb walls | `walls/mod.rs` | [`walls::CoulombWalls::update`] |
 //! | (10f) | ∂_t p_f + div(u p_f) = div(κ(Φ)∇p_f) (step 3) | `pore_pressure/mod.rs` | [`pore_pressure::PorePressure::advance`] |
 //! | (10a), mass | the optional global mass correction Φ ← Φ + δ, \|{Φ > 0}\| = A_ref (after step 1); with `mass_correction_film` = a, Φ ← Φ + δ w sparing films thinner than a cells | `levelset/stage.rs`, `levelset/film.rs` | [`levelset::Interface::correct_mass`], [`levelset::FilmWeight`] |
+//! | (10a), volume | with `interface_transport = "clsvof"`: ∂_t F + ∇·(uF) − c∇·u = 0, c = H(Fⁿ − ½), the dense volume fraction by split PLIC fluxes (conservative), then Φ rebuilt as the distance to F's interface (after step 1's transport) | `levelset/vof.rs`, `levelset/stage.rs` | [`levelset::VolumeFraction::transport`], [`levelset::VolumeFraction::rebuild_level_set`] |
 //! | (10a), pieces | the optional removal of the regions of {Φ > 0} of at most N cells other than the largest (after the mass correction; not in the paper) | `levelset/pieces.rs` | [`levelset::Interface::remove_pieces`] |
 //! | step 2 | ρ(Φ), η(Φ) from Φ^{n+1} | `properties/mod.rs` | [`properties::MaterialProperties::update`] ([`properties::PropertyLaws`]) |
 //! | step 2 | τ(Φ), τ_b, r, r_b, the lagged viscosity of μ(I) | `rheology/stage.rs` | [`rheology::stage::RheologyState::prepare`] |
@@ -45,7 +46,7 @@
 //! 4. [`time_stepping`]: clock (δt, BDF2 coefficients, the step's floor), the momentum
 //!    predictor's viscous solver, what a step did (with the wall time of each stage);
 //! 3. physics rooms: [`levelset`] (the interface stage: transport, redistancing, the mass
-//!    correction; smoothed Heaviside and material laws), [`properties`] (ρ on the faces, η at
+//!    correction, the conserved volume fraction; smoothed Heaviside and material laws), [`properties`] (ρ on the faces, η at
 //!    centres and nodes: their state and step 2's stage), [`pore_pressure`], [`projection`] (the
 //!    pressure projections and their stage), [`rheology`] (laws, the plastic projection, the
 //!    room's state with its preparation and the bi-projection of eq. 12), [`walls`] (Coulomb and side-wall friction),

@@ -149,6 +149,10 @@ impl PyModel {
                 Some(p) => &p.pf,
                 None => return Err(param_err("name", "pf", "a field of this model: it has no pore pressure (not fluidised)")),
             },
+            "volume_fraction" => match self.inner.volume_fraction() {
+                Some(f) => f,
+                None => return Err(param_err("name", "volume_fraction", "a field of a two-phase model with interface_transport = 'clsvof'")),
+            },
             "viscosity" => self.inner.viscosity().0,
             "sigma_xx" | "sigma_xy" | "trial_norm" | "yield_stress" => {
                 let missing = || param_err("name", name, "a field of a model with a yield stress or friction walls (this rheology has none)");
@@ -160,7 +164,11 @@ impl PyModel {
                 }
             }
             other => {
-                return Err(param_err("name", other, "one of 'u', 'v', 'p', 'phi', 'pf', 'viscosity', 'sigma_xx', 'sigma_xy', 'trial_norm', 'yield_stress'"))
+                return Err(param_err(
+                    "name",
+                    other,
+                    "one of 'u', 'v', 'p', 'phi', 'pf', 'volume_fraction', 'viscosity', 'sigma_xx', 'sigma_xy', 'trial_norm', 'yield_stress'",
+                ))
             }
         })
     }
@@ -544,6 +552,17 @@ impl PyModel {
     /// Area of the dense phase {Φ > 0}, sub-cell accurate.
     fn dense_area(&self) -> f64 {
         self.inner.dense_area()
+    }
+
+    /// The conserved dense volume Σ F δx δy (interface_transport = 'clsvof'; None otherwise).
+    fn dense_volume(&self) -> Option<f64> {
+        self.inner.dense_volume()
+    }
+
+    /// The last step's dense-volume budget (boundary, divergence) in m² (interface_transport =
+    /// 'clsvof'; None otherwise).
+    fn volume_budget(&self) -> Option<(f64, f64)> {
+        self.inner.volume_budget().map(|b| (b.boundary, b.divergence))
     }
 
     /// The mechanical energy budget since the state was last set (diagnostics/energy.rs), in

@@ -117,6 +117,9 @@ def run_column(
     lc = case.width
     outputs = outputs if outputs is not None else RunOutputs(out)
     area0 = outputs.start_area or model.dense_area()
+    # the conserved volume Σ F dx dy (interface_transport = "clsvof"): its largest relative change
+    volume0 = model.dense_volume()
+    volume_change = [0.0]
     rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": [], "energy": []}
     # fluidisation: the basal pore pressure over the weight, under the reservoir and in the channel
     fluid = model.pore_pressure is not None
@@ -145,9 +148,12 @@ def run_column(
         rec["t"].append(t)
         rec["front"].append(xf - lc)
         rec["area"].append(model.dense_area())
+        volume = model.dense_volume()
+        if volume0 and volume is not None:
+            volume_change[0] = max(volume_change[0], abs(volume / volume0 - 1.0))
         rec["max_granular_speed"].append(speed)
         rec["energy"].append(model.energy_budget())
-        _record_observables(rec, obs.volume_profile(model.phi, grid.dy), grid.dx, grid.dy, lc)
+        _record_observables(rec, obs.model_volume_profile(model), grid.dx, grid.dy, lc)
         if fluid:
             h, pf0, weight = surface_profile(model.phi, grid.dy), model.pf[0], case.mixture_density * G
             rec["pf_ratio_reservoir"].append(basal_pore_pressure_ratio(pf0, h, weight, under_reservoir))
@@ -201,7 +207,7 @@ def run_column(
     wall = time.perf_counter() - t0
     whole_records(rec)
     profiles["final"] = surface_profile(model.phi, grid.dy)
-    profiles["hvol_final"] = obs.volume_profile(model.phi, grid.dy)
+    profiles["hvol_final"] = obs.model_volume_profile(model)
     history = sim.history_arrays()
     # the statistics below: a run that failed at its first step has the history's keys, no values
     hist = {k: v for k, v in history.items() if v.size}
@@ -221,6 +227,7 @@ def run_column(
         "h_m": grid.dy,
         "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
+        **({"volume_rel_error": volume_change[0]} if volume0 else {}),
         "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0),
         "rheology": case.rheology.spec()[0],
         "interface_yield": case.variants.interface_yield,

@@ -11,6 +11,7 @@
 //! | [`extension`] | ∇u_ext·∇Φ = 0 below Φ = d h: the transport velocity extended from the dense phase (option) | Adalsteinsson & Sethian 1999 |
 //! | [`pieces`] | regions of {Φ > 0} of at most N cells, other than the largest, turned to air after the transport (option) | — (granrs's own; docs/validation.md, "Arrest of the deposit") |
 //! | [`film`] | Φ ← Φ + δ w, w = min(1, max(0, M/h − a)): the global mass correction that leaves films thinner than a cells alone (option) | — (granrs's own; docs/validation.md, "Arrest of the deposit") |
+//! | [`vof`] | ∂F/∂t + ∇·(uF) − c∇·u = 0, c = H(Fⁿ − ½): the dense volume fraction by direction-split geometric (PLIC) fluxes, conservative to round-off; Φ rebuilt as the distance to F's interface (`interface_transport = "clsvof"`) | Weymouth & Yue 2010; Scardovelli & Zaleski 2000; Sussman & Puckett 2000 |
 //! | [`shapes`] | exact signed distances of the initial shapes | — |
 //! | [`stage`] | the room's stage of a step: transport, redistancing and the optional mass correction (step 1) | paper §3.1 |
 //! | [`heaviside`](mod@heaviside) | H_ε, δ_ε, ρ(Φ), η(Φ) (harmonic), blends for κ, τ, τ_b | paper §2.4 |
@@ -53,6 +54,7 @@ pub mod stage;
 pub mod subcell;
 pub mod transport;
 pub mod validation;
+pub mod vof;
 pub use crate::operators::weno5;
 
 pub use diagnostics::{dense_area, dense_area_refined, eikonal_error, interface_points, symmetric_difference_area, EikonalError};
@@ -66,4 +68,5 @@ pub use stage::{Interface, TransportVelocity};
 pub use subcell::{interface_diagonal, interface_faces, interface_fraction, THETA_MIN};
 pub use transport::{cfl_number, max_transport_rate, stable_dt, LevelSetTransport, DEFAULT_CFL};
 pub use validation::{single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics};
+pub use vof::{fraction_volume, plic_alpha, plic_area, swept_volume, InterfaceTransport, PlicNormal, VolumeBudget, VolumeFraction};
 pub use weno5::WenoWeights;

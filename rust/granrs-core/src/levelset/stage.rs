@@ -7,9 +7,13 @@
 //! A_ref = |{Φ > 0}| ([`Interface::correct_mass`]), and, when asked, the removal of the small
 //! detached pieces of the dense phase that the transport or the correction's shift left
 //! ([`Interface::remove_pieces`], [`super::pieces`]), whose area a second correction puts
-//! back. The material properties of step 2 are the properties room's (`properties/mod.rs`).
+//! back. With `interface_transport = "clsvof"` the dense volume fraction F is transported first
+//! by the conservative split PLIC scheme of [`super::vof`] with the same u^{n+½} (its normals
+//! from Φⁿ), and after Φ's transport and redistancing Φ is rebuilt as the distance to F's
+//! interface ([`Interface::advance`]). The material properties of step 2 are the properties
+//! room's (`properties/mod.rs`).
 
-use super::{DetachedPieces, FilmWeight, LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension};
+use super::{DetachedPieces, FilmWeight, LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension, VolumeFraction};
 use crate::error::Result;
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, HALO};
@@ -26,6 +30,8 @@ pub struct Interface {
     /// The weight of the film-sparing mass correction (`mass_correction_film` > 0, with its rest
     /// speed `mass_correction_film_speed`).
     pub film: Option<FilmWeight>,
+    /// The dense volume fraction and its transport (`interface_transport = "clsvof"`).
+    pub vof: Option<VolumeFraction>,
 }
 
 /// The velocity the interface is transported with, and where to put the time-centred one.
@@ -50,11 +56,13 @@ impl Interface {
         let pieces = (redistance.piece_removal_cells > 0).then(|| DetachedPieces::new(grid, redistance.piece_removal_cells));
         let film =
             (redistance.mass_correction_film > 0.0).then(|| FilmWeight::new(grid, redistance.mass_correction_film, redistance.mass_correction_film_speed));
-        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces, film })
+        Ok(Interface { transport: LevelSetTransport::new(grid), redistancer: Redistancer::new(grid, redistance)?, extension, pieces, film, vof: None })
     }
 
     /// Step 1: Φ^{n+1} from Φⁿ (in `phi`) transported over δt with u^{n+½}, then redistanced
-    /// when `redistance`.
+    /// when `redistance`. With the volume fraction ([`Interface::vof`]) F is transported first
+    /// with u^{n+½} (the one-fluid velocity, whose discrete divergence is the pressure solve's
+    /// residual; the x-sweep first when `x_first`), and Φ^{n+1} is rebuilt from F^{n+1} last.
     ///
     /// Transport with the time-centred velocity: advecting Φ with uⁿ alone lags the interface
     /// behind the flow, which feeds interfacial gravity waves (a heavy layer at rest then grows
@@ -68,6 +76,7 @@ impl Interface {
         bc: &BoundaryConditions,
         dt: f64,
         redistance: bool,
+        x_first: bool,
         exec: Exec,
     ) -> Result<()> {
         let half = vel.half;
@@ -81,6 +90,9 @@ impl Interface {
             });
         }
         fill_velocity_ghosts(vel.out_u, vel.out_v, bc, grid, BcMode::Full);
+        if let Some(vof) = self.vof.as_mut() {
+            vof.transport(phi, vel.out_u, vel.out_v, grid, dt, x_first, exec)?;
+        }
         if let Some(ext) = self.extension.as_mut() {
             phi.extrapolate_ghosts_linear();
             ext.extend(phi, vel.out_u, vel.out_v, grid, exec);
@@ -91,6 +103,9 @@ impl Interface {
         }
         if redistance {
             self.redistancer.redistance(phi, grid, exec)?;
+        }
+        if let Some(vof) = self.vof.as_mut() {
+            vof.rebuild_level_set(phi, grid, exec);
         }
         Ok(())
     }

@@ -2,7 +2,8 @@
 //! bit for bit as the uninterrupted one would.
 //!
 //! The state of step n → n+1 is: u^n, v^n and the BDF2 history u^{n−1}, v^{n−1}, (u·∇u)^{n−1};
-//! p^n and the last pressure increment δp^n (the warm start of the next projection); Φ^n; the
+//! p^n and the last pressure increment δp^n (the warm start of the next projection); Φ^n and,
+//! with `interface_transport = "clsvof"`, the volume fraction F^n; the
 //! pore pressure p_f^n, p_f^{n−1} and its advection at n−1; the plastic tensor Σ^n and the
 //! Coulomb wall directions s^n (the anchors of the Picard iteration, eq. 12); the clock t_n, n,
 //! δt_{n−1}; the area the mass correction restores; with an active region, the window's size
@@ -53,6 +54,9 @@ impl TwoPhaseModel {
         f("p", self.p.slice());
         f("phi", self.phi.slice());
         // the rooms' own state arrays
+        if let Some(vof) = &self.levelset.vof {
+            vof.visit_state(&mut f);
+        }
         self.pressure.visit_state(&mut f);
         if let Some(pore) = &self.pore {
             pore.visit_state(&mut f);
@@ -122,6 +126,9 @@ impl TwoPhaseModel {
         self.p.slice_mut().copy_from_slice(get("p"));
         self.phi.slice_mut().copy_from_slice(get("phi"));
         let mut put = |name: &str, data: &mut [f64]| data.copy_from_slice(get(name));
+        if let Some(vof) = &mut self.levelset.vof {
+            vof.visit_state_mut(&mut put);
+        }
         self.pressure.visit_state_mut(&mut put);
         if let Some(pore) = &mut self.pore {
             pore.visit_state_mut(&mut put);

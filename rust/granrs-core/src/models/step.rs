@@ -15,7 +15,9 @@
 //!    (`levelset::Interface::correct_mass`, to the area `reference_area`; weighted to spare thin
 //!    films with `mass_correction_film`), then the optional
 //!    removal of small detached pieces of {Φ > 0} (`levelset::Interface::remove_pieces`,
-//!    `piece_removal_cells`), followed by the correction again when it removed any.
+//!    `piece_removal_cells`), followed by the correction again when it removed any. With
+//!    `interface_transport = "clsvof"` the dense volume fraction F is transported first (split
+//!    PLIC fluxes, conservative) and Φ^{n+1} is rebuilt from F^{n+1} last (`levelset/vof.rs`).
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1})
 //!    (`properties::MaterialProperties::update`).
 //! 4. `pore_pressure` [step 3]: p_f^{n+1} (`pore_pressure::PorePressure::advance`, implicit
@@ -367,7 +369,8 @@ impl TwoPhaseModel {
         let vel = TransportVelocity { u: &self.u, v: &self.v, u_prev: &self.u_prev, v_prev: &self.v_prev, half, out_u: &mut wk.rhs_u, out_v: &mut wk.rhs_v };
         let n = self.step_count + 1;
         let redistance = cfg.redistance_every > 0 && n % cfg.redistance_every as u64 == 0;
-        let r = self.levelset.advance(&mut self.phi, vel, &cfg.grid, &cfg.bc, dt, redistance, exec);
+        // the volume fraction's split order alternates with the step number
+        let r = self.levelset.advance(&mut self.phi, vel, &cfg.grid, &cfg.bc, dt, redistance, n % 2 == 1, exec);
         r.map_err(|e| self.at_step(e))?;
         let mut shift = 0.0;
         if cfg.mass_correction {

@@ -7,7 +7,7 @@ use crate::diagnostics::EnergyLedger;
 use crate::error::{check_finite, check_positive, Error, Result};
 use crate::exec::{build_pool, Exec};
 use crate::grid::{BoundaryConditions, Field, Grid, Location};
-use crate::levelset::{dense_area, init_signed_distance, Interface, RedistanceSettings, Shape};
+use crate::levelset::{dense_area, init_signed_distance, Interface, InterfaceTransport, PlicNormal, RedistanceSettings, Shape, VolumeFraction};
 use crate::options::{self, Configurable, OptionMap, OptionSpec, Value};
 use crate::pore_pressure::{PorePressure, PorePressureConfig};
 use crate::projection::PressureStage;
@@ -85,6 +85,11 @@ pub struct ModelConfig {
     /// Global mass correction of the level set (off by default): after each interface update Φ is
     /// shifted by a constant so that the dense-phase area keeps its initial value.
     pub mass_correction: bool,
+    /// How the interface is transported: the level set alone, or with the conservative volume
+    /// fraction F from which Φ is rebuilt each step (`levelset/vof.rs`).
+    pub interface_transport: InterfaceTransport,
+    /// The PLIC normals' source with [`InterfaceTransport::Clsvof`].
+    pub plic_normal: PlicNormal,
     pub viscous: ViscousScheme,
     pub pressure_solver: SolverSettings,
     pub time: TimeConfig,
@@ -142,6 +147,21 @@ pub const MODEL_OPTIONS: &[OptionSpec] = &[
         false,
         "shift Φ by a constant after each interface update so that the dense-phase area keeps its initial value",
     ),
+    options::choice(
+        "model",
+        "interface_transport",
+        "level-set",
+        &["level-set", "clsvof"],
+        "the interface's transport: the level set alone, or with the dense volume fraction F moved by conservative split PLIC fluxes (Weymouth & Yue 2010) and Φ rebuilt as the distance to F's interface each step (Sussman & Puckett 2000); clsvof conserves the dense volume without mass_correction",
+    ),
+    options::choice(
+        "model",
+        "plic_normal",
+        "level-set",
+        &["level-set", "youngs"],
+        "with interface_transport = clsvof: the normal of F's PLIC lines, −∇Φ (central differences) or Youngs's −∇F",
+    )
+    .variant(),
     options::choice(
         "model",
         "viscous",
@@ -226,6 +246,8 @@ impl Configurable for ModelConfig {
             "transport_interface" => Value::Bool(self.transport_interface),
             "redistance_every" => int(self.redistance_every),
             "mass_correction" => Value::Bool(self.mass_correction),
+            "interface_transport" => Value::str(self.interface_transport.name()),
+            "plic_normal" => Value::str(self.plic_normal.name()),
             "viscous" => Value::str(if self.viscous == ViscousScheme::Explicit { "explicit" } else { "implicit" }),
             "threads" => int(self.threads),
             "convection" => Value::Bool(self.convection),
@@ -247,6 +269,8 @@ impl Configurable for ModelConfig {
             "transport_interface" => self.transport_interface = options::as_bool(v),
             "redistance_every" => self.redistance_every = options::as_usize(v),
             "mass_correction" => self.mass_correction = options::as_bool(v),
+            "interface_transport" => self.interface_transport = InterfaceTransport::from_name(name),
+            "plic_normal" => self.plic_normal = PlicNormal::from_name(name),
             "viscous" => self.viscous = if name == "explicit" { ViscousScheme::Explicit } else { ViscousScheme::Implicit },
             "threads" => self.threads = options::as_usize(v),
             "convection" => self.convection = options::as_bool(v),
@@ -356,6 +380,8 @@ impl ModelConfig {
             redistance_every: o("redistance_every").usize(),
             redistance: RedistanceSettings::default(),
             mass_correction: o("mass_correction").bool(),
+            interface_transport: InterfaceTransport::LevelSet,
+            plic_normal: PlicNormal::LevelSet,
             viscous: ViscousScheme::Implicit,
             pressure_solver: SolverSettings::default(),
             time: TimeConfig::default(),
@@ -374,7 +400,7 @@ impl ModelConfig {
             pressure_top_from: 0,
             free_surface: false,
         };
-        for key in ["viscous", "convection_scheme", "pressure_gauge", "pressure_update", "air"] {
+        for key in ["viscous", "convection_scheme", "pressure_gauge", "pressure_update", "air", "interface_transport", "plic_normal"] {
             let d = o(key).default.clone();
             cfg.set(key, &d).expect("a default choice");
         }
@@ -462,6 +488,20 @@ impl ModelConfig {
         }
         if self.free_surface && self.light.is_none() {
             return Err(Error::param("free_surface", "true", "false for a single-phase model (the free surface is the interface Φ = 0 with a light phase)"));
+        }
+        if self.interface_transport == InterfaceTransport::Clsvof && self.light.is_some() {
+            // F is the conserved volume and Φ is rebuilt from it: a shift of Φ or a removal of
+            // its pieces would be undone by the next rebuild and break Φ's agreement with F
+            if self.mass_correction {
+                return Err(Error::param(
+                    "mass_correction",
+                    "true",
+                    "false with interface_transport = 'clsvof' (the volume fraction conserves the dense volume itself)",
+                ));
+            }
+            if self.redistance.piece_removal_cells > 0 {
+                return Err(Error::param("piece_removal_cells", self.redistance.piece_removal_cells, "0 with interface_transport = 'clsvof'"));
+            }
         }
         if self.free_surface && self.rotational_pressure {
             return Err(Error::param(
@@ -580,7 +620,12 @@ impl TwoPhaseModel {
             Some(pc) => Some(PorePressure::new(g, *pc, config.pressure_solver)?),
             None => None,
         };
-        let levelset = Interface::new(g, config.redistance)?;
+        let mut levelset = Interface::new(g, config.redistance)?;
+        if config.interface_transport == InterfaceTransport::Clsvof && config.light.is_some() {
+            let mut vof = VolumeFraction::new(g, config.plic_normal);
+            vof.f.fill(1.0);
+            levelset.vof = Some(vof);
+        }
         let mut model = TwoPhaseModel {
             levelset,
             u: xf(),
@@ -677,6 +722,23 @@ impl TwoPhaseModel {
         dense_area(&self.phi, &self.config.grid, self.exec())
     }
 
+    /// The dense volume fraction F (cell centres), with `interface_transport = "clsvof"`.
+    pub fn volume_fraction(&self) -> Option<&Field> {
+        self.levelset.vof.as_ref().map(|v| &v.f)
+    }
+
+    /// The conserved dense volume Σ F δx δy (m² per unit depth), with
+    /// `interface_transport = "clsvof"`.
+    pub fn dense_volume(&self) -> Option<f64> {
+        self.levelset.vof.as_ref().map(|v| v.volume(&self.config.grid, self.exec()))
+    }
+
+    /// The dense volume's budget of the last step ([`crate::levelset::VolumeBudget`]), with
+    /// `interface_transport = "clsvof"`.
+    pub fn volume_budget(&self) -> Option<crate::levelset::VolumeBudget> {
+        self.levelset.vof.as_ref().map(|v| v.budget)
+    }
+
     /// The configuration.
     pub fn config(&self) -> &ModelConfig {
         &self.config
@@ -696,6 +758,10 @@ impl TwoPhaseModel {
     /// properties are recomputed and the BDF2 history restarts with a first-order step.
     pub fn fields_changed(&mut self) {
         self.window = None;
+        // F from the new Φ (the area of each cell on Φ's side of its closest interface line)
+        if let Some(vof) = self.levelset.vof.as_mut() {
+            vof.set_from_level_set(&mut self.phi, &self.config.grid);
+        }
         self.properties.invalidate();
         self.dt_prev = None;
         self.reference_area = self.dense_area();

@@ -271,6 +271,7 @@ impl TwoPhaseModel {
         copy_flat(self.pressure_increment(), g.nx, w.pressure_increment_mut(), nxw);
         crop_room(self.pore.as_ref(), w.pore.as_mut());
         crop_room(self.rheology.as_ref(), w.rheology.as_mut());
+        crop_room(self.levelset.vof.as_ref(), w.levelset.vof.as_mut());
         copy_clock(self, &mut w);
         self.window = Some(Box::new(w));
         Ok(())
@@ -287,6 +288,7 @@ impl TwoPhaseModel {
         copy_flat(w.pressure_increment(), w.config.grid.nx, self.pressure_increment_mut(), nx);
         room_back(w.pore.as_ref(), self.pore.as_mut(), exec);
         room_back(w.rheology.as_ref(), self.rheology.as_mut(), exec);
+        room_back(w.levelset.vof.as_ref(), self.levelset.vof.as_mut(), exec);
         room_back(Some(&w.properties), Some(&mut self.properties), exec);
         copy_clock(&w, self);
         self.properties.invalidate();
