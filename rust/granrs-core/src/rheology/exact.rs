@@ -459,12 +459,7 @@ impl ExactStep {
                 if tau <= 0.0 {
                     continue;
                 }
-                let cells: Vec<(usize, usize)> =
-                    [(i as isize - 1, j as isize - 1), (i as isize, j as isize - 1), (i as isize - 1, j as isize), (i as isize, j as isize)]
-                        .into_iter()
-                        .filter(|&(a, c)| a >= 0 && c >= 0 && (a as usize) < nx && (c as usize) < ny)
-                        .map(|(a, c)| (a as usize, c as usize))
-                        .collect();
+                let cells = node_cells(i, j, nx, ny);
                 let m = cells.len() as f64;
                 let parts: Vec<(&[(usize, f64)], f64)> = cells.iter().map(|&(a, c)| (&dev.entries[c * nx + a][..], 1.0 / m)).collect();
                 let r0 = push_row(&mut cols, &mut vals, &parts);
@@ -731,12 +726,7 @@ impl ExactStep {
                 Slot::Node(i, j) => {
                     self.sigma_n[j * (nx + 1) + i] = *s;
                     txy[j * (nx + 1) + i] += 0.5 * t.w * s[1];
-                    let cells: Vec<(usize, usize)> =
-                        [(i as isize - 1, j as isize - 1), (i as isize, j as isize - 1), (i as isize - 1, j as isize), (i as isize, j as isize)]
-                            .into_iter()
-                            .filter(|&(a, c)| a >= 0 && c >= 0 && (a as usize) < nx && (c as usize) < ny)
-                            .map(|(a, c)| (a as usize, c as usize))
-                            .collect();
+                    let cells = node_cells(i, j, nx, ny);
                     let m = cells.len() as f64;
                     for (a, c) in cells {
                         txx[c * nx + a] += 0.5 * t.w * s[0] / m;
@@ -780,6 +770,17 @@ impl ExactStep {
         lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
         Ok(())
     }
+}
+
+/// The in-domain cells around node (i, j) of an nx × ny grid (four inside, two on a side, one
+/// at a corner).
+fn node_cells(i: usize, j: usize, nx: usize, ny: usize) -> Vec<(usize, usize)> {
+    let (i, j) = (i as isize, j as isize);
+    [(i - 1, j - 1), (i, j - 1), (i - 1, j), (i, j)]
+        .into_iter()
+        .filter(|&(a, c)| a >= 0 && c >= 0 && (a as usize) < nx && (c as usize) < ny)
+        .map(|(a, c)| (a as usize, c as usize))
+        .collect()
 }
 
 impl crate::grid::StateArrays for ExactStep {
