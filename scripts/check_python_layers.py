@@ -26,6 +26,8 @@ import ast
 import sys
 from pathlib import Path
 
+from check_layers import cycles  # the same depth-first search as the Rust check (scripts/ is on the path)
+
 # Bottom to top; docs/architecture.md states the same list. A module's floor is that of the
 # longest dotted prefix listed here (``io`` holds ``io.writer``, ``cases`` holds ``cases.column.run``).
 FLOORS = [
@@ -154,29 +156,6 @@ def scan(name: str, path: Path, files: dict[str, Path]) -> tuple[dict[str, list[
 
     visit(tree, False)
     return edges, problems
-
-
-def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
-    """The cycles a depth-first search meets in a graph (one per back edge)."""
-    state: dict[str, int] = {}
-    stack: list[str] = []
-    out: list[list[str]] = []
-
-    def visit(node: str) -> None:
-        state[node] = 1
-        stack.append(node)
-        for t in sorted(edges.get(node, ())):
-            if state.get(t) == 1:
-                out.append(stack[stack.index(t) :] + [t])
-            elif t not in state:
-                visit(t)
-        stack.pop()
-        state[node] = 2
-
-    for node in sorted(edges):
-        if node not in state:
-            visit(node)
-    return out
 
 
 def label(name: str) -> str:
