@@ -49,12 +49,13 @@
 //! [`SSN_TRIES`] iterations it restarts once from the predictor without yield stress or friction
 //! (every location flowing, σ_k = n_k).
 //!
-//! **Limits (measured, docs/validation.md "The exact step").** At ny ≤ 16 the loop converges in
-//! a few iterations per step (dry column, ny = 16: median 6, 90 % 11) and its solution agrees
-//! with an independent interior-point solution of the same cone program to 3.4e-8 (x). The
-//! count grows with the grid (ny = 32: hundreds per step), and on the dry column's later steps
-//! the loop can stall with the projection residual near 1e-4 (a location at the edge of its
-//! ball, |z_k| ≈ 1): the solver is not the column's default.
+//! **Limits (measured, docs/validation.md "The exact step of eq. (11)").** At ny ≤ 16 the loop
+//! converges in a few iterations per step (column to t = 0.1 s, ny = 16: median 2 dry, 4
+//! fluidised; 90 % 4) and its solution agrees with an independent interior-point solution of
+//! the same cone program to 3.4e-8 (x). The count grows with the grid (ny = 32: the first step
+//! does not converge within 400), and on the dry column's later steps the loop can stall with
+//! the projection residual near 1e-4 (a location at the edge of its ball, |z_k| ≈ 1): the
+//! solver is not the column's default.
 //!
 //! **Stopping test: the residual of eq. (11).** The loop stops when
 //! ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w_k B_kᵀσ_k‖₂) and max_k |F_k| are both below `newton_tol`, with
