@@ -27,7 +27,7 @@ PORE_DIFFUSION_L2_AT_64 = 2e-4
 #: (t_end 0.15 s); the bound is 77 times that
 PORE_FORMULATIONS_AGREEMENT = 1e-5
 #: the fluidised layer at rest without pore pressure: round-off speeds (measured over 1 s: 1.0e-13
-#: m/s at ny = 32, 2.6e-15 m/s at ny = 16, 1.2e-13 m/s with an earlier build); the bound is 100
+#: m/s at ny = 32, 2.6e-15 m/s at ny = 16; round-off, up to 1.2e-13 m/s seen); the bound is 100
 #: times the largest
 LAYER_REST_SPEED = 1e-11
 #: the fluidised layer (β = 0.95) flows at t between two exact speeds: the Coulomb slider held by
