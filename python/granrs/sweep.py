@@ -396,7 +396,9 @@ def _run_on_dask(configs: list, scheduler: Optional[str], workers: int, finished
                     processes=True,
                     host="127.0.0.1",
                     dashboard_address=None,
-                    silence_logs=logging.ERROR,
+                    # the workers' own logs stay quiet: a member's failure is reported in its row, and
+                    # a worker cut off by a Ctrl-C's teardown would log a heartbeat traceback
+                    silence_logs=logging.CRITICAL,
                 )
         finally:
             if previous is not None:
