@@ -487,7 +487,13 @@ def test_a_sweep_interrupted_by_ctrl_c_prints_one_line_and_marks_its_member(tmp_
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("granrs: interrupted (Ctrl-C)") and "Traceback" not in stderr, stderr
     rows = list(__import__("csv").DictReader((sweep / "sweep.csv").open()))
-    assert [r["status"] for r in rows] == ["interrupted", "pending"], rows
+    # the member that was running is "interrupted", and so is any other that had started (a loaded
+    # machine can see dask hand member 1 out before member 0 ends); one that never started is "pending"
+    assert rows[0]["status"] == "interrupted", rows
+    for r in rows[1:]:
+        assert r["status"] == ("interrupted" if (sweep / f"member-{int(r['member']):03d}").exists() else "pending"), (
+            rows
+        )
     summary = json.loads((sweep / "member-000" / "summary.json").read_text())
     assert summary["stop_reason"] == "terminated by SIGTERM"  # the sweep stops its members with SIGTERM
     assert not (sweep / LOCK).exists() and not (sweep / "member-000" / LOCK).exists()
