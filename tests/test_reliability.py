@@ -48,7 +48,8 @@ def snapshot(folder: Path) -> dict:
 
 
 def run_file(tmp_path, name="run.toml", **sections) -> Path:
-    """A small run file (ny = 8, t_end = 0.04 s) with the given extra tables."""
+    """A small run file (ny = 8, t_end = 0.04 s, snapshots every 0.02 s) with the given extra
+    tables (a value None removes the key)."""
     tables = {
         "grid": {"ny": 8},
         "time": {"t_end": 0.04},
@@ -56,6 +57,7 @@ def run_file(tmp_path, name="run.toml", **sections) -> Path:
     }
     for section, table in sections.items():
         tables.setdefault(section, {}).update(table)
+        tables[section] = {k: v for k, v in tables[section].items() if v is not None}
     lines = []
     for section, table in tables.items():
         lines.append(f"[{section}]")

@@ -31,6 +31,7 @@ from granrs.io.outputs import (
 )
 from granrs.io.vtk import read_pvd
 from granrs.runner import run_config
+from test_reliability import run_file  # the same small run file (tests/ is on the path)
 
 netCDF4 = pytest.importorskip("netCDF4")
 
@@ -59,26 +60,6 @@ def tree(folder: Path) -> dict:
             else:
                 out[rel] = ("file", p.read_bytes())
     return out
-
-
-def run_file(folder: Path, name="run.toml", **sections) -> Path:
-    """A small run file (ny = 8, t_end = 0.04 s, snapshots every 0.02 s) with extra tables (a
-    value None removes the key)."""
-    tables = {
-        "grid": {"ny": 8},
-        "time": {"t_end": 0.04},
-        "output": {"dir": str(folder / "out"), "fields_every_s": 0.02, "animation": False},
-    }
-    for section, table in sections.items():
-        tables.setdefault(section, {}).update(table)
-        tables[section] = {k: v for k, v in tables[section].items() if v is not None}
-    lines = []
-    for section, table in tables.items():
-        lines.append(f"[{section}]")
-        lines += [f"{k} = {json.dumps(v)}" for k, v in table.items()]
-    path = folder / name
-    path.write_text("\n".join(lines) + "\n")
-    return path
 
 
 @pytest.fixture(scope="module")
