@@ -74,13 +74,17 @@ use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
 use crate::operators::{fill_velocity_ghosts, periodic_pair, strain_rate, unknown_face_range, viscous_helmholtz, BcMode};
 use crate::walls::CoulombWalls;
+use super::interior_point;
 use std::ops::Range;
 
 /// δ of the Newton matrix (module doc): the relative stiffness 1/δ of a rigid location's penalty.
 pub const NEWTON_DELTA: f64 = 1e-4;
 
-/// Semismooth Newton iterations from the warm start before the smoothed path takes over.
-const SSN_TRIES: usize = 15;
+/// δ of the semismooth loop that finishes the step from the interior point's solution.
+pub const POLISH_DELTA: f64 = 1e-8;
+
+/// Semismooth Newton iterations from the warm start before the interior point takes over.
+pub const WARM_TRIES: usize = 6;
 
 /// Backtracking halvings of one Newton step at most.
 const MAX_HALVINGS: usize = 12;
@@ -89,13 +93,15 @@ const MAX_HALVINGS: usize = 12;
 const PERIOD: usize = 5;
 
 /// The symbolic LU of the last Newton matrix with its pattern (column pointers, row indices).
-type SymbolicCache = std::sync::Mutex<Option<(Vec<usize>, Vec<usize>, SymbolicLu<usize>)>>;
+pub(crate) type SymbolicCache = std::sync::Mutex<Option<(Vec<usize>, Vec<usize>, SymbolicLu<usize>)>>;
 
 /// What the exact step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NewtonInfo {
-    /// Newton iterations (sparse factorisations) taken.
+    /// Iterations (sparse factorisations) taken, the interior point's included.
     pub iterations: usize,
+    /// Of which interior-point iterations (zero when the warm semismooth loop converged).
+    pub interior_iterations: usize,
     /// Relative momentum residual ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w Bᵀσ‖₂) at the end.
     pub momentum_residual: f64,
     /// max_k |σ_k − P(σ_k + r_k(B_k u + β_k))| at the end.
@@ -144,12 +150,12 @@ enum Slot {
 
 /// One term w|B u + β| of J.
 #[derive(Clone, Debug)]
-struct Term {
-    w: f64,
-    dim: usize,
+pub(crate) struct Term {
+    pub(crate) w: f64,
+    pub(crate) dim: usize,
     /// The rows of B: `rows[c]` indexes `cols`/`vals`.
-    rows: [Range<usize>; 2],
-    beta: [f64; 2],
+    pub(crate) rows: [Range<usize>; 2],
+    pub(crate) beta: [f64; 2],
     r: f64,
     sigma: [f64; 2],
     slot: Slot,
@@ -185,6 +191,8 @@ pub struct ExactStep {
     pub last: Option<ExactProblem>,
     /// The symbolic LU of the last Newton matrix and its pattern, reused while it is unchanged.
     symbolic: SymbolicCache,
+    /// The same for A alone (the interior point's start).
+    symbolic_a: SymbolicCache,
 }
 
 impl ExactStep {
@@ -215,6 +223,7 @@ impl ExactStep {
             dxy: Field::zeros(grid, Location::Node),
             last: None,
             symbolic: std::sync::Mutex::new(None),
+            symbolic_a: std::sync::Mutex::new(None),
         }
     }
 
@@ -532,7 +541,8 @@ impl ExactStep {
                 let nz = z[0].hypot(z[1]);
                 let p = if nz > 1.0 { [z[0] / nz, z[1] / nz] } else { z };
                 let f = [s[0] - p[0], s[1] - p[1]];
-                proj = proj.max(f[0].hypot(f[1]));
+                let fm = f[0].hypot(f[1]);
+                proj = if fm.is_nan() || proj.is_nan() { f64::NAN } else { proj.max(fm) };
                 fk.push(f);
                 for c in 0..t.dim {
                     for e in t.rows[c].clone() {
@@ -551,7 +561,7 @@ impl ExactStep {
                 n_r += r * r;
             }
             let scale = n_b.sqrt() + n_a.sqrt() + n_f.sqrt();
-            let mom = if scale > 0.0 { n_r.sqrt() / scale } else { 0.0 };
+            let mom = if scale > 0.0 { n_r.sqrt() / scale } else if n_r == 0.0 { 0.0 } else { f64::NAN };
             (mom, proj, scale)
         };
         let mut sig: Vec<[f64; 2]> = terms.iter().map(|t| t.sigma).collect();
@@ -561,28 +571,42 @@ impl ExactStep {
         let mut s_mat: Vec<[[f64; 2]; 2]> = vec![[[0.0; 2]; 2]; terms.len()];
         let mut t_vec: Vec<[f64; 2]> = vec![[0.0; 2]; terms.len()];
         let (mut fu_trial, mut fk_trial) = (Vec::with_capacity(n), Vec::with_capacity(terms.len()));
-        let mut globalised = false;
-        while mom > tol || proj > tol {
-            if !globalised && (iterations == SSN_TRIES || !mom.is_finite() || !proj.is_finite()) {
-                // a start the semismooth iteration does not take from: the smoothed problems'
-                // path (module doc, "Globalisation") from the step's initial guess
-                globalised = true;
-                // restart from the predictor without yield stress or friction (every location
-                // flowing), σ_k = n_k
-                x.copy_from_slice(&b);
-                Self::factor_solve(&std::sync::Mutex::new(None), n, &a_trip, &mut x)?;
-                for (t, s) in terms.iter().zip(sig.iter_mut()) {
-                    let y = apply_b(t, &x);
-                    let m = y[0].hypot(y[1]);
-                    *s = if m > 0.0 { [y[0] / m, y[1] / m] } else { [0.0; 2] };
-                }
+        // the semismooth loop from the warm start (δ = NEWTON_DELTA), then, if it has not
+        // converged after WARM_TRIES iterations, the interior point and the semismooth loop
+        // from its point (δ = POLISH_DELTA)
+        let mut polishing = false;
+        let mut interior_iterations = 0;
+        while !(mom <= tol && proj <= tol) {
+            if !polishing && (iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite()) {
+                polishing = true;
+                let mut x0 = b.clone();
+                Self::factor_solve(&self.symbolic_a, n, &a_trip, &mut x0)?;
+                let mut projection = |x: &[f64], sig: &[[f64; 2]]| residuals(x, sig, &mut fu_trial, &mut fk_trial).1;
+                let ip = interior_point::solve(
+                    n,
+                    &a_trip,
+                    &a_mat,
+                    &b,
+                    &terms,
+                    (&cols, &vals),
+                    x0,
+                    &apply_b,
+                    &mut projection,
+                    &self.symbolic,
+                    max_iterations.saturating_sub(iterations),
+                )?;
+                x = ip.x;
+                sig = ip.sigma;
+                interior_iterations = ip.iterations;
+                iterations += ip.iterations;
                 (mom, proj, scale) = residuals(&x, &sig, &mut fu, &mut fk);
                 continue;
             }
             if iterations >= max_iterations || !mom.is_finite() || !proj.is_finite() {
+                self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
                 return Err(Error::PicardNotConverged {
                     what: format!(
-                        "the semismooth Newton solver of eq. (11) did not converge: momentum residual {mom:.3e}, projection residual {proj:.3e} after {iterations} iterations (newton_tol {tol:.1e})"
+                        "the exact step of eq. (11) did not converge: momentum residual {mom:.3e}, projection residual {proj:.3e} after {iterations} iterations ({interior_iterations} interior-point) (newton_tol {tol:.1e})"
                     ),
                     step,
                     time,
@@ -590,7 +614,7 @@ impl ExactStep {
             }
             iterations += 1;
             // S_k, t_k and the Newton matrix
-            let delta = NEWTON_DELTA;
+            let delta = if polishing { POLISH_DELTA } else { NEWTON_DELTA };
             let mut k_trip = a_trip.clone();
             let mut rhs: Vec<f64> = fu.iter().map(|r| -r).collect();
             for (idx, t) in terms.iter().enumerate() {
@@ -671,27 +695,7 @@ impl ExactStep {
             (mom, proj, scale) = residuals(&x, &sig, &mut fu, &mut fk);
         }
         let _ = scale;
-        let mut pb = ExactProblem { n, b: b.clone(), x: x.clone(), ..Default::default() };
-        for t in &a_trip {
-            pb.a_rows.push(t.row);
-            pb.a_cols.push(t.col);
-            pb.a_vals.push(t.val);
-        }
-        pb.b_indptr.push(0);
-        for (t, s) in terms.iter().zip(&sig) {
-            pb.w.push(t.w);
-            pb.dim.push(t.dim);
-            for c in 0..t.dim {
-                for e in t.rows[c].clone() {
-                    pb.b_indices.push(cols[e]);
-                    pb.b_data.push(vals[e]);
-                }
-                pb.b_indptr.push(pb.b_indices.len());
-                pb.beta.push(t.beta[c]);
-                pb.sigma.push(s[c]);
-            }
-        }
-        self.last = Some(pb);
+        self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
         // write back ũ, σ and the stored equivalents
         for j in 0..ny {
             for i in self.ru.clone() {
@@ -752,25 +756,57 @@ impl ExactStep {
                 }
             }
         }
-        Ok(NewtonInfo { iterations, momentum_residual: mom, projection_residual: proj, unknowns: n, terms: terms.len() })
+        Ok(NewtonInfo { iterations, interior_iterations, momentum_residual: mom, projection_residual: proj, unknowns: n, terms: terms.len() })
     }
 
     /// Factorises the matrix of `trip` (duplicates summed) by sparse LU, reusing the symbolic
     /// factorisation of `cache` while the pattern is the same, and solves in place.
     fn factor_solve(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], x: &mut [f64]) -> Result<()> {
-        let fail = |e: String| Error::SolverFailure { solver: "sparse LU of the exact step (faer)".into(), message: e };
-        let mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip).map_err(|e| fail(format!("{e:?}")))?;
-        let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
-        let same = cache.as_ref().is_some_and(|(p, r, _)| p[..] == *mat.symbolic().col_ptr() && r[..] == *mat.symbolic().row_idx());
-        if !same {
-            let symbolic = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
-            *cache = Some((mat.symbolic().col_ptr().to_vec(), mat.symbolic().row_idx().to_vec(), symbolic));
-        }
-        let symbolic = cache.as_ref().expect("set above").2.clone();
-        let lu = Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?;
+        let lu = factor(cache, n, trip)?;
         lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
         Ok(())
     }
+}
+
+/// The sparse LU of the matrix of `trip` (duplicates summed), reusing the symbolic
+/// factorisation of `cache` while the pattern is the same.
+pub(crate) fn factor(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>]) -> Result<Lu<usize, f64>> {
+    let fail = |e: String| Error::SolverFailure { solver: "sparse LU of the exact step (faer)".into(), message: e };
+    let mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip).map_err(|e| fail(format!("{e:?}")))?;
+    let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
+    let same = cache.as_ref().is_some_and(|(p, r, _)| p[..] == *mat.symbolic().col_ptr() && r[..] == *mat.symbolic().row_idx());
+    if !same {
+        let symbolic = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
+        *cache = Some((mat.symbolic().col_ptr().to_vec(), mat.symbolic().row_idx().to_vec(), symbolic));
+    }
+    let symbolic = cache.as_ref().expect("set above").2.clone();
+    Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))
+}
+
+/// The step's problem (`ExactProblem`) with the point (x, σ).
+#[allow(clippy::too_many_arguments)]
+fn problem(n: usize, b: &[f64], a_trip: &[Triplet<usize, usize, f64>], terms: &[Term], cols: &[usize], vals: &[f64], x: &[f64], sig: &[[f64; 2]]) -> ExactProblem {
+    let mut pb = ExactProblem { n, b: b.to_vec(), x: x.to_vec(), ..Default::default() };
+    for t in a_trip {
+        pb.a_rows.push(t.row);
+        pb.a_cols.push(t.col);
+        pb.a_vals.push(t.val);
+    }
+    pb.b_indptr.push(0);
+    for (t, s) in terms.iter().zip(sig) {
+        pb.w.push(t.w);
+        pb.dim.push(t.dim);
+        for c in 0..t.dim {
+            for e in t.rows[c].clone() {
+                pb.b_indices.push(cols[e]);
+                pb.b_data.push(vals[e]);
+            }
+            pb.b_indptr.push(pb.b_indices.len());
+            pb.beta.push(t.beta[c]);
+            pb.sigma.push(s[c]);
+        }
+    }
+    pb
 }
 
 /// The in-domain cells around node (i, j) of an nx × ny grid (four inside, two on a side, one

@@ -37,6 +37,7 @@
 
 pub mod anderson;
 pub mod exact;
+pub mod interior_point;
 pub mod plastic;
 pub mod rest;
 pub(crate) mod stage;
