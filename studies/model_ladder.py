@@ -146,7 +146,7 @@ def main() -> None:
     for fluidised, a in scenes:
         base = ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=args.ny)
         tp = run(replace(base, **RUNGS["two-phase"]), out / f"two-phase-{tag[fluidised, a]}")
-        length = tp["case"]["length"] if tp else None  # None unless the channel had to be lengthened
+        length = tp["case"]["geometry"]["length"] if tp else None  # None unless the channel had to be lengthened
         rungs[fluidised, a] = {"two-phase": tp}
         for name in ("depth-averaged", "granular", "window"):
             rungs[fluidised, a][name] = run(
@@ -155,7 +155,7 @@ def main() -> None:
     references = {}
     for fluidised, a in scenes:
         tp = rungs[fluidised, a]["two-phase"]
-        length = tp["case"]["length"] if tp else None
+        length = tp["case"]["geometry"]["length"] if tp else None
         references[fluidised, a] = run(
             ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=REFERENCE_NY, length=length, **REFERENCE_WINDOW),
             out / f"reference-{REFERENCE_NY}-{tag[fluidised, a]}",

@@ -1106,7 +1106,7 @@ def test_fluidisation_is_recorded_and_the_channel_loses_its_pore_pressure(coarse
     fluidised (0.74 at 3 s)."""
     base, dry, wet = coarse_runs
     d = np.genfromtxt(base / "wet" / "front.csv", delimiter=",", names=True)
-    dy, hc, beta = wet["h_m"], 0.4, wet["case"]["pore_pressure_ratio"]
+    dy, hc, beta = wet["h_m"], 0.4, wet["case"]["fluidisation"]["pore_pressure_ratio"]
     assert d["t_s"][0] == 0.0
     assert d["pf_ratio_reservoir"][0] == pytest.approx(beta * (1 - dy / (2 * hc)), rel=1e-3)
     f = wet["fluidisation"]
