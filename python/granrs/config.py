@@ -243,7 +243,15 @@ KEYS: tuple[Key, ...] = (
         "φ, solid volume fraction of the column",
         *Grains.RANGES["solid_fraction"],
     ),
-    Key("grains", "density", "float", _C.grains.density, "kg m-3", "ρ_s, density of the grains", *Grains.RANGES["density"]),
+    Key(
+        "grains",
+        "density",
+        "float",
+        _C.grains.density,
+        "kg m-3",
+        "ρ_s, density of the grains",
+        *Grains.RANGES["density"],
+    ),
     Key(
         "grains",
         "diameter",
@@ -416,6 +424,7 @@ def _misplaced(section: str, name: str) -> Optional[ParameterError]:
     return ParameterError(
         f"invalid parameter `{section}.{name}`: {where}; allowed as " + " or ".join(f"`{p}`" for p in places)
     )
+
 
 Config = dict  # dict[section, dict[key, value]], every key present once resolved
 

@@ -92,9 +92,7 @@ def build_depth_averaged(case: ColumnCase):
     cells = int(math.ceil(length / (min(lc, hc) / da.resolution)))
     fluidised, beta = case.fluidisation.active, case.fluidisation.pore_pressure_ratio
     pore = (
-        DepthAveragedPore(case.pore_pressure.diffusivity, beta, lc, transport=da.pore_transport)
-        if fluidised
-        else None
+        DepthAveragedPore(case.pore_pressure.diffusivity, beta, lc, transport=da.pore_transport) if fluidised else None
     )
     m = DepthAveragedModel(
         cells,

@@ -15,8 +15,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ... import observables as obs
-from ... import options
+from ... import observables as obs, options
 from ..._granrs import ParameterError, SimulationError, SolverError, __version__
 from ...io.outputs import OutputError, RunOutputs, record
 from ...model import Model
