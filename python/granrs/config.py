@@ -420,10 +420,13 @@ def _misplaced(section: str, name: str) -> Optional[ParameterError]:
     places = [f for f in _PLACES.get(name, []) if f != f"{section}.{name}"]
     if not places:
         return None
-    where = f"not a key of [{section}]" if section in SECTIONS else f"[{section}] is not a section"
-    return ParameterError(
-        f"invalid parameter `{section}.{name}`: {where}; allowed as " + " or ".join(f"`{p}`" for p in places)
-    )
+    allowed = " or ".join(f"`{p}`" for p in places)
+    if section not in SECTIONS:
+        owners = " or ".join(dict.fromkeys(f"[{p.split('.')[0]}]" for p in places))
+        return ParameterError(
+            f"invalid parameter `{section}`: unknown section; its key `{name}` belongs to {owners}: allowed as {allowed}"
+        )
+    return ParameterError(f"invalid parameter `{section}.{name}`: not a key of [{section}]; allowed as {allowed}")
 
 
 Config = dict  # dict[section, dict[key, value]], every key present once resolved
