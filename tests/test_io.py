@@ -321,9 +321,14 @@ def test_restart_with_an_active_window_is_bit_identical(tmp_path):
     compared: the sign of a zero may differ on the domain's boundary faces outside the window,
     which the window never reads.)"""
     from granrs import ActiveRegion
-    from granrs.cases.column import ColumnCase
+    from granrs.cases.column import ColumnCase, Fluidisation
 
-    case = ColumnCase(ny=16, fluidised=False, threads=1, active_region=ActiveRegion(2, sides="open-right-top"))
+    case = ColumnCase(
+        ny=16,
+        fluidisation=Fluidisation(fluidised=False),
+        threads=1,
+        active_region=ActiveRegion(2, sides="open-right-top"),
+    )
     a = build_model(case)
     a.advance(t_end=0.8)
     assert a.active_window is not None and a.active_window[0] < a.grid.nx

@@ -104,10 +104,11 @@ def _options_class(
     fields: list[tuple[str, OptionInfo]],
     module: str = __name__,
     room_name: Optional[str] = None,
+    prefix: str = "",
 ):
     """A frozen dataclass whose fields are ``fields`` (name, option), with the schema's defaults,
-    each value checked in Rust on construction (ParameterError names the field), and with
-    ``room_name`` the values checked together by the rules of that room's Rust struct
+    each value checked in Rust on construction (ParameterError names ``prefix`` + the field), and
+    with ``room_name`` the values checked together by the rules of that room's Rust struct
     (``granrs._granrs.check_room``)."""
     specs = dict(fields)
     ordered = sorted(fields, key=lambda f: f[1].required, reverse=True)  # required ones first
@@ -115,7 +116,7 @@ def _options_class(
     def __post_init__(self):
         for name, s in specs.items():
             value = getattr(self, name)
-            object.__setattr__(self, name, s.check(value, name))
+            object.__setattr__(self, name, s.check(value, prefix + name))
         if room_name is not None:
             _granrs.check_room(room_name, {specs[n].key: getattr(self, n) for n in specs})
 
@@ -181,6 +182,7 @@ Interface: Any = _options_class(
     "The interface Φ = 0: its transport, width, redistancing and mass correction (Rust ModelConfig, RedistanceSettings).",
     [(_INTERFACE_NAMES.get(s.key, s.key), s) for s in room("interface")],
     "granrs",
+    prefix="interface.",
 )
 
 #: The rooms whose options an object of their own holds (``ROOM_OBJECTS[room]``): their run-file

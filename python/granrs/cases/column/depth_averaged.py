@@ -148,7 +148,7 @@ def run_column_depth_averaged(
             if xf > m.length - 3 * m.dx or float(np.sum(m.h[-3:])) * m.dx > 0.01 * mass0:
                 raise SimulationError(
                     f"the granular material reached the far end of the domain (x = {xf:.3f} m of "
-                    f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)"
+                    f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (geometry.length in a run file)"
                 )
             speed = m.max_speed()
             rec["t"].append(t)

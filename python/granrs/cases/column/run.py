@@ -142,7 +142,7 @@ def run_column(
         if xf > grid.lx - 3 * grid.dx or far_area > 0.01 * area0:
             raise SimulationError(
                 f"the granular material reached the far end of the domain (x = {xfar:.3f} m of "
-                f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)"
+                f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (geometry.length in a run file)"
             )
         speed = granular_speed(model)
         rec["t"].append(t)
