@@ -601,8 +601,16 @@ pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
         "half-width of the neighbourhood over which the local r takes the largest velocity response",
     )
     .variant(),
-    options::int("bi_projection", "proximal_restarts", 0, 0, 1_000_000, "1", "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)")
-        .variant(),
+    options::int(
+        "bi_projection",
+        "proximal_restarts",
+        0,
+        0,
+        1_000_000,
+        "1",
+        "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)",
+    )
+    .variant(),
     options::choice(
         "bi_projection",
         "wall_r",
