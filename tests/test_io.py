@@ -106,7 +106,7 @@ def test_summary_resolved_config_and_animation(run):
 def test_yielded_mask_is_trial_norm_above_one_inside_the_granular_phase(tmp_path):
     from granrs.io import snapshot
 
-    model = build_model(column_case(resolve({"grid": {"ny": 16}, "case": {"fluidised": False}})))
+    model = build_model(column_case(resolve({"grid": {"ny": 16}, "fluidisation": {"fluidised": False}})))
     Simulation(model, stop_time=0.05).run()
     fields = snapshot(model)
     tn, granular = np.asarray(model.trial_norm), model.phi > 0
@@ -224,7 +224,7 @@ def test_saves_state_must_be_a_bool():
 
 
 def test_a_real_failure_domain_too_short_is_reported(tmp_path):
-    cfg = resolve({**tiny(tmp_path), "grid": {"ny": 16, "length": 0.25}})
+    cfg = resolve({**tiny(tmp_path), "grid": {"ny": 16}, "geometry": {"length": 0.25}})
     with pytest.raises(SimulationError, match="far end"):
         run_config(cfg, progress=False)
     assert "far end" in json.loads((tmp_path / "summary.json").read_text())["stop_reason"]

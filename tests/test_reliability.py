@@ -76,7 +76,7 @@ CLI_BAD = [
     (["run", "column", "--length", "1e9"], "`--length` = '1e9': allowed a number in [0.01, 1000]"),
     (
         ["run", "column", "--length", "0.15"],
-        "`length` = 0.15: allowed None (the default) or a number of metres in (0.2, 1000]",
+        "`--length` = 0.15: allowed None (the default) or a number of metres in (0.2, 1000]",
     ),
     (["run", "column", "--ny", "abc"], "`--ny` = 'abc': allowed an integer in [8, 4096]"),
     (["run", "column", "--ny", "7"], "`--ny` = '7': allowed an integer in [8, 4096]"),
@@ -536,7 +536,7 @@ def test_refused_runs_into_an_existing_run_leave_it_byte_identical(tmp_path, cap
         ["cavity", "--n", "8"],
     ):
         rc, err = cli(capsys, "run", *argv, "--quiet", "--out", str(out))
-        assert rc == 2 and ("the folder is not empty" in err or "`length` = 0.1" in err), (argv, err)
+        assert rc == 2 and ("the folder is not empty" in err or "`--length` = 0.1" in err), (argv, err)
         assert snapshot(out) == before, argv
     rc, err = cli(capsys, "run", str(path), "--quiet", "--overwrite")
     assert rc == 0, err

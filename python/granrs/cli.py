@@ -380,14 +380,10 @@ def _run(args, parser) -> int:
         if args.model in _choices("case.model"):  # the keys the model does not read are refused with it
             set_value(raw, "case.model", args.model)
         case = column_case(resolve(raw))
-        width = case.geometry.width
-        if args.length is not None and args.length <= width:
-            raise ParameterError(
-                f"invalid parameter `--length` = {args.length!r}: allowed a length (m) greater than --width "
-                f"= {width!r} m (the gate)"
-            )
-        # None: the column's own domain (ColumnCase.domain)
-        case.geometry = dataclasses.replace(case.geometry, length=args.length)
+        try:  # None: the column's own domain (ColumnCase.domain)
+            case.geometry = dataclasses.replace(case.geometry, length=args.length)
+        except ParameterError as err:  # the flag's own name: the length is beyond the gate
+            raise ParameterError(str(err).replace("`geometry.length`", "`--length`", 1)) from None
         case.model = args.model  # checked by the case: its error says there is no automatic choice
         case.validate()
         check_case(case)
