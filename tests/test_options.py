@@ -241,8 +241,9 @@ def test_a_variant_in_numerics_names_its_section():
     ],
 )
 def test_a_key_outside_its_objects_section_is_refused_naming_that_section(section, name, place, tmp_path):
-    # every key of [variants] and [materials], and a scene key of [case] or [grid], belongs to the
-    # section of the object that owns it: a run file, and --set, are told which
+    # a key given in a section that is not one ([variants], [materials]) or in another object's
+    # section ([case], [grid], [numerics]) is refused naming the section of the object that owns
+    # it: in a run file, and with --set
     owner = place.split(".")[0]
     if section in config.SECTIONS:
         told = rf"`{section}.{name}`: not a key of \[{section}\]; allowed as `{re.escape(place)}`"
@@ -252,7 +253,7 @@ def test_a_key_outside_its_objects_section_is_refused_naming_that_section(sectio
         )
     with pytest.raises(ParameterError, match=told):
         config.resolve({section: {name: 1}})
-    run_file = tmp_path / "old.toml"
+    run_file = tmp_path / "misplaced.toml"
     run_file.write_text(f"[{section}]\n{name} = 1\n")
     with pytest.raises(ParameterError, match=told):
         config.load_config(run_file)
