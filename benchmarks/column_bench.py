@@ -20,7 +20,7 @@ def warm_column_model(args: argparse.Namespace):
     ``args.warmup`` steps. Refuses a debug build."""
     import granrs
     from granrs import ActiveRegion
-    from granrs.cases.column import ColumnCase, build_model
+    from granrs.cases.column import ColumnCase, Fluidisation, build_model
 
     if granrs.build_info()["profile"] != "release":
         raise SystemExit("benchmarks need a release build (make install builds one)")
@@ -30,7 +30,8 @@ def warm_column_model(args: argparse.Namespace):
     if args.active_region is not None:
         kw.update(active_region=ActiveRegion(args.active_region, sides=args.sides))
     options = parse_options(getattr(args, "option", None) or [])
-    m = build_model(ColumnCase(**kw).with_options(**options))
+    scene = {k: v for k, v in kw.items() if k != "fluidised"}
+    m = build_model(ColumnCase(fluidisation=Fluidisation(kw["fluidised"]), **scene).with_options(**options))
     kw.update(options)  # the cache's name holds them
     if getattr(args, "restart", None):
         from granrs.io import restore_checkpoint

@@ -104,12 +104,12 @@ def window_cost(
     """Cost per step of the column's steps 11–30 on a channel of `length` m: with the active
     region the cost should follow the granular area (fixed here), not the domain."""
     from granrs import ActiveRegion
-    from granrs.cases.column import ColumnCase, build_model
+    from granrs.cases.column import ColumnCase, ColumnGeometry, build_model
 
     times = []
     for _ in range(repeats):
         region = None if band is None else ActiveRegion(band, sides=sides)
-        m = build_model(ColumnCase(ny=ny, length=length, model=model, active_region=region))
+        m = build_model(ColumnCase(ny=ny, geometry=ColumnGeometry(length=length), model=model, active_region=region))
         m.advance(max_steps=10)
         t0 = time.perf_counter()
         m.advance(max_steps=steps)

@@ -26,28 +26,28 @@ column's ``interface_yield`` choices ``density-support`` and ``granular-side``, 
 ``theta-0.3`` and ``theta-0.1`` (θ in eq. 12 instead of the column's 0.8), and ``proximal-5``,
 ``proximal-20`` (that many proximal restarts of the anchor Σⁿ per step,
 ``ColumnCase().with_options(proximal_restarts=N)``); ``proximal-20-anderson-5`` (the same with Anderson mixing
-of depth 5, ``Numerics(anderson_depth=5)``) and that one combined with: no mass correction;
+of depth 5, ``BiProjection(anderson_depth=5)``) and that one combined with: no mass correction;
 redistancing every step or every 50 steps; no mass correction and redistancing every step,
 every 50 steps or never; and ``density-support``; ``uzawa-anderson-10`` (θ = 0,
 whose fixed point is eq. 11 itself, with Anderson mixing of depth 10) and
 ``theta-0.3-anderson-5``; ``extended``, ``extended-1.5``, ``extended-3`` (Φ transported with the
 dense phase's velocity extended along the normal from Φ = d h, d = 0, 1.5, 3:
-``Variants(interface_velocity="extended", extension_depth=d)``), ``extended-at-rest`` (the
+``Interface(velocity="extended", extension_depth=d)``), ``extended-at-rest`` (the
 extension only where the dense phase moves slower than 5 mm/s, the column's rest speed:
 ``extension_rest_speed=0.005``), each also with ``no-mass-correction`` and with 20 proximal
 restarts and Anderson mixing (``proximal-20-extended...``);
 ``density-support-extended-at-rest-proximal-20`` (the extension where the grains rest and the
 yield stress at full strength over the band, with the restarts), also without the correction and
 with redistancing every step; ``pieces-4`` (the regions of Φ > 0 of at most 4 cells turned to
-air after each step's transport, ``Variants(piece_removal_cells=4)``), alone, with the restarts,
+air after each step's transport, ``Interface(piece_removal_cells=4)``), alone, with the restarts,
 and with the restarts and redistancing every step, with and without the correction; the last
 with the Picard tolerance 1e-4 or 1e-5 (``...-picard-tol-1e-4``), with 5 restarts
 (``redistance-1-proximal-5-pieces-4``), without Anderson mixing (``...-no-anderson-...``) and with
 redistancing every 2 steps (``redistance-2-proximal-20-pieces-4``), with the film-sparing mass
-correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Variants(mass_correction_film=0.5)``;
+correction (``redistance-1-proximal-20-pieces-4-film-0.5``, ``Interface(mass_correction_film=0.5)``;
 ``...-film-0.5-at-rest``: only where the dense phase moves slower than 5 mm/s,
 ``mass_correction_film_speed=0.005``), with the redistancing's tolerance
-(``redistance-1-proximal-20-pieces-4-tolerance-0.01``, ``Variants(redistance_tolerance=0.01)``: the
+(``redistance-1-proximal-20-pieces-4-tolerance-0.01``, ``Interface(redistance_tolerance=0.01)``: the
 interface cells already within 0.01 cell of their distance keep Φ; also without the correction,
 ``no-mass-correction-redistance-1-proximal-20-pieces-4-tolerance-0.01``, with redistancing every 10
 steps, ``proximal-20-pieces-4-tolerance-0.01``, with 5 restarts,
@@ -97,7 +97,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion
-from granrs.cases.column import ColumnCase, RestWatch, build_model, front_position, surface_profile
+from granrs.cases.column import ColumnCase, Fluidisation, RestWatch, build_model, front_position, surface_profile
 from granrs.observables import area_quantile, observe_profile, thickness_front, volume_profile
 
 #: 20 proximal restarts of the anchor Σⁿ per step with Anderson mixing of depth 5 (the variants
@@ -361,7 +361,7 @@ def run_variant(case: ColumnCase, name: str, t_end: float, every: float = 0.01) 
     m = build(case, {} if switch_below is not None else VARIANTS[name])
     g = m.grid
     eps = 1.5 * g.dy
-    lc = case.width
+    lc = case.geometry.width
     rows = []
     profiles = {}
     t0 = time.perf_counter()
@@ -544,7 +544,7 @@ def main() -> None:
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     window = {} if a.active_region is None else {"active_region": ActiveRegion(a.active_region, sides="open-right-top")}
-    case = ColumnCase(ny=a.ny, fluidised=not a.dry, t_end=a.t_end, **window)
+    case = ColumnCase(ny=a.ny, fluidisation=Fluidisation(fluidised=not a.dry), t_end=a.t_end, **window)
     summary_path = a.out / "arrest_summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     for name in a.variants:

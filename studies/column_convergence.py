@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion, SideWalls
-from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, run_columns, run_finished
+from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, Fluidisation, run_columns, run_finished
 from granrs.observables import observable_keys
 
 #: the round-off spread of every observable at ny = 32 (std over the members of
@@ -63,9 +63,8 @@ def case_for(ny: int, fluidised: bool, threads: int, channel_width, air_supply: 
     active window (BAND = ny/16) from it up."""
     window = dict(active_region=ActiveRegion(ny // 16, sides="open-right-top")) if ny >= ACTIVE_REGION_FROM_NY else {}
     side_walls = None if channel_width is None else SideWalls(channel_width, ColumnCase().base.friction_angle)
-    return ColumnCase(
-        ny=ny, fluidised=fluidised, threads=threads, side_walls=side_walls, air_supply=air_supply, **window
-    )
+    fluidisation = Fluidisation(fluidised=fluidised, air_supply=air_supply)
+    return ColumnCase(ny=ny, fluidisation=fluidisation, threads=threads, side_walls=side_walls, **window)
 
 
 def run_folder(out: Path, ny: int, fluidised: bool, air_supply: str = "injection") -> Path:

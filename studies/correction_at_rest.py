@@ -51,6 +51,7 @@ import numpy as np
 
 from granrs.cases.column import (
     ColumnCase,
+    Fluidisation,
     RestCriterion,
     RestWatch,
     build_model,
@@ -217,7 +218,7 @@ def main() -> None:
     )
     ap.add_argument("--out", default="out/correction-at-rest")
     args = ap.parse_args()
-    case = ColumnCase(ny=args.ny, fluidised=not args.dry)
+    case = ColumnCase(ny=args.ny, fluidisation=Fluidisation(fluidised=not args.dry))
     run_options = {**AT_REST, **parse_options(args.option)}
     after = parse_options(args.continuation_option, flag="--continuation-option")
     run_case = case.with_options(**run_options)
@@ -232,7 +233,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
 
     model = build_model(run_case)
-    g, lc = model.grid, case.width
+    g, lc = model.grid, case.geometry.width
     arrest = run_to_rest(model, run_case)
     t_restart = model.time
     state = model.state()

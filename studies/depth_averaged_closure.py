@@ -38,7 +38,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from granrs import CoulombWall, DepthAveraged, SimulationError
-from granrs.cases.column import ColumnCase, run_column
+from granrs.cases.column import ColumnCase, ColumnGeometry, Fluidisation, run_column
 from granrs.depth_averaged import CLOSURES, PORE_TRANSPORTS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,7 +69,7 @@ def run(case: ColumnCase) -> dict:
             except SimulationError as err:
                 if "far end" not in str(err):
                     raise
-                case = replace(case, length=2.0 * case.domain()[0])
+                case = replace(case, geometry=replace(case.geometry, length=2.0 * case.domain()[0]))
 
 
 def errors(summary: dict, ref: dict) -> dict:
@@ -107,7 +107,8 @@ def main() -> None:
         for closure in CLOSURES:
             for (fluidised, a), ref in sorted(refs.items()):
                 da = DepthAveraged(closure=closure, pore_transport=transport)
-                s = run(ColumnCase(aspect_ratio=a, fluidised=fluidised, model="depth-averaged", depth_averaged=da))
+                scene = dict(geometry=ColumnGeometry(aspect_ratio=a), fluidisation=Fluidisation(fluidised=fluidised))
+                s = run(ColumnCase(**scene, model="depth-averaged", depth_averaged=da))
                 rel = errors(s, ref)
                 row = {"closure": closure, "transport": transport, "aspect_ratio": a, "fluidised": fluidised}
                 row.update({k: s["observables"][k] for k in SIX})
@@ -146,7 +147,7 @@ def main() -> None:
             r = {"closure": closure, "base_angle_deg": angle}
             for fluidised in (True, False):
                 case = ColumnCase(
-                    fluidised=fluidised,
+                    fluidisation=Fluidisation(fluidised=fluidised),
                     model="depth-averaged",
                     base=CoulombWall(angle),
                     depth_averaged=DepthAveraged(closure=closure),

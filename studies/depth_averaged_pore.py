@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import DepthAveraged
-from granrs.cases.column import ColumnCase, run_column
+from granrs.cases.column import ColumnCase, ColumnGeometry, Fluidisation, run_column
 from granrs.depth_averaged import PORE_TRANSPORTS
 from granrs.validation.peer import read_csv_columns
 
@@ -58,12 +58,12 @@ def main() -> None:
     for a in ASPECT_RATIOS:
         for fluidised in (True, False):
             state = "fluidised" if fluidised else "dry"
-            base = ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=args.ny)
+            scene = dict(geometry=ColumnGeometry(aspect_ratio=a), fluidisation=Fluidisation(fluidised=fluidised))
+            base = ColumnCase(ny=args.ny, **scene)
             runs["2D", a, state] = run_or_load(base, out / f"two-phase-ny{args.ny}-a{a:g}-{state}")
             for transport in PORE_TRANSPORTS if fluidised else PORE_TRANSPORTS[:1]:
                 case = ColumnCase(
-                    aspect_ratio=a,
-                    fluidised=fluidised,
+                    **scene,
                     ny=args.ny,
                     model="depth-averaged",
                     depth_averaged=DepthAveraged(pore_transport=transport),

@@ -43,7 +43,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from granrs import ActiveRegion, SimulationError
-from granrs.cases.column import ColumnCase, run_column
+from granrs.cases.column import ColumnCase, ColumnGeometry, Fluidisation, run_column
 
 ASPECT_RATIOS = (0.5, 1.0, 2.0, 4.0)
 #: the rungs, cheapest first, and the case fields that make them
@@ -98,8 +98,15 @@ def run(case: ColumnCase, out: Path):
         except SimulationError as err:
             if "far end" not in str(err):
                 raise
-            case = replace(case, length=2.0 * case.domain()[0])
-            print(f"  {out.name}: reached the far end, rerun with length {case.length:.2f} m", flush=True)
+            case = replace(case, geometry=replace(case.geometry, length=2.0 * case.domain()[0]))
+            print(f"  {out.name}: reached the far end, rerun with length {case.geometry.length:.2f} m", flush=True)
+
+
+def scene(aspect_ratio: float, fluidised: bool, length=None, **fields) -> ColumnCase:
+    """The column of aspect ratio a, fluidised or dry, on a channel of ``length`` m (None: the
+    column's own), with the other ``fields`` of the case."""
+    geometry = ColumnGeometry(aspect_ratio=aspect_ratio, length=length)
+    return ColumnCase(geometry=geometry, fluidisation=Fluidisation(fluidised=fluidised), **fields)
 
 
 def value(summary, key: str):
@@ -144,20 +151,21 @@ def main() -> None:
     rungs: dict = {}
     # the cheap rungs of every scene first, then the references
     for fluidised, a in scenes:
-        base = ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=args.ny)
+        base = scene(a, fluidised, ny=args.ny)
         tp = run(replace(base, **RUNGS["two-phase"]), out / f"two-phase-{tag[fluidised, a]}")
-        length = tp["case"]["length"] if tp else None  # None unless the channel had to be lengthened
+        length = tp["case"]["geometry"]["length"] if tp else None  # None unless the channel had to be lengthened
         rungs[fluidised, a] = {"two-phase": tp}
         for name in ("depth-averaged", "granular", "window"):
             rungs[fluidised, a][name] = run(
-                replace(base, length=length, **RUNGS[name]), out / f"{name}-{tag[fluidised, a]}"
+                replace(base, geometry=replace(base.geometry, length=length), **RUNGS[name]),
+                out / f"{name}-{tag[fluidised, a]}",
             )
     references = {}
     for fluidised, a in scenes:
         tp = rungs[fluidised, a]["two-phase"]
-        length = tp["case"]["length"] if tp else None
+        length = tp["case"]["geometry"]["length"] if tp else None
         references[fluidised, a] = run(
-            ColumnCase(aspect_ratio=a, fluidised=fluidised, ny=REFERENCE_NY, length=length, **REFERENCE_WINDOW),
+            scene(a, fluidised, length=length, ny=REFERENCE_NY, **REFERENCE_WINDOW),
             out / f"reference-{REFERENCE_NY}-{tag[fluidised, a]}",
         )
     # the reference's own error: the whole domain at ny = REFERENCE_NY, a = 2
@@ -170,7 +178,7 @@ def main() -> None:
                 (folder / "summary.json").exists() and finished(json.loads((folder / "summary.json").read_text()))
             ):  # still running in column_convergence.py
                 time.sleep(20)
-        whole[fluidised, 2.0] = run(ColumnCase(aspect_ratio=2.0, fluidised=fluidised, ny=REFERENCE_NY), folder)
+        whole[fluidised, 2.0] = run(scene(2.0, fluidised, ny=REFERENCE_NY), folder)
 
     rows = []
     for fluidised, a in scenes:

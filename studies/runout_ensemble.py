@@ -58,6 +58,7 @@ from granrs.cases.column import (
     PAPER_RUNOUT_EXP,
     PAPER_RUNOUT_SIM,
     ColumnCase,
+    Fluidisation,
     deposit_quantile,
     run_columns,
     run_finished,
@@ -75,7 +76,9 @@ TIMES = (0.5, 1.0, 1.5, 2.0)
 def member_case(base: ColumnCase, k: int, eps: float) -> ColumnCase:
     """Member k: the base case with the column width scaled by 1 + k·eps, on the base's grid."""
     length, height = base.domain()
-    return dataclasses.replace(base, width=base.width * (1.0 + k * eps), length=length, height=height)
+    g = base.geometry
+    geometry = dataclasses.replace(g, width=g.width * (1.0 + k * eps), length=length, height=height)
+    return dataclasses.replace(base, geometry=geometry)
 
 
 def read_front(folder: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -242,7 +245,7 @@ def main() -> None:
 
     base = ColumnCase(
         ny=args.ny,
-        fluidised=not args.dry,
+        fluidisation=Fluidisation(fluidised=not args.dry),
         model=args.model,
         active_region=None
         if args.active_region is None

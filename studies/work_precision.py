@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from granrs import ActiveRegion, DepthAveraged, PorePressure, TimeStepping
-from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, jop_mu_i, run_column
+from granrs.cases.column import PAPER_RUNOUT_EXP, ColumnCase, Fluidisation, jop_mu_i, run_column
 
 # variant name → ColumnCase keyword arguments (the baseline first: the finest of its runs is the
 # reference). Models and methods that granrs offers for this scene.
@@ -72,7 +72,9 @@ def run_or_load(variant: str, kwargs: dict, ny: int, fluidised: bool, out: Path,
         if kwargs.get("model") == "depth-averaged":  # its resolution: ny cells per column width
             kwargs = {**kwargs, "depth_averaged": DepthAveraged(resolution=ny)}
         try:
-            run_column(ColumnCase(ny=ny, fluidised=fluidised, **kwargs), folder, progress=False)
+            run_column(
+                ColumnCase(ny=ny, fluidisation=Fluidisation(fluidised=fluidised), **kwargs), folder, progress=False
+            )
         except Exception as e:  # a failed run is a point of the chart too: reported, not plotted
             print(f"  failed: {e}", flush=True)
     if not summary.exists():

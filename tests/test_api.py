@@ -47,15 +47,15 @@ def test_material_and_numerics_errors_name_the_parameter():
         cavity(numerics=Numerics(yield_pressure="gauge"))
     with pytest.raises(ParameterError, match=r"`proximal_restarts` = -1: allowed an integer in \[0, 1000000\]"):
         cavity(numerics=Numerics(proximal_restarts=-1))
-    from granrs import PorePressure, Variants
+    from granrs import BiProjection, PorePressure
     from granrs.cases.column import ColumnCase
 
     with pytest.raises(ParameterError, match="`interface_yield`"):
-        ColumnCase(variants=Variants(interface_yield="sharp")).validate()
+        ColumnCase().with_options(interface_yield="sharp").validate()
     with pytest.raises(ParameterError, match=r"`kappa_air` = 0.5: allowed a number in \[1, 1e16\]"):
         ColumnCase(pore_pressure=PorePressure(0.035, kappa_air=0.5)).validate()
     with pytest.raises(ParameterError, match="`yield_pressure`"):
-        ColumnCase(variants=Variants(yield_pressure="gauge")).validate()
+        BiProjection(yield_pressure="gauge")
 
 
 def test_impossible_boundary_combination_is_rejected():

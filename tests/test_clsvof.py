@@ -1,4 +1,4 @@
-"""The conservative interface transport on the Python side (``interface_transport = "clsvof"``):
+"""The conservative interface transport on the Python side (``interface.transport = "clsvof"``):
 the volume fraction F is a read-only live view, is saved in checkpoints (a restart continues bit
 for bit), VTK and NetCDF outputs, and the column's deposit observables read the volume per
 column from it."""
@@ -18,7 +18,7 @@ def config(out, **output) -> dict:
         {
             "grid": {"ny": 16},
             "time": {"t_end": 0.04},
-            "numerics": {"interface_transport": "clsvof", "mass_correction": False},
+            "interface": {"transport": "clsvof", "mass_correction": False},
             "output": {"dir": str(out), **output},
         }
     )

@@ -18,10 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from granrs import ActiveRegion, ParameterError, SideWalls, SimulationError, TimeStepping, Variants
+from granrs import ActiveRegion, BiProjection, ParameterError, SideWalls, SimulationError, TimeStepping
 from granrs.cases.column import (
     PAPER_RUNOUT_SIM,
     ColumnCase,
+    ColumnGeometry,
+    Fluidisation,
     RestCriterion,
     basal_pore_pressure_ratio,
     deposit_quantile,
@@ -168,7 +170,7 @@ def test_a_run_stopped_at_rest_reports_its_arrest_time(tmp_path):
     √(2 g H_c)): the run stops with stop_reason "rest"; arrest_time_s is the start of the quiet
     window, every recorded speed from it on is below the rest speed, the one before it is not, and
     the run ended rest.duration after it (to one record interval, 0.01 s)."""
-    case = ColumnCase(ny=16, fluidised=False, rest=RestCriterion(speed=0.3, duration=0.05))
+    case = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), rest=RestCriterion(speed=0.3, duration=0.05))
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest", s["stop_reason"]
     d = np.genfromtxt(tmp_path / "front.csv", delimiter=",", names=True)
@@ -181,7 +183,7 @@ def test_a_run_stopped_at_rest_reports_its_arrest_time(tmp_path):
     # the criterion is applied from rest.after on: asked from 0.2 s after that arrest, the same
     # column's quiet window starts at the first record after it
     rest = RestCriterion(speed=0.3, duration=0.05, after=round(ta + 0.2, 6))
-    later = ColumnCase(ny=16, fluidised=False, t_end=ta + 0.5, rest=rest)
+    later = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), t_end=ta + 0.5, rest=rest)
     s = run_column(later, tmp_path / "later", progress=False)
     assert s["stop_reason"] == "rest" and later.rest.after < s["arrest_time_s"] <= later.rest.after + 0.01 + 1e-9, s
     assert s["final_granular_speed_m_s"] < case.rest.speed
@@ -194,7 +196,7 @@ def test_proximal_restarts_bring_the_column_to_rest(tmp_path, fluidised):
     columns come to rest under the documented criterion, measured at 1.92 s (fluidised) and
     1.93 s (dry), before the 2.5 s asked of them; the dry front then lies 2.2 mm behind its
     largest value, within one cell (28 mm). The defaults (no restarts) run to t_end."""
-    case = ColumnCase(ny=16, fluidised=fluidised, variants=Variants(proximal_restarts=5))
+    case = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=fluidised)).with_options(proximal_restarts=5)
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] < 2.5, (s["stop_reason"], s["arrest_time_s"])
     assert s["final_granular_speed_m_s"] < case.rest.speed
@@ -227,7 +229,7 @@ def test_the_bursts_after_the_arrest_are_detached_pieces_not_the_deposit():
     bursts to 0.81 m/s, in a detached piece of one cell, while the deposit stays below the rest
     speed (3.8 mm/s, against 5 mm/s)."""
     diag = _arrest_diagnosis()
-    case = ColumnCase(ny=16, fluidised=False, t_end=3.0)
+    case = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), t_end=3.0)
     s, _ = diag["run_variant"](case, "redistance-1-proximal-20", case.t_end)
     assert s["arrest_time_s"] is not None and s["arrest_time_s"] < 2.5
     assert s["detached_speed_after_arrest_max"] > 20 * case.rest.speed
@@ -244,7 +246,7 @@ def test_removing_detached_pieces_keeps_the_arrested_column_at_rest():
     some tens of cells over the run), and one thread and two give the same records to the last
     bit (the search is serial, in a fixed order)."""
     diag = _arrest_diagnosis()
-    case = ColumnCase(ny=16, fluidised=False, t_end=3.0)
+    case = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), t_end=3.0)
     s, rows = diag["run_variant"](case, "redistance-1-proximal-20-pieces-4", case.t_end)
     assert s["arrest_time_s"] is not None and s["arrest_time_s"] < 2.5
     assert s["detached_cells_after_arrest_max"] == 0
@@ -265,7 +267,7 @@ def test_the_options_switched_on_late_bring_rest_but_not_the_front_back():
     first record after 0.5 s below 0.3 m/s, rest before 2.5 s, and more than a cell back."""
     diag = _arrest_diagnosis()
     name = "switch-0.3-redistance-1-proximal-20-pieces-4-tolerance-0.01"
-    case = ColumnCase(ny=16, fluidised=False, t_end=2.5)
+    case = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), t_end=2.5)
     s, rows = diag["run_variant"](case, name, case.t_end)
     first = next(r["t"] for r in rows if r["t"] > diag["SWITCH_AFTER"] and r["speed_granular"] < 0.3)
     assert s["switched_at_s"] == pytest.approx(first, abs=1e-9) and s["switched_at_s"] > 1.0
@@ -287,11 +289,11 @@ def test_the_deposit_at_rest_recipe_stops_the_run_at_rest(tmp_path, fluidised, a
     a cell behind their largest values (measured 2.0 cells fluidised, 1.2 dry), which the
     redistancing's tolerance brings within one
     (test_the_deposit_at_rest_options_keep_the_front_within_a_cell)."""
-    case = ColumnCase(ny=16, fluidised=fluidised).with_options(**DEPOSIT_AT_REST)
+    case = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=fluidised)).with_options(**DEPOSIT_AT_REST)
     s = run_column(case, tmp_path, progress=False)
     # the arrest times are a regression, not a reference: recorded from `granrs run column --ny 16
-    # [--no-fluidised] --set variants.proximal_restarts=20 --set bi_projection.anderson_depth=5 --set
-    # numerics.redistance_every=1 --set variants.piece_removal_cells=4` (summary.json's
+    # [--no-fluidised] --set bi_projection.proximal_restarts=20 --set bi_projection.anderson_depth=5 --set
+    # interface.redistance_every=1 --set interface.piece_removal_cells=4` (summary.json's
     # arrest_time_s: 2.00 and 1.97); the records are 0.01 s apart, so a change moves them by records
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] == pytest.approx(arrest, abs=1e-9)
     assert s["final_granular_speed_m_s"] < case.rest.speed
@@ -381,7 +383,9 @@ def test_deposit_quantile_of_a_triangle_is_exact():
 
 
 def test_far_end_is_an_error_with_outputs_kept(tmp_path):
-    case = ColumnCase(ny=16, length=0.45, t_end=1.0, fluidised=False)
+    case = ColumnCase(
+        ny=16, geometry=ColumnGeometry(length=0.45), t_end=1.0, fluidisation=Fluidisation(fluidised=False)
+    )
     with pytest.raises(SimulationError, match="far end"):
         run_column(case, tmp_path, progress=False)
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -392,15 +396,15 @@ def test_far_end_is_an_error_with_outputs_kept(tmp_path):
     "field,make",
     [
         ("ny", lambda: ColumnCase(ny=4)),
-        ("aspect_ratio", lambda: ColumnCase(aspect_ratio=-1.0)),
-        ("pore_pressure_ratio", lambda: ColumnCase(pore_pressure_ratio=1.5)),
+        ("geometry.aspect_ratio", lambda: ColumnCase(geometry=ColumnGeometry(aspect_ratio=-1.0))),
+        ("fluidisation.pore_pressure_ratio", lambda: ColumnCase(fluidisation=Fluidisation(pore_pressure_ratio=1.5))),
         ("cfl", lambda: ColumnCase(time=TimeStepping(cfl=0.0))),
         ("rheology", lambda: ColumnCase(rheology="bingham")),
-        ("r_neighbourhood", lambda: ColumnCase(variants=Variants(r_neighbourhood=5))),
-        ("r_neighbourhood", lambda: ColumnCase(variants=Variants(r_neighbourhood=-1))),
-        ("sigma_location", lambda: ColumnCase(variants=Variants(sigma_location="nodes"))),
-        ("proximal_restarts", lambda: ColumnCase(variants=Variants(proximal_restarts=-1))),
-        ("proximal_restarts", lambda: ColumnCase(variants=Variants(proximal_restarts=2.0))),
+        ("r_neighbourhood", lambda: ColumnCase().with_options(r_neighbourhood=5)),
+        ("r_neighbourhood", lambda: BiProjection(r_neighbourhood=-1)),
+        ("sigma_location", lambda: BiProjection(sigma_location="nodes")),
+        ("proximal_restarts", lambda: ColumnCase().with_options(proximal_restarts=-1)),
+        ("proximal_restarts", lambda: BiProjection(proximal_restarts=2.0)),
     ],
 )
 def test_bad_parameters_name_themselves(tmp_path, field, make):
@@ -430,7 +434,11 @@ def test_side_wall_runouts_match_the_stored_reference(tmp_path, fluidised):
     3 std (members 1.792–1.832 m fluidised, std 0.014; 0.774–0.808 m dry, std 0.012), the front at
     t = 1.0 s, identical in every member, within 1 % (the ensemble script's divergence threshold)."""
     ref = _ensemble(32, fluidised, 0.1)
-    s = run_column(ColumnCase(ny=32, fluidised=fluidised, side_walls=SideWalls(0.1, 15.0)), tmp_path, progress=False)
+    s = run_column(
+        ColumnCase(ny=32, fluidisation=Fluidisation(fluidised=fluidised), side_walls=SideWalls(0.1, 15.0)),
+        tmp_path,
+        progress=False,
+    )
     assert abs(s["runout_m"] - ref["runout_mean_m"]) <= 3 * ref["runout_std_m"], (s["runout_m"], ref)
     assert abs(_front_at(tmp_path, 1.0) / ref["front_1s_mean_m"] - 1) < 0.01
 
@@ -529,7 +537,7 @@ def test_ny64_runouts_ratio_and_mass(tmp_path):
     # The known gap at ny = 64: the fluidised front 2.532 m against the paper's 1.6874 m. A change
     # that moves it beyond its round-off spread, in either direction, fails here loudly.
     wet = run_column(ColumnCase(ny=64), tmp_path / "wet", progress=False)
-    dry = run_column(ColumnCase(ny=64, fluidised=False), tmp_path / "dry", progress=False)
+    dry = run_column(ColumnCase(ny=64, fluidisation=Fluidisation(fluidised=False)), tmp_path / "dry", progress=False)
     for summary, fluidised in ((wet, True), (dry, False)):
         e = _ensemble(64, fluidised)
         # 4 members may underestimate the spread: a floor of 0.5 % (the 8-member ny = 32 std, 0.36 %, rounded up)
@@ -554,7 +562,7 @@ def test_adaptive_steps_keep_the_small_step_runout_with_the_own_face_r(tmp_path)
     its own δt = 1e-4 s run (1.52 against 2.05 m). About 2 min on one core."""
 
     def case(w, **time):
-        return ColumnCase(ny=16, variants=Variants(r_neighbourhood=w), time=TimeStepping(**time))
+        return ColumnCase(ny=16, time=TimeStepping(**time)).with_options(r_neighbourhood=w)
 
     adaptive = {w: run_column(case(w), tmp_path / f"a{w}", progress=False) for w in (0, 2)}
     out = {
@@ -626,7 +634,7 @@ def test_active_region_refused_for_a_single_phase_model():
 
 def test_wall_normal_stress_choice_names_itself(tmp_path):
     with pytest.raises(ParameterError, match="`wall_normal_stress`"):
-        run_column(ColumnCase(ny=16, variants=Variants(wall_normal_stress="effective")), tmp_path, progress=False)
+        run_column(ColumnCase(ny=16).with_options(wall_normal_stress="effective"), tmp_path, progress=False)
     from granrs import Grid, Material, Model, Numerics
 
     with pytest.raises(ParameterError, match="wall_normal_stress"):
@@ -742,7 +750,8 @@ def test_runout_ensemble_takes_any_model_option_checked_before_any_run(tmp_path)
     )
     for k in range(2):
         case = json.loads((out / f"member-{k}" / "summary.json").read_text())["case"]
-        assert case["variants"]["proximal_restarts"] == 2 and case["variants"]["piece_removal_cells"] == 4
+        assert case["rheology"]["projection"]["proximal_restarts"] == 2
+        assert case["interface"]["piece_removal_cells"] == 4
     for bad, name in (
         ("nonsense=1", "`nonsense`"),
         ("proximal_restarts=-1", "`proximal_restarts` = -1"),
@@ -785,7 +794,9 @@ def test_the_deposit_at_rest_options_keep_the_front_within_a_cell(tmp_path, flui
     them). Without the tolerance the same runs end more than a cell back
     (test_the_deposit_at_rest_recipe_stops_the_run_at_rest; validation.md, "Arrest of the
     deposit")."""
-    case = ColumnCase(ny=16, fluidised=fluidised).with_options(**DEPOSIT_AT_REST, redistance_tolerance=0.01)
+    case = ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=fluidised)).with_options(
+        **DEPOSIT_AT_REST, redistance_tolerance=0.01
+    )
     s = run_column(case, tmp_path, progress=False)
     assert s["stop_reason"] == "rest" and s["arrest_time_s"] < 2.5, (s["stop_reason"], s["arrest_time_s"])
     retreat = s["front_retreat_m"] / s["observables"]["cell_m"]
@@ -1016,7 +1027,7 @@ def test_run_columns_side_by_side_gives_the_same_runs_and_keeps_them_when_one_fa
     way. Bad input is refused before any run starts (a `jobs` below 1, a case out of range). A run
     that fails (here the material reaches the far end of a short channel) is raised again with its
     folder named, after the run beside it has finished and written its outputs."""
-    cases = [ColumnCase(ny=16, t_end=0.3), ColumnCase(ny=16, fluidised=False, t_end=0.3)]
+    cases = [ColumnCase(ny=16, t_end=0.3), ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), t_end=0.3)]
     one = run_columns([(c, tmp_path / f"one{k}") for k, c in enumerate(cases)], jobs=1)
     two = run_columns([(c, tmp_path / f"two{k}") for k, c in enumerate(cases)], jobs=2)
     for k, (a, b) in enumerate(zip(one, two)):
@@ -1028,7 +1039,7 @@ def test_run_columns_side_by_side_gives_the_same_runs_and_keeps_them_when_one_fa
     with pytest.raises(ParameterError, match="t_end"):
         run_columns([(cases[0], tmp_path / "never"), (ColumnCase(ny=16, t_end=-1.0), tmp_path / "bad")], jobs=2)
     assert not (tmp_path / "never").exists()
-    short = ColumnCase(ny=16, t_end=0.3, length=0.3)
+    short = ColumnCase(ny=16, t_end=0.3, geometry=ColumnGeometry(length=0.3))
     with pytest.raises(SimulationError, match="far end") as err:
         run_columns([(short, tmp_path / "short"), (cases[0], tmp_path / "beside")], jobs=2)
     assert str(tmp_path / "short") in str(err.value)
@@ -1106,7 +1117,7 @@ def test_fluidisation_is_recorded_and_the_channel_loses_its_pore_pressure(coarse
     fluidised (0.74 at 3 s)."""
     base, dry, wet = coarse_runs
     d = np.genfromtxt(base / "wet" / "front.csv", delimiter=",", names=True)
-    dy, hc, beta = wet["h_m"], 0.4, wet["case"]["pore_pressure_ratio"]
+    dy, hc, beta = wet["h_m"], 0.4, wet["case"]["fluidisation"]["pore_pressure_ratio"]
     assert d["t_s"][0] == 0.0
     assert d["pf_ratio_reservoir"][0] == pytest.approx(beta * (1 - dy / (2 * hc)), rel=1e-3)
     f = wet["fluidisation"]
@@ -1124,11 +1135,11 @@ def test_the_cli_column_takes_the_models_keys_by_set(tmp_path):
     tolerance), as a run file's --set does: summary.json's case holds the values, and the run is
     that of the same case built in Python (the same step count and run-out to the last digit)."""
     sets = {
-        "variants.proximal_restarts": 20,
+        "bi_projection.proximal_restarts": 20,
         "bi_projection.anderson_depth": 5,
-        "numerics.redistance_every": 1,
-        "variants.piece_removal_cells": 4,
-        "variants.redistance_tolerance": 0.01,
+        "interface.redistance_every": 1,
+        "interface.piece_removal_cells": 4,
+        "interface.redistance_tolerance": 0.01,
     }
     args = [a for k, v in sets.items() for a in ("--set", f"{k}={v}")]
     s = _run_cli(tmp_path / "cli", "--ny", "16", "--no-fluidised", "--t-end", "0.3", *args)
@@ -1138,7 +1149,9 @@ def test_the_cli_column_takes_the_models_keys_by_set(tmp_path):
         holder = case["rheology"]["projection"] if section == "bi_projection" else case[section]
         assert holder[key] == value, (dotted, holder)
     py = run_column(
-        ColumnCase(ny=16, fluidised=False, t_end=0.3).with_options(**{k.split(".")[1]: v for k, v in sets.items()}),
+        ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), t_end=0.3).with_options(
+            **{k.split(".")[1]: v for k, v in sets.items()}
+        ),
         tmp_path / "py",
         progress=False,
     )

@@ -1,5 +1,7 @@
 """Run files: strict validation naming the key, --set overrides, the resolved TOML round trip, the CLI."""
 
+import dataclasses
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -8,7 +10,7 @@ import pytest
 import tomllib
 
 from granrs import ParameterError
-from granrs.cases.column import ColumnCase, RestCriterion
+from granrs.cases.column import ColumnCase, ColumnGeometry, Fluidisation, Grains, RestCriterion
 from granrs.config import (
     KEYS,
     apply_sets,
@@ -35,16 +37,16 @@ def test_round_trip_load_resolve_write_load(tmp_path, path):
     again = load_config(written)
     assert again == cfg
     assert resolve(tomllib.loads(dumps(again))) == cfg
-    assert cfg["case"]["fluidised"] is (path == "paper_fluidised.toml")
+    assert cfg["fluidisation"]["fluidised"] is (path == "paper_fluidised.toml")
 
 
 def test_defaults_are_the_papers_case_and_resolve_every_key():
     cfg = resolve({})
     assert all((cfg[k.section][k.name] is None) == k.optional for k in KEYS)  # absent: None
-    assert cfg["grid"]["length"] == 3.5 and cfg["pore_pressure"]["diffusivity"] == 0.035
+    assert cfg["geometry"]["length"] == 3.5 and cfg["pore_pressure"]["diffusivity"] == 0.035
     case = column_case(cfg)
     case.validate()
-    assert case == ColumnCase(length=3.5) and case.grid().nx == ColumnCase().grid().nx
+    assert case == ColumnCase(geometry=ColumnGeometry(length=3.5)) and case.grid().nx == ColumnCase().grid().nx
 
 
 def test_the_rest_section_is_the_cases_rest_criterion():
@@ -64,8 +66,8 @@ def test_the_column_flags_of_the_rest_criterion_take_the_keys_ranges(tmp_path):
 
 
 def test_integers_are_accepted_for_float_keys_and_written_as_floats():
-    cfg = resolve({"case": {"width": 1}, "time": {"t_end": 2}})
-    assert cfg["case"]["width"] == 1.0 and isinstance(cfg["case"]["width"], float)
+    cfg = resolve({"geometry": {"width": 1}, "time": {"t_end": 2}})
+    assert cfg["geometry"]["width"] == 1.0 and isinstance(cfg["geometry"]["width"], float)
     assert "t_end = 2.0" in dumps(cfg)
 
 
@@ -74,14 +76,14 @@ def test_sets_are_parsed_as_toml_scalars():
         {"time": {"cfl": 0.5}},
         [
             "time.cfl=0.3",
-            "case.fluidised=false",
+            "fluidisation.fluidised=false",
             "rheology.law=mu-i",
             'output.formats=["netcdf"]',
             'output.dir="out/x y"',
         ],
     )
     cfg = resolve(raw)
-    assert cfg["time"]["cfl"] == 0.3 and cfg["case"]["fluidised"] is False
+    assert cfg["time"]["cfl"] == 0.3 and cfg["fluidisation"]["fluidised"] is False
     assert cfg["rheology"]["law"] == "mu-i" and cfg["output"]["formats"] == ["netcdf"]
     assert cfg["output"]["dir"] == "out/x y"
     assert parse_scalar("1e-3") == 1e-3 and parse_scalar("7") == 7
@@ -106,22 +108,31 @@ MALFORMED = [
     ("[grid]\nny = 16.0", "`grid.ny`", "an integer in [8, 4096]"),
     ("[grid]\nny = 4", "`grid.ny`", "an integer in [8, 4096]"),
     ("[grid]\nny = true", "`grid.ny`", "an integer"),
-    ("[grid]\nlength = 0.1", "`grid.length`", "greater than case.width"),
+    ("[geometry]\nlength = 0.1", "`geometry.length`", "greater than geometry.width"),
+    ("[geometry]\nheight = 0.3", "`geometry.height`", "beyond the column height"),
     ("[numerics]\nthreads = 0", "`numerics.threads`", "[1, 1024]"),
     ("[bi_projection]\ntheta = 1.0", "`bi_projection.theta`", "[0, 1)"),
     ("[bi_projection]\ntolerance = 0.0", "`bi_projection.tolerance`", "a number in"),
     ('[case]\nname = "dam-break"', "`case.name`", "'column'"),
     ('[rheology]\nlaw = "bingham"', "`rheology.law`", "'drucker-prager', 'mu-i'"),
-    ('[case]\nfluidised = "yes"', "`case.fluidised`", "true or false"),
-    ("[case]\npore_pressure_ratio = 1.2", "`case.pore_pressure_ratio`", "[0, 1]"),
-    ("[case]\nwidth = 0", "`case.width`", "(m)"),
-    ("[case]\naspect_ratio = 50", "`case.aspect_ratio`", "[0.1, 20]"),
-    ("[materials]\nsolid_fraction = 0.9", "`materials.solid_fraction`", "[0.01, 0.74]"),
+    ('[fluidisation]\nfluidised = "yes"', "`fluidisation.fluidised`", "true or false"),
+    ("[fluidisation]\npore_pressure_ratio = 1.2", "`fluidisation.pore_pressure_ratio`", "[0, 1]"),
+    ('[fluidisation]\nair_supply = "outflow"', "`fluidisation.air_supply`", "'injection', 'literal'"),
+    ("[geometry]\nwidth = 0", "`geometry.width`", "(m)"),
+    ("[geometry]\naspect_ratio = 50", "`geometry.aspect_ratio`", "[0.1, 20]"),
+    ("[grains]\nsolid_fraction = 0.9", "`grains.solid_fraction`", "[0.01, 0.74]"),
     ("[rheology]\nfriction_angle = 90", "`rheology.friction_angle`", "(degree)"),
     ("[pore_pressure]\ndiffusivity = 0", "`pore_pressure.diffusivity`", "(m2 s-1)"),
     ("[rheology]\nviscosity = -0.1", "`rheology.viscosity`", "(Pa s)"),
-    ("[materials]\ngrain_density = [2500]", "`materials.grain_density`", "(kg m-3)"),
-    ("[materials]\ngrain_diameter = 1.0", "`materials.grain_diameter`", "(m)"),
+    ("[grains]\ndensity = [2500]", "`grains.density`", "(kg m-3)"),
+    ("[grains]\ndiameter = 1.0", "`grains.diameter`", "(m)"),
+    (
+        "[variants]\nproximal_restarts = 5",
+        "`variants`",
+        "its key `proximal_restarts` belongs to [bi_projection]: allowed as `bi_projection.proximal_restarts`",
+    ),
+    ("[interface]\nwidth = 11.0", "`interface.width`", "[0, 10]"),
+    ('[interface]\ntransport = "vof"', "`interface.transport`", "'level-set', 'clsvof'"),
     ('[output]\nformats = ["vtk", "hdf5"]', "`output.formats`", "'vtk', 'netcdf'"),
     ('[output]\nformats = "vtk"', "`output.formats`", "a list"),
     ('[output]\nformats = ["vtk", "vtk"]', "`output.formats`", "distinct"),
@@ -215,3 +226,107 @@ def test_no_saved_fields_turns_the_default_animation_off():
     cfg = resolve({"output": {"formats": []}})
     assert cfg["output"]["animation"] is False
     assert resolve({})["output"]["animation"] is True
+
+
+def test_the_column_case_describes_its_scene_in_at_most_20_fields():
+    # the scene's numbers are grouped into small objects (geometry, grains, fluidisation, rest):
+    # ColumnCase holds 19 fields
+    assert len(dataclasses.fields(ColumnCase)) <= 20
+    names = {f.name for f in dataclasses.fields(ColumnCase)}
+    assert {"geometry", "grains", "fluidisation", "rest", "depth_averaged", "interface"} <= names
+    assert not names & {"aspect_ratio", "width", "solid_fraction", "fluidised", "variants"}
+
+
+@pytest.mark.parametrize(
+    "make, key, allowed",
+    [
+        (lambda: ColumnGeometry(aspect_ratio=0.0), "geometry.aspect_ratio", "[0.1, 20]"),
+        (lambda: ColumnGeometry(width=20.0), "geometry.width", "[0.001, 10]"),
+        (lambda: ColumnGeometry(width=0.2, length=0.1), "geometry.length", "(0.2, 1000]"),
+        (lambda: ColumnGeometry(height=0.2), "geometry.height", "(0.4, 1000]"),
+        (lambda: Grains(solid_fraction=0.8), "grains.solid_fraction", "[0.01, 0.74]"),
+        (lambda: Grains(density=True), "grains.density", "[1, 25000]"),
+        (lambda: Grains(diameter=float("nan")), "grains.diameter", "[1e-07, 0.1]"),
+        (lambda: Fluidisation(fluidised=1), "fluidisation.fluidised", "True or False"),
+        (lambda: Fluidisation(pore_pressure_ratio=-0.1), "fluidisation.pore_pressure_ratio", "[0, 1]"),
+        (lambda: Fluidisation(air_supply="outflow"), "fluidisation.air_supply", "'injection', 'literal'"),
+        (lambda: ColumnCase(geometry=(2.0, 0.2)).validate(), "geometry", "ColumnGeometry"),
+        (lambda: ColumnCase(grains=None).validate(), "grains", "Grains"),
+    ],
+)
+def test_each_scene_object_refuses_a_bad_value_naming_its_full_key(make, key, allowed):
+    with pytest.raises(
+        ParameterError, match=rf"invalid parameter `{re.escape(key)}` = .*allowed .*{re.escape(allowed)}"
+    ):
+        make()
+
+
+def test_a_run_file_with_every_objects_section_round_trips_through_its_resolved_file(tmp_path):
+    text = """
+[case]
+model = "two-phase"
+back_wall = "free-slip"
+[geometry]
+aspect_ratio = 1.5
+width = 0.25
+length = 3.0
+height = 0.5
+[grains]
+solid_fraction = 0.6
+density = 2400.0
+diameter = 1e-4
+[fluidisation]
+fluidised = true
+pore_pressure_ratio = 0.7
+air_supply = "literal"
+[grid]
+ny = 16
+[bi_projection]
+proximal_restarts = 3
+interface_yield = "granular-side"
+wall_normal_stress = "total"
+sigma_location = "centres"
+wall_r = "local"
+[interface]
+transport = "clsvof"
+plic_normal = "youngs"
+mass_correction = false
+width = 2.0
+redistance_tolerance = 0.01
+velocity = "extended"
+[numerics]
+pressure_gauge = "top"
+"""
+    path = tmp_path / "every.toml"
+    path.write_text(text)
+    cfg = load_config(path)
+    written = write_config(cfg, tmp_path / "config.resolved.toml")
+    resolved = written.read_text()
+    for section in ("[geometry]", "[grains]", "[fluidisation]", "[interface]", "[bi_projection]"):
+        assert section in resolved
+    assert "[variants]" not in resolved and "[materials]" not in resolved
+    again = load_config(written)
+    assert again == cfg
+    case = column_case(again)
+    assert case == column_case(cfg)
+    assert case.geometry == ColumnGeometry(aspect_ratio=1.5, width=0.25, length=3.0, height=0.5)
+    assert case.grains == Grains(solid_fraction=0.6, density=2400.0, diameter=1e-4)
+    assert case.fluidisation == Fluidisation(fluidised=True, pore_pressure_ratio=0.7, air_supply="literal")
+    p = case.rheology.projection
+    assert (p.proximal_restarts, p.interface_yield, p.wall_normal_stress, p.sigma_location, p.wall_r) == (
+        3,
+        "granular-side",
+        "total",
+        "centres",
+        "local",
+    )
+    i = case.interface
+    assert (i.transport, i.plic_normal, i.mass_correction, i.width, i.redistance_tolerance, i.velocity) == (
+        "clsvof",
+        "youngs",
+        False,
+        2.0,
+        0.01,
+        "extended",
+    )
+    assert case.numerics.pressure_gauge == "top"

@@ -18,15 +18,24 @@ import pytest
 
 from granrs import (
     ActiveRegion,
+    BiProjection,
     CoulombWall,
     DepthAveraged,
     DepthAveragedModel,
     DepthAveragedPore,
+    Interface,
     ParameterError,
     SideWalls,
-    Variants,
 )
-from granrs.cases.column import ColumnCase, build_depth_averaged, jop_mu_i, run_column
+from granrs.cases.column import (
+    ColumnCase,
+    Fluidisation,
+    Grains,
+    build_depth_averaged,
+    column_rheology,
+    jop_mu_i,
+    run_column,
+)
 from granrs.cli import main
 from granrs.validation import run_case
 from granrs.validation.peer import (
@@ -118,10 +127,12 @@ def test_fluidisation_never_shortens_the_run_out_whatever_the_base_friction(angl
     # bound is the experiment's and the two-phase model's: fluidisation lengthens a flow
     runs = {}
     for fluidised in (True, False):
-        case = ColumnCase(model="depth-averaged", fluidised=fluidised, base=CoulombWall(angle))
+        case = ColumnCase(
+            model="depth-averaged", fluidisation=Fluidisation(fluidised=fluidised), base=CoulombWall(angle)
+        )
         m = build_depth_averaged(case)
         m.advance(3.0)
-        runs[fluidised] = m.front(0.5 * case.domain()[1] / case.ny) - case.width
+        runs[fluidised] = m.front(0.5 * case.domain()[1] / case.ny) - case.geometry.width
     assert runs[True] >= runs[False], runs
 
 
@@ -130,10 +141,14 @@ def test_fluidisation_never_shortens_the_run_out_whatever_the_base_friction(angl
     [
         (dict(rheology=jop_mu_i(27.0, grain_diameter=75e-6, grain_density=2500.0, viscosity=0.1)), "`rheology`"),
         (dict(back_wall="free-slip"), "`back_wall` = 'free-slip'"),
-        (dict(variants=Variants(proximal_restarts=5)), "`variants.proximal_restarts` = 5"),
+        (
+            dict(rheology=dataclasses.replace(column_rheology(), projection=BiProjection(proximal_restarts=5))),
+            "`rheology.projection.",
+        ),
+        (dict(interface=Interface(mass_correction=True, piece_removal_cells=4)), "`interface.piece_removal_cells` = 4"),
         (dict(side_walls=SideWalls(0.1, 15.0)), "`side_walls`"),
         (dict(active_region=ActiveRegion(8)), "`active_region`"),
-        (dict(grain_diameter=1e-3), "`grain_diameter`"),
+        (dict(grains=Grains(diameter=1e-3)), "`grains.diameter` = 0.001"),
         (
             dict(
                 depth_averaged=DepthAveraged(closure="hydrostatic"),
@@ -158,7 +173,9 @@ def test_a_depth_averaged_case_refuses_what_the_model_does_not_read(change, name
     "section, name",
     [
         ('[rheology]\nlaw = "mu-i"', "`rheology.law` = 'mu-i'"),
-        ("[variants]\nproximal_restarts = 5", "`variants.proximal_restarts` = 5"),
+        ("[bi_projection]\nproximal_restarts = 5", "`bi_projection.proximal_restarts` = 5"),
+        ("[interface]\npiece_removal_cells = 4", "`interface.piece_removal_cells` = 4"),
+        ('[fluidisation]\nair_supply = "literal"', "`fluidisation.air_supply` = 'literal'"),
         ("[side_walls]\nwidth = 0.1", "`side_walls.width` = 0.1"),
         ("[active_region]\nband = 8", "`active_region.band` = 8"),
         ("[output]\nfields_every_s = 0.1", "`output.fields_every_s` = 0.1"),
@@ -183,7 +200,7 @@ def test_a_depth_averaged_run_file_refuses_the_keys_the_model_does_not_read(sect
 def test_the_command_line_refuses_the_flags_and_keys_the_depth_averaged_model_does_not_read(tmp_path, capsys):
     out = tmp_path / "o"
     for args, name in (
-        (["--set", "variants.proximal_restarts=5"], "`variants.proximal_restarts` = 5"),
+        (["--set", "bi_projection.proximal_restarts=5"], "`bi_projection.proximal_restarts` = 5"),
         (["--set", "case.back_wall=free-slip"], "`case.back_wall` = 'free-slip'"),
         (["--rheology", "mu-i"], "`--rheology` = 'mu-i'"),
         (["--active-region", "8"], "`--active-region` = 8"),

@@ -29,7 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from granrs import SimulationError
-from granrs.cases.column import ColumnCase, build_model, column_rheology
+from granrs.cases.column import ColumnCase, Fluidisation, build_model, column_rheology
 
 #: Clarabel's settings. The tolerances are below what double precision lets it reach on these
 #: problems: it stops at its best iterate with the status AlmostSolved (its full tolerances not
@@ -58,7 +58,7 @@ def _newton_column(ny: int, fluidised: bool):
     """The column (the paper's scene and the column's rheology) with the exact step."""
     rheology = column_rheology()
     rheology = dataclasses.replace(rheology, projection=dataclasses.replace(rheology.projection, solver="newton"))
-    return build_model(ColumnCase(ny=ny, fluidised=fluidised, rheology=rheology))
+    return build_model(ColumnCase(ny=ny, fluidisation=Fluidisation(fluidised=fluidised), rheology=rheology))
 
 
 @dataclasses.dataclass

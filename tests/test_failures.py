@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import granrs
-from granrs import BiProjection, DruckerPrager, Simulation, SimulationError, Variants
-from granrs.cases.column import ColumnCase, build_model, run_column
+from granrs import BiProjection, DruckerPrager, Simulation, SimulationError
+from granrs.cases.column import ColumnCase, Fluidisation, build_model, run_column
 from granrs.validation import run_case
 from granrs.validation.pore_pressure import pore_diffusion_error
 from granrs.validation.rheology import REST_SPEED, creep_verdict, run_heap
@@ -129,7 +129,9 @@ def test_a_column_step_past_the_cfl_guard_is_retaken_not_fatal():
     # 5th step ends at CFL 1.11 > cfl_abort = 1. Without retries that stops the run; with the
     # default 3 the step is retaken with δt halved and every accepted step keeps the guard.
     def column(**time):
-        return build_model(ColumnCase(ny=16, fluidised=False, time=granrs.TimeStepping(cfl=0.9, **time)))
+        return build_model(
+            ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False), time=granrs.TimeStepping(cfl=0.9, **time))
+        )
 
     m = column(step_retries=0)
     with pytest.raises(SimulationError, match=r"CFL number .* exceeds the limit cfl_abort = 1 ") as info:
@@ -200,8 +202,9 @@ def test_failed_column_run_keeps_summary_and_front(tmp_path):
             ColumnCase(
                 ny=16,
                 t_end=0.3,
-                rheology=DruckerPrager(viscosity=0.1, projection=BiProjection(theta=0.0, tolerance=1e-8)),
-                variants=Variants(r_neighbourhood=2),
+                rheology=DruckerPrager(
+                    viscosity=0.1, projection=BiProjection(theta=0.0, tolerance=1e-8, r_neighbourhood=2)
+                ),
             ),
             tmp_path,
             progress=False,
@@ -221,7 +224,9 @@ def test_a_column_run_that_fails_at_its_first_step_reports_it_and_keeps_its_outp
         SimulationError, match=r"step 1, t = 0.*Picard iteration .* did not converge.*outputs written to"
     ):
         run_column(
-            ColumnCase(ny=8, t_end=0.1, fluidised=False).with_options(picard_max_iterations=1),
+            ColumnCase(ny=8, t_end=0.1, fluidisation=Fluidisation(fluidised=False)).with_options(
+                picard_max_iterations=1
+            ),
             tmp_path,
             progress=False,
         )

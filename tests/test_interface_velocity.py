@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import pytest
 
-from granrs import options
-from granrs.cases.column import ColumnCase, build_model
+from granrs import ParameterError, options
+from granrs.cases.column import ColumnCase, Fluidisation, build_model
 
 
 def test_one_fluid_velocity_is_the_default():
@@ -22,14 +22,16 @@ def test_one_fluid_velocity_is_the_default():
 
 
 def test_bad_interface_velocity_names_the_parameter():
-    with pytest.raises(Exception, match="interface_velocity"):
-        build_model(ColumnCase(ny=8, fluidised=False).with_options(interface_velocity="air"))
-    with pytest.raises(Exception, match="extension_depth"):
-        build_model(ColumnCase(ny=8, fluidised=False).with_options(extension_depth=-1.0))
+    with pytest.raises(ParameterError, match=r"`interface\.velocity` = .air.: allowed one of .one-fluid., .extended."):
+        build_model(ColumnCase(ny=8, fluidisation=Fluidisation(fluidised=False)).with_options(interface_velocity="air"))
+    with pytest.raises(
+        ParameterError, match=r"`interface\.extension_depth` = -1: allowed a number in \[0, 20\] \(cells\)"
+    ):
+        build_model(ColumnCase(ny=8, fluidisation=Fluidisation(fluidised=False)).with_options(extension_depth=-1.0))
 
 
 def _energy_mismatch(numerics: dict) -> tuple[float, float]:
-    m = build_model(ColumnCase(ny=16, fluidised=False).with_options(**numerics))
+    m = build_model(ColumnCase(ny=16, fluidisation=Fluidisation(fluidised=False)).with_options(**numerics))
     m.advance(1.0)
     b = m.energy_budget()
     drop = b["potential_initial"] - b["potential"]

@@ -106,7 +106,7 @@ def test_summary_resolved_config_and_animation(run):
 def test_yielded_mask_is_trial_norm_above_one_inside_the_granular_phase(tmp_path):
     from granrs.io import snapshot
 
-    model = build_model(column_case(resolve({"grid": {"ny": 16}, "case": {"fluidised": False}})))
+    model = build_model(column_case(resolve({"grid": {"ny": 16}, "fluidisation": {"fluidised": False}})))
     Simulation(model, stop_time=0.05).run()
     fields = snapshot(model)
     tn, granular = np.asarray(model.trial_norm), model.phi > 0
@@ -224,7 +224,7 @@ def test_saves_state_must_be_a_bool():
 
 
 def test_a_real_failure_domain_too_short_is_reported(tmp_path):
-    cfg = resolve({**tiny(tmp_path), "grid": {"ny": 16, "length": 0.25}})
+    cfg = resolve({**tiny(tmp_path), "grid": {"ny": 16}, "geometry": {"length": 0.25}})
     with pytest.raises(SimulationError, match="far end"):
         run_config(cfg, progress=False)
     assert "far end" in json.loads((tmp_path / "summary.json").read_text())["stop_reason"]
@@ -321,9 +321,14 @@ def test_restart_with_an_active_window_is_bit_identical(tmp_path):
     compared: the sign of a zero may differ on the domain's boundary faces outside the window,
     which the window never reads.)"""
     from granrs import ActiveRegion
-    from granrs.cases.column import ColumnCase
+    from granrs.cases.column import ColumnCase, Fluidisation
 
-    case = ColumnCase(ny=16, fluidised=False, threads=1, active_region=ActiveRegion(2, sides="open-right-top"))
+    case = ColumnCase(
+        ny=16,
+        fluidisation=Fluidisation(fluidised=False),
+        threads=1,
+        active_region=ActiveRegion(2, sides="open-right-top"),
+    )
     a = build_model(case)
     a.advance(t_end=0.8)
     assert a.active_window is not None and a.active_window[0] < a.grid.nx

@@ -10,7 +10,7 @@ import pytest
 
 import granrs
 from granrs import DepthAveraged, DepthAveragedModel, DepthAveragedPore, ParameterError, depth_averaged
-from granrs.cases.column import ColumnCase, build_model, front_position, run_column
+from granrs.cases.column import ColumnCase, ColumnGeometry, build_model, front_position, run_column
 from granrs.cli import main
 
 
@@ -40,7 +40,9 @@ def test_depth_averaged_model_views_are_read_only_and_live():
 
 
 def test_depth_averaged_column_through_the_case_api(tmp_path):
-    case = ColumnCase(aspect_ratio=0.5, model="depth-averaged", depth_averaged=DepthAveraged(resolution=32))
+    case = ColumnCase(
+        geometry=ColumnGeometry(aspect_ratio=0.5), model="depth-averaged", depth_averaged=DepthAveraged(resolution=32)
+    )
     s = run_column(case, tmp_path, progress=False)
     for name in ("summary.json", "front.csv", "profiles.csv", "front.png", "profiles.png"):
         assert (tmp_path / name).stat().st_size > 0, name
@@ -52,10 +54,10 @@ def test_depth_averaged_column_through_the_case_api(tmp_path):
     rows = list(csv.DictReader(open(tmp_path / "front.csv")))
     assert float(rows[0]["area_m2"]) == pytest.approx(0.1 * 0.2, rel=1e-6)
     front = np.array([float(r["front_m"]) for r in rows])
-    assert front[0] == pytest.approx(0.0, abs=case.width / 32)
+    assert front[0] == pytest.approx(0.0, abs=case.geometry.width / 32)
     assert s["runout_m"] == pytest.approx(front[-1]) and 0.2 < s["runout_m"] < 2.0
     # the front never recedes by more than a cell (friction stops, never reverses)
-    assert np.all(np.diff(front) > -case.width / 32)
+    assert np.all(np.diff(front) > -case.geometry.width / 32)
     prof = np.genfromtxt(tmp_path / "profiles.csv", delimiter=",", names=True)
     dx = (prof["x_from_gate_m"][-1] - prof["x_from_gate_m"][0]) / (prof.size - 1)  # csv keeps 6 digits
     assert np.sum(prof["h_final"]) * dx == pytest.approx(0.02, rel=1e-5)

@@ -14,7 +14,13 @@ import pytest
 
 import granrs
 from granrs import ParameterError, _granrs, config, options
-from granrs.cases.column import ColumnCase, column_numerics, column_pore_pressure, column_rheology
+from granrs.cases.column import (
+    ColumnCase,
+    column_interface,
+    column_numerics,
+    column_pore_pressure,
+    column_rheology,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 FLAT = [s for s in options.SCHEMA if not s.object]
@@ -79,17 +85,19 @@ def test_python_defaults_agree_with_rust():
     for s in FLAT:
         if s.key in fields:
             assert getattr(n, s.key) == s.default, s.key
-    for cls, room in (
-        (granrs.TimeStepping, "time"),
-        (granrs.BiProjection, "bi_projection"),
-        (granrs.ActiveRegion, "active_region"),
-    ):
+    assert set(options.ROOM_OBJECTS) == {"time", "bi_projection", "interface", "active_region"}
+    for room, cls in options.ROOM_OBJECTS.items():
         obj = cls() if cls is not granrs.ActiveRegion else cls(band=8)
         assert {s.key for s in cls.FIELDS.values()} == {s.key for s in options.room(room)}
         for name, s in cls.FIELDS.items():
             if not (cls is granrs.ActiveRegion and name == "band"):
                 assert getattr(obj, name) == s.default, (cls, name)
-    assert {s.key for s in granrs.Variants.FIELDS.values()} == {s.key for s in FLAT if s.group == "variant"}
+    # every variant of the model's flat options is a field of its room's object, or of the numerics
+    for s in FLAT:
+        if s.group == "variant":
+            holder = options.ROOM_OBJECTS.get(s.room, granrs.Numerics)
+            assert s.key in {f.key for f in holder.FIELDS.values()}, s.key
+    assert not hasattr(granrs, "Variants")
     # the defaults a model built with nothing given holds, read back from Rust
     m = granrs.Model(granrs.Grid(8, 8, 1.0, 1.0), granrs.Material(1.0, 1.0))
     held = m._rust.options()
@@ -104,11 +112,12 @@ def test_python_defaults_agree_with_rust():
 
 #: the column's own choices, where its run-file default is not the schema's: each is stated once,
 #: in the column's default objects (granrs.cases.column.column_rheology, column_numerics,
-#: column_pore_pressure, with the measured reasons in their docstrings), and the base's α_b
+#: column_interface, column_pore_pressure, with the measured reasons in their docstrings), and the
+#: base's α_b
 COLUMN_CHOICES = {
     "bi_projection.theta": 0.8,
     "bi_projection.tolerance": 1e-3,
-    "numerics.mass_correction": True,
+    "interface.mass_correction": True,
     "numerics.convection_scheme": "weno5",
     "pore_pressure.kappa_air": 1e8,
     "pore_pressure.diffusivity": 0.035,
@@ -119,11 +128,11 @@ COLUMN_CHOICES = {
 def test_the_columns_choices_are_its_default_objects():
     case = ColumnCase()
     assert case.rheology == column_rheology() and case.numerics == column_numerics()
-    assert case.pore_pressure == column_pore_pressure()
+    assert case.interface == column_interface() and case.pore_pressure == column_pore_pressure()
     held = {
         "bi_projection.theta": case.rheology.projection.theta,
         "bi_projection.tolerance": case.rheology.projection.tolerance,
-        "numerics.mass_correction": case.numerics.mass_correction,
+        "interface.mass_correction": case.interface.mass_correction,
         "numerics.convection_scheme": case.numerics.convection_scheme,
         "pore_pressure.kappa_air": case.pore_pressure.kappa_air,
         "pore_pressure.diffusivity": case.pore_pressure.diffusivity,
@@ -147,8 +156,8 @@ def test_every_run_file_key_of_an_option_has_the_schemas_range_and_a_stated_defa
         by_option.setdefault((o.room, o.key), []).append(k)
         assert (k.lo, k.hi, k.lo_open, k.hi_open, tuple(k.choices)) == (o.lo, o.hi, o.lo_open, o.hi_open, o.choices)
         assert k.allowed() == o.allowed.removeprefix("None or ") + ("; absent: none" if k.optional else "")
-        if not o.object:  # a flat option: [variants] holds the group of variants, [numerics] none of them
-            assert (k.section == "variants") == (o.group == "variant"), k.full
+        if not o.object:  # a flat option: in the section of its room's object, else [numerics]
+            assert k.section == (o.room if o.room in options.ROOM_OBJECTS else "numerics"), k.full
         if k.optional:
             # absent: None, an option that can be off, or the main key of an object that can be absent
             assert k.default is None and (o.optional or k.full in ("side_walls.width", "side_walls.friction_angle"))
@@ -209,12 +218,47 @@ def test_granrs_keys_and_the_docs_reference_show_each_option():
 
 
 def test_a_variant_in_numerics_names_its_section():
-    with pytest.raises(ParameterError, match=r"`numerics.interface_yield`.*`variants.interface_yield`"):
+    with pytest.raises(ParameterError, match=r"`numerics.interface_yield`.*`bi_projection.interface_yield`"):
         config.resolve({"numerics": {"interface_yield": "paper"}})
-    cfg = config.resolve({"variants": {"interface_yield": "granular-side"}, "numerics": {"pressure_rtol": 1e-9}})
-    case = config.column_case(cfg)
-    assert case.variants.interface_yield == "granular-side" and case.numerics.pressure_rtol == 1e-9
+    raw = {"bi_projection": {"interface_yield": "granular-side"}, "numerics": {"pressure_rtol": 1e-9}}
+    case = config.column_case(config.resolve(raw))
+    assert case.rheology.projection.interface_yield == "granular-side" and case.numerics.pressure_rtol == 1e-9
     assert dataclasses.replace(case.numerics, pressure_rtol=1e-8) == column_numerics()
+
+
+@pytest.mark.parametrize(
+    "section, name, place",
+    [
+        ("variants", "proximal_restarts", "bi_projection.proximal_restarts"),
+        ("variants", "wall_normal_stress", "bi_projection.wall_normal_stress"),
+        ("variants", "piece_removal_cells", "interface.piece_removal_cells"),
+        ("variants", "interface_velocity", "interface.velocity"),
+        ("variants", "pressure_gauge", "numerics.pressure_gauge"),
+        ("numerics", "mass_correction", "interface.mass_correction"),
+        ("materials", "grain_density", "grains.density"),
+        ("case", "aspect_ratio", "geometry.aspect_ratio"),
+        ("grid", "length", "geometry.length"),
+    ],
+)
+def test_a_key_outside_its_objects_section_is_refused_naming_that_section(section, name, place, tmp_path):
+    # a key given in a section that is not one ([variants], [materials]) or in another object's
+    # section ([case], [grid], [numerics]) is refused naming the section of the object that owns
+    # it: in a run file, and with --set
+    owner = place.split(".")[0]
+    if section in config.SECTIONS:
+        told = rf"`{section}.{name}`: not a key of \[{section}\]; allowed as `{re.escape(place)}`"
+    else:
+        told = (
+            rf"`{section}`: unknown section; its key `{name}` belongs to \[{owner}\]: allowed as `{re.escape(place)}`"
+        )
+    with pytest.raises(ParameterError, match=told):
+        config.resolve({section: {name: 1}})
+    run_file = tmp_path / "misplaced.toml"
+    run_file.write_text(f"[{section}]\n{name} = 1\n")
+    with pytest.raises(ParameterError, match=told):
+        config.load_config(run_file)
+    with pytest.raises(ParameterError, match=told):
+        config.apply_sets({}, [f"{section}.{name}=1"])
 
 
 # ---- provenance: from the CLI flag or run-file key to the Rust use, each default and range once
@@ -301,11 +345,12 @@ def test_the_friction_angle_is_declared_once():
 
 
 def test_the_pore_pressure_ratio_is_declared_once():
-    # --pore-pressure-ratio → run-file key case.pore_pressure_ratio → ColumnCase.pore_pressure_ratio
-    # → the basal gradient −β φ ρ_s g and the initial p_f (cases/column/build.py) → Rust
-    # PorePressureConfig::basal_flux: β's default is ColumnCase's field, its range SCENE_RANGES
-    key = config.key("case.pore_pressure_ratio")
-    assert key.default == ColumnCase().pore_pressure_ratio and (key.lo, key.hi) == (0.0, 1.0)
+    # --pore-pressure-ratio → run-file key fluidisation.pore_pressure_ratio → ColumnCase's
+    # Fluidisation.pore_pressure_ratio → the basal gradient −β φ ρ_s g and the initial p_f
+    # (cases/column/build.py) → Rust PorePressureConfig::basal_flux: β's default is Fluidisation's
+    # field, its range Fluidisation.RANGES
+    key = config.key("fluidisation.pore_pressure_ratio")
+    assert key.default == ColumnCase().fluidisation.pore_pressure_ratio and (key.lo, key.hi) == (0.0, 1.0)
     defaults = _count(_python_sources(), r"pore_pressure_ratio\s*(:\s*float\s*)?=\s*[0-9]|β \(0\.9")
     assert [str(p) for p, _ in defaults] == ["python/granrs/cases/column/case.py"], defaults
     ranges = _count(
@@ -382,7 +427,10 @@ def test_an_option_set_in_two_places_is_refused_naming_both():
 def test_with_options_puts_each_option_into_the_object_that_holds_it():
     case = ColumnCase().with_options(theta=0.6, picard_tol=1e-4, dt=1e-3, proximal_restarts=2, pressure_rtol=1e-9)
     assert (case.rheology.projection.theta, case.rheology.projection.tolerance) == (0.6, 1e-4)
-    assert case.time.dt == 1e-3 and case.variants.proximal_restarts == 2 and case.numerics.pressure_rtol == 1e-9
+    assert case.time.dt == 1e-3 and case.rheology.projection.proximal_restarts == 2
+    assert case.numerics.pressure_rtol == 1e-9
+    case = ColumnCase().with_options(piece_removal_cells=4, interface_velocity="extended")
+    assert (case.interface.piece_removal_cells, case.interface.velocity) == (4, "extended")
     assert ColumnCase().rheology.projection.theta == 0.8  # the original is unchanged
     with pytest.raises(ParameterError, match="`active_region_sides`.*only with an active_region"):
         ColumnCase().with_options(active_region_sides="open-right")

@@ -84,8 +84,8 @@ def test_a_resolution_without_reference_is_run_and_not_judged():
 
 def test_a_sensitivity_run_changes_only_the_options_it_names_and_records_them():
     base, changed = peer.peer_case(8), peer.peer_case(8, options={"proximal_restarts": 20, "anderson_depth": 5})
-    assert base.variants.proximal_restarts == 0
-    assert changed.variants.proximal_restarts == 20
+    assert base.rheology.projection.proximal_restarts == 0
+    assert changed.rheology.projection.proximal_restarts == 20
     assert changed.rheology.projection.anderson_depth == 5
     assert changed.rheology.friction_angle == base.rheology.friction_angle == 27.0
     assert changed.back_wall == base.back_wall == "free-slip"

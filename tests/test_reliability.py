@@ -19,7 +19,7 @@ import pytest
 
 import granrs
 from granrs import ActiveRegion, Callback, ParameterError, Simulation, SimulationError
-from granrs.cases.column import ColumnCase
+from granrs.cases.column import ColumnCase, ColumnGeometry
 from granrs.cli import main
 from granrs.config import KEYS, load_config, resolve
 from granrs.io import checkpoint as ckpt
@@ -76,7 +76,7 @@ CLI_BAD = [
     (["run", "column", "--length", "1e9"], "`--length` = '1e9': allowed a number in [0.01, 1000]"),
     (
         ["run", "column", "--length", "0.15"],
-        "`length` = 0.15: allowed None (the default) or a number of metres in (0.2, 1000]",
+        "`--length` = 0.15: allowed None (the default) or a number of metres in (0.2, 1000]",
     ),
     (["run", "column", "--ny", "abc"], "`--ny` = 'abc': allowed an integer in [8, 4096]"),
     (["run", "column", "--ny", "7"], "`--ny` = '7': allowed an integer in [8, 4096]"),
@@ -118,7 +118,10 @@ CLI_BAD = [
     (["run", "cavity", "--re", "-5"], "`--re` = '-5': allowed a number in (0, 100000]"),
     (["run", "column", "--set", "grid.ny=64"], "`--set grid.ny=64` with `granrs run column`: allowed keys without"),
     (["run", "column", "--set", "output.dir=x"], "`--set output.dir=x` with `granrs run column`: not read there"),
-    (["run", "column", "--set", "variants.proximal_restarts=-1"], "`variants.proximal_restarts` = -1: allowed an"),
+    (
+        ["run", "column", "--set", "bi_projection.proximal_restarts=-1"],
+        "`bi_projection.proximal_restarts` = -1: allowed an",
+    ),
     (["run", "column", "--set", "theta"], "`--set theta`: allowed section.key=value"),
     (["run", "cavity", "--set", "time.cfl=0.3"], "`--set`: allowed only with a run file"),
     (["run", "column", "--restart", "ck.npz"], "`--restart`: allowed only with a run file"),
@@ -184,7 +187,7 @@ RUN_FILE_BAD = [
     ("[bi_projection]\ntheta = 1.0\n", "`bi_projection.theta` = 1.0: allowed a number in [0, 1)"),
     ("[numerics]\nthreads = 0\n", "`numerics.threads` = 0: allowed an integer in [1, 1024]"),
     ("[time]\nstep_retries = 21\n", "`time.step_retries` = 21: allowed an integer in [0, 20]"),
-    ("[grid]\nlength = 0.1\n", "`grid.length` = 0.1: allowed a length (m) greater than case.width = 0.2 m"),
+    ("[geometry]\nlength = 0.1\n", "`geometry.length` = 0.1: allowed a length (m) greater than geometry.width = 0.2 m"),
     (
         '[output]\nformats = ["png"]\n',
         "`output.formats` = ['png']: allowed a list of distinct items from 'vtk', 'netcdf'",
@@ -194,7 +197,7 @@ RUN_FILE_BAD = [
         "[output]\nfields_every_s = 0\nanimation = true\n",
         "`output.animation` = true: allowed only with output.fields_every_s > 0",
     ),
-    ("[case]\nfluidised = 1\n", "`case.fluidised` = 1: allowed true or false"),
+    ("[fluidisation]\nfluidised = 1\n", "`fluidisation.fluidised` = 1: allowed true or false"),
     ('[rheology]\nlaw = "bingham"\n', "`rheology.law` = 'bingham': allowed one of 'drucker-prager', 'mu-i'"),
     ("[numerics]\nfoo = 1\n", "`numerics.foo`: unknown key in [numerics]"),
     ("[solver]\ncfl = 0.3\n", "`solver`: unknown section"),
@@ -279,8 +282,8 @@ if given is not None:
             raw[key.section][main[0]] = main[1]  # the object's own key: it is off while absent
         if key.full == "bi_projection.regularisation":
             raw[key.section]["plastic"] = "papanastasiou"  # the treatment that uses it (refused as not used otherwise)
-        if key.full == "grid.length":
-            raw["case"] = {"width": 0.001}  # below the key's range: any length in range is beyond the gate
+        if key.full == "geometry.length":
+            raw["geometry"]["width"] = 0.001  # below the key's range: any length in range is beyond the gate
         if key.section == "depth_averaged":
             raw["case"] = {"model": "depth-averaged"}  # the only model that reads them
         try:
@@ -366,12 +369,12 @@ PYTHON_BAD = [
     (lambda: Callback(print, every_time=0.0), "`every_time` = 0.0: allowed a finite number > 0"),
     (lambda: granrs.DruckerPrager(0.0), "`friction_angle` = 0: allowed a number in (0, 90) (degree)"),
     (
-        lambda: ColumnCase(length=float("nan")).validate(),
-        "`length` = nan: allowed None (the default) or a number of metres",
+        lambda: ColumnCase(geometry=ColumnGeometry(length=float("nan"))).validate(),
+        "`geometry.length` = nan: allowed None (the default) or a number of metres",
     ),
     (
-        lambda: ColumnCase(length=0.1).validate(),
-        "`length` = 0.1: allowed None (the default) or a number of metres in (0.2, 1000]",
+        lambda: ColumnCase(geometry=ColumnGeometry(length=0.1)).validate(),
+        "`geometry.length` = 0.1: allowed None (the default) or a number of metres in (0.2, 1000]",
     ),
     (lambda: ColumnCase(ny=True).validate(), "`ny` = True: allowed an integer in [8, 4096]"),
     (lambda: ColumnCase(threads=0).validate(), "`threads` = 0: allowed an integer in [1, 1024]"),
@@ -533,7 +536,7 @@ def test_refused_runs_into_an_existing_run_leave_it_byte_identical(tmp_path, cap
         ["cavity", "--n", "8"],
     ):
         rc, err = cli(capsys, "run", *argv, "--quiet", "--out", str(out))
-        assert rc == 2 and ("the folder is not empty" in err or "`length` = 0.1" in err), (argv, err)
+        assert rc == 2 and ("the folder is not empty" in err or "`--length` = 0.1" in err), (argv, err)
         assert snapshot(out) == before, argv
     rc, err = cli(capsys, "run", str(path), "--quiet", "--overwrite")
     assert rc == 0, err
@@ -830,10 +833,10 @@ def test_the_memory_estimate_bounds_what_the_model_takes():
     # (granrs.model.MEMORY_MARGIN); at this size the interpreter's own pages blur it, so the
     # bound is [0.7, 2] × the growth
     code = (
-        "import granrs, json\nfrom granrs.cases.column import ColumnCase, build_model\n"
+        "import granrs, json\nfrom granrs.cases.column import ColumnCase, ColumnGeometry, build_model\n"
         "from granrs.model import estimate_memory\n"
         "rss = lambda: int(open('/proc/self/statm').read().split()[1]) * 4096\n"
-        "case = ColumnCase(ny=16, length=100.0); g = case.grid(); r0 = rss(); m = build_model(case)\n"
+        "case = ColumnCase(ny=16, geometry=ColumnGeometry(length=100.0)); g = case.grid(); r0 = rss(); m = build_model(case)\n"
         "granrs.Simulation(m, stop_iteration=2).run()\n"
         "print(json.dumps([rss() - r0, estimate_memory(g, pore_pressure=True), g.cells]))\n"
     )

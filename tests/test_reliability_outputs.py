@@ -216,7 +216,7 @@ BEFORE_ANY_WRITE = [
         {"case": {"model": "granular"}, "active_region": {"band": 8, "sides": "open-right-top"}},
         "`active_region.sides` = open-right-top",
     ),
-    ({"variants": {"pressure_gauge": "mean"}, "active_region": {"band": 8, "sides": "open-right"}}, "pressure gauge"),
+    ({"numerics": {"pressure_gauge": "mean"}, "active_region": {"band": 8, "sides": "open-right"}}, "pressure gauge"),
     (
         {
             "case": {"model": "depth-averaged"},
@@ -265,7 +265,7 @@ def test_the_volume_refusal_names_the_estimate_and_the_free_disk(tmp_path, capsy
 @pytest.mark.parametrize(
     "region, change, message",
     [
-        (False, ["case.fluidised=false"], "(case.fluidised: True -> False)"),
+        (False, ["fluidisation.fluidised=false"], "(fluidisation.fluidised: True -> False)"),
         (True, [], "(active_region.band: 8 -> None)"),
     ],
 )

@@ -34,7 +34,7 @@ def test_parse_linear_ranges_and_lists():
     assert parse_param("pore_pressure.diffusivity=0.01,0.035") == ("pore_pressure.diffusivity", [0.01, 0.035])
     assert parse_param("grid.ny=16:32:3") == ("grid.ny", [16, 24, 32])
     assert parse_param("rheology.law=drucker-prager,mu-i") == ("rheology.law", ["drucker-prager", "mu-i"])
-    assert parse_param("case.fluidised=true,false") == ("case.fluidised", [True, False])
+    assert parse_param("fluidisation.fluidised=true,false") == ("fluidisation.fluidised", [True, False])
 
 
 @pytest.mark.parametrize(
@@ -85,11 +85,11 @@ def test_sweep_on_a_local_cluster_equals_the_runs_one_by_one(tmp_path):
 def test_a_failing_member_is_reported_and_the_others_kept(tmp_path):
     from dask.distributed import LocalCluster
 
-    # grid.length = 0.25 m passes validation but the column already touches the far end: a run-time error
+    # geometry.length = 0.25 m passes validation but the column already touches the far end: a run-time error
     with LocalCluster(
         n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
     ) as cluster:
-        result = run_sweep(base(tmp_path), ["grid.length=0.25,2.25"], scheduler=cluster.scheduler_address)
+        result = run_sweep(base(tmp_path), ["geometry.length=0.25,2.25"], scheduler=cluster.scheduler_address)
     failed, ok = result.table
     assert failed["status"] == "failed" and "SimulationError" in failed["error"] and "far end" in failed["error"]
     assert failed["stop_reason"].startswith("error:")

@@ -70,16 +70,17 @@ def keys_markdown() -> str:
 
 
 def options_markdown() -> str:
-    """The reference of every option of the Rust schema, room by room, the variants apart."""
+    """The reference of every option of the Rust schema, room by room, each variant in its room."""
     from granrs import options
 
     out = ["# Options", "",
            "Generated from the Rust schema (`granrs._granrs.schema()`, the `OPTIONS` tables beside the",
            "configuration structs of `rust/granrs-core`) when the documentation is built. Each option is",
            "declared once there, with its default, range, unit and doc; `granrs.Numerics`, the room objects",
-           "(`TimeStepping`, `BiProjection`, `ActiveRegion`, `Variants`, `PorePressure`, the rheologies,",
+           "(`TimeStepping`, `BiProjection`, `Interface`, `ActiveRegion`, `PorePressure`, the rheologies,",
            "`CoulombWall`, `SideWalls`), the run-file keys and `granrs keys` are made from it.",
-           "The group `variant` holds the numerical variants kept for study ([Variants](../models.md#variants)).", ""]
+           "The group `variant` marks the numerical variants kept for study, each in the room of the object",
+           "that owns it ([Variants](../models.md#variants)).", ""]
     rooms = list(dict.fromkeys(s.room for s in options.SCHEMA))
     for room in rooms:
         out += [f"## `{room}`", "", "| key | allowed | default | group | meaning |", "|---|---|---|---|---|"]

@@ -22,19 +22,19 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import granrs
-from granrs.cases.column import ColumnCase, build_model, front_position
+from granrs.cases.column import ColumnCase, Fluidisation, build_model, front_position
 
 T_END = 1.0
 
 
 def run(fluidised):
-    case = ColumnCase(ny=16, t_end=T_END, fluidised=fluidised)
+    case = ColumnCase(ny=16, t_end=T_END, fluidisation=Fluidisation(fluidised=fluidised))
     model = build_model(case)
     rec = {"t": [], "front": []}
 
     def record(sim):
         rec["t"].append(model.time)
-        rec["front"].append(front_position(model.phi, model.grid.dx) - case.width)
+        rec["front"].append(front_position(model.phi, model.grid.dx) - case.geometry.width)
 
     granrs.Simulation(model, stop_time=T_END, callbacks=[granrs.Callback(record, every_time=0.01)]).run()
     return case, model, rec
@@ -82,7 +82,7 @@ for ax, (name, (case, model, _)) in zip(axes, runs.items()):
         pf_image = ax.imshow(
             np.where(model.phi > 0, model.pf, np.nan), origin="lower", extent=extent, cmap="viridis", aspect="auto"
         )
-    ax.axvline(case.width, color="k", lw=0.8, ls="--")
+    ax.axvline(case.geometry.width, color="k", lw=0.8, ls="--")
     ax.set(xlim=(0, 2.0), ylabel="y (m)", title=f"{name}, t = {model.time:.1f} s")
 axes[-1].set_xlabel("x (m); dashed: the gate; orange: grains without pore pressure")
 fig.colorbar(pf_image, ax=list(axes), label="pore pressure p_f (Pa)")

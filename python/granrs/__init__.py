@@ -32,7 +32,7 @@ from .depth_averaged import DepthAveraged, DepthAveragedModel, DepthAveragedPore
 from .grid import Grid
 from .materials import AIR, WATER, Material
 from .model import Model, PorePressure, SideWalls
-from .options import ActiveRegion, BiProjection, Numerics, TimeStepping, Variants
+from .options import ActiveRegion, BiProjection, Interface, Numerics, TimeStepping
 from .rheology import Bingham, DruckerPrager, MuI, Newtonian
 from .simulation import Callback, Simulation
 
@@ -53,6 +53,7 @@ __all__ = [
     "FreeSlip",
     "FullyDeveloped",
     "Grid",
+    "Interface",
     "Material",
     "Model",
     "MuI",
@@ -67,7 +68,6 @@ __all__ = [
     "Simulation",
     "SimulationError",
     "TimeStepping",
-    "Variants",
     "SolverError",
     "Velocity",
     "__version__",

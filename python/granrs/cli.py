@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -187,10 +188,10 @@ _COLUMN_OPTIONS = (
 )
 #: The run-file key each flag of `granrs run column` sets (its range, default and doc are the key's).
 _COLUMN_KEYS = {
-    "aspect_ratio": "case.aspect_ratio",
-    "width": "case.width",
-    "fluidised": "case.fluidised",
-    "pore_pressure_ratio": "case.pore_pressure_ratio",
+    "aspect_ratio": "geometry.aspect_ratio",
+    "width": "geometry.width",
+    "fluidised": "fluidisation.fluidised",
+    "pore_pressure_ratio": "fluidisation.pore_pressure_ratio",
     "ny": "grid.ny",
     "t_end": "time.t_end",
     "rest_speed": "rest.speed",
@@ -208,7 +209,7 @@ _CAVITY_OPTIONS = ("re", "n")
 #: The keys `granrs run column` takes from its own flags or none, which --set may not change.
 _COLUMN_FLAG_KEYS = {
     **{dotted: "--" + name.replace("_", "-") for name, dotted in _COLUMN_KEYS.items()},
-    "grid.length": "--length",
+    "geometry.length": "--length",
     "case.model": "--model",
 }
 
@@ -379,16 +380,12 @@ def _run(args, parser) -> int:
         if args.model in _choices("case.model"):  # the keys the model does not read are refused with it
             set_value(raw, "case.model", args.model)
         case = column_case(resolve(raw))
-        case.length = args.length  # None: the column's own domain (ColumnCase.domain)
+        try:  # None: the column's own domain (ColumnCase.domain)
+            case.geometry = dataclasses.replace(case.geometry, length=args.length)
+        except ParameterError as err:  # the flag's own name: the length is beyond the gate
+            raise ParameterError(str(err).replace("`geometry.length`", "`--length`", 1)) from None
         case.model = args.model  # checked by the case: its error says there is no automatic choice
         case.validate()
-        if case.model in ("two-phase", "granular"):
-            lx = case.domain()[0]
-            if lx <= case.width:
-                raise ParameterError(
-                    f"invalid parameter `--length` = {lx!r}: allowed a length (m) greater than --width "
-                    f"= {case.width!r} m (the gate)"
-                )
         check_case(case)
         _plot_backend()
         plan = _out_plan(args.out, args.overwrite)
@@ -518,7 +515,7 @@ def main(argv=None) -> int:
         action="append",
         metavar="KEY=VALUE",
         help="override a key of a run file, or with `granrs run column` a key that none of its flags sets, "
-        "e.g. --set variants.proximal_restarts=20 (TOML value; repeat)",
+        "e.g. --set bi_projection.proximal_restarts=20 (TOML value; repeat)",
     )
     r.add_argument(
         "--restart",
@@ -542,10 +539,10 @@ def main(argv=None) -> int:
     r.add_argument(
         "--aspect-ratio",
         dest="aspect_ratio",
-        type=_key_type("--aspect-ratio", "case.aspect_ratio"),
+        type=_key_type("--aspect-ratio", "geometry.aspect_ratio"),
         help="H_c / L_c (column; 2)",
     )
-    r.add_argument("--width", type=_key_type("--width", "case.width"), help="column width L_c in m (0.2)")
+    r.add_argument("--width", type=_key_type("--width", "geometry.width"), help="column width L_c in m (0.2)")
     fl = r.add_mutually_exclusive_group()
     fl.add_argument(
         "--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)"
@@ -554,8 +551,8 @@ def main(argv=None) -> int:
     r.add_argument(
         "--pore-pressure-ratio",
         dest="pore_pressure_ratio",
-        type=_key_type("--pore-pressure-ratio", "case.pore_pressure_ratio"),
-        help="β, pore pressure over the lithostatic one (case.pore_pressure_ratio: `granrs keys`)",
+        type=_key_type("--pore-pressure-ratio", "fluidisation.pore_pressure_ratio"),
+        help="β, pore pressure over the lithostatic one (fluidisation.pore_pressure_ratio: `granrs keys`)",
     )
     r.add_argument(
         "--ny",
@@ -626,7 +623,7 @@ def main(argv=None) -> int:
     )
     r.add_argument(
         "--length",
-        type=_key_type("--length", "grid.length"),
+        type=_key_type("--length", "geometry.length"),
         help="domain length in m, beyond --width (default L_c + 8.25 H_c, rounded up to the grid)",
     )
     r.add_argument(

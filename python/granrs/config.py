@@ -1,9 +1,10 @@
 """Run files: a TOML file that describes one run, validated strictly before any work starts.
 
-A run file has the sections of ``SECTIONS``: the scene ([case], [grid], [materials]), its
-physics, one section per object of :class:`~granrs.cases.column.ColumnCase` ([rheology] and its
-[bi_projection], [base], [pore_pressure], [side_walls], [active_region], [time], [numerics],
-[variants]) and [output]. Every key is optional and takes the default listed in ``KEYS`` (the
+A run file has the sections of ``SECTIONS``, one per object of
+:class:`~granrs.cases.column.ColumnCase`: the scene ([case], [geometry], [grains],
+[fluidisation], [grid]), its physics ([rheology] and its [bi_projection], [base],
+[pore_pressure], [side_walls], [interface], [active_region], [time], [rest], [depth_averaged],
+[numerics]) and [output]. Every key is optional and takes the default listed in ``KEYS`` (the
 paper's fluidised column); a key whose default is None (``Key.optional``: the side walls, the
 active region's band, a fixed δt, ...) is off while absent. Unknown
 sections or keys, wrong types and out-of-range values raise ``granrs.ParameterError`` naming the
@@ -37,18 +38,28 @@ else:  # the same parser, before it joined the standard library
 from ._granrs import ParameterError
 from .boundary import CoulombWall
 from .cases.column import ColumnCase
-from .cases.column.case import MODELS, SCENE_CHOICES, SCENE_RANGES, RestCriterion, jop_mu_i
+from .cases.column.case import (
+    MODELS,
+    SCENE_CHOICES,
+    SCENE_RANGES,
+    ColumnGeometry,
+    Fluidisation,
+    Grains,
+    RestCriterion,
+    jop_mu_i,
+)
 from .cases.column.depth_averaged import refuse_unused_keys
 from .depth_averaged import DEPTH_AVERAGED_CHOICES, DEPTH_AVERAGED_FIELDS, DepthAveraged
 from .io.outputs import control_character
 from .model import PorePressure, SideWalls
 from .options import (
+    ROOM_OBJECTS,
     ActiveRegion,
     BiProjection,
+    Interface,
     Numerics,
     OptionInfo,
     TimeStepping,
-    Variants,
     parse_options as parse_options,
     parse_scalar as parse_scalar,
 )
@@ -164,54 +175,17 @@ def _room_keys(section: str, room: str, obj, exclude: tuple = (), docs: Optional
     )
 
 
-#: The rooms whose options have a section of their own (not [numerics] nor [variants]).
-_OWN_SECTION = ("time", "bi_projection", "active_region")
+#: The flat options of no room's object (``options.ROOM_OBJECTS``): the run files' [numerics].
 _NUMERICS = tuple(
-    _from_schema(
-        "numerics" if s.group == "common" else "variants",
-        n,
-        s,
-        getattr(_C.numerics, n) if s.group == "common" else getattr(_C.variants, n),
-        optional=s.optional and s.default is None,
-    )
+    _from_schema("numerics", n, s, getattr(_C.numerics, n), optional=s.optional and s.default is None)
     for n, s in Numerics.FIELDS.items()
-    if s.room not in _OWN_SECTION
+    if s.room not in ROOM_OBJECTS
 )
 _BASE = options.spec("friction_angle", "coulomb")
 
 KEYS: tuple[Key, ...] = (
     Key("case", "name", "choice", "column", "", "the case to run", choices=("column",)),
     Key("case", "model", "choice", _C.model, "", "the model (docs/howto/choosing-a-model.md)", choices=MODELS),
-    Key(
-        "case",
-        "aspect_ratio",
-        "float",
-        _C.aspect_ratio,
-        "1",
-        "a = H_c / L_c, column height over width",
-        *_R["aspect_ratio"],
-    ),
-    Key("case", "width", "float", _C.width, "m", "L_c, width of the reservoir (gate at x = L_c)", *_R["width"]),
-    Key("case", "fluidised", "bool", _C.fluidised, "", "pore gas pressure on (initial p_f and basal air supply)"),
-    Key(
-        "case",
-        "pore_pressure_ratio",
-        "float",
-        _C.pore_pressure_ratio,
-        "1",
-        "β: initial and supplied pore pressure over the lithostatic one",
-        *_R["pore_pressure_ratio"],
-    ),
-    Key(
-        "case",
-        "air_supply",
-        "choice",
-        _C.air_supply,
-        "",
-        "sign of the basal air supply: injection (∂p_f/∂y = −β φρ_s g, gas flows up into the column) or the printed literal "
-        "∂p_f/∂n = −β φρ_s g with n the outward normal (an outflow)",
-        choices=SCENE_CHOICES["air_supply"],
-    ),
     Key(
         "case",
         "back_wall",
@@ -221,9 +195,26 @@ KEYS: tuple[Key, ...] = (
         "the wall at x = 0: Coulomb friction at base.friction_angle (the paper's), or free-slip (the cross-code check)",
         choices=SCENE_CHOICES["back_wall"],
     ),
-    Key("grid", "ny", "int", _C.ny, "cells", "cells over the domain height (256 is the paper's grid)", *_R["ny"]),
     Key(
-        "grid",
+        "geometry",
+        "aspect_ratio",
+        "float",
+        _C.geometry.aspect_ratio,
+        "1",
+        "a = H_c / L_c, column height over width",
+        *ColumnGeometry.RANGES["aspect_ratio"],
+    ),
+    Key(
+        "geometry",
+        "width",
+        "float",
+        _C.geometry.width,
+        "m",
+        "L_c, width of the reservoir (gate at x = L_c)",
+        *ColumnGeometry.RANGES["width"],
+    ),
+    Key(
+        "geometry",
         "length",
         "float",
         None,
@@ -233,32 +224,71 @@ KEYS: tuple[Key, ...] = (
         1000.0,
     ),
     Key(
-        "materials",
+        "geometry",
+        "height",
+        "float",
+        None,
+        "m",
+        "height of the domain; absent: 1.125 H_c (the paper's 0.45 m)",
+        0.01,
+        1000.0,
+        optional=True,
+    ),
+    Key(
+        "grains",
         "solid_fraction",
         "float",
-        _C.solid_fraction,
+        _C.grains.solid_fraction,
         "1",
         "φ, solid volume fraction of the column",
-        *_R["solid_fraction"],
+        *Grains.RANGES["solid_fraction"],
     ),
     Key(
-        "materials",
-        "grain_density",
+        "grains",
+        "density",
         "float",
-        _C.grain_density,
+        _C.grains.density,
         "kg m-3",
         "ρ_s, density of the grains",
-        *_R["grain_density"],
+        *Grains.RANGES["density"],
     ),
     Key(
-        "materials",
-        "grain_diameter",
+        "grains",
+        "diameter",
         "float",
-        _C.grain_diameter,
+        _C.grains.diameter,
         "m",
         "d_s, grain diameter (used by mu-i)",
-        *_R["grain_diameter"],
+        *Grains.RANGES["diameter"],
     ),
+    Key(
+        "fluidisation",
+        "fluidised",
+        "bool",
+        _C.fluidisation.fluidised,
+        "",
+        "pore gas pressure on (initial p_f and basal air supply)",
+    ),
+    Key(
+        "fluidisation",
+        "pore_pressure_ratio",
+        "float",
+        _C.fluidisation.pore_pressure_ratio,
+        "1",
+        "β: initial and supplied pore pressure over the lithostatic one",
+        *Fluidisation.RANGES["pore_pressure_ratio"],
+    ),
+    Key(
+        "fluidisation",
+        "air_supply",
+        "choice",
+        _C.fluidisation.air_supply,
+        "",
+        "sign of the basal air supply: injection (∂p_f/∂y = −β φρ_s g, gas flows up into the column) or the printed literal "
+        "∂p_f/∂n = −β φρ_s g with n the outward normal (an outflow)",
+        choices=Fluidisation.CHOICES["air_supply"],
+    ),
+    Key("grid", "ny", "int", _C.ny, "cells", "cells over the domain height (256 is the paper's grid)", *_R["ny"]),
     Key(
         "rheology",
         "law",
@@ -303,6 +333,7 @@ KEYS: tuple[Key, ...] = (
             "friction_angle": "α_w, friction angle of the side walls; absent: base.friction_angle",
         },
     ),
+    *_object_keys("interface", _C.interface),
     *_object_keys("active_region", ActiveRegion()),
     Key(
         "time",
@@ -356,8 +387,7 @@ KEYS: tuple[Key, ...] = (
         for name, f in DEPTH_AVERAGED_FIELDS.items()
     ),
     _from_schema("numerics", "threads", options.spec("threads"), _C.threads),
-    *(k for k in _NUMERICS if k.section == "numerics"),
-    *(k for k in _NUMERICS if k.section == "variants"),
+    *_NUMERICS,
     Key("output", "dir", "str", "out/run", "path", "output folder, relative to the current directory"),
     Key("output", "fields_every_s", "float", 0.05, "s", "simulated time between field snapshots; 0: none", 0.0, 1e4),
     Key(
@@ -374,10 +404,30 @@ KEYS: tuple[Key, ...] = (
 )
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(k.section for k in KEYS))
 _BY_NAME = {k.full: k for k in KEYS}
-#: The sections of each key name (a key in the wrong section is told where it belongs).
-_SECTIONS_OF: dict[str, list[str]] = {}
+#: The full keys of each key name, and of each schema option's key and each ColumnCase field
+#: name a run-file key holds under another name (a key in the wrong section, or in a section
+#: that is not one, is told where it belongs).
+_PLACES: dict[str, list[str]] = {}
 for _k in KEYS:
-    _SECTIONS_OF.setdefault(_k.name, []).append(_k.section)
+    for _name in dict.fromkeys((_k.name, *((_k.option.key,) if _k.option is not None else ()))):
+        _PLACES.setdefault(_name, []).append(_k.full)
+for _name, _full in (("grain_density", "grains.density"), ("grain_diameter", "grains.diameter")):
+    _PLACES.setdefault(_name, []).append(_full)
+
+
+def _misplaced(section: str, name: str) -> Optional[ParameterError]:
+    """The error for ``section.name``, not a key, where ``name`` is a key elsewhere (None otherwise)."""
+    places = [f for f in _PLACES.get(name, []) if f != f"{section}.{name}"]
+    if not places:
+        return None
+    allowed = " or ".join(f"`{p}`" for p in places)
+    if section not in SECTIONS:
+        owners = " or ".join(dict.fromkeys(f"[{p.split('.')[0]}]" for p in places))
+        return ParameterError(
+            f"invalid parameter `{section}`: unknown section; its key `{name}` belongs to {owners}: allowed as {allowed}"
+        )
+    return ParameterError(f"invalid parameter `{section}.{name}`: not a key of [{section}]; allowed as {allowed}")
+
 
 Config = dict  # dict[section, dict[key, value]], every key present once resolved
 
@@ -433,6 +483,10 @@ def resolve(raw: dict) -> Config:
         raise ParameterError(f"invalid run file: allowed a TOML table with sections {', '.join(SECTIONS)}")
     for section, table in raw.items():
         if section not in SECTIONS:
+            for name in table if isinstance(table, dict) else ():
+                err = _misplaced(section, name)
+                if err is not None:
+                    raise err
             raise ParameterError(
                 f"invalid parameter `{section}`: unknown section; allowed sections "
                 + ", ".join(f"[{s}]" for s in SECTIONS)
@@ -441,12 +495,9 @@ def resolve(raw: dict) -> Config:
             raise ParameterError(f"invalid parameter `{section}` = {table!r}: allowed a table [{section}]")
         for name in table:
             if f"{section}.{name}" not in _BY_NAME:
-                elsewhere = _SECTIONS_OF.get(name, [])
-                if elsewhere:
-                    raise ParameterError(
-                        f"invalid parameter `{section}.{name}`: not a key of [{section}]; allowed as "
-                        + " or ".join(f"`{o}.{name}`" for o in elsewhere)
-                    )
+                err = _misplaced(section, name)
+                if err is not None:
+                    raise err
                 names = ", ".join(k.name for k in KEYS if k.section == section)
                 raise ParameterError(
                     f"invalid parameter `{section}.{name}`: unknown key in [{section}]; allowed keys {names}"
@@ -471,18 +522,20 @@ def _derive_and_cross_check(cfg: Config, given: frozenset | set = frozenset()) -
     """Derived values and the checks between keys. ``given``: the (section, key) pairs the run file
     set; a default that another key makes meaningless gives way (the animation's default when no
     fields are saved) instead of being refused."""
-    case, grid, out = cfg["case"], cfg["grid"], cfg["output"]
+    case, geometry, out = cfg["case"], cfg["geometry"], cfg["output"]
     # a key set away from its default that the model does not read, before any work (a resolved
     # configuration resolved again gives every key: those at their defaults are not refused)
     refuse_unused_keys(cfg, {(s, k) for s, k in given if k in cfg[s] and cfg[s][k] != _BY_NAME[f"{s}.{k}"].default})
-    if grid["length"] is None:
-        length = ColumnCase(aspect_ratio=case["aspect_ratio"], width=case["width"]).domain()[0]
-        grid["length"] = float(f"{length:.12g}")  # 3.5, not 3.5000000000000004
-    if grid["length"] <= case["width"]:
+    if geometry["length"] is None:
+        shape = ColumnGeometry(aspect_ratio=geometry["aspect_ratio"], width=geometry["width"])
+        length = ColumnCase(geometry=shape).domain()[0]
+        geometry["length"] = float(f"{length:.12g}")  # 3.5, not 3.5000000000000004
+    if geometry["length"] <= geometry["width"]:
         raise ParameterError(
-            f"invalid parameter `grid.length` = {grid['length']!r}: allowed a length (m) greater than "
-            f"case.width = {case['width']!r} m (the gate)"
+            f"invalid parameter `geometry.length` = {geometry['length']!r}: allowed a length (m) greater than "
+            f"geometry.width = {geometry['width']!r} m (the gate)"
         )
+    ColumnGeometry(**geometry)  # the height above the column
     for section, what in (
         ("active_region", "the window's band of air cells (absent: the whole domain)"),
         ("side_walls", "the channel width (absent: no side walls)"),
@@ -548,6 +601,10 @@ def apply_sets(raw: dict, sets: Iterable[str]) -> dict:
 def set_value(raw: dict, dotted: str, value) -> None:
     """Sets ``raw[section][key] = value`` in place for a dotted key known to ``KEYS``."""
     if dotted not in _BY_NAME:
+        section, _, name = dotted.rpartition(".")
+        err = _misplaced(section, name) if section else None
+        if err is not None:
+            raise err
         raise ParameterError(
             f"invalid parameter `{dotted}`: unknown key; allowed keys " + ", ".join(k.full for k in KEYS)
         )
@@ -676,19 +733,13 @@ def describe() -> str:
 def column_case(cfg: Config) -> ColumnCase:
     """The ``ColumnCase`` of a resolved configuration: the scene's keys, and one object per
     section of its physics."""
-    c, g, m, r = cfg["case"], cfg["grid"], cfg["materials"], cfg["rheology"]
+    c, r = cfg["case"], cfg["rheology"]
     case = ColumnCase(
-        aspect_ratio=c["aspect_ratio"],
-        width=c["width"],
-        length=g["length"],
-        solid_fraction=m["solid_fraction"],
-        grain_density=m["grain_density"],
-        grain_diameter=m["grain_diameter"],
-        fluidised=c["fluidised"],
-        pore_pressure_ratio=c["pore_pressure_ratio"],
-        air_supply=c["air_supply"],
+        geometry=ColumnGeometry(**cfg["geometry"]),
+        grains=Grains(**cfg["grains"]),
+        fluidisation=Fluidisation(**cfg["fluidisation"]),
         back_wall=c["back_wall"],
-        ny=g["ny"],
+        ny=cfg["grid"]["ny"],
         t_end=cfg["time"]["t_end"],
         rest=RestCriterion(**cfg["rest"]),
         model=c["model"],
@@ -697,15 +748,15 @@ def column_case(cfg: Config) -> ColumnCase:
         pore_pressure=PorePressure(**cfg["pore_pressure"]),
         time=TimeStepping(**{k: v for k, v in cfg["time"].items() if k != "t_end"}),
         numerics=Numerics(**{k: v for k, v in cfg["numerics"].items() if k != "threads"}),
-        variants=Variants(**cfg["variants"]),
+        interface=Interface(**cfg["interface"]),
         threads=cfg["numerics"]["threads"],
     )
     projection = BiProjection(**cfg["bi_projection"])
     if r["law"] == "mu-i":
         case.rheology = jop_mu_i(
             r["friction_angle"],
-            grain_diameter=case.grain_diameter,
-            grain_density=case.grain_density,
+            grain_diameter=case.grains.diameter,
+            grain_density=case.grains.density,
             viscosity=r["viscosity"],
             projection=projection,
         )

@@ -156,11 +156,11 @@ class DepthAveraged:
     def refuse_unused(self, case, default) -> None:
         """ParameterError for the first field of a column ``case`` that its model does not read
         and that differs from ``default`` (the column's ``ColumnCase()``). The depth-averaged
-        model reads the scene's geometry, ``fluidised``, ``pore_pressure_ratio``, ``ny`` (the
-        depth at which its front is read), ``t_end``, ``rest``, ``profile_times``, the base's
-        friction angle, the pore pressure's diffusivity, the friction angle of a Drucker–Prager
-        rheology (with the closures 'savage-hutter' and 'rankine') and this object; the 2D
-        models do not read this object."""
+        model reads the scene's ``geometry`` (but its ``height``), ``fluidisation.fluidised``,
+        ``fluidisation.pore_pressure_ratio``, ``ny`` (the depth at which its front is read),
+        ``t_end``, ``rest``, ``profile_times``, the base's friction angle, the pore pressure's
+        diffusivity, the friction angle of a Drucker–Prager rheology (with the closures
+        'savage-hutter' and 'rankine') and this object; the 2D models do not read this object."""
         if case.model != "depth-averaged":
             if self != default.depth_averaged:
                 raise ParameterError(
@@ -180,24 +180,22 @@ class DepthAveraged:
         checks = (
             ("rheology.viscosity", case.rheology.viscosity, rheology.viscosity),
             ("rheology.projection", case.rheology.projection, rheology.projection),
-            ("solid_fraction", case.solid_fraction, d.solid_fraction),
-            ("grain_density", case.grain_density, d.grain_density),
-            ("grain_diameter", case.grain_diameter, d.grain_diameter),
-            ("air_supply", case.air_supply, d.air_supply),
+            ("grains", case.grains, d.grains),
+            ("fluidisation.air_supply", case.fluidisation.air_supply, d.fluidisation.air_supply),
             ("back_wall", case.back_wall, d.back_wall),
-            ("height", case.height, d.height),
+            ("geometry.height", case.geometry.height, d.geometry.height),
             ("pore_pressure", pore, d.pore_pressure),
             ("side_walls", case.side_walls, d.side_walls),
             ("active_region", case.active_region, d.active_region),
             ("time", case.time, d.time),
             ("numerics", case.numerics, d.numerics),
-            ("variants", case.variants, d.variants),
+            ("interface", case.interface, d.interface),
             ("threads", case.threads, d.threads),
         )
         for name, value, default_value in checks:
             if value != default_value:
                 if dataclasses.is_dataclass(value) and type(value) is type(default_value):
-                    # the first field of an object that differs: variants.proximal_restarts = 5
+                    # the first field of an object that differs: interface.mass_correction = False
                     f = next(
                         f.name
                         for f in dataclasses.fields(value)

@@ -18,7 +18,7 @@ from ._granrs import ParameterError
 from .boundary import BoundaryConditions, Coulomb
 from .grid import Grid
 from .materials import Material
-from .options import ActiveRegion, Numerics, TimeStepping, Variants
+from .options import ActiveRegion, Interface, Numerics, TimeStepping
 from .rheology import RHEOLOGIES, Bingham, DruckerPrager, MuI, Newtonian
 from .shapes import Shape
 
@@ -148,7 +148,7 @@ def memory_check(grid: Grid, estimate: int, what: str = "the model") -> None:
 
 #: the values of ActiveRegion.sides / Numerics.active_region_sides (the Rust schema's)
 ACTIVE_REGION_SIDES = options.spec("active_region_sides").choices
-#: where the plastic tensor lives (Variants.sigma_location; the Rust schema's)
+#: where the plastic tensor lives (BiProjection.sigma_location; the Rust schema's)
 SIGMA_LOCATIONS = options.spec("sigma_location").choices
 
 
@@ -169,8 +169,8 @@ class Model:
     The numerical options come from ``numerics`` (a ``granrs.Numerics``, the flat form of every
     option) and, where given, from the objects of their rooms, which hold their own options:
     ``time_stepping`` (``granrs.TimeStepping``), the rheology's ``projection``
-    (``granrs.BiProjection``), ``active_region`` (``granrs.ActiveRegion``) and ``variants``
-    (``granrs.Variants``); an option that ``numerics`` sets away from its default and an object
+    (``granrs.BiProjection``), ``interface`` (``granrs.Interface``) and ``active_region``
+    (``granrs.ActiveRegion``); an option that ``numerics`` sets away from its default and an object
     sets otherwise is refused (``granrs.options.merge``). The rheology's ``viscosity``, where
     given, is ``dense.viscosity``. Every value is checked in Rust against the schema
     (``granrs.options``); ``model.numerics`` holds the options in force.
@@ -194,7 +194,7 @@ class Model:
         side_walls: Optional[SideWalls] = None,
         time_stepping: Optional[TimeStepping] = None,
         active_region: Optional[ActiveRegion] = None,
-        variants: Optional[Variants] = None,
+        interface: Optional[Interface] = None,
     ):
         air = options.spec("air").check(air)
         if air == "free-surface" and light is None:
@@ -250,8 +250,8 @@ class Model:
         objects = {}
         for name, obj, cls in (
             ("time_stepping", time_stepping, TimeStepping),
+            ("interface", interface, Interface),
             ("active_region", active_region, ActiveRegion),
-            ("variants", variants, Variants),
         ):
             if obj is not None and not isinstance(obj, cls):
                 raise ParameterError(f"invalid parameter `{name}` = {obj!r}: allowed a granrs.{cls.__name__} or None")

@@ -1,24 +1,28 @@
 """The options of a model, read from the schema the Rust core declares (``granrs._granrs.schema()``).
 
-Each option is declared once, in Rust, beside the field of the configuration struct of the room
-that uses it, with its default, range, unit, one line of doc and its group (``common`` or
-``variant``; docs/models.md, "Variants"). This module turns that schema into the Python objects
-of the options: each room is a frozen dataclass whose fields, defaults and docs are the schema's,
-and whose values are checked in Rust (``granrs._granrs.check_option``) when it is made.
+Each option is declared once, in Rust, beside the field of the configuration struct that uses it,
+with its default, range, unit, one line of doc, its room (the object that holds it) and its group
+(``common``, or ``variant`` for a numerical variant kept for study; docs/models.md, "Variants").
+This module turns that schema into the Python objects of the options: each room is a frozen
+dataclass whose fields, defaults and docs are the schema's, and whose values are checked in Rust
+(``granrs._granrs.check_option``) when it is made. A variant is a field of its room's object,
+an enumerated choice or a number with its range, as any other option of that room.
 
 =================  ============================================================================
 object             the options it holds (its room in the schema)
 =================  ============================================================================
 ``TimeStepping``   the simulation's clock: ``cfl``, ``dt``, ``max_dt``, ``max_growth``, ... ("time")
-``BiProjection``   the yield stress's numerics: ``theta``, ``tolerance``, ``max_iterations``, ...
+``BiProjection``   the yield stress's numerics: ``solver``, ``theta``, ``tolerance``, where Σ lives,
+                   the local r, the proximal restarts, the walls' normal stress ("bi_projection")
+``Interface``      the interface Φ = 0: its ``transport``, ``width``, redistancing, mass correction,
+                   the velocity that moves it ("interface")
 ``ActiveRegion``   a window around the granular phase: ``band``, ``align``, ``sides``
-``Variants``       every option of the group ``variant`` (readings of the paper kept for study)
 ``Numerics``       the flat form: every option of the model by its key (a model's ``options``)
 =================  ============================================================================
 
 A new option declared in Rust appears in ``Numerics``, in its room's object, in the run files'
-section of that object ([time], [bi_projection], [active_region]) or else [numerics] or
-[variants], in ``granrs keys`` and in the docs' key reference, with nothing written for it here
+section of that object ([time], [bi_projection], [interface], [active_region]) or else
+[numerics], in ``granrs keys`` and in the docs' key reference, with nothing written for it here
 (tests/test_options.py shows it). An option set both in ``Numerics`` and in the object that
 holds it is refused (:func:`merge`).
 """
@@ -100,10 +104,11 @@ def _options_class(
     fields: list[tuple[str, OptionInfo]],
     module: str = __name__,
     room_name: Optional[str] = None,
+    prefix: str = "",
 ):
     """A frozen dataclass whose fields are ``fields`` (name, option), with the schema's defaults,
-    each value checked in Rust on construction (ParameterError names the field), and with
-    ``room_name`` the values checked together by the rules of that room's Rust struct
+    each value checked in Rust on construction (ParameterError names ``prefix`` + the field), and
+    with ``room_name`` the values checked together by the rules of that room's Rust struct
     (``granrs._granrs.check_room``)."""
     specs = dict(fields)
     ordered = sorted(fields, key=lambda f: f[1].required, reverse=True)  # required ones first
@@ -111,7 +116,7 @@ def _options_class(
     def __post_init__(self):
         for name, s in specs.items():
             value = getattr(self, name)
-            object.__setattr__(self, name, s.check(value, name))
+            object.__setattr__(self, name, s.check(value, prefix + name))
         if room_name is not None:
             _granrs.check_room(room_name, {specs[n].key: getattr(self, n) for n in specs})
 
@@ -169,14 +174,25 @@ ActiveRegion: Any = _options_class(
     "granrs",
 )
 
-#: Every option of the group of variants: readings of the paper and numerical variants kept for
-#: study, each at its measured default (docs/models.md, "Variants").
-Variants: Any = _options_class(
-    "Variants",
-    'Numerical variants kept for study; the common case needs none (docs/models.md, "Variants").',
-    [(s.key, s) for s in SCHEMA if not s.object and s.group == "variant"],
+#: The interface Φ = 0 (docs/models.md, "Interface"): how it moves, its smoothed width, the
+#: redistancing of Φ and the mass correction.
+_INTERFACE_NAMES = {"interface_width": "width", "interface_transport": "transport", "interface_velocity": "velocity"}
+Interface: Any = _options_class(
+    "Interface",
+    "The interface Φ = 0: its transport, width, redistancing and mass correction (Rust ModelConfig, RedistanceSettings).",
+    [(_INTERFACE_NAMES.get(s.key, s.key), s) for s in room("interface")],
     "granrs",
+    prefix="interface.",
 )
+
+#: The rooms whose options an object of their own holds (``ROOM_OBJECTS[room]``): their run-file
+#: section is the room's name; the other flat options are the run files' [numerics].
+ROOM_OBJECTS: dict = {
+    "time": TimeStepping,
+    "bi_projection": BiProjection,
+    "interface": Interface,
+    "active_region": ActiveRegion,
+}
 
 
 def merge(numerics, objects: dict) -> dict:

@@ -49,7 +49,15 @@ import numpy as np
 from .. import observables as obs
 from .._granrs import ParameterError
 from ..boundary import CoulombWall
-from ..cases.column import ColumnCase, build_depth_averaged, column_rheology, run_column
+from ..cases.column import (
+    ColumnCase,
+    ColumnGeometry,
+    Fluidisation,
+    Grains,
+    build_depth_averaged,
+    column_rheology,
+    run_column,
+)
 from ..depth_averaged import DepthAveraged
 from ..options import parse_options
 
@@ -77,17 +85,13 @@ def peer_case(cells_per_hc: int, threads: int = 1, t_end: float = 3.0, options: 
             f"invalid parameter `n` = {cells_per_hc!r}: allowed an integer number of cells per H_c in [4, 512]"
         )
     case = ColumnCase(
-        aspect_ratio=HEIGHT / WIDTH,
-        width=WIDTH,
-        fluidised=False,
+        geometry=ColumnGeometry(aspect_ratio=HEIGHT / WIDTH, width=WIDTH, length=LENGTH, height=DOMAIN_HEIGHT),
+        grains=Grains(solid_fraction=0.58, density=2500.0),
+        fluidisation=Fluidisation(fluidised=False),
         ny=2 * cells_per_hc,
-        length=LENGTH,
-        height=DOMAIN_HEIGHT,
         back_wall="free-slip",
         rheology=dataclasses.replace(column_rheology(), friction_angle=27.0, viscosity=0.1),
         base=CoulombWall(15.0),
-        solid_fraction=0.58,
-        grain_density=2500.0,
         t_end=t_end,
         threads=threads,
     )
@@ -376,10 +380,8 @@ def peer_depth_averaged_case(n: int = 100):
             f"invalid parameter `n` = {n!r}: allowed an integer number of cells across L_c in [10, 1000]"
         )
     return ColumnCase(
-        aspect_ratio=HEIGHT / WIDTH,
-        width=WIDTH,
-        length=DA_LENGTH,
-        fluidised=False,
+        geometry=ColumnGeometry(aspect_ratio=HEIGHT / WIDTH, width=WIDTH, length=DA_LENGTH),
+        fluidisation=Fluidisation(fluidised=False),
         model="depth-averaged",
         base=CoulombWall(DA_BASE_ANGLE),
         depth_averaged=DepthAveraged(closure="hydrostatic", resolution=n),

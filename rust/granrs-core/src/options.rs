@@ -106,9 +106,9 @@ pub struct OptionSpec {
     /// The option's key (unique within its room; the keys of the model's flat options are
     /// unique over all their rooms).
     pub key: &'static str,
-    /// The room (configuration struct) that uses it: "model", "time", "pressure_solver",
-    /// "redistance", "bi_projection", "variants", "active_region", "pore_pressure", "coulomb",
-    /// "side_walls", or a rheology law.
+    /// The room (the object of the Python package and the run-file section that holds it):
+    /// "model", "time", "pressure_solver", "interface", "bi_projection", "active_region",
+    /// "pore_pressure", "coulomb", "side_walls", or a rheology law.
     pub room: &'static str,
     pub kind: Kind,
     /// The default ([`Value::None`]: off, or derived; see `doc`).

@@ -10,7 +10,8 @@ The paper's run-out from the gate: 1.6874 m (simulation), 1.8443 m (experiment).
 
 Numerics chosen for this case (measured reasons in docs/validation.md, "Column collapse"): the
 column's default objects (``column_rheology``: θ = 0.8, Picard tolerance 1e-3;
-``column_numerics``: WENO5 convection, mass correction; ``column_pore_pressure``: κ_∞ = 1e8)
+``column_numerics``: WENO5 convection; ``column_interface``: mass correction;
+``column_pore_pressure``: κ_∞ = 1e8)
 state theirs; a free-slip lid at the top of the domain (with an open top the inner viscous
 solves stall near 1e-3 relative and floor the Picard increment above its tolerance).
 
@@ -54,8 +55,12 @@ from .case import (
     PAPER_RUNOUT_EXP,
     PAPER_RUNOUT_SIM,
     ColumnCase,
+    ColumnGeometry,
+    Fluidisation,
     G,
+    Grains,
     RestCriterion,
+    column_interface,
     column_numerics,
     column_pore_pressure,
     column_rheology,
@@ -106,10 +111,14 @@ __all__ = [
     "PAPER_RUNOUT_EXP",
     "PAPER_RUNOUT_SIM",
     "ColumnCase",
+    "ColumnGeometry",
+    "Fluidisation",
+    "Grains",
     "arrest_summary",
     "basal_pore_pressure_ratio",
     "build_depth_averaged",
     "build_model",
+    "column_interface",
     "column_numerics",
     "column_pore_pressure",
     "column_rheology",

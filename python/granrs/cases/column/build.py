@@ -17,15 +17,17 @@ from .case import ColumnCase, G
 
 def pore_pressure(case: ColumnCase) -> PorePressure | None:
     """The case's pore pressure with the scene's air supply through the reservoir's base
-    (−β φρ_s g for 0 < x < L_c with ``air_supply='injection'``); None when not fluidised."""
-    if not (case.fluidised and case.pore_pressure_ratio > 0):
+    (−β φρ_s g for 0 < x < L_c with ``fluidisation.air_supply='injection'``); None when not
+    fluidised."""
+    f = case.fluidisation
+    if not f.active:
         return None
-    sign = 1.0 if case.air_supply == "literal" else -1.0
+    sign = 1.0 if f.air_supply == "literal" else -1.0
     return dataclasses.replace(
         case.pore_pressure,
-        basal_gradient=sign * case.pore_pressure_ratio * case.mixture_density * G,
+        basal_gradient=sign * f.pore_pressure_ratio * case.mixture_density * G,
         basal_x_min=0.0,
-        basal_x_max=case.width,
+        basal_x_max=case.geometry.width,
     )
 
 
@@ -46,7 +48,7 @@ def model_arguments(case: ColumnCase) -> dict:
         numerics=case.numerics,
         time_stepping=case.time,
         active_region=case.active_region,
-        variants=case.variants,
+        interface=case.interface,
         threads=case.threads,
         pore_pressure=pore_pressure(case),
         air="free-surface" if case.model == "granular" else "resolved",
@@ -59,13 +61,13 @@ def build_model(case: ColumnCase) -> Model:
     """The two-phase model of the column case (or, with ``model='granular'``, the granular-only
     model: the same 2D model with the air not resolved), with its initial condition."""
     args = model_arguments(case)
-    hc, lc = case.column_height, case.width
+    hc, lc = case.column_height, case.geometry.width
     rho = case.mixture_density
     pore = args["pore_pressure"]
     model = Model(**args)
     model.set_shape(Rectangle(-1.0, lc, -1.0, hc), balance_pressure=False)
     if pore is not None:
-        beta = case.pore_pressure_ratio
+        beta = case.fluidisation.pore_pressure_ratio
         model.set_initial(
             pf=lambda x, y: np.where((x < lc) & (y < hc), beta * rho * G * (hc - y), 0.0), balance_pressure=False
         )

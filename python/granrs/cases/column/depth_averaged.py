@@ -37,12 +37,12 @@ USED_KEYS = frozenset(
     {
         "case.name",
         "case.model",
-        "case.aspect_ratio",
-        "case.width",
-        "case.fluidised",
-        "case.pore_pressure_ratio",
+        "geometry.aspect_ratio",
+        "geometry.width",
+        "geometry.length",
+        "fluidisation.fluidised",
+        "fluidisation.pore_pressure_ratio",
         "grid.ny",
-        "grid.length",
         "rheology.friction_angle",
         "base.friction_angle",
         "pore_pressure.diffusivity",
@@ -87,14 +87,12 @@ def build_depth_averaged(case: ColumnCase):
     model's)."""
     case.validate()
     da = case.depth_averaged
-    hc, lc = case.column_height, case.width
+    hc, lc = case.column_height, case.geometry.width
     length = case.domain()[0]
     cells = int(math.ceil(length / (min(lc, hc) / da.resolution)))
-    fluidised = bool(case.fluidised and case.pore_pressure_ratio > 0)
+    fluidised, beta = case.fluidisation.active, case.fluidisation.pore_pressure_ratio
     pore = (
-        DepthAveragedPore(case.pore_pressure.diffusivity, case.pore_pressure_ratio, lc, transport=da.pore_transport)
-        if fluidised
-        else None
+        DepthAveragedPore(case.pore_pressure.diffusivity, beta, lc, transport=da.pore_transport) if fluidised else None
     )
     m = DepthAveragedModel(
         cells,
@@ -107,7 +105,7 @@ def build_depth_averaged(case: ColumnCase):
         **da.earth_pressure(lambda: case.internal_friction_angle),
     )
     inside = m.x < lc
-    m.set_state(h=np.where(inside, hc, 0.0), beta=np.where(inside, case.pore_pressure_ratio if fluidised else 0.0, 0.0))
+    m.set_state(h=np.where(inside, hc, 0.0), beta=np.where(inside, beta if fluidised else 0.0, 0.0))
     return m
 
 
@@ -124,7 +122,7 @@ def run_column_depth_averaged(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m = build_depth_averaged(case)
-    lc, hc = case.width, case.column_height
+    lc, hc = case.geometry.width, case.column_height
     threshold = depth_averaged_front_depth(case)
     mass0 = m.mass()
     rec: dict[str, list] = {"t": [], "front": [], "area": [], "max_granular_speed": []}
@@ -150,7 +148,7 @@ def run_column_depth_averaged(
             if xf > m.length - 3 * m.dx or float(np.sum(m.h[-3:])) * m.dx > 0.01 * mass0:
                 raise SimulationError(
                     f"the granular material reached the far end of the domain (x = {xf:.3f} m of "
-                    f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)"
+                    f"{m.length:.3f} m) at t = {t:.3f} s: increase --length (geometry.length in a run file)"
                 )
             speed = m.max_speed()
             rec["t"].append(t)

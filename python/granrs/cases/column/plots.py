@@ -63,7 +63,7 @@ def plot_fluidisation(out: Path) -> None:
     fig, ax = plt.subplots(figsize=(7.5, 4.0))
     ax.plot(d["t_s"], d["pf_ratio_reservoir"], label="under the reservoir (x < L_c)")
     ax.plot(d["t_s"], d["pf_ratio_channel"], label="in the channel (x > L_c)")
-    beta = meta["case"]["pore_pressure_ratio"]
+    beta = meta["case"]["fluidisation"]["pore_pressure_ratio"]
     ax.axhline(beta, color="0.5", ls=":", lw=1, label=f"initial β = {beta:g}")
     ax.axhline(1.0, color="k", ls="--", lw=0.8, label="pore pressure = weight (p_s = 0)")
     ax.set_xlabel("t (s)")

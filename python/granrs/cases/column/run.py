@@ -15,7 +15,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ... import observables as obs
+from ... import observables as obs, options
 from ..._granrs import ParameterError, SimulationError, SolverError, __version__
 from ...io.outputs import OutputError, RunOutputs, record
 from ...model import Model
@@ -114,7 +114,7 @@ def run_column(
     if prepare is not None:
         prepare(model)
     grid = model.grid
-    lc = case.width
+    lc = case.geometry.width
     outputs = outputs if outputs is not None else RunOutputs(out)
     area0 = outputs.start_area or model.dense_area()
     # the conserved volume Σ F dx dy (interface_transport = "clsvof"): its largest relative change
@@ -142,7 +142,7 @@ def run_column(
         if xf > grid.lx - 3 * grid.dx or far_area > 0.01 * area0:
             raise SimulationError(
                 f"the granular material reached the far end of the domain (x = {xfar:.3f} m of "
-                f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (grid.length in a run file)"
+                f"{grid.lx:.3f} m) at t = {t:.3f} s: increase --length (geometry.length in a run file)"
             )
         speed = granular_speed(model)
         rec["t"].append(t)
@@ -214,6 +214,7 @@ def run_column(
     front = np.array(rec["front"])
     area = np.array(rec["area"])
     walls, region = case.side_walls, case.active_region
+    opts = options.merge(case.numerics, case.objects())  # the options in force, each from its object
     summary: dict[str, Any] = {
         "runout_m": float(front[-1]) if front.size else 0.0,
         "max_front_m": float(front.max()) if front.size else 0.0,
@@ -228,15 +229,15 @@ def run_column(
         "wall_s": wall,
         "mass_rel_error": float(np.max(np.abs(area - area0)) / area0) if area.size else 0.0,
         **({"volume_rel_error": volume_change[0]} if volume0 else {}),
-        "fluidised": bool(case.fluidised and case.pore_pressure_ratio > 0),
+        "fluidised": case.fluidisation.active,
         "rheology": case.rheology.spec()[0],
-        "interface_yield": case.variants.interface_yield,
-        "wall_normal_stress": case.variants.wall_normal_stress,
-        "yield_pressure": case.variants.yield_pressure,
-        "sigma_location": case.variants.sigma_location,
+        "interface_yield": opts["interface_yield"],
+        "wall_normal_stress": opts["wall_normal_stress"],
+        "yield_pressure": opts["yield_pressure"],
+        "sigma_location": opts["sigma_location"],
         "channel_width_m": None if walls is None else walls.width,
         "side_wall_friction_angle": None if walls is None else walls.friction_angle,
-        "r_neighbourhood": case.variants.r_neighbourhood,
+        "r_neighbourhood": opts["r_neighbourhood"],
         "active_region": None if region is None else region.band,
         "active_region_sides": None if region is None else region.sides,
         "threads": case.threads,
@@ -258,7 +259,7 @@ def run_column(
             summary[key + "_median"] = float(np.median(hist[key]))
     if "picard_r_halvings" in hist:
         summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
-    cap = case.variants.proximal_restarts
+    cap = opts["proximal_restarts"]
     if "picard_restarts" in hist and cap > 0:
         # steps whose Picard loop used every proximal restart it was allowed: they end on the
         # relaxed fixed point of their last anchor, not on eq. (11)'s

@@ -130,7 +130,7 @@ pub struct RedistanceSettings {
 /// The options of [`RedistanceSettings`] (`ModelConfig::redistance`).
 pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     options::int(
-        "redistance",
+        "interface",
         "redistance_iterations",
         20,
         1,
@@ -138,9 +138,9 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
         "1",
         "pseudo-time iterations of a redistancing (TVD-RK3 steps; the band redistanced is about iterations × cfl cells wide)",
     ),
-    options::float("redistance", "redistance_cfl", 0.5, 0.0, 0.5, "1", "pseudo-time step Δτ/h of the redistancing").open(true, false),
+    options::float("interface", "redistance_cfl", 0.5, 0.0, 0.5, "1", "pseudo-time step Δτ/h of the redistancing").open(true, false),
     options::float(
-        "redistance",
+        "interface",
         "redistance_band",
         10.0,
         1.0,
@@ -151,7 +151,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     .open(false, true)
     .off_by_default(),
     options::choice(
-        "redistance",
+        "interface",
         "redistance_interface",
         "closest-point",
         &["closest-point", "subcell-pde"],
@@ -159,7 +159,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::float(
-        "redistance",
+        "interface",
         "redistance_tolerance",
         0.0,
         0.0,
@@ -169,7 +169,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::choice(
-        "redistance",
+        "interface",
         "interface_velocity",
         "one-fluid",
         &["one-fluid", "extended"],
@@ -177,7 +177,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::float(
-        "redistance",
+        "interface",
         "extension_depth",
         0.0,
         0.0,
@@ -187,7 +187,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::float(
-        "redistance",
+        "interface",
         "extension_rest_speed",
         0.0,
         0.0,
@@ -197,7 +197,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::int(
-        "redistance",
+        "interface",
         "piece_removal_cells",
         0,
         0,
@@ -207,7 +207,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::float(
-        "redistance",
+        "interface",
         "mass_correction_film",
         0.0,
         0.0,
@@ -217,7 +217,7 @@ pub const REDISTANCE_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::float(
-        "redistance",
+        "interface",
         "mass_correction_film_speed",
         0.0,
         0.0,

@@ -138,24 +138,24 @@ pub struct ModelConfig {
 /// The options of [`ModelConfig`]'s own fields (the interface, the viscous and convective
 /// terms, the pressure's gauge, the threads, the model of the air).
 pub const MODEL_OPTIONS: &[OptionSpec] = &[
-    options::float("model", "interface_width", 1.5, 0.0, 10.0, "cells", "half-width ε/h of the smoothed interface (h = min(dx, dy))"),
-    options::boolean("model", "transport_interface", true, "whether the level set is transported (false: a frozen interface)"),
-    options::int("model", "redistance_every", 10, 0, 1_000_000, "steps", "redistance the level set every this many steps (0: never)"),
+    options::float("interface", "interface_width", 1.5, 0.0, 10.0, "cells", "half-width ε/h of the smoothed interface (h = min(dx, dy))"),
+    options::boolean("interface", "transport_interface", true, "whether the level set is transported (false: a frozen interface)"),
+    options::int("interface", "redistance_every", 10, 0, 1_000_000, "steps", "redistance the level set every this many steps (0: never)"),
     options::boolean(
-        "model",
+        "interface",
         "mass_correction",
         false,
         "shift Φ by a constant after each interface update so that the dense-phase area keeps its initial value",
     ),
     options::choice(
-        "model",
+        "interface",
         "interface_transport",
         "level-set",
         &["level-set", "clsvof"],
         "the interface's transport: the level set alone, or with the dense volume fraction F moved by conservative split PLIC fluxes (Weymouth & Yue 2010) and Φ rebuilt as the distance to F's interface each step (Sussman & Puckett 2000); clsvof conserves the dense volume without mass_correction",
     ),
     options::choice(
-        "model",
+        "interface",
         "plic_normal",
         "level-set",
         &["level-set", "youngs"],

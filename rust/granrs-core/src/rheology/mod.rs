@@ -557,11 +557,11 @@ pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
     ),
 ];
 
-/// The numerical variants of the rheology and the walls: readings of the paper kept for study.
-/// Each default is the measured choice (docs/models.md, "Variants").
+/// The bi-projection's numerical variants of the rheology and the walls (room "bi_projection"): readings
+/// of the paper kept for study, each default the measured choice (docs/models.md, "Variants").
 pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
     options::choice(
-        "variants",
+        "bi_projection",
         "interface_yield",
         "paper",
         &["paper", "granular-side", "density-support"],
@@ -569,7 +569,7 @@ pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::choice(
-        "variants",
+        "bi_projection",
         "wall_normal_stress",
         "pressure",
         &["pressure", "total"],
@@ -577,7 +577,7 @@ pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::choice(
-        "variants",
+        "bi_projection",
         "yield_pressure",
         "absolute",
         &["absolute", "surface-air"],
@@ -585,7 +585,7 @@ pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::choice(
-        "variants",
+        "bi_projection",
         "sigma_location",
         "staggered",
         &["staggered", "centres"],
@@ -593,7 +593,7 @@ pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
     )
     .variant(),
     options::int(
-        "variants",
+        "bi_projection",
         "r_neighbourhood",
         crate::rheology::DEFAULT_R_NEIGHBOURHOOD as i64,
         0,
@@ -602,10 +602,18 @@ pub const RHEOLOGY_VARIANT_OPTIONS: &[OptionSpec] = &[
         "half-width of the neighbourhood over which the local r takes the largest velocity response",
     )
     .variant(),
-    options::int("variants", "proximal_restarts", 0, 0, 1_000_000, "1", "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)")
-        .variant(),
+    options::int(
+        "bi_projection",
+        "proximal_restarts",
+        0,
+        0,
+        1_000_000,
+        "1",
+        "proximal restarts of the anchor Σⁿ of eq. (12) per step (0: the paper's iteration)",
+    )
+    .variant(),
     options::choice(
-        "variants",
+        "bi_projection",
         "wall_r",
         "single",
         &["single", "local"],
