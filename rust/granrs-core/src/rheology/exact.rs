@@ -678,7 +678,18 @@ impl ExactStep {
             let mut best: Option<(f64, Vec<f64>, Vec<[f64; 2]>)> = None;
             for _ in 0..=MAX_HALVINGS {
                 let xt: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
-                let st: Vec<[f64; 2]> = sig.iter().zip(&dsig).map(|(a, d)| [a[0] + alpha * d[0], a[1] + alpha * d[1]]).collect();
+                let mut st: Vec<[f64; 2]> = sig.iter().zip(&dsig).map(|(a, d)| [a[0] + alpha * d[0], a[1] + alpha * d[1]]).collect();
+                if polishing {
+                    // from the interior point's solution, the trial multipliers on their balls:
+                    // a location at the edge of its ball (|z_k| → 1) amplifies the linear
+                    // solve's round-off into |σ_k| − 1, which would hold the residual there
+                    for s in st.iter_mut() {
+                        let m = s[0].hypot(s[1]);
+                        if m > 1.0 {
+                            *s = [s[0] / m, s[1] / m];
+                        }
+                    }
+                }
                 let (mt, _, _) = residuals(&xt, &st, &mut fu_trial, &mut fk_trial);
                 let m = merit(mt, &fk_trial);
                 if best.as_ref().is_none_or(|b| m < b.0) {
