@@ -45,17 +45,21 @@
 //! apart in each direction never share a stencil), so the boundary rules are those of the
 //! predictor and of the strain rate.
 //!
-//! The iteration starts from the previous step's u and σ; if it has not converged after
-//! [`SSN_TRIES`] iterations it restarts once from the predictor without yield stress or friction
-//! (every location flowing, σ_k = n_k).
+//! **Three stages.** The semismooth loop starts from the previous step's u and σ (δ =
+//! [`NEWTON_DELTA`]). If it has not converged after [`WARM_TRIES`] iterations, the step is
+//! solved afresh by the interior-point method of `interior_point.rs` (the same cone program,
+//! from the predictor without yield stress), whose iteration count depends little on the grid,
+//! down to a projection residual of 1e-4; the semismooth loop then finishes from that point with
+//! δ = [`POLISH_DELTA`], each trial multiplier put back on its ball before the merit is read (a
+//! location at the edge of its ball, |z_k| → 1, amplifies the linear solve's round-off into
+//! |σ_k| − 1 otherwise, and holds the residual there).
 //!
-//! **Limits (measured, docs/validation.md "The exact step of eq. (11)").** At ny ≤ 16 the loop
-//! converges in a few iterations per step (column to t = 0.1 s, ny = 16: median 2 dry, 4
-//! fluidised; 90 % 4) and its solution agrees with an independent interior-point solution of
-//! the same cone program to 3.4e-8 (x). The count grows with the grid (ny = 32: the first step
-//! does not converge within 400), and on the dry column's later steps the loop can stall with
-//! the projection residual near 1e-4 (a location at the edge of its ball, |z_k| ≈ 1): the
-//! solver is not the column's default.
+//! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
+//! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–16 and
+//! passes the same check on the first steps at ny = 32. Sparse factorisations per step, column
+//! to t = 0.1 s: ny = 16 dry median 20, fluidised 4 (the warm loop converges); ny = 32 dry,
+//! first 14 steps, 19–33. The cost, one sparse LU per iteration, is why the column's default is
+//! the Picard iteration.
 //!
 //! **Stopping test: the residual of eq. (11).** The loop stops when
 //! ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w_k B_kᵀσ_k‖₂) and max_k |F_k| are both below `newton_tol`, with
@@ -69,12 +73,12 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::{SparseColMat, Triplet};
 
+use super::interior_point;
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
 use crate::operators::{fill_velocity_ghosts, periodic_pair, strain_rate, unknown_face_range, viscous_helmholtz, BcMode};
 use crate::walls::CoulombWalls;
-use super::interior_point;
 use std::ops::Range;
 
 /// δ of the Newton matrix (module doc): the relative stiffness 1/δ of a rigid location's penalty.
@@ -561,7 +565,13 @@ impl ExactStep {
                 n_r += r * r;
             }
             let scale = n_b.sqrt() + n_a.sqrt() + n_f.sqrt();
-            let mom = if scale > 0.0 { n_r.sqrt() / scale } else if n_r == 0.0 { 0.0 } else { f64::NAN };
+            let mom = if scale > 0.0 {
+                n_r.sqrt() / scale
+            } else if n_r == 0.0 {
+                0.0
+            } else {
+                f64::NAN
+            };
             (mom, proj, scale)
         };
         let mut sig: Vec<[f64; 2]> = terms.iter().map(|t| t.sigma).collect();
@@ -796,7 +806,16 @@ pub(crate) fn factor(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usi
 
 /// The step's problem (`ExactProblem`) with the point (x, σ).
 #[allow(clippy::too_many_arguments)]
-fn problem(n: usize, b: &[f64], a_trip: &[Triplet<usize, usize, f64>], terms: &[Term], cols: &[usize], vals: &[f64], x: &[f64], sig: &[[f64; 2]]) -> ExactProblem {
+fn problem(
+    n: usize,
+    b: &[f64],
+    a_trip: &[Triplet<usize, usize, f64>],
+    terms: &[Term],
+    cols: &[usize],
+    vals: &[f64],
+    x: &[f64],
+    sig: &[[f64; 2]],
+) -> ExactProblem {
     let mut pb = ExactProblem { n, b: b.to_vec(), x: x.to_vec(), ..Default::default() };
     for t in a_trip {
         pb.a_rows.push(t.row);

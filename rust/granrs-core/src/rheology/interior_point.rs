@@ -32,6 +32,9 @@
 //! Newton loop then finishes the step from that point (`exact.rs`), where the interior point
 //! would slow down (the scaled system's condition grows as 1/μ).
 
+#![allow(clippy::needless_range_loop)] // the loops run over a cone's one or two components
+#![allow(clippy::type_complexity)] // a Newton direction's four parts, named where it is built
+
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 
@@ -181,7 +184,9 @@ pub(crate) fn solve(
             break;
         }
         if !mu.is_finite() {
-            return Err(Error::SolverFailure { solver: "interior point of the exact step".into(), message: format!("μ = {mu} after {iterations} iterations") });
+            return Err(Error::SolverFailure {
+                solver: "interior point of the exact step".into(), message: format!("μ = {mu} after {iterations} iterations")
+            });
         }
         // r_x = A x − b − Σ B_kᵀ z_y,k
         faer::sparse::linalg::matmul::sparse_dense_matmul(
@@ -220,7 +225,10 @@ pub(crate) fn solve(
                 hyy[1][0] = 0.0;
                 hyy[1][1] = 0.0;
             }
-            let m = [[hyy[0][0] - h0y[0] * h0y[0] / h00, hyy[0][1] - h0y[0] * h0y[1] / h00], [hyy[1][0] - h0y[1] * h0y[0] / h00, hyy[1][1] - h0y[1] * h0y[1] / h00]];
+            let m = [
+                [hyy[0][0] - h0y[0] * h0y[0] / h00, hyy[0][1] - h0y[0] * h0y[1] / h00],
+                [hyy[1][0] - h0y[1] * h0y[0] / h00, hyy[1][1] - h0y[1] * h0y[1] / h00],
+            ];
             for c in 0..term.dim {
                 for d in 0..term.dim {
                     for e in term.rows[c].clone() {
@@ -281,7 +289,9 @@ pub(crate) fn solve(
         let (_, dt, bdx, dz) = direction(&q);
         let aa = largest(&dt, &bdx, &dz).min(1.0);
         let mu_aff = (0..kc)
-            .map(|k| (t[k] + aa * dt[k]) * w[k] + (y[k][0] + aa * bdx[k][0]) * (zy[k][0] + aa * dz[k][0]) + (y[k][1] + aa * bdx[k][1]) * (zy[k][1] + aa * dz[k][1]))
+            .map(|k| {
+                (t[k] + aa * dt[k]) * w[k] + (y[k][0] + aa * bdx[k][0]) * (zy[k][0] + aa * dz[k][0]) + (y[k][1] + aa * bdx[k][1]) * (zy[k][1] + aa * dz[k][1])
+            })
             .sum::<f64>()
             / kc as f64;
         let sigma_c = (mu_aff / mu).clamp(0.0, 1.0).powi(3);
@@ -307,4 +317,72 @@ pub(crate) fn solve(
         y = terms.iter().map(|term| apply_b(term, &x)).collect();
     }
     Ok(InteriorPoint { sigma: sigma_of(&zy), x, iterations })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Interior points of the cone R × R²: (t, y) with t > |y|.
+    fn points() -> Vec<(f64, [f64; 2])> {
+        vec![(1.0, [0.0, 0.0]), (2.0, [1.5, -0.7]), (1e-3, [6e-4, 7e-4]), (350.0, [-120.0, 300.0]), (1.0, [0.999_999, 0.0])]
+    }
+
+    /// |a − b| within 1e-12 of `scale`: the tests' scales include the points' conditioning (the
+    /// point 1e-6 from the boundary: 1/(t − |y|) ~ 1e6 amplifies round-off, hence factors up to
+    /// 1e4 on unit data)
+    fn close(a: f64, b: f64, scale: f64) -> bool {
+        (a - b).abs() <= 1e-12 * scale
+    }
+
+    #[test]
+    fn the_scaling_maps_z_and_s_to_the_same_point() {
+        // W z = W⁻¹ s = λ (Vandenberghe 2010, eq. 31), to round-off of the points' size
+        for &(t, y) in &points() {
+            for &(z0, zy) in &points() {
+                let w = Scaling::new(t, y, z0, zy);
+                let (a0, a1) = w.mul(z0, zy);
+                let (b0, b1) = w.inv(t, y);
+                let scale = t.max(z0).max(1.0);
+                assert!(close(a0, b0, scale) && close(a1[0], b1[0], scale) && close(a1[1], b1[1], scale), "{t} {y:?} {z0} {zy:?}");
+                // W⁻¹ W v = v and H v = W⁻¹ W⁻¹ v
+                let v = (0.3, [-1.2, 0.8]);
+                let (c0, c1) = w.mul(v.0, v.1);
+                let (d0, d1) = w.inv(c0, c1);
+                assert!(close(d0, v.0, 1.0) && close(d1[0], v.1[0], 1.0) && close(d1[1], v.1[1], 1.0));
+                let (h00, h0y, hyy) = w.inv_square();
+                let (e0, e1) = w.inv(v.0, v.1);
+                let (f0, f1) = w.inv(e0, e1);
+                let hv0 = h00 * v.0 + h0y[0] * v.1[0] + h0y[1] * v.1[1];
+                let hv1 = [h0y[0] * v.0 + hyy[0][0] * v.1[0] + hyy[0][1] * v.1[1], h0y[1] * v.0 + hyy[1][0] * v.1[0] + hyy[1][1] * v.1[1]];
+                let s = f0.abs().max(f1[0].abs()).max(f1[1].abs()).max(1.0);
+                assert!(close(hv0, f0, 1e3 * s) && close(hv1[0], f1[0], 1e3 * s) && close(hv1[1], f1[1], 1e3 * s), "{hv0} {f0} {hv1:?} {f1:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_jordan_division_inverts_the_product() {
+        for &(l0, l1) in &points() {
+            let v = (0.4, [2.0, -1.0]);
+            let (u0, u1) = jordan_div(l0, l1, v.0, v.1);
+            let (p0, p1) = jordan(l0, l1, u0, u1);
+            assert!(close(p0, v.0, 1e4) && close(p1[0], v.1[0], 1e4) && close(p1[1], v.1[1], 1e4), "{l0} {l1:?}");
+        }
+    }
+
+    #[test]
+    fn the_largest_step_lands_on_the_cone_boundary() {
+        for &(u0, u1) in &points() {
+            for d in [(-1.0, [0.0, 0.0]), (0.0, [1.0, 0.0]), (0.5, [-3.0, 2.0]), (-0.1, [0.05, 0.0])] {
+                let a = max_step(u0, u1, d.0, d.1);
+                assert!(a > 0.0 && a.is_finite());
+                let (t, y) = (u0 + a * d.0, [u1[0] + a * d.1[0], u1[1] + a * d.1[1]]);
+                // on the boundary: t = |y| (relative to the step's size)
+                assert!((t - y[0].hypot(y[1])).abs() <= 1e-9 * (u0 + a * (d.0.abs() + d.1[0].abs() + d.1[1].abs())), "{u0} {u1:?} {d:?}: {t} {y:?}");
+            }
+            // a direction into the cone has no bound
+            assert_eq!(max_step(u0, u1, 1.0, [0.0, 0.0]), f64::INFINITY);
+        }
+    }
 }
