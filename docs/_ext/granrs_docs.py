@@ -70,8 +70,10 @@ def keys_markdown() -> str:
 
 
 def options_markdown() -> str:
-    """The reference of every option of the Rust schema, room by room, each variant in its room."""
-    from granrs import options
+    """The reference of every option of the Rust schema, room by room, each variant in its room;
+    each room with the object and the run-file section that hold it, each option with its field
+    in that object where the name differs from the key."""
+    from granrs import config, options
 
     out = ["# Options", "",
            "Generated from the Rust schema (`granrs._granrs.schema()`, the `OPTIONS` tables beside the",
@@ -80,13 +82,33 @@ def options_markdown() -> str:
            "(`TimeStepping`, `BiProjection`, `Interface`, `ActiveRegion`, `PorePressure`, the rheologies,",
            "`CoulombWall`, `SideWalls`), the run-file keys and `granrs keys` are made from it.",
            "The group `variant` marks the numerical variants kept for study, each in the room of the object",
-           "that owns it ([Variants](../models.md#variants)).", ""]
+           "that owns it ([Variants](../models.md#variants)). The key is the option's name in",
+           "`granrs.Numerics`, `ColumnCase.with_options` and the studies' `--option KEY=VALUE`; where the",
+           "object's field is named otherwise, the field follows it (`picard_tol`, `BiProjection.tolerance`).",
+           ""]
+    import granrs
+
+    objects = {"bingham": "Bingham", "drucker-prager": "DruckerPrager", "mu-i": "MuI",
+               "pore_pressure": "PorePressure", "coulomb": "CoulombWall", "side_walls": "SideWalls"}
+    holders = {room: f"`granrs.{name}`" for room, name in objects.items() if hasattr(granrs, name)}
+    holders |= {room: f"`granrs.{cls.__name__}`" for room, cls in options.ROOM_OBJECTS.items()}
+    fields = {(s.room, s.key): f"{cls.__name__}.{name}"
+              for cls in options.ROOM_OBJECTS.values() for name, s in cls.FIELDS.items() if name != s.key}
+    sections: dict = {}
+    for k in config.KEYS:
+        if k.option is not None:
+            sections.setdefault(k.option.room, {})[k.section] = None
     rooms = list(dict.fromkeys(s.room for s in options.SCHEMA))
     for room in rooms:
-        out += [f"## `{room}`", "", "| key | allowed | default | group | meaning |", "|---|---|---|---|---|"]
+        held = [holders.get(room) or ("`granrs.Numerics`" if not options.room(room)[0].object else "")]
+        held += [f"run files' `[{s}]`" for s in sections.get(room, {})]
+        held = [h for h in held if h]
+        out += [f"## `{room}`", ""] + ([f"Held by {', '.join(held)}.", ""] if held else [])
+        out += ["| key | allowed | default | group | meaning |", "|---|---|---|---|---|"]
         for s in options.room(room):
             default = "required" if s.required else repr(s.default)
-            out.append(f"| `{s.key}` | {s.allowed.replace('|', chr(92) + '|')} | `{default}` | {s.group} | "
+            key = f"`{s.key}`" + (f" (`{fields[s.room, s.key]}`)" if (s.room, s.key) in fields else "")
+            out.append(f"| {key} | {s.allowed.replace('|', chr(92) + '|')} | `{default}` | {s.group} | "
                        f"{s.doc.replace('|', chr(92) + '|')} |")
         out.append("")
     return "\n".join(out)
