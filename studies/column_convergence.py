@@ -28,7 +28,7 @@ What it writes into ``OUT``:
 * ``observables.csv``: every observable of summary.json["observables"] (granrs.observables:
   thickness fronts, deposit quantiles, centre of mass and its travel, heights at the back wall and
   the gate) and the lowest-row run-out, per state (fluidised, dry, and with ``--literal-sign`` the
-  fluidised column with the printed sign of the air supply, an outflow: ColumnCase.air_supply =
+  fluidised column with the printed sign of the air supply, an outflow: Fluidisation.air_supply =
   'literal'), at each grid, with the successive differences d_k = x_k − x_{k−1}, their ratio
   r = d_k/d_{k−1}, a Richardson extrapolation x_∞ = x_N + d_N r/(1 − r) with the error bar |x_∞ − x_N|
   where the last three grids give 0 < r < 1 (monotone convergence), and the round-off spread (the

@@ -212,9 +212,18 @@ def test_granrs_keys_and_the_docs_reference_show_each_option():
         row = f"| `{k.full}` | {k.allowed()} | `{default}` |"
         assert row in table, row
         assert f"| `{k.full}` | {k.allowed().replace('|', chr(92) + '|')} | `{default}` |" in keys_md, k.full
+    renamed = {
+        (s.room, s.key): f"{cls.__name__}.{name}"
+        for cls in options.ROOM_OBJECTS.values()
+        for name, s in cls.FIELDS.items()
+        if name != s.key
+    }
+    assert renamed[("bi_projection", "picard_tol")] == "BiProjection.tolerance"
     for s in options.SCHEMA:
         default = "required" if s.required else repr(s.default)
-        assert f"| `{s.key}` | {s.allowed.replace('|', chr(92) + '|')} | `{default}` | {s.group} |" in options_md, s.key
+        field = f" (`{renamed[s.room, s.key]}`)" if (s.room, s.key) in renamed else ""
+        row = f"| `{s.key}`{field} | {s.allowed.replace('|', chr(92) + '|')} | `{default}` | {s.group} |"
+        assert row in options_md, s.key
 
 
 def test_a_variant_in_numerics_names_its_section():

@@ -18,7 +18,7 @@ from ._granrs import ParameterError, SimulationError, SolverError, __version__, 
 from .cases.cavity import run_cavity_case
 from .cases.column import run_column
 from .cases.column.run import check_case
-from .config import apply_sets, column_case, describe, key as config_key, load_config, resolve, set_value
+from .config import apply_sets, column_case, describe, key as config_key, load_config, resolve, set_value, toml_value
 from .io.animation import make_animation
 from .io.outputs import (
     atomic_write,
@@ -68,6 +68,15 @@ def _key_type(flag: str, dotted: str):
     k = config_key(dotted)
     lo, hi = -math.inf if k.lo is None else k.lo, math.inf if k.hi is None else k.hi
     return _number(flag, k.kind, lo, hi, k.lo_open, k.hi_open)
+
+
+def _key_help(text: str, dotted: str) -> str:
+    """The help of a flag of ``granrs run column`` that sets the run-file key ``dotted``: ``text``,
+    then the key, its allowed values with their unit and its default (``granrs keys``; a key whose
+    default is None: ``text`` says what its absence means)."""
+    k = config_key(dotted)
+    default = "" if k.default is None else f"; default {toml_value(k.default)}"
+    return f"{text} ({dotted}: {k.allowed()}{default})".replace("%", "%%")
 
 
 def _choices(dotted: str) -> tuple:
@@ -540,97 +549,137 @@ def main(argv=None) -> int:
         "--aspect-ratio",
         dest="aspect_ratio",
         type=_key_type("--aspect-ratio", "geometry.aspect_ratio"),
-        help="H_c / L_c (column; 2)",
+        help=_key_help("column: H_c / L_c", "geometry.aspect_ratio"),
     )
-    r.add_argument("--width", type=_key_type("--width", "geometry.width"), help="column width L_c in m (0.2)")
+    r.add_argument(
+        "--width",
+        type=_key_type("--width", "geometry.width"),
+        help=_key_help("column: width L_c of the reservoir, the gate at x = L_c", "geometry.width"),
+    )
     fl = r.add_mutually_exclusive_group()
     fl.add_argument(
-        "--fluidised", dest="fluidised", action="store_true", default=True, help="pore pressure on (default)"
+        "--fluidised",
+        dest="fluidised",
+        action="store_true",
+        default=True,
+        help="column: pore pressure on (default; fluidisation.fluidised = true)",
     )
-    fl.add_argument("--no-fluidised", dest="fluidised", action="store_false", help="no pore pressure")
+    fl.add_argument(
+        "--no-fluidised",
+        dest="fluidised",
+        action="store_false",
+        help="column: no pore pressure (fluidisation.fluidised = false)",
+    )
     r.add_argument(
         "--pore-pressure-ratio",
         dest="pore_pressure_ratio",
         type=_key_type("--pore-pressure-ratio", "fluidisation.pore_pressure_ratio"),
-        help="β, pore pressure over the lithostatic one (fluidisation.pore_pressure_ratio: `granrs keys`)",
+        help=_key_help("column: β, pore pressure over the lithostatic one", "fluidisation.pore_pressure_ratio"),
     )
     r.add_argument(
         "--ny",
         type=_key_type("--ny", "grid.ny"),
-        help="cells over the domain height (column; 32; 256 is the paper's grid)",
+        help=_key_help("column: cells over the domain height (256 is the paper's grid)", "grid.ny"),
     )
-    r.add_argument("--t-end", dest="t_end", type=_key_type("--t-end", "time.t_end"), help="end time in s (column; 3)")
+    r.add_argument(
+        "--t-end",
+        dest="t_end",
+        type=_key_type("--t-end", "time.t_end"),
+        help=_key_help("column: end of the simulated time, earlier at rest", "time.t_end"),
+    )
     r.add_argument(
         "--rest-speed",
         dest="rest_speed",
         type=_key_type("--rest-speed", "rest.speed"),
-        help="the run stops at rest: granular speed below this (m/s) for --rest-duration (column; 0.005; rest.speed)",
+        help=_key_help("column: the run stops at rest: granular speed below this for --rest-duration", "rest.speed"),
     )
     r.add_argument(
         "--rest-duration",
         dest="rest_duration",
         type=_key_type("--rest-duration", "rest.duration"),
-        help="how long (s) the granular speed stays below --rest-speed before the run stops (column; rest.duration)",
+        help=_key_help(
+            "column: how long the granular speed stays below --rest-speed before the run stops", "rest.duration"
+        ),
     )
     r.add_argument(
-        "--rheology", choices=_choices("rheology.law"), help="column: drucker-prager (default) or mu-i (rheology.law)"
+        "--rheology",
+        choices=_choices("rheology.law"),
+        help=_key_help("column: the granular rheology", "rheology.law"),
     )
     r.add_argument(
         "--friction-angle",
         dest="friction_angle",
         type=_key_type("--friction-angle", "rheology.friction_angle"),
-        help="column: internal friction angle α in degrees (rheology.friction_angle: `granrs keys`)",
+        help=_key_help("column: internal friction angle α", "rheology.friction_angle"),
     )
     r.add_argument(
         "--model",
         default="two-phase",
         metavar="|".join(_choices("case.model")),
-        help="column: the two-phase model (default), the granular-only 2D model (air not resolved: a free "
-        "surface at p = 0) or the depth-averaged one (docs/howto/choosing-a-model.md)",
+        help=_key_help(
+            "column: the two-phase model, the granular-only 2D model (air not resolved: a free surface at p = 0) "
+            "or the depth-averaged one (docs/howto/choosing-a-model.md)",
+            "case.model",
+        ),
     )
-    r.add_argument("--cfl", type=_key_type("--cfl", "time.cfl"), help="CFL number (column; time.cfl)")
+    r.add_argument("--cfl", type=_key_type("--cfl", "time.cfl"), help=_key_help("column: CFL number", "time.cfl"))
     r.add_argument(
         "--cfl-light",
         dest="cfl_light",
         type=_key_type("--cfl-light", "time.cfl_light"),
-        help="CFL number of the air more than 6 cells from the grains, which keep --cfl (column; time.cfl_light)",
+        help=_key_help(
+            "column: CFL number of the air more than 6 cells from the grains, which keep --cfl; without it --cfl "
+            "everywhere",
+            "time.cfl_light",
+        ),
     )
     r.add_argument(
         "--active-region",
         dest="active_region",
         type=_key_type("--active-region", "active_region.band"),
         metavar="BAND",
-        help="column: run each step on a window around the granular phase with BAND cells of air "
-        "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
-        "is within 0.1 %% of the whole-domain run-out, BAND = 8 2.4 %% long); default: the whole domain",
+        help=_key_help(
+            "column: run each step on a window around the granular phase with BAND cells of air "
+            "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
+            "is within 0.1 % of the whole-domain run-out, BAND = 8 2.4 % long); without it, the whole domain",
+            "active_region.band",
+        ),
     )
     r.add_argument(
         "--active-region-sides",
         dest="active_region_sides",
         choices=_choices("active_region.sides"),
-        help="column, with --active-region: the window's right and top sides are walls (default), or its "
-        "right side is open (outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or "
-        "its right and top sides are open with backflow stabilisation (open-right-top; with the two-phase "
-        "model and --active-region 4: 4.3x faster at ny = 64, docs/models.md)",
+        help=_key_help(
+            "column, with --active-region: the window's right and top sides are walls, or its right side is open "
+            "(outflow at the air's hydrostatic pressure; docs/models.md, an open right side), or its right and top "
+            "sides are open with backflow stabilisation (open-right-top; with the two-phase model and "
+            "--active-region 4: 4.3x faster at ny = 64, docs/models.md)",
+            "active_region.sides",
+        ),
     )
     r.add_argument(
         "--channel-width",
         dest="channel_width",
         type=_key_type("--channel-width", "side_walls.width"),
         metavar="W",
-        help="column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
-        "not in the paper's 2D model; friction angle that of the base; docs/validation.md)",
+        help=_key_help(
+            "column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
+            "not in the paper's 2D model; friction angle that of the base; docs/validation.md); without it, no side walls",
+            "side_walls.width",
+        ),
     )
     r.add_argument(
         "--length",
         type=_key_type("--length", "geometry.length"),
-        help="domain length in m, beyond --width (default L_c + 8.25 H_c, rounded up to the grid)",
+        help=_key_help("column: domain length, beyond --width; without it L_c + 8.25 H_c", "geometry.length"),
     )
     r.add_argument(
         "--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png"
     )
     r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--threads", type=_key_type("--threads", "numerics.threads"), help="Rust threads (1)")
+    r.add_argument(
+        "--threads", type=_key_type("--threads", "numerics.threads"), help=_key_help("Rust threads", "numerics.threads")
+    )
     r.add_argument("--out", help="output folder, new or empty unless --overwrite (a run file's output.dir by default)")
 
     s = sub.add_parser("sweep", help="run the cartesian product of swept keys of a run file on dask")

@@ -219,7 +219,8 @@ KEYS: tuple[Key, ...] = (
         "float",
         None,
         "m",
-        f"channel length; default from the column case ({_PAPER_LENGTH:g} m for the paper's column)",
+        f"channel length, more than geometry.width (the gate); derived: L_c + 8.25 H_c "
+        f"({_PAPER_LENGTH:g} m for the paper's column; the grid rounds the domain up by at most 3 %)",
         0.01,
         1000.0,
     ),
@@ -229,7 +230,8 @@ KEYS: tuple[Key, ...] = (
         "float",
         None,
         "m",
-        "height of the domain; absent: 1.125 H_c (the paper's 0.45 m)",
+        "height of the domain, more than the column height H_c = aspect_ratio × width; absent: 1.125 H_c "
+        "(the paper's 0.45 m)",
         0.01,
         1000.0,
         optional=True,

@@ -91,10 +91,12 @@ def room(name: str) -> tuple[OptionInfo, ...]:
 
 
 def _doc(title: str, fields: list[tuple[str, OptionInfo]]) -> str:
+    """The docstring of a room's object: its title, then one item per field (its doc, allowed
+    values and default), a list in ``help()`` and in the API reference."""
     lines = [title, ""]
     for name, s in fields:
         default = "required" if s.required else repr(s.default)
-        lines.append(f"{name}: {s.doc}; {s.allowed}; default {default}.")
+        lines.append(f"- ``{name}``: {s.doc}; {s.allowed}; default {default}.")
     return "\n".join(lines)
 
 
