@@ -476,3 +476,64 @@ def test_the_depth_averaged_binding_takes_one_configuration_object():
         _granrs.RustDepthAveraged({"length": 1.0})
     with pytest.raises(ParameterError, match="`cfl`"):
         _granrs.RustDepthAveraged({"cells": 8, "length": 1.0, "cfl": 0.9})
+
+
+def _window_refusal(grid, **kw) -> str:
+    try:
+        granrs.Model.check(grid, **kw)
+    except ParameterError as err:
+        return str(err)
+    return ""
+
+
+def test_an_active_region_refuses_a_pressure_gauge_other_than_top_by_the_gauge_s_key(monkeypatch):
+    """An active region needs the 'top' pressure gauge on a two-phase model with walls right and
+    top: the refusal names `numerics.pressure_gauge` and what is allowed, exactly where the Rust
+    check refuses the combination (its message names `active_region` with no value), over every
+    gauge, a law with and without a pressure-dependent yield stress and a base with and without a
+    Coulomb angle ('auto' resolves to 'top' with either); an outflow side and the granular-only
+    model keep the Rust check's own refusals."""
+    import granrs.model
+
+    grid = granrs.Grid(32, 16, 2.0, 1.0)
+    check = granrs.model._check_window_gauge
+    refused = 0
+    for gauge in ("auto", "mean", "top"):
+        for rheology in (granrs.Newtonian(), granrs.Bingham(yield_stress=1.0), granrs.DruckerPrager(27.0)):
+            for bc in (
+                granrs.BoundaryConditions(bottom=granrs.NoSlip()),
+                granrs.BoundaryConditions(bottom=granrs.CoulombWall(15.0)),
+                granrs.BoundaryConditions(bottom=granrs.CoulombWall()),
+                granrs.BoundaryConditions(right=granrs.Outflow()),
+            ):
+                for air in ("resolved", "free-surface"):
+                    kw = dict(
+                        dense=granrs.Material(1000.0, 1.0),
+                        light=granrs.AIR,
+                        gravity=(0.0, -9.81),
+                        rheology=rheology,
+                        bc=bc,
+                        air=air,
+                        active_region=granrs.ActiveRegion(4),
+                        numerics=granrs.Numerics(pressure_gauge=gauge),
+                    )
+                    python = _window_refusal(grid, **kw)
+                    monkeypatch.setattr(granrs.model, "_check_window_gauge", lambda *args: None)
+                    rust = _window_refusal(grid, **kw)
+                    monkeypatch.setattr(granrs.model, "_check_window_gauge", check)
+                    by_gauge = python.startswith(f"invalid parameter `numerics.pressure_gauge` = {gauge!r}")
+                    assert by_gauge == ("with this pressure gauge" in rust), (gauge, rheology, bc, air, python, rust)
+                    assert by_gauge or python == rust
+                    refused += by_gauge
+    assert refused == 3 * 3 + 2 * 2  # 'mean' with each law and base; 'auto' without τ(p) or a Coulomb angle
+    message = _window_refusal(
+        grid,
+        dense=granrs.Material(1000.0, 1.0),
+        light=granrs.AIR,
+        active_region=granrs.ActiveRegion(4),
+        numerics=granrs.Numerics(pressure_gauge="mean"),
+    )
+    assert (
+        message.startswith("invalid parameter `numerics.pressure_gauge` = 'mean': not allowed with `active_region`")
+        and "allowed 'top'" in message
+    ), message

@@ -216,7 +216,10 @@ BEFORE_ANY_WRITE = [
         {"case": {"model": "granular"}, "active_region": {"band": 8, "sides": "open-right-top"}},
         "`active_region.sides` = open-right-top",
     ),
-    ({"numerics": {"pressure_gauge": "mean"}, "active_region": {"band": 8, "sides": "open-right"}}, "pressure gauge"),
+    (
+        {"numerics": {"pressure_gauge": "mean"}, "active_region": {"band": 8, "sides": "open-right"}},
+        "`numerics.pressure_gauge` = 'mean': not allowed with `active_region.band`",
+    ),
     (
         {
             "case": {"model": "depth-averaged"},

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _granrs, options
 from ._granrs import ParameterError
-from .boundary import BoundaryConditions, Coulomb
+from .boundary import BoundaryConditions, Coulomb, FreeSlip, NavierSlip, NoSlip, Outflow
 from .grid import Grid
 from .materials import Material
 from .options import ActiveRegion, Interface, Numerics, TimeStepping
@@ -146,6 +146,33 @@ def memory_check(grid: Grid, estimate: int, what: str = "the model") -> None:
         )
 
 
+def _check_window_gauge(opts: dict, bc: BoundaryConditions, rheology, light, air: str) -> None:
+    """ParameterError naming ``numerics.pressure_gauge`` when an active region meets a pressure
+    gauge other than 'top' on a two-phase model whose right and top sides are walls (the case
+    where the Rust check, ``TwoPhaseModel::validate_active_region``, refuses the gauge; its other
+    refusals keep their own words): the window's top side sets the pressure's constant. 'auto'
+    resolves as in Rust (``ModelConfig::resolved_pressure_gauge``): 'top' with a pressure-dependent
+    law or a Coulomb wall with an angle, else 'mean'."""
+    if opts.get("active_region") is None or light is None or air != "resolved":
+        return
+    sides = [getattr(bc, s) for s in ("left", "right", "bottom", "top")]
+    walls = (NoSlip, FreeSlip, NavierSlip, Coulomb)
+    if any(isinstance(b, Outflow) for b in sides) or not all(isinstance(b, walls) for b in (bc.right, bc.top)):
+        return
+    gauge = opts["pressure_gauge"]
+    pressure_law = isinstance(rheology, (DruckerPrager, MuI))
+    coulomb = any(isinstance(b, Coulomb) and b.friction_angle is not None for b in sides)
+    if gauge == "mean" or gauge == "auto" and not (pressure_law or coulomb):
+        resolved = (
+            " (here 'mean': no pressure-dependent law and no Coulomb wall with an angle)" if gauge == "auto" else ""
+        )
+        raise ParameterError(
+            f"invalid parameter `numerics.pressure_gauge` = {gauge!r}{resolved}: not allowed with `active_region` "
+            "(the window's top side sets the pressure's constant); allowed 'top', or 'auto' with a "
+            "pressure-dependent law (DruckerPrager, MuI) or a Coulomb wall with a friction angle"
+        )
+
+
 #: the values of ActiveRegion.sides / Numerics.active_region_sides (the Rust schema's)
 ACTIVE_REGION_SIDES = options.spec("active_region_sides").choices
 #: where the plastic tensor lives (BiProjection.sigma_location; the Rust schema's)
@@ -266,6 +293,7 @@ class Model:
                 f"viscosity {dense.viscosity!r} Pa s (one viscosity of the dense phase)"
             )
         opts = options.merge(numerics if numerics is not None else Numerics(), objects)
+        _check_window_gauge(opts, self.bc, rheology, light, air)
         self.numerics = Numerics(**opts)
         opts.update(threads=threads, air=air)
         self.config = {
