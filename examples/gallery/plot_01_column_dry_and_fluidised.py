@@ -86,3 +86,4 @@ for ax, (name, (case, model, _)) in zip(axes, runs.items()):
     ax.set(xlim=(0, 2.0), ylabel="y (m)", title=f"{name}, t = {model.time:.1f} s")
 axes[-1].set_xlabel("x (m); dashed: the gate; orange: grains without pore pressure")
 fig.colorbar(pf_image, ax=list(axes), label="pore pressure p_f (Pa)")
+plt.show()
