@@ -444,8 +444,8 @@ pub struct RheologyConfig {
     pub solver: BiProjectionSolver,
     /// The exact step stops when both residuals of eq. (11) are below this.
     pub newton_tol: f64,
-    /// Iteration cap of the exact step's Newton loop (reaching it rejects the step, or stops
-    /// the run).
+    /// Iteration cap of the exact step: sparse factorisations, the interior point's included
+    /// (reaching it rejects the step, or stops the run).
     pub newton_max_iterations: usize,
 }
 
@@ -455,8 +455,9 @@ pub enum BiProjectionSolver {
     /// The Picard iteration with pseudo-relaxation θ of eq. (12) (`rheology/stage.rs`).
     #[default]
     Picard,
-    /// Eq. (11) itself, by the semismooth Newton method of [`exact`] on the two-location plastic
-    /// functional, to the residual `newton_tol`.
+    /// Eq. (11) itself on the two-location plastic functional, to the residual `newton_tol`: a
+    /// semismooth Newton loop from the previous step, an interior-point stage where it does not
+    /// converge, and the semismooth loop from that point ([`exact`]).
     Newton,
 }
 
@@ -499,7 +500,7 @@ pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
         "solver",
         "picard",
         &["picard", "newton"],
-        "how eq. (11) is solved: the Picard iteration of eq. (12), or the exact step by semismooth Newton (rheology/exact.rs)",
+        "how eq. (11) is solved: the Picard iteration of eq. (12), or the exact step (semismooth Newton with an interior-point stage, rheology/exact.rs)",
     ),
     options::float(
         "bi_projection",
@@ -510,7 +511,15 @@ pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
         "1",
         "the exact step stops when the relative momentum residual and the projection residual of eq. (11) are below this",
     ),
-    options::int("bi_projection", "newton_max_iterations", 100, 1, 100_000, "1", "iteration cap of the exact step's Newton loop"),
+    options::int(
+        "bi_projection",
+        "newton_max_iterations",
+        100,
+        1,
+        100_000,
+        "1",
+        "iteration cap of the exact step (sparse factorisations, the interior point's included)",
+    ),
     options::float("bi_projection", "r", 1.0, 0.0, f64::INFINITY, "s", "r of Σ = P(Σ + r D(u)) (None: the local contraction bound of rheology/plastic.rs)")
         .open(true, true)
         .off_by_default(),
