@@ -162,7 +162,26 @@ def plain_docstring(app, what, name, obj, options, lines) -> None:
     lines[:] = out
 
 
+def summary_within_parentheses(doc: list, settings, extract) -> str:
+    """autosummary's first sentence of a docstring, where a period inside parentheses ends no
+    sentence: granrs's "(paper eq. 8–9)" and "(J. Fluid Mech.)" cut the API tables' summaries
+    at "eq." otherwise. The periods inside are marked with a word joiner, which is then removed;
+    ``extract`` is autosummary's own ``extract_summary``."""
+    depth, marked = 0, []
+    for line in doc:
+        chars = []
+        for c in line:
+            depth = max(0, depth + (c == "(") - (c == ")"))
+            chars.append(c + ("\u2060" if c == "." and depth else ""))
+        marked.append("".join(chars))
+    return extract(marked, settings).replace("\u2060", "")
+
+
 def setup(app):
+    from sphinx.ext import autosummary  # here: the tests import this module without the docs' requirements
+
+    extract = autosummary.extract_summary
+    autosummary.extract_summary = lambda doc, settings: summary_within_parentheses(doc, settings, extract)
     app.connect("builder-inited", generate)
     app.connect("autodoc-process-docstring", plain_docstring, priority=400)
     return {"version": "1", "parallel_read_safe": True}
