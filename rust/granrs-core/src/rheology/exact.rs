@@ -70,9 +70,9 @@
 #![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
 
 use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::{SparseColMat, Triplet};
 
+use super::cone::{factor, Slot, SymbolicCache, Term};
 use super::interior_point;
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -95,9 +95,6 @@ const MAX_HALVINGS: usize = 12;
 
 /// Colour period of the probes along a non-periodic direction.
 const PERIOD: usize = 5;
-
-/// The symbolic LU of the last Newton matrix with its pattern (column pointers, row indices).
-pub(crate) type SymbolicCache = std::sync::Mutex<Option<(Vec<usize>, Vec<usize>, SymbolicLu<usize>)>>;
 
 /// What the exact step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -142,27 +139,6 @@ pub struct ExactProblem {
     pub beta: Vec<f64>,
     pub x: Vec<f64>,
     pub sigma: Vec<f64>,
-}
-
-/// Where a term's multiplier is kept between steps.
-#[derive(Clone, Copy, Debug)]
-enum Slot {
-    Centre(usize, usize),
-    Node(usize, usize),
-    Wall(Side, usize),
-}
-
-/// One term w|B u + β| of J.
-#[derive(Clone, Debug)]
-pub(crate) struct Term {
-    pub(crate) w: f64,
-    pub(crate) dim: usize,
-    /// The rows of B: `rows[c]` indexes `cols`/`vals`.
-    pub(crate) rows: [Range<usize>; 2],
-    pub(crate) beta: [f64; 2],
-    r: f64,
-    sigma: [f64; 2],
-    slot: Slot,
 }
 
 /// Sparse rows of one location's strain-rate component, built by probing.
@@ -787,21 +763,6 @@ impl ExactStep {
         lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
         Ok(())
     }
-}
-
-/// The sparse LU of the matrix of `trip` (duplicates summed), reusing the symbolic
-/// factorisation of `cache` while the pattern is the same.
-pub(crate) fn factor(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>]) -> Result<Lu<usize, f64>> {
-    let fail = |e: String| Error::SolverFailure { solver: "sparse LU of the exact step (faer)".into(), message: e };
-    let mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip).map_err(|e| fail(format!("{e:?}")))?;
-    let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
-    let same = cache.as_ref().is_some_and(|(p, r, _)| p[..] == *mat.symbolic().col_ptr() && r[..] == *mat.symbolic().row_idx());
-    if !same {
-        let symbolic = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
-        *cache = Some((mat.symbolic().col_ptr().to_vec(), mat.symbolic().row_idx().to_vec(), symbolic));
-    }
-    let symbolic = cache.as_ref().expect("set above").2.clone();
-    Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))
 }
 
 /// The step's problem (`ExactProblem`) with the point (x, σ).

@@ -38,7 +38,7 @@
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::exact::{factor, SymbolicCache, Term};
+use super::cone::{factor, SymbolicCache, Term};
 use crate::error::{Error, Result};
 
 /// The projection residual of eq. (11) at which the interior point hands over to the
