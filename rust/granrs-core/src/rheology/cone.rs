@@ -8,15 +8,59 @@
 //! (Muravleva & Olshanskii 2008, *Russ. J. Numer. Anal. Math. Model.* 23; Bleyer 2018,
 //! *Comput. Methods Appl. Mech. Eng.* 330).
 
-use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, Lu, SymbolicLlt, SymbolicLu};
 use faer::sparse::{SparseColMat, Triplet};
 use std::ops::Range;
 
 use crate::error::{Error, Result};
 use crate::grid::Side;
 
-/// The symbolic LU of the last Newton matrix with its pattern (column pointers, row indices).
-pub(crate) type SymbolicCache = std::sync::Mutex<Option<(Vec<usize>, Vec<usize>, SymbolicLu<usize>)>>;
+/// The symbolic factorisation of the last matrix with its pattern (column pointers, row
+/// indices), reused while the pattern holds.
+pub(crate) type SymbolicCache = std::sync::Mutex<Option<(Vec<usize>, Vec<usize>, Symbolic)>>;
+
+/// A symbolic factorisation: Cholesky for a symmetric matrix, LU otherwise.
+#[derive(Clone)]
+pub(crate) enum Symbolic {
+    Llt(SymbolicLlt<usize>),
+    Lu(SymbolicLu<usize>),
+}
+
+/// A numeric factorisation (`factor`).
+pub(crate) enum Factor {
+    Llt(Llt<usize, f64>),
+    Lu(Lu<usize, f64>),
+}
+
+impl Factor {
+    /// x ← M⁻¹x.
+    pub(crate) fn solve_in_place(&self, x: &mut [f64]) {
+        let n = x.len();
+        let rhs = faer::MatMut::from_column_major_slice_mut(x, n, 1);
+        match self {
+            Factor::Llt(f) => f.solve_in_place(rhs),
+            Factor::Lu(f) => f.solve_in_place(rhs),
+        }
+    }
+}
+
+/// Whether `a` is symmetric to 1e-14 of its largest entry (the predictor's operator with walls
+/// on every side is, to the last bit; periodic or open sides need not be).
+pub(crate) fn is_symmetric(a: &SparseColMat<usize, f64>) -> bool {
+    let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for j in 0..a.ncols() {
+        for e in cp[j]..cp[j + 1] {
+            let i = ri[e];
+            let mirror = ri[cp[i]..cp[i + 1]].binary_search(&j).map(|p| v[cp[i] + p]).unwrap_or(0.0);
+            if (mirror - v[e]).abs() > 1e-14 * scale {
+                return false;
+            }
+        }
+    }
+    true
+}
 
 /// Where a term's multiplier is kept between steps.
 #[derive(Clone, Copy, Debug)]
@@ -39,17 +83,33 @@ pub(crate) struct Term {
     pub(crate) slot: Slot,
 }
 
-/// The sparse LU of the matrix of `trip` (duplicates summed), reusing the symbolic
-/// factorisation of `cache` while the pattern is the same.
-pub(crate) fn factor(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>]) -> Result<Lu<usize, f64>> {
-    let fail = |e: String| Error::SolverFailure { solver: "sparse LU of the exact step (faer)".into(), message: e };
+/// The factorisation of the matrix of `trip` (duplicates summed): sparse Cholesky where
+/// `symmetric` (the matrices of both solvers are then symmetric positive definite), sparse LU
+/// otherwise or where Cholesky meets a non-positive pivot; the symbolic part of `cache` is
+/// reused while the pattern is the same.
+pub(crate) fn factor(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], symmetric: bool) -> Result<Factor> {
+    let fail = |e: String| Error::SolverFailure { solver: "sparse factorisation of the exact step (faer)".into(), message: e };
     let mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip).map_err(|e| fail(format!("{e:?}")))?;
     let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
-    let same = cache.as_ref().is_some_and(|(p, r, _)| p[..] == *mat.symbolic().col_ptr() && r[..] == *mat.symbolic().row_idx());
+    let same = cache
+        .as_ref()
+        .is_some_and(|(p, r, sym)| p[..] == *mat.symbolic().col_ptr() && r[..] == *mat.symbolic().row_idx() && matches!(sym, Symbolic::Llt(_)) == symmetric);
     if !same {
-        let symbolic = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
-        *cache = Some((mat.symbolic().col_ptr().to_vec(), mat.symbolic().row_idx().to_vec(), symbolic));
+        let sym = if symmetric {
+            Symbolic::Llt(SymbolicLlt::try_new(mat.symbolic(), faer::Side::Lower).map_err(|e| fail(format!("{e:?}")))?)
+        } else {
+            Symbolic::Lu(SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?)
+        };
+        *cache = Some((mat.symbolic().col_ptr().to_vec(), mat.symbolic().row_idx().to_vec(), sym));
     }
-    let symbolic = cache.as_ref().expect("set above").2.clone();
-    Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))
+    match cache.as_ref().expect("set above").2.clone() {
+        Symbolic::Llt(sym) => match Llt::try_new_with_symbolic(sym, mat.as_ref(), faer::Side::Lower) {
+            Ok(f) => Ok(Factor::Llt(f)),
+            Err(_) => {
+                let sym = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
+                Ok(Factor::Lu(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?))
+            }
+        },
+        Symbolic::Lu(sym) => Ok(Factor::Lu(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?)),
+    }
 }

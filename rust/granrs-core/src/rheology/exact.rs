@@ -36,8 +36,9 @@
 //!
 //!   (A + Σ_k w_k B_kᵀ S_k B_k) du = −F_u + Σ_k w_k B_kᵀ t_k,
 //!
-//! a sparse system factorised by faer's sparse LU. A flowing location adds the Hessian of
-//! w|B u| (the viscosity w/|B u| across the flow direction); a rigid one adds the penalty
+//! a sparse system factorised by faer's sparse Cholesky (LU where A is not symmetric). A
+//! flowing location adds the Hessian of w|B u| (the viscosity w/|B u| across the flow
+//! direction); a rigid one adds the penalty
 //! (w r/δ) BᵀB that holds B u = 0, whose multiplier σ is updated from it. δ changes the step,
 //! not the fixed point: at convergence F = 0 exactly. The step is damped by backtracking on
 //! the merit ‖F_u‖²/s² + Σ|F_k|². A and B are read from the model's own matrix-free kernels
@@ -69,10 +70,9 @@
 
 #![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
 
-use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{factor, Slot, SymbolicCache, Term};
+use super::cone::{factor, is_symmetric, Slot, SymbolicCache, Term};
 use super::interior_point;
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -396,7 +396,10 @@ impl ExactStep {
         let beta_dev = |s: &Self, i: usize, j: usize| 0.5 * (s.dxx.at(i as isize, j as isize) - s.dyy.at(i as isize, j as isize));
         // A as a compressed matrix (for products) and its diagonal
         let a_mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &a_trip)
-            .map_err(|e| Error::SolverFailure { solver: "sparse LU of the exact step (faer)".into(), message: format!("{e:?}") })?;
+            .map_err(|e| Error::SolverFailure { solver: "sparse matrix of the exact step (faer)".into(), message: format!("{e:?}") })?;
+        // A symmetric (walls on every side): the Newton and interior-point matrices are
+        // symmetric positive definite, factorised by Cholesky
+        let symmetric = is_symmetric(&a_mat);
         let mut diag = vec![0.0; n];
         for t in &a_trip {
             if t.row == t.col {
@@ -566,7 +569,7 @@ impl ExactStep {
             if !polishing && (iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite()) {
                 polishing = true;
                 let mut x0 = b.clone();
-                Self::factor_solve(&self.symbolic_a, n, &a_trip, &mut x0)?;
+                Self::factor_solve(&self.symbolic_a, n, &a_trip, symmetric, &mut x0)?;
                 let mut projection = |x: &[f64], sig: &[[f64; 2]]| residuals(x, sig, &mut fu_trial, &mut fk_trial).1;
                 let ip = interior_point::solve(
                     n,
@@ -578,7 +581,7 @@ impl ExactStep {
                     x0,
                     &apply_b,
                     &mut projection,
-                    &self.symbolic,
+                    (&self.symbolic, symmetric),
                     max_iterations.saturating_sub(iterations),
                 )?;
                 x = ip.x;
@@ -645,7 +648,7 @@ impl ExactStep {
                 }
             }
             let mut dx = rhs;
-            Self::factor_solve(&self.symbolic, n, &k_trip, &mut dx)?;
+            Self::factor_solve(&self.symbolic, n, &k_trip, symmetric, &mut dx)?;
             let dsig: Vec<[f64; 2]> = terms
                 .iter()
                 .enumerate()
@@ -756,11 +759,9 @@ impl ExactStep {
         Ok(NewtonInfo { iterations, interior_iterations, momentum_residual: mom, projection_residual: proj, unknowns: n, terms: terms.len() })
     }
 
-    /// Factorises the matrix of `trip` (duplicates summed) by sparse LU, reusing the symbolic
-    /// factorisation of `cache` while the pattern is the same, and solves in place.
-    fn factor_solve(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], x: &mut [f64]) -> Result<()> {
-        let lu = factor(cache, n, trip)?;
-        lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
+    /// Factorises the matrix of `trip` (duplicates summed; `cone::factor`) and solves in place.
+    fn factor_solve(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], symmetric: bool, x: &mut [f64]) -> Result<()> {
+        factor(cache, n, trip, symmetric)?.solve_in_place(x);
         Ok(())
     }
 }

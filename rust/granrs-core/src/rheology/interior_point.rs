@@ -22,7 +22,7 @@
 //!   (A + Σ_k B_kᵀ M_k B_k) dx = −r_x + Σ_k B_kᵀ g_k,   M_k = H_yy − H_y0 H_0y/H_00,
 //!
 //! g_k = [W⁻¹q]_y − H_y0 [W⁻¹q]_0/H_00, the matrix of the semismooth Newton step's pattern,
-//! factorised once per iteration by the same sparse LU. The predictor takes q_k = −λ_k, the
+//! factorised once per iteration like the semismooth step's. The predictor takes q_k = −λ_k, the
 //! corrector q_k = λ_k \ (−λ_k∘λ_k − (W_k⁻¹ds_k^a)∘(W_k dz_k^a) + σ_c μ e) with
 //! σ_c = (μ_a/μ)³, and the step is 0.99 of the largest that keeps s and z in the cones.
 //!
@@ -35,7 +35,6 @@
 #![allow(clippy::needless_range_loop)] // the loops run over a cone's one or two components
 #![allow(clippy::type_complexity)] // a Newton direction's four parts, named where it is built
 
-use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 
 use super::cone::{factor, SymbolicCache, Term};
@@ -159,7 +158,7 @@ pub(crate) fn solve(
     x0: Vec<f64>,
     apply_b: &dyn Fn(&Term, &[f64]) -> [f64; 2],
     projection: &mut dyn FnMut(&[f64], &[[f64; 2]]) -> f64,
-    cache: &SymbolicCache,
+    (cache, symmetric): (&SymbolicCache, bool),
     max_iterations: usize,
 ) -> Result<InteriorPoint> {
     let kc = terms.len();
@@ -242,7 +241,7 @@ pub(crate) fn solve(
             scal.push(s);
             hs.push((h00, h0y, hyy));
         }
-        let lu = factor(cache, n, &k_trip)?;
+        let lu = factor(cache, n, &k_trip, symmetric)?;
         // one Newton direction for the right-hand sides q_k: (dx, dt, B dx, dz_y)
         let direction = |q: &[(f64, [f64; 2])]| -> (Vec<f64>, Vec<f64>, Vec<[f64; 2]>, Vec<[f64; 2]>) {
             let mut rhs: Vec<f64> = rx.iter().map(|r| -r).collect();
@@ -261,7 +260,7 @@ pub(crate) fn solve(
                 }
                 a.push((a0, a1));
             }
-            lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut rhs, n, 1));
+            lu.solve_in_place(&mut rhs);
             let dx = rhs;
             let (mut dt, mut bdx, mut dz) = (Vec::with_capacity(kc), Vec::with_capacity(kc), Vec::with_capacity(kc));
             for (k, term) in terms.iter().enumerate() {
