@@ -30,7 +30,7 @@ pub(crate) enum Symbolic {
 /// A numeric factorisation (`factor`).
 pub(crate) enum Factor {
     Llt(Llt<usize, f64>),
-    Lu(Lu<usize, f64>),
+    Lu(Box<Lu<usize, f64>>),
 }
 
 impl Factor {
@@ -107,9 +107,9 @@ pub(crate) fn factor(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usi
             Ok(f) => Ok(Factor::Llt(f)),
             Err(_) => {
                 let sym = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
-                Ok(Factor::Lu(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?))
+                Ok(Factor::Lu(Box::new(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?)))
             }
         },
-        Symbolic::Lu(sym) => Ok(Factor::Lu(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?)),
+        Symbolic::Lu(sym) => Ok(Factor::Lu(Box::new(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?))),
     }
 }
