@@ -58,9 +58,9 @@
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–16 and
 //! passes the same check on the first steps at ny = 32. Sparse factorisations per step, column
-//! to t = 0.1 s: ny = 16 dry median 20, fluidised 4 (the warm loop converges); ny = 32 dry,
-//! first 14 steps, 19–33. The cost, one sparse LU per iteration, is why the column's default is
-//! the Picard iteration.
+//! to t = 0.1 s (median): dry 20 at ny = 16 and 27 at ny = 32 (the interior point's 10–14
+//! included), fluidised 4 at both (the warm loop converges). The cost, one sparse factorisation
+//! of the whole domain per iteration, is why the column's default is the Picard iteration.
 //!
 //! **Stopping test: the residual of eq. (11).** The loop stops when
 //! ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w_k B_kᵀσ_k‖₂) and max_k |F_k| are both below `newton_tol`, with
