@@ -306,6 +306,12 @@ pub(crate) fn solve(
             .collect();
         let (dx, dt, bdx, dz) = direction(&q);
         let alpha = (STEP_FRACTION * largest(&dt, &bdx, &dz)).min(1.0);
+        let finite = alpha.is_finite() && dx.iter().chain(&dt).all(|v| v.is_finite()) && dz.iter().all(|v| v[0].is_finite() && v[1].is_finite());
+        if !finite || alpha <= 0.0 {
+            // the scaled system has lost its precision (a cone at its boundary to round-off):
+            // the semismooth loop takes over from the last point
+            break;
+        }
         for (xi, d) in x.iter_mut().zip(&dx) {
             *xi += alpha * d;
         }
