@@ -79,6 +79,12 @@ def _key_help(text: str, dotted: str) -> str:
     return f"{text} ({dotted}: {k.allowed()}{default})".replace("%", "%%")
 
 
+def _key_flag(parser, flag: str, dotted: str, text: str, **kwargs) -> None:
+    """Adds to ``parser`` the flag ``flag`` that sets the run-file key ``dotted``: its type is the
+    key's range (:func:`_key_type`), its help ``text`` with the key (:func:`_key_help`)."""
+    parser.add_argument(flag, type=_key_type(flag, dotted), help=_key_help(text, dotted), **kwargs)
+
+
 def _choices(dotted: str) -> tuple:
     """The allowed values of a choice key of the run files."""
     return config_key(dotted).choices
@@ -545,17 +551,8 @@ def main(argv=None) -> int:
     )
     r.add_argument("--re", type=_number("--re", "float", 0.0, 1e5, lo_open=True), help="Reynolds number (cavity; 100)")
     r.add_argument("--n", type=_number("--n", "int", 8, 1024), help="cells per side (cavity; 64)")
-    r.add_argument(
-        "--aspect-ratio",
-        dest="aspect_ratio",
-        type=_key_type("--aspect-ratio", "geometry.aspect_ratio"),
-        help=_key_help("column: H_c / L_c", "geometry.aspect_ratio"),
-    )
-    r.add_argument(
-        "--width",
-        type=_key_type("--width", "geometry.width"),
-        help=_key_help("column: width L_c of the reservoir, the gate at x = L_c", "geometry.width"),
-    )
+    _key_flag(r, "--aspect-ratio", "geometry.aspect_ratio", "column: H_c / L_c")
+    _key_flag(r, "--width", "geometry.width", "column: width L_c of the reservoir, the gate at x = L_c")
     fl = r.add_mutually_exclusive_group()
     fl.add_argument(
         "--fluidised",
@@ -570,48 +567,29 @@ def main(argv=None) -> int:
         action="store_false",
         help="column: no pore pressure (fluidisation.fluidised = false)",
     )
-    r.add_argument(
+    _key_flag(
+        r,
         "--pore-pressure-ratio",
-        dest="pore_pressure_ratio",
-        type=_key_type("--pore-pressure-ratio", "fluidisation.pore_pressure_ratio"),
-        help=_key_help("column: β, pore pressure over the lithostatic one", "fluidisation.pore_pressure_ratio"),
+        "fluidisation.pore_pressure_ratio",
+        "column: β, pore pressure over the lithostatic one",
     )
-    r.add_argument(
-        "--ny",
-        type=_key_type("--ny", "grid.ny"),
-        help=_key_help("column: cells over the domain height (256 is the paper's grid)", "grid.ny"),
+    _key_flag(r, "--ny", "grid.ny", "column: cells over the domain height (256 is the paper's grid)")
+    _key_flag(r, "--t-end", "time.t_end", "column: end of the simulated time, earlier at rest")
+    _key_flag(
+        r, "--rest-speed", "rest.speed", "column: the run stops at rest: granular speed below this for --rest-duration"
     )
-    r.add_argument(
-        "--t-end",
-        dest="t_end",
-        type=_key_type("--t-end", "time.t_end"),
-        help=_key_help("column: end of the simulated time, earlier at rest", "time.t_end"),
-    )
-    r.add_argument(
-        "--rest-speed",
-        dest="rest_speed",
-        type=_key_type("--rest-speed", "rest.speed"),
-        help=_key_help("column: the run stops at rest: granular speed below this for --rest-duration", "rest.speed"),
-    )
-    r.add_argument(
+    _key_flag(
+        r,
         "--rest-duration",
-        dest="rest_duration",
-        type=_key_type("--rest-duration", "rest.duration"),
-        help=_key_help(
-            "column: how long the granular speed stays below --rest-speed before the run stops", "rest.duration"
-        ),
+        "rest.duration",
+        "column: how long the granular speed stays below --rest-speed before the run stops",
     )
     r.add_argument(
         "--rheology",
         choices=_choices("rheology.law"),
         help=_key_help("column: the granular rheology", "rheology.law"),
     )
-    r.add_argument(
-        "--friction-angle",
-        dest="friction_angle",
-        type=_key_type("--friction-angle", "rheology.friction_angle"),
-        help=_key_help("column: internal friction angle α", "rheology.friction_angle"),
-    )
+    _key_flag(r, "--friction-angle", "rheology.friction_angle", "column: internal friction angle α")
     r.add_argument(
         "--model",
         default="two-phase",
@@ -622,28 +600,22 @@ def main(argv=None) -> int:
             "case.model",
         ),
     )
-    r.add_argument("--cfl", type=_key_type("--cfl", "time.cfl"), help=_key_help("column: CFL number", "time.cfl"))
-    r.add_argument(
+    _key_flag(r, "--cfl", "time.cfl", "column: CFL number")
+    _key_flag(
+        r,
         "--cfl-light",
-        dest="cfl_light",
-        type=_key_type("--cfl-light", "time.cfl_light"),
-        help=_key_help(
-            "column: CFL number of the air more than 6 cells from the grains, which keep --cfl; without it --cfl "
-            "everywhere",
-            "time.cfl_light",
-        ),
+        "time.cfl_light",
+        "column: CFL number of the air more than 6 cells from the grains, which keep --cfl; without it --cfl "
+        "everywhere",
     )
-    r.add_argument(
+    _key_flag(
+        r,
         "--active-region",
-        dest="active_region",
-        type=_key_type("--active-region", "active_region.band"),
+        "active_region.band",
+        "column: run each step on a window around the granular phase with BAND cells of air "
+        "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
+        "is within 0.1 % of the whole-domain run-out, BAND = 8 2.4 % long); without it, the whole domain",
         metavar="BAND",
-        help=_key_help(
-            "column: run each step on a window around the granular phase with BAND cells of air "
-            "(docs/models.md, active region; with --model granular take BAND >= 16: at ny = 64 BAND = 16 "
-            "is within 0.1 % of the whole-domain run-out, BAND = 8 2.4 % long); without it, the whole domain",
-            "active_region.band",
-        ),
     )
     r.add_argument(
         "--active-region-sides",
@@ -657,29 +629,20 @@ def main(argv=None) -> int:
             "active_region.sides",
         ),
     )
-    r.add_argument(
+    _key_flag(
+        r,
         "--channel-width",
-        dest="channel_width",
-        type=_key_type("--channel-width", "side_walls.width"),
+        "side_walls.width",
+        "column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
+        "not in the paper's 2D model; friction angle that of the base; docs/validation.md); without it, no side walls",
         metavar="W",
-        help=_key_help(
-            "column: the friction of a channel's side walls W metres apart (the paper's experiment: 0.10; "
-            "not in the paper's 2D model; friction angle that of the base; docs/validation.md); without it, no side walls",
-            "side_walls.width",
-        ),
     )
-    r.add_argument(
-        "--length",
-        type=_key_type("--length", "geometry.length"),
-        help=_key_help("column: domain length, beyond --width; without it L_c + 8.25 H_c", "geometry.length"),
-    )
+    _key_flag(r, "--length", "geometry.length", "column: domain length, beyond --width; without it L_c + 8.25 H_c")
     r.add_argument(
         "--compare-with", dest="compare_with", help="another column run's output folder to overlay on front.png"
     )
     r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument(
-        "--threads", type=_key_type("--threads", "numerics.threads"), help=_key_help("Rust threads", "numerics.threads")
-    )
+    _key_flag(r, "--threads", "numerics.threads", "Rust threads")
     r.add_argument("--out", help="output folder, new or empty unless --overwrite (a run file's output.dir by default)")
 
     s = sub.add_parser("sweep", help="run the cartesian product of swept keys of a run file on dask")
