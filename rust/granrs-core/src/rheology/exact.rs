@@ -492,10 +492,7 @@ impl ExactStep {
                 }
             }
             t.r = if norm2 > 0.0 { d / (t.w * norm2) } else { 0.0 };
-            let s = t.sigma[0].hypot(t.sigma[1]);
-            if s > 1.0 {
-                t.sigma = [t.sigma[0] / s, t.sigma[1] / s];
-            }
+            t.sigma = onto_ball(t.sigma);
         }
         let apply_b = |t: &Term, x: &[f64]| -> [f64; 2] {
             let mut y = t.beta;
@@ -674,12 +671,7 @@ impl ExactStep {
                     // from the interior point's solution, the trial multipliers on their balls:
                     // a location at the edge of its ball (|z_k| → 1) amplifies the linear
                     // solve's round-off into |σ_k| − 1, which would hold the residual there
-                    for s in st.iter_mut() {
-                        let m = s[0].hypot(s[1]);
-                        if m > 1.0 {
-                            *s = [s[0] / m, s[1] / m];
-                        }
-                    }
+                    st.iter_mut().for_each(|s| *s = onto_ball(*s));
                 }
                 let (mt, _, _) = residuals(&xt, &st, &mut fu_trial, &mut fk_trial);
                 let m = merit(mt, &fk_trial);
@@ -765,6 +757,16 @@ impl ExactStep {
     fn factor_solve(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], symmetric: bool, x: &mut [f64]) -> Result<()> {
         factor(cache, n, trip, symmetric)?.solve_in_place(x);
         Ok(())
+    }
+}
+
+/// The projection of σ on the unit ball.
+fn onto_ball(s: [f64; 2]) -> [f64; 2] {
+    let m = s[0].hypot(s[1]);
+    if m > 1.0 {
+        [s[0] / m, s[1] / m]
+    } else {
+        s
     }
 }
 
