@@ -257,6 +257,19 @@ def run_column(
     for key in ("picard_iterations",):
         if key in hist:
             summary[key + "_median"] = float(np.median(hist[key]))
+    if "solver" in opts and "picard_iterations" in hist:
+        # the bi-projection's solver and its iterations per accepted step (Picard iterations, or
+        # the exact step's sparse factorisations); with the exact step, the largest residual of
+        # eq. (11) it accepted (each below bi_projection.newton_tol)
+        its = hist["picard_iterations"]
+        summary["bi_projection_solver"] = opts["solver"]
+        summary["bi_projection_iterations"] = {
+            "median": float(np.median(its)),
+            "p90": float(np.percentile(its, 90)),
+            "max": int(np.max(its)),
+        }
+        if opts["solver"] == "newton":
+            summary["eq11_residual_max"] = float(np.max(hist["picard_increment"]))
     if "picard_r_halvings" in hist:
         summary["picard_r_halvings_total"] = int(np.sum(hist["picard_r_halvings"]))
     cap = opts["proximal_restarts"]

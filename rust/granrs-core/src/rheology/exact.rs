@@ -36,7 +36,8 @@
 //!
 //!   (A + Σ_k w_k B_kᵀ S_k B_k) du = −F_u + Σ_k w_k B_kᵀ t_k,
 //!
-//! a sparse system factorised by faer's sparse Cholesky (LU where A is not symmetric). A
+//! a sparse system factorised by faer's sparse Cholesky (LU where A is not symmetric), its
+//! solution refined [`REFINEMENTS`] times against the matrix applied term by term. A
 //! flowing location adds the Hessian of w|B u| (the viscosity w/|B u| across the flow
 //! direction); a rigid one adds the penalty
 //! (w r/δ) BᵀB that holds B u = 0, whose multiplier σ is updated from it. δ changes the step,
@@ -58,17 +59,29 @@
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–16 and
 //! passes the same check on the first steps at ny = 32. Sparse factorisations per step, column
-//! to t = 0.1 s (median): dry 20 at ny = 16 and 26 at ny = 32 (the interior point's 10–14
+//! to t = 0.1 s (median): dry 21 at ny = 16 and 28 at ny = 32 (the interior point's 10–14
 //! included), fluidised 4 at both (the warm loop converges). The cost, one sparse factorisation
 //! of the whole domain per iteration, is why the column's default is the Picard iteration. The
-//! finish can stall near its tolerance (the dry column at ny = 16 stops at t = 1.03 s, projection
-//! residual 4.0e-9).
+//! finish can stall: the dry column at ny = 16 stops at t = 1.40 s with the momentum residual at
+//! 9.8e-8 (projection residual 3.3e-12), where friction faces at rest sit at the edge of their
+//! ball (|z_k| = 1 to 1e-6).
 //!
-//! **Stopping test: the residual of eq. (11).** The loop stops when
-//! ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w_k B_kᵀσ_k‖₂) and max_k |F_k| are both below `newton_tol`, with
-//! r_k = d_k/(w_k ‖B_k‖²) (d_k the largest diagonal of A on the term's faces: the scale at
-//! which a unit change of σ_k and of r_k B_k u are comparable). It fails with the step, time and
-//! residual after `newton_max_iterations`.
+//! **The iteration's r_k** is d_k/(w_k ‖B_k‖²) (d_k the largest diagonal of A on the term's
+//! faces: the scale at which a unit change of σ_k and of r_k B_k u are comparable). It spans
+//! 1e5–1e12 on the column (A's diagonal reaches 1e11 in the grains, w_k falls to 1e-5 at the
+//! surface), so it is not the stopping test's.
+//!
+//! **Stopping test: the residual of eq. (11), in norms that do not grow with the grid or with
+//! r_k.** The loop stops when both are below `newton_tol`:
+//! - the momentum residual max_f |F_u,f| / max_f (|b_f| + |(Au)_f| + |(Σ w_k B_kᵀσ_k)_f|);
+//! - the projection residual max_k |σ_k − P(σ_k + r̂_k(B_k u + β_k))| with one r̂ for all
+//!   locations: r̂ = h/U at a plastic location and 1/U at a friction face, h = min(δx, δy) and
+//!   U = max_f |b_f|/A_ff (the largest velocity a face reaches in the step with neither coupling
+//!   nor yield stress). A rigid location then counts |B_k u| relative to U/h, and the residual's
+//!   round-off floor is that of u, about 1e-16; with the iteration's r_k it would be up to
+//!   r_k·1e-16|B_k||u| ~ 1e-4.
+//!
+//! It fails with the step, time and residual after `newton_max_iterations`.
 
 #![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
 
@@ -91,6 +104,9 @@ pub const POLISH_DELTA: f64 = 1e-6;
 
 /// Semismooth Newton iterations from the warm start before the interior point takes over.
 pub const WARM_TRIES: usize = 6;
+
+/// Iterative refinements of each Newton solve.
+pub const REFINEMENTS: usize = 2;
 
 /// Backtracking halvings of one Newton step at most.
 const MAX_HALVINGS: usize = 12;
@@ -503,8 +519,23 @@ impl ExactStep {
             }
             y
         };
-        // F_u, F_k and the residuals at (x, σ)
-        let residuals = |x: &[f64], sig: &[[f64; 2]], fu: &mut Vec<f64>, fk: &mut Vec<[f64; 2]>| -> (f64, f64, f64) {
+        // the stopping test's scales (module doc): U the largest |b_f|/A_ff, the velocity a face
+        // reaches in the step with neither coupling nor yield stress; r̂ = h/U at a plastic
+        // location (B u a strain rate), 1/U at a friction face
+        let u_ref = {
+            let u = b.iter().zip(&diag).fold(0.0f64, |m, (b, d)| if *d > 0.0 { m.max((b / d).abs()) } else { m });
+            if u > 0.0 && u.is_finite() {
+                u
+            } else {
+                1.0
+            }
+        };
+        let h = grid.dx.min(grid.dy);
+        let r_hat = |t: &Term| if t.dim == 1 { 1.0 / u_ref } else { h / u_ref };
+        // F_u, F_k and the residuals at (x, σ): (‖F_u‖₂ relative and max_k |F_k| with the
+        // iteration's r_k, which the merit uses; the stopping test's momentum and projection
+        // residuals, in the maximum norm and with r̂)
+        let residuals = |x: &[f64], sig: &[[f64; 2]], fu: &mut Vec<f64>, fk: &mut Vec<[f64; 2]>| -> (f64, f64, f64, f64) {
             let mut ax = vec![0.0; n];
             faer::sparse::linalg::matmul::sparse_dense_matmul(
                 faer::MatMut::from_column_major_slice_mut(&mut ax, n, 1),
@@ -515,16 +546,15 @@ impl ExactStep {
                 faer::Par::Seq,
             );
             let mut force = vec![0.0; n];
-            let mut proj = 0.0f64;
+            let (mut proj, mut proj_hat) = (0.0f64, 0.0f64);
+            let nan_max = |a: f64, b: f64| if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) };
             fk.clear();
             for (t, s) in terms.iter().zip(sig) {
                 let y = apply_b(t, x);
-                let z = [s[0] + t.r * y[0], s[1] + t.r * y[1]];
-                let nz = z[0].hypot(z[1]);
-                let p = if nz > 1.0 { [z[0] / nz, z[1] / nz] } else { z };
-                let f = [s[0] - p[0], s[1] - p[1]];
-                let fm = f[0].hypot(f[1]);
-                proj = if fm.is_nan() || proj.is_nan() { f64::NAN } else { proj.max(fm) };
+                let f = natural_residual(*s, y, t.r);
+                proj = nan_max(proj, f[0].hypot(f[1]));
+                let g = natural_residual(*s, y, r_hat(t));
+                proj_hat = nan_max(proj_hat, g[0].hypot(g[1]));
                 fk.push(f);
                 for c in 0..t.dim {
                     for e in t.rows[c].clone() {
@@ -534,6 +564,7 @@ impl ExactStep {
             }
             fu.clear();
             let (mut n_b, mut n_a, mut n_f, mut n_r) = (0.0, 0.0, 0.0, 0.0);
+            let (mut max_r, mut max_s) = (0.0f64, 0.0f64);
             for k in 0..n {
                 let r = ax[k] - b[k] + force[k];
                 fu.push(r);
@@ -541,20 +572,24 @@ impl ExactStep {
                 n_a += ax[k] * ax[k];
                 n_f += force[k] * force[k];
                 n_r += r * r;
+                max_r = nan_max(max_r, r.abs());
+                max_s = max_s.max(b[k].abs() + ax[k].abs() + force[k].abs());
             }
-            let scale = n_b.sqrt() + n_a.sqrt() + n_f.sqrt();
-            let mom = if scale > 0.0 {
-                n_r.sqrt() / scale
-            } else if n_r == 0.0 {
-                0.0
-            } else {
-                f64::NAN
+            let relative = |r: f64, s: f64| {
+                if s > 0.0 {
+                    r / s
+                } else if r == 0.0 {
+                    0.0
+                } else {
+                    f64::NAN
+                }
             };
-            (mom, proj, scale)
+            let mom = relative(n_r.sqrt(), n_b.sqrt() + n_a.sqrt() + n_f.sqrt());
+            (mom, proj, relative(max_r, max_s), proj_hat)
         };
         let mut sig: Vec<[f64; 2]> = terms.iter().map(|t| t.sigma).collect();
         let (mut fu, mut fk) = (Vec::with_capacity(n), Vec::with_capacity(terms.len()));
-        let (mut mom, mut proj, mut scale) = residuals(&x, &sig, &mut fu, &mut fk);
+        let (mut mom, _, mut mom_max, mut proj) = residuals(&x, &sig, &mut fu, &mut fk);
         let mut iterations = 0;
         let mut s_mat: Vec<[[f64; 2]; 2]> = vec![[[0.0; 2]; 2]; terms.len()];
         let mut t_vec: Vec<[f64; 2]> = vec![[0.0; 2]; terms.len()];
@@ -564,7 +599,7 @@ impl ExactStep {
         // from its point (δ = POLISH_DELTA)
         let mut polishing = false;
         let mut interior_iterations = 0;
-        while !(mom <= tol && proj <= tol) {
+        while !(mom_max <= tol && proj <= tol) {
             if !polishing && (iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite()) {
                 polishing = true;
                 let mut x0 = b.clone();
@@ -587,14 +622,14 @@ impl ExactStep {
                 sig = ip.sigma;
                 interior_iterations = ip.iterations;
                 iterations += ip.iterations;
-                (mom, proj, scale) = residuals(&x, &sig, &mut fu, &mut fk);
+                (mom, _, mom_max, proj) = residuals(&x, &sig, &mut fu, &mut fk);
                 continue;
             }
-            if iterations >= max_iterations || !mom.is_finite() || !proj.is_finite() {
+            if iterations >= max_iterations || !mom_max.is_finite() || !proj.is_finite() {
                 self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
                 return Err(Error::PicardNotConverged {
                     what: format!(
-                        "the exact step of eq. (11) did not converge: momentum residual {mom:.3e}, projection residual {proj:.3e} after {iterations} iterations ({interior_iterations} interior-point) (newton_tol {tol:.1e})"
+                        "the exact step of eq. (11) did not converge: momentum residual {mom_max:.3e}, projection residual {proj:.3e} after {iterations} iterations ({interior_iterations} interior-point) (newton_tol {tol:.1e})"
                     ),
                     step,
                     time,
@@ -646,8 +681,37 @@ impl ExactStep {
                     }
                 }
             }
-            let mut dx = rhs;
-            Self::factor_solve(&self.symbolic, n, &k_trip, symmetric, &mut dx)?;
+            // the solve, refined against the matrix applied term by term: the penalty w r/δ
+            // of a rigid location scales the round-off of one solve by about 1/δ
+            let fac = factor(&self.symbolic, n, &k_trip, symmetric)?;
+            let mut dx = rhs.clone();
+            fac.solve_in_place(&mut dx);
+            for _ in 0..REFINEMENTS {
+                let mut res = rhs.clone();
+                let mut adx = vec![0.0; n];
+                faer::sparse::linalg::matmul::sparse_dense_matmul(
+                    faer::MatMut::from_column_major_slice_mut(&mut adx, n, 1),
+                    faer::Accum::Replace,
+                    a_mat.as_ref(),
+                    faer::MatRef::from_column_major_slice(&dx, n, 1),
+                    1.0,
+                    faer::Par::Seq,
+                );
+                res.iter_mut().zip(&adx).for_each(|(r, a)| *r -= a);
+                for (idx, t) in terms.iter().enumerate() {
+                    let by = apply_b(t, &dx);
+                    let bd = [by[0] - t.beta[0], by[1] - t.beta[1]];
+                    let sm = s_mat[idx];
+                    for c in 0..t.dim {
+                        let q = t.w * (sm[c][0] * bd[0] + sm[c][1] * bd[1]);
+                        for e in t.rows[c].clone() {
+                            res[cols[e]] -= vals[e] * q;
+                        }
+                    }
+                }
+                fac.solve_in_place(&mut res);
+                dx.iter_mut().zip(&res).for_each(|(d, r)| *d += r);
+            }
             let dsig: Vec<[f64; 2]> = terms
                 .iter()
                 .enumerate()
@@ -673,7 +737,7 @@ impl ExactStep {
                     // solve's round-off into |σ_k| − 1, which would hold the residual there
                     st.iter_mut().for_each(|s| *s = onto_ball(*s));
                 }
-                let (mt, _, _) = residuals(&xt, &st, &mut fu_trial, &mut fk_trial);
+                let (mt, _, _, _) = residuals(&xt, &st, &mut fu_trial, &mut fk_trial);
                 let m = merit(mt, &fk_trial);
                 if best.as_ref().is_none_or(|b| m < b.0) {
                     best = Some((m, xt, st));
@@ -686,9 +750,8 @@ impl ExactStep {
             let (_, xt, st) = best.expect("one trial at least");
             x = xt;
             sig = st;
-            (mom, proj, scale) = residuals(&x, &sig, &mut fu, &mut fk);
+            (mom, _, mom_max, proj) = residuals(&x, &sig, &mut fu, &mut fk);
         }
-        let _ = scale;
         self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
         // write back ũ, σ and the stored equivalents
         for j in 0..ny {
@@ -750,7 +813,7 @@ impl ExactStep {
                 }
             }
         }
-        Ok(NewtonInfo { iterations, interior_iterations, momentum_residual: mom, projection_residual: proj, unknowns: n, terms: terms.len() })
+        Ok(NewtonInfo { iterations, interior_iterations, momentum_residual: mom_max, projection_residual: proj, unknowns: n, terms: terms.len() })
     }
 
     /// Factorises the matrix of `trip` (duplicates summed; `cone::factor`) and solves in place.
@@ -758,6 +821,12 @@ impl ExactStep {
         factor(cache, n, trip, symmetric)?.solve_in_place(x);
         Ok(())
     }
+}
+
+/// σ − P(σ + r y), P the projection on the unit ball.
+fn natural_residual(s: [f64; 2], y: [f64; 2], r: f64) -> [f64; 2] {
+    let p = onto_ball([s[0] + r * y[0], s[1] + r * y[1]]);
+    [s[0] - p[0], s[1] - p[1]]
 }
 
 /// The projection of σ on the unit ball.

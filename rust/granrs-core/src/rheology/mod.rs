@@ -443,7 +443,8 @@ pub struct RheologyConfig {
     /// How the step of eq. (11) is solved: the Picard iteration of eq. (12), or the exact step
     /// ([`exact`]).
     pub solver: BiProjectionSolver,
-    /// The exact step stops when both residuals of eq. (11) are below this.
+    /// The exact step stops when both residuals of eq. (11) are below this (`exact.rs`, the
+    /// stopping test).
     pub newton_tol: f64,
     /// Iteration cap of the exact step: sparse factorisations, the interior point's included
     /// (reaching it rejects the step, or stops the run).
@@ -510,7 +511,7 @@ pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
         1e-14,
         1e-2,
         "1",
-        "the exact step stops when the relative momentum residual and the projection residual of eq. (11) are below this",
+        "the exact step stops when the momentum residual (maximum norm, relative) and the projection residual of eq. (11) (one r for every location: h/U, U the step's largest uncoupled face velocity) are below this",
     ),
     options::int(
         "bi_projection",
