@@ -45,6 +45,19 @@ impl Factor {
     }
 }
 
+/// out ← A x (serial, the same bits on every thread setting).
+pub(crate) fn apply(a: &SparseColMat<usize, f64>, x: &[f64], out: &mut [f64]) {
+    let n = x.len();
+    faer::sparse::linalg::matmul::sparse_dense_matmul(
+        faer::MatMut::from_column_major_slice_mut(out, a.nrows(), 1),
+        faer::Accum::Replace,
+        a.as_ref(),
+        faer::MatRef::from_column_major_slice(x, n, 1),
+        1.0,
+        faer::Par::Seq,
+    );
+}
+
 /// Whether `a` is symmetric to 1e-14 of its largest entry (the predictor's operator with walls
 /// on every side is, to the last bit; periodic or open sides need not be).
 pub(crate) fn is_symmetric(a: &SparseColMat<usize, f64>) -> bool {

@@ -87,7 +87,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{factor, is_symmetric, Slot, SymbolicCache, Term};
+use super::cone::{apply, factor, is_symmetric, Slot, SymbolicCache, Term};
 use super::interior_point;
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -537,14 +537,7 @@ impl ExactStep {
         // residuals, in the maximum norm and with r̂)
         let residuals = |x: &[f64], sig: &[[f64; 2]], fu: &mut Vec<f64>, fk: &mut Vec<[f64; 2]>| -> (f64, f64, f64, f64) {
             let mut ax = vec![0.0; n];
-            faer::sparse::linalg::matmul::sparse_dense_matmul(
-                faer::MatMut::from_column_major_slice_mut(&mut ax, n, 1),
-                faer::Accum::Replace,
-                a_mat.as_ref(),
-                faer::MatRef::from_column_major_slice(x, n, 1),
-                1.0,
-                faer::Par::Seq,
-            );
+            apply(&a_mat, x, &mut ax);
             let mut force = vec![0.0; n];
             let (mut proj, mut proj_hat) = (0.0f64, 0.0f64);
             let nan_max = |a: f64, b: f64| if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) };
@@ -689,14 +682,7 @@ impl ExactStep {
             for _ in 0..REFINEMENTS {
                 let mut res = rhs.clone();
                 let mut adx = vec![0.0; n];
-                faer::sparse::linalg::matmul::sparse_dense_matmul(
-                    faer::MatMut::from_column_major_slice_mut(&mut adx, n, 1),
-                    faer::Accum::Replace,
-                    a_mat.as_ref(),
-                    faer::MatRef::from_column_major_slice(&dx, n, 1),
-                    1.0,
-                    faer::Par::Seq,
-                );
+                apply(&a_mat, &dx, &mut adx);
                 res.iter_mut().zip(&adx).for_each(|(r, a)| *r -= a);
                 for (idx, t) in terms.iter().enumerate() {
                     let by = apply_b(t, &dx);

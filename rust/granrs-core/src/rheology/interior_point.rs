@@ -37,7 +37,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{factor, SymbolicCache, Term};
+use super::cone::{apply, factor, SymbolicCache, Term};
 use crate::error::{Error, Result};
 
 /// The projection residual of eq. (11) at which the interior point hands over to the
@@ -188,14 +188,7 @@ pub(crate) fn solve(
             });
         }
         // r_x = A x − b − Σ B_kᵀ z_y,k
-        faer::sparse::linalg::matmul::sparse_dense_matmul(
-            faer::MatMut::from_column_major_slice_mut(&mut ax, n, 1),
-            faer::Accum::Replace,
-            a_mat.as_ref(),
-            faer::MatRef::from_column_major_slice(&x, n, 1),
-            1.0,
-            faer::Par::Seq,
-        );
+        apply(a_mat, &x, &mut ax);
         let mut rx: Vec<f64> = ax.iter().zip(b).map(|(a, b)| a - b).collect();
         for (k, term) in terms.iter().enumerate() {
             for c in 0..term.dim {
