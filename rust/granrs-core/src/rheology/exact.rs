@@ -121,9 +121,9 @@ pub struct NewtonInfo {
     pub iterations: usize,
     /// Of which interior-point iterations (zero when the warm semismooth loop converged).
     pub interior_iterations: usize,
-    /// Relative momentum residual ‖F_u‖₂/(‖b‖₂ + ‖Au‖₂ + ‖Σ w Bᵀσ‖₂) at the end.
+    /// Momentum residual max_f |F_u,f| / max_f (|b_f| + |(Au)_f| + |(Σ w Bᵀσ)_f|) at the end.
     pub momentum_residual: f64,
-    /// max_k |σ_k − P(σ_k + r_k(B_k u + β_k))| at the end.
+    /// max_k |σ_k − P(σ_k + r̂_k(B_k u + β_k))| at the end (r̂: the stopping test's, module doc).
     pub projection_residual: f64,
     /// Number of unknown faces and of terms (plastic locations and friction faces).
     pub unknowns: usize,

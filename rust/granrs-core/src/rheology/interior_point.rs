@@ -28,9 +28,9 @@
 //!
 //! **Start and stop.** x starts at the predictor without yield stress or friction (A x = b),
 //! t_k = 2|B_k x + β_k| (a positive floor where it vanishes) and z_k = (w_k, 0). The stage stops
-//! when the projection residual of eq. (11) at (x, σ) is below [`POLISH_START`]: the semismooth
-//! Newton loop then finishes the step from that point (`exact.rs`), where the interior point
-//! would slow down (the scaled system's condition grows as 1/μ).
+//! when the projection residual of eq. (11) at (x, σ), with the iteration's r_k (`exact.rs`), is
+//! below [`POLISH_START`]: the semismooth Newton loop then finishes the step from that point,
+//! where the interior point would slow down (the scaled system's condition grows as 1/μ).
 
 #![allow(clippy::needless_range_loop)] // the loops run over a cone's one or two components
 #![allow(clippy::type_complexity)] // a Newton direction's four parts, named where it is built
