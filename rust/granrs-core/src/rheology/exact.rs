@@ -59,8 +59,8 @@
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–16 and
 //! passes the same check on the first steps at ny = 32. Sparse factorisations per step, column
-//! to t = 0.1 s (median): dry 21 at ny = 16 and 28 at ny = 32 (the interior point's 10–14
-//! included), fluidised 4 at both (the warm loop converges). The cost, one sparse factorisation
+//! to t = 0.1 s (median): dry 21, 28 and 34 at ny = 16, 32 and 64 (the interior point's 10–14
+//! included), fluidised 4–4.5 (the warm loop converges). The cost, one sparse factorisation
 //! of the whole domain per iteration, is why the column's default is the Picard iteration. The
 //! finish can stall: the dry column at ny = 16 stops at t = 1.40 s with the momentum residual at
 //! 9.8e-8 (projection residual 3.3e-12), where friction faces at rest sit at the edge of their
