@@ -21,6 +21,10 @@ The acceptance is 1e-6 relative on x (‖x_g − x_c‖/‖x_c‖) and on the pl
 from __future__ import annotations
 
 import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
 
 import clarabel
 import numpy as np
@@ -28,7 +32,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from granrs.cases.column import ColumnCase, Fluidisation, build_model, column_rheology
+from granrs.cases.column import ColumnCase, Fluidisation, build_model, column_rheology, run_column
 
 #: Clarabel's settings. The tolerances are below what double precision lets it reach on these
 #: problems: it stops at its best iterate with the status AlmostSolved (its full tolerances not
@@ -265,8 +269,6 @@ def test_the_summary_reports_the_solver_its_iterations_and_residual(tmp_path):
     """summary.json of a column run with the exact step: the solver, its iterations per step
     (median, 90th percentile, largest) and the largest residual of eq. (11) it accepted, below
     newton_tol; with the Picard iteration, no residual of eq. (11) (its increment is not one)."""
-    from granrs.cases.column import run_column
-
     rheology = column_rheology()
     newton = dataclasses.replace(rheology, projection=dataclasses.replace(rheology.projection, solver="newton"))
     s = run_column(ColumnCase(ny=8, t_end=0.05, rheology=newton), tmp_path / "newton", progress=False)
@@ -277,3 +279,31 @@ def test_the_summary_reports_the_solver_its_iterations_and_residual(tmp_path):
     p = run_column(ColumnCase(ny=8, t_end=0.05), tmp_path / "picard", progress=False)
     assert p["bi_projection_solver"] == "picard" and "eq11_residual_max" not in p
     assert 1 <= p["bi_projection_iterations"]["median"] <= p["bi_projection_iterations"]["max"]
+
+
+def test_the_solver_cost_benchmark_runs_each_solver(tmp_path):
+    """benchmarks/solver_cost.py (docs/benchmarks.md, "The exact-step solver costs") at ny = 8 for
+    0.02 s, one round: a row per solver with its iterations, the exact step's residual below
+    newton_tol, and the Picard run's ratio to itself."""
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "solver_cost.py"
+    out = tmp_path / "rows.json"
+    cmd = [
+        sys.executable,
+        str(script),
+        "--ny",
+        "8",
+        "--columns",
+        "dry",
+        "--t-end",
+        "0.02",
+        "--rounds",
+        "1",
+        "--out",
+        str(out),
+    ]
+    r = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    rows = {row["solver"]: row for row in json.loads(out.read_text())["rows"]}
+    assert set(rows) == {"picard", "newton", "recipe"}
+    assert all(row["stop_reason"] == "stop_time" and row["iterations"]["median"] >= 1 for row in rows.values())
+    assert rows["newton"]["eq11_residual_max"] <= 1e-9 and rows["picard"]["eq11_residual_max"] is None
+    assert "| 8 | dry | picard |" in r.stdout and "| 1.00 |" in r.stdout
