@@ -233,7 +233,7 @@ def test_a_column_run_that_fails_at_its_first_step_reports_it_and_keeps_its_outp
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["stop_reason"].startswith("error:") and "Picard" in summary["stop_reason"], summary
     assert summary["steps"] == 0 and summary["t_end_s"] == 0.0
-    assert summary["pressure_iterations_max"] == 0 and "picard_iterations_median" not in summary
+    assert summary["pressure_iterations_max"] == 0 and "bi_projection_iterations" not in summary
     with np.load(tmp_path / "history.npz") as hist:
         assert hist["time"].size == 0 and "picard_iterations" in hist.files
     for name in ("front.csv", "profiles.csv", "front.png", "profiles.png"):

@@ -254,9 +254,6 @@ def run_column(
         "case": case.summary(),
     }
     summary.update(arrest_summary(rec["t"], front, rec["max_granular_speed"], summary["stop_reason"], rest.since))
-    for key in ("picard_iterations",):
-        if key in hist:
-            summary[key + "_median"] = float(np.median(hist[key]))
     if "solver" in opts and "picard_iterations" in hist:
         # the bi-projection's solver and its iterations per accepted step (Picard iterations, or
         # the exact step's sparse factorisations); with the exact step, the largest residual of

@@ -679,11 +679,10 @@ impl ExactStep {
             let fac = factor(&self.symbolic, n, &k_trip, symmetric)?;
             let mut dx = rhs.clone();
             fac.solve_in_place(&mut dx);
+            let (mut res, mut adx) = (vec![0.0; n], vec![0.0; n]);
             for _ in 0..REFINEMENTS {
-                let mut res = rhs.clone();
-                let mut adx = vec![0.0; n];
                 apply(&a_mat, &dx, &mut adx);
-                res.iter_mut().zip(&adx).for_each(|(r, a)| *r -= a);
+                res.iter_mut().zip(&rhs).zip(&adx).for_each(|((r, b), a)| *r = b - a);
                 for (idx, t) in terms.iter().enumerate() {
                     let by = apply_b(t, &dx);
                     let bd = [by[0] - t.beta[0], by[1] - t.beta[1]];
