@@ -8,10 +8,15 @@
 //! (Muravleva & Olshanskii 2008, *Russ. J. Numer. Anal. Math. Model.* 23; Bleyer 2018,
 //! *Comput. Methods Appl. Mech. Eng.* 330).
 
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, Lu, SymbolicLlt, SymbolicLu};
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat, Triplet};
+use faer::{Conj, Par};
 use std::ops::Range;
+use std::sync::Arc;
 
 use crate::error::{Error, Result};
 use crate::grid::Side;
@@ -20,29 +25,48 @@ use crate::grid::Side;
 /// indices), reused while the pattern holds.
 pub(crate) type SymbolicCache = std::sync::Mutex<Option<(Vec<usize>, Vec<usize>, Symbolic)>>;
 
-/// A symbolic factorisation: Cholesky for a symmetric matrix, LU otherwise.
+/// A symbolic factorisation: supernodal Cholesky for a symmetric matrix, LU otherwise.
 #[derive(Clone)]
 pub(crate) enum Symbolic {
-    Llt(SymbolicLlt<usize>),
+    Llt(Arc<SymbolicCholesky<usize>>),
     Lu(SymbolicLu<usize>),
 }
 
-/// A numeric factorisation (`factor`).
+/// A numeric factorisation (`factor`): the Cholesky factor's values beside its symbolic part.
 pub(crate) enum Factor {
-    Llt(Llt<usize, f64>),
+    Llt(Arc<SymbolicCholesky<usize>>, Vec<f64>),
     Lu(Box<Lu<usize, f64>>),
 }
 
 impl Factor {
-    /// x ← M⁻¹x.
+    /// x ← M⁻¹x (serial: the same bits on every thread setting).
     pub(crate) fn solve_in_place(&self, x: &mut [f64]) {
         let n = x.len();
         let rhs = faer::MatMut::from_column_major_slice_mut(x, n, 1);
         match self {
-            Factor::Llt(f) => f.solve_in_place(rhs),
+            Factor::Llt(sym, values) => {
+                let mut buf = MemBuffer::new(sym.solve_in_place_scratch::<f64>(1, Par::Seq));
+                LltRef::new(sym, values).solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut buf));
+            }
             Factor::Lu(f) => f.solve_in_place(rhs),
         }
     }
+}
+
+/// The symbolic Cholesky factorisation of `mat`'s lower triangle: AMD ordering, supernodal (the
+/// Newton and interior-point matrices couple faces two cells apart and fill in enough for the
+/// dense blocks of the supernodal factorisation to pay on every grid of the column).
+fn symbolic_llt(mat: faer::sparse::SymbolicSparseColMatRef<'_, usize>) -> std::result::Result<SymbolicCholesky<usize>, faer::sparse::FaerError> {
+    let params = CholeskySymbolicParams { supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL, ..Default::default() };
+    factorize_symbolic_cholesky(mat, faer::Side::Lower, SymmetricOrdering::Amd, params)
+}
+
+/// The numeric Cholesky factor of `mat` with the symbolic part `sym`, serial.
+fn numeric_llt(sym: &Arc<SymbolicCholesky<usize>>, mat: faer::sparse::SparseColMatRef<'_, usize, f64>) -> Option<Factor> {
+    let mut values = vec![0.0; sym.len_val()];
+    let mut buf = MemBuffer::new(sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()));
+    sym.factorize_numeric_llt(&mut values, mat, faer::Side::Lower, Default::default(), Par::Seq, MemStack::new(&mut buf), Default::default()).ok()?;
+    Some(Factor::Llt(sym.clone(), values))
 }
 
 /// out ← A x (serial, the same bits on every thread setting).
@@ -96,33 +120,124 @@ pub(crate) struct Term {
     pub(crate) slot: Slot,
 }
 
-/// The factorisation of the matrix of `trip` (duplicates summed): sparse Cholesky where
-/// `symmetric` (the matrices of both solvers are then symmetric positive definite), sparse LU
-/// otherwise or where Cholesky meets a non-positive pivot; the symbolic part of `cache` is
-/// reused while the pattern is the same.
-pub(crate) fn factor(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], symmetric: bool) -> Result<Factor> {
+/// The matrix A + Σ_k B_kᵀ M_k B_k of both solvers (M_k a term's dim × dim block) on a pattern
+/// built once per step: each coefficient's place among the compressed values is found once, so
+/// an iteration sums its coefficients in place, in a fixed order, without sorting.
+pub(crate) struct Assembly {
+    symbolic: SymbolicSparseColMat<usize>,
+    /// The value index of each of A's triplets, then of each term coefficient in the order
+    /// `assemble` visits them (term k, c, d, e ∈ rows[c], g ∈ rows[d]).
+    place: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl Assembly {
+    /// The pattern of A (`a_trip`) and of every term's BᵀB (`cols`: B's column indices).
+    pub(crate) fn new(n: usize, a_trip: &[Triplet<usize, usize, f64>], terms: &[Term], cols: &[usize]) -> Result<Self> {
+        let mut entries: Vec<(usize, usize)> = a_trip.iter().map(|t| (t.row, t.col)).collect();
+        for t in terms {
+            for c in 0..t.dim {
+                for d in 0..t.dim {
+                    for e in t.rows[c].clone() {
+                        for g in t.rows[d].clone() {
+                            entries.push((cols[e], cols[g]));
+                        }
+                    }
+                }
+            }
+        }
+        // a counting sort by column, then each column's rows sorted and merged
+        let mut col_ptr = vec![0usize; n + 1];
+        for &(_, c) in &entries {
+            col_ptr[c + 1] += 1;
+        }
+        for j in 0..n {
+            col_ptr[j + 1] += col_ptr[j];
+        }
+        let mut next = col_ptr.clone();
+        let mut bucket = vec![(0usize, 0usize); entries.len()];
+        for (p, &(r, c)) in entries.iter().enumerate() {
+            bucket[next[c]] = (r, p);
+            next[c] += 1;
+        }
+        let mut place = vec![0usize; entries.len()];
+        let (mut ptr, mut rows) = (vec![0usize; n + 1], Vec::new());
+        for j in 0..n {
+            let col = &mut bucket[col_ptr[j]..col_ptr[j + 1]];
+            col.sort_unstable();
+            for (k, &(r, p)) in col.iter().enumerate() {
+                if k == 0 || r != col[k - 1].0 {
+                    rows.push(r);
+                }
+                place[p] = rows.len() - 1;
+            }
+            ptr[j + 1] = rows.len();
+        }
+        let nnz = rows.len();
+        let symbolic = SymbolicSparseColMat::new_checked(n, n, ptr, None, rows);
+        Ok(Assembly { symbolic, place, values: vec![0.0; nnz] })
+    }
+
+    /// The matrix with A's values (`a_trip`, in `new`'s order) and the blocks `block(k)` of the
+    /// terms (B's values `vals`).
+    #[allow(clippy::needless_range_loop)] // c and d index both the block and the term's rows
+    pub(crate) fn assemble(
+        &mut self,
+        a_trip: &[Triplet<usize, usize, f64>],
+        terms: &[Term],
+        vals: &[f64],
+        block: impl Fn(usize) -> [[f64; 2]; 2],
+    ) -> SparseColMatRef<'_, usize, f64> {
+        self.values.iter_mut().for_each(|v| *v = 0.0);
+        let mut p = 0;
+        for t in a_trip {
+            self.values[self.place[p]] += t.val;
+            p += 1;
+        }
+        for (k, t) in terms.iter().enumerate() {
+            let m = block(k);
+            for c in 0..t.dim {
+                for d in 0..t.dim {
+                    let coef = m[c][d];
+                    for e in t.rows[c].clone() {
+                        let ce = coef * vals[e];
+                        for g in t.rows[d].clone() {
+                            self.values[self.place[p]] += ce * vals[g];
+                            p += 1;
+                        }
+                    }
+                }
+            }
+        }
+        SparseColMatRef::new(self.symbolic.as_ref(), &self.values)
+    }
+}
+
+/// The factorisation of `mat`: sparse Cholesky where `symmetric` (the matrices of both solvers
+/// are then symmetric positive definite), sparse LU otherwise or where Cholesky meets a
+/// non-positive pivot; the symbolic part of `cache` is reused while the pattern is the same.
+pub(crate) fn factor(cache: &SymbolicCache, mat: SparseColMatRef<'_, usize, f64>, symmetric: bool) -> Result<Factor> {
     let fail = |e: String| Error::SolverFailure { solver: "sparse factorisation of the exact step (faer)".into(), message: e };
-    let mat = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip).map_err(|e| fail(format!("{e:?}")))?;
     let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
     let same = cache
         .as_ref()
         .is_some_and(|(p, r, sym)| p[..] == *mat.symbolic().col_ptr() && r[..] == *mat.symbolic().row_idx() && matches!(sym, Symbolic::Llt(_)) == symmetric);
     if !same {
         let sym = if symmetric {
-            Symbolic::Llt(SymbolicLlt::try_new(mat.symbolic(), faer::Side::Lower).map_err(|e| fail(format!("{e:?}")))?)
+            Symbolic::Llt(Arc::new(symbolic_llt(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?))
         } else {
             Symbolic::Lu(SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?)
         };
         *cache = Some((mat.symbolic().col_ptr().to_vec(), mat.symbolic().row_idx().to_vec(), sym));
     }
     match cache.as_ref().expect("set above").2.clone() {
-        Symbolic::Llt(sym) => match Llt::try_new_with_symbolic(sym, mat.as_ref(), faer::Side::Lower) {
-            Ok(f) => Ok(Factor::Llt(f)),
-            Err(_) => {
+        Symbolic::Llt(sym) => match numeric_llt(&sym, mat) {
+            Some(f) => Ok(f),
+            None => {
                 let sym = SymbolicLu::try_new(mat.symbolic()).map_err(|e| fail(format!("{e:?}")))?;
-                Ok(Factor::Lu(Box::new(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?)))
+                Ok(Factor::Lu(Box::new(Lu::try_new_with_symbolic(sym, mat).map_err(|e| fail(format!("{e:?}")))?)))
             }
         },
-        Symbolic::Lu(sym) => Ok(Factor::Lu(Box::new(Lu::try_new_with_symbolic(sym, mat.as_ref()).map_err(|e| fail(format!("{e:?}")))?))),
+        Symbolic::Lu(sym) => Ok(Factor::Lu(Box::new(Lu::try_new_with_symbolic(sym, mat).map_err(|e| fail(format!("{e:?}")))?))),
     }
 }

@@ -36,7 +36,8 @@
 //!
 //!   (A + Σ_k w_k B_kᵀ S_k B_k) du = −F_u + Σ_k w_k B_kᵀ t_k,
 //!
-//! a sparse system factorised by faer's sparse Cholesky (LU where A is not symmetric), its
+//! a sparse system factorised by faer's supernodal sparse Cholesky (LU where A is not symmetric;
+//! its pattern and the place of each coefficient are built once per step, `cone::Assembly`), its
 //! solution refined [`REFINEMENTS`] times against the matrix applied term by term. A
 //! flowing location adds the Hessian of w|B u| (the viscosity w/|B u| across the flow
 //! direction); a rigid one adds the penalty
@@ -87,7 +88,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{apply, factor, is_symmetric, Slot, SymbolicCache, Term};
+use super::cone::{apply, factor, is_symmetric, Assembly, Slot, SymbolicCache, Term};
 use super::interior_point;
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -580,6 +581,7 @@ impl ExactStep {
             let mom = relative(n_r.sqrt(), n_b.sqrt() + n_a.sqrt() + n_f.sqrt());
             (mom, proj, relative(max_r, max_s), proj_hat)
         };
+        let mut assembly = Assembly::new(n, &a_trip, &terms, &cols)?;
         let mut sig: Vec<[f64; 2]> = terms.iter().map(|t| t.sigma).collect();
         let (mut fu, mut fk) = (Vec::with_capacity(n), Vec::with_capacity(terms.len()));
         let (mut mom, _, mut mom_max, mut proj) = residuals(&x, &sig, &mut fu, &mut fk);
@@ -596,11 +598,11 @@ impl ExactStep {
             if !polishing && (iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite()) {
                 polishing = true;
                 let mut x0 = b.clone();
-                Self::factor_solve(&self.symbolic_a, n, &a_trip, symmetric, &mut x0)?;
+                factor(&self.symbolic_a, a_mat.as_ref(), symmetric)?.solve_in_place(&mut x0);
                 let mut projection = |x: &[f64], sig: &[[f64; 2]]| residuals(x, sig, &mut fu_trial, &mut fk_trial).1;
                 let ip = interior_point::solve(
                     n,
-                    &a_trip,
+                    (&a_trip, &mut assembly),
                     &a_mat,
                     &b,
                     &terms,
@@ -631,7 +633,6 @@ impl ExactStep {
             iterations += 1;
             // S_k, t_k and the Newton matrix
             let delta = if polishing { POLISH_DELTA } else { NEWTON_DELTA };
-            let mut k_trip = a_trip.clone();
             let mut rhs: Vec<f64> = fu.iter().map(|r| -r).collect();
             for (idx, t) in terms.iter().enumerate() {
                 let y = apply_b(t, &x);
@@ -657,26 +658,22 @@ impl ExactStep {
                 };
                 s_mat[idx] = sm;
                 t_vec[idx] = tv;
-                // w Bᵀ S B and w Bᵀ t
+                // w Bᵀ t (w Bᵀ S B: the assembly below)
                 for c in 0..t.dim {
                     for e in t.rows[c].clone() {
                         rhs[cols[e]] += t.w * vals[e] * tv[c];
-                    }
-                    // every coefficient, zero ones too: the pattern (and its symbolic
-                    // factorisation) is the same for every iteration of the step
-                    for d in 0..t.dim {
-                        let coef = t.w * sm[c][d];
-                        for e in t.rows[c].clone() {
-                            for g in t.rows[d].clone() {
-                                k_trip.push(Triplet::new(cols[e], cols[g], coef * vals[e] * vals[g]));
-                            }
-                        }
                     }
                 }
             }
             // the solve, refined against the matrix applied term by term: the penalty w r/δ
             // of a rigid location scales the round-off of one solve by about 1/δ
-            let fac = factor(&self.symbolic, n, &k_trip, symmetric)?;
+            // every coefficient, zero ones too: the pattern (and its symbolic factorisation) is
+            // the same for every iteration of the step
+            let k_mat = assembly.assemble(&a_trip, &terms, &vals, |k| {
+                let (w, m) = (terms[k].w, s_mat[k]);
+                [[w * m[0][0], w * m[0][1]], [w * m[1][0], w * m[1][1]]]
+            });
+            let fac = factor(&self.symbolic, k_mat, symmetric)?;
             let mut dx = rhs.clone();
             fac.solve_in_place(&mut dx);
             let (mut res, mut adx) = (vec![0.0; n], vec![0.0; n]);
@@ -799,12 +796,6 @@ impl ExactStep {
             }
         }
         Ok(NewtonInfo { iterations, interior_iterations, momentum_residual: mom_max, projection_residual: proj, unknowns: n, terms: terms.len() })
-    }
-
-    /// Factorises the matrix of `trip` (duplicates summed; `cone::factor`) and solves in place.
-    fn factor_solve(cache: &SymbolicCache, n: usize, trip: &[Triplet<usize, usize, f64>], symmetric: bool, x: &mut [f64]) -> Result<()> {
-        factor(cache, n, trip, symmetric)?.solve_in_place(x);
-        Ok(())
     }
 }
 

@@ -37,7 +37,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{apply, factor, SymbolicCache, Term};
+use super::cone::{apply, factor, Assembly, SymbolicCache, Term};
 use crate::error::{Error, Result};
 
 /// The projection residual of eq. (11) at which the interior point hands over to the
@@ -150,7 +150,7 @@ pub(crate) struct InteriorPoint {
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
     n: usize,
-    a_trip: &[Triplet<usize, usize, f64>],
+    (a_trip, assembly): (&[Triplet<usize, usize, f64>], &mut Assembly),
     a_mat: &SparseColMat<usize, f64>,
     b: &[f64],
     terms: &[Term],
@@ -198,10 +198,10 @@ pub(crate) fn solve(
             }
         }
         // scalings, λ, the reduced matrix
-        let mut k_trip = a_trip.to_vec();
         let mut scal = Vec::with_capacity(kc);
         let mut hs = Vec::with_capacity(kc);
         let mut lam = Vec::with_capacity(kc);
+        let mut blocks = Vec::with_capacity(kc);
         let scalings: Vec<Scaling> = (0..kc).map(|k| Scaling::new(t[k], y[k], w[k], zy[k])).collect();
         if scalings.iter().any(|s| !(s.eta.is_finite() && s.eta > 0.0 && s.w0.is_finite() && s.w1[0].is_finite() && s.w1[1].is_finite())) {
             // a point on a cone's boundary to round-off: the semismooth loop takes over
@@ -221,20 +221,12 @@ pub(crate) fn solve(
                 [hyy[0][0] - h0y[0] * h0y[0] / h00, hyy[0][1] - h0y[0] * h0y[1] / h00],
                 [hyy[1][0] - h0y[1] * h0y[0] / h00, hyy[1][1] - h0y[1] * h0y[1] / h00],
             ];
-            for c in 0..term.dim {
-                for d in 0..term.dim {
-                    for e in term.rows[c].clone() {
-                        for g in term.rows[d].clone() {
-                            k_trip.push(Triplet::new(cols[e], cols[g], m[c][d] * vals[e] * vals[g]));
-                        }
-                    }
-                }
-            }
+            blocks.push(m);
             lam.push(s.mul(w[k], zy[k]));
             scal.push(s);
             hs.push((h00, h0y, hyy));
         }
-        let lu = factor(cache, n, &k_trip, symmetric)?;
+        let lu = factor(cache, assembly.assemble(a_trip, terms, vals, |k| blocks[k]), symmetric)?;
         // one Newton direction for the right-hand sides q_k: (dx, dt, B dx, dz_y)
         let direction = |q: &[(f64, [f64; 2])]| -> (Vec<f64>, Vec<f64>, Vec<[f64; 2]>, Vec<[f64; 2]>) {
             let mut rhs: Vec<f64> = rx.iter().map(|r| -r).collect();
