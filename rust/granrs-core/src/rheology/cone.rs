@@ -71,11 +71,16 @@ fn numeric_llt(sym: &Arc<SymbolicCholesky<usize>>, mat: faer::sparse::SparseColM
 
 /// out ← A x (serial, the same bits on every thread setting).
 pub(crate) fn apply(a: &SparseColMat<usize, f64>, x: &[f64], out: &mut [f64]) {
+    apply_ref(a.as_ref(), x, out);
+}
+
+/// out ← A x for a borrowed matrix (`apply`).
+pub(crate) fn apply_ref(a: SparseColMatRef<'_, usize, f64>, x: &[f64], out: &mut [f64]) {
     let n = x.len();
     faer::sparse::linalg::matmul::sparse_dense_matmul(
         faer::MatMut::from_column_major_slice_mut(out, a.nrows(), 1),
         faer::Accum::Replace,
-        a.as_ref(),
+        a,
         faer::MatRef::from_column_major_slice(x, n, 1),
         1.0,
         faer::Par::Seq,

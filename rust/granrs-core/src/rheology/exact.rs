@@ -49,23 +49,22 @@
 //! predictor and of the strain rate.
 //!
 //! **Three stages.** The semismooth loop starts from the previous step's u and σ (δ =
-//! [`NEWTON_DELTA`]). If it has not converged after [`WARM_TRIES`] iterations, the step is
-//! solved afresh by the interior-point method of `interior_point.rs` (the same cone program,
-//! from the predictor without yield stress), whose iteration count depends little on the grid,
-//! down to a projection residual of 1e-4; the semismooth loop then finishes from that point with
-//! δ = [`POLISH_DELTA`], each trial multiplier put back on its ball before the merit is read (a
-//! location at the edge of its ball, |z_k| → 1, amplifies the linear solve's round-off into
-//! |σ_k| − 1 otherwise, and holds the residual there).
+//! [`NEWTON_DELTA`]). Once its momentum residual (relative, 2-norm) and its projection residual
+//! with the iteration's r_k are both below 1e-4 (`interior_point::POLISH_START`), or after
+//! [`WARM_TRIES`] iterations if they are not, the method of multipliers of `augmented.rs` finishes
+//! the step: in the second case from the interior-point solution of `interior_point.rs` (the
+//! same cone program, solved afresh from the predictor without yield stress down to that
+//! residual; its iteration count depends little on the grid). Each update of the method of
+//! multipliers leaves the momentum equation satisfied and moves σ by a proximal step on the
+//! dual problem, so it converges where the multipliers are not unique: locations and friction
+//! faces at rest on the edge of their ball (|z_k| = 1), whose share of the load the force
+//! balance leaves free, and where a Newton step on (u, σ) together has no unique direction.
 //!
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
-//! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–16 and
+//! independent interior-point solution of the same cone program to MEASURED_X (x) at ny = 8–16 and
 //! passes the same check on the first steps at ny = 32. Sparse factorisations per step, column
-//! to t = 0.1 s (median): dry 21, 28 and 34 at ny = 16, 32 and 64 (the interior point's 10–14
-//! included), fluidised 4–4.5 (the warm loop converges). The cost, one sparse factorisation
-//! of the whole domain per iteration, is why the column's default is the Picard iteration. The
-//! finish can stall: the dry column at ny = 16 stops at t = 1.40 s with the momentum residual at
-//! 9.8e-8 (projection residual 3.3e-12), the fluidised one at t = 1.09 s (5.8e-7), where friction
-//! faces at rest sit at the edge of their ball (|z_k| = 1 to 1e-6).
+//! to t = 0.1 s (median): MEASURED_COUNTS. The cost, one sparse factorisation of the whole domain
+//! per iteration, is why the column's default is the Picard iteration.
 //!
 //! **The iteration's r_k** is d_k/(w_k ‖B_k‖²) (d_k the largest diagonal of A on the term's
 //! faces: the scale at which a unit change of σ_k and of r_k B_k u are comparable). It spans
@@ -89,7 +88,7 @@
 use faer::sparse::{SparseColMat, Triplet};
 
 use super::cone::{apply, factor, is_symmetric, Assembly, Slot, SymbolicCache, Term};
-use super::interior_point;
+use super::{augmented, interior_point};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
 use crate::grid::{BoundaryConditions, Field, Grid, Location, Side, VelocityBc};
@@ -100,8 +99,8 @@ use std::ops::Range;
 /// δ of the Newton matrix (module doc): the relative stiffness 1/δ of a rigid location's penalty.
 pub const NEWTON_DELTA: f64 = 1e-4;
 
-/// δ of the semismooth loop that finishes the step from the interior point's solution.
-pub const POLISH_DELTA: f64 = 1e-6;
+/// The augmented-Lagrangian stage's penalties c_k = r_k/AUGMENTED_DELTA (`augmented.rs`).
+pub const AUGMENTED_DELTA: f64 = 1e-5;
 
 /// Semismooth Newton iterations from the warm start before the interior point takes over.
 pub const WARM_TRIES: usize = 6;
@@ -584,55 +583,80 @@ impl ExactStep {
         let mut assembly = Assembly::new(n, &a_trip, &terms, &cols)?;
         let mut sig: Vec<[f64; 2]> = terms.iter().map(|t| t.sigma).collect();
         let (mut fu, mut fk) = (Vec::with_capacity(n), Vec::with_capacity(terms.len()));
-        let (mut mom, _, mut mom_max, mut proj) = residuals(&x, &sig, &mut fu, &mut fk);
+        let (mut mom, mut proj_r, mut mom_max, mut proj) = residuals(&x, &sig, &mut fu, &mut fk);
         let mut iterations = 0;
         let mut s_mat: Vec<[[f64; 2]; 2]> = vec![[[0.0; 2]; 2]; terms.len()];
         let mut t_vec: Vec<[f64; 2]> = vec![[0.0; 2]; terms.len()];
         let (mut fu_trial, mut fk_trial) = (Vec::with_capacity(n), Vec::with_capacity(terms.len()));
-        // the semismooth loop from the warm start (δ = NEWTON_DELTA), then, if it has not
-        // converged after WARM_TRIES iterations, the interior point and the semismooth loop
-        // from its point (δ = POLISH_DELTA)
-        let mut polishing = false;
+        // the semismooth loop from the warm start; the augmented-Lagrangian stage from its point
+        // once its residuals are below POLISH_START, or from the interior point's if they are
+        // not after WARM_TRIES iterations
         let mut interior_iterations = 0;
         while !(mom_max <= tol && proj <= tol) {
-            if !polishing && (iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite()) {
-                polishing = true;
-                let mut x0 = b.clone();
-                factor(&self.symbolic_a, a_mat.as_ref(), symmetric)?.solve_in_place(&mut x0);
-                let mut projection = |x: &[f64], sig: &[[f64; 2]]| residuals(x, sig, &mut fu_trial, &mut fk_trial).1;
-                let ip = interior_point::solve(
+            let near = mom <= interior_point::POLISH_START && proj_r <= interior_point::POLISH_START;
+            if near || iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite() {
+                if !near {
+                    let mut x0 = b.clone();
+                    factor(&self.symbolic_a, a_mat.as_ref(), symmetric)?.solve_in_place(&mut x0);
+                    let mut projection = |x: &[f64], sig: &[[f64; 2]]| residuals(x, sig, &mut fu_trial, &mut fk_trial).1;
+                    let ip = interior_point::solve(
+                        n,
+                        (&a_trip, &mut assembly),
+                        &a_mat,
+                        &b,
+                        &terms,
+                        (&cols, &vals),
+                        x0,
+                        &apply_b,
+                        &mut projection,
+                        (&self.symbolic, symmetric),
+                        max_iterations.saturating_sub(iterations),
+                    )?;
+                    x = ip.x;
+                    sig = ip.sigma;
+                    interior_iterations = ip.iterations;
+                    iterations += ip.iterations;
+                }
+                let c: Vec<f64> = terms.iter().map(|t| t.r / AUGMENTED_DELTA).collect();
+                let mut converged = |x: &[f64], sig: &[[f64; 2]]| {
+                    let (_, _, m, p) = residuals(x, sig, &mut fu_trial, &mut fk_trial);
+                    m <= tol && p <= tol
+                };
+                let al = augmented::solve(
                     n,
                     (&a_trip, &mut assembly),
                     &a_mat,
                     &b,
                     &terms,
                     (&cols, &vals),
-                    x0,
+                    (x, sig),
+                    &c,
                     &apply_b,
-                    &mut projection,
+                    &mut converged,
+                    tol,
                     (&self.symbolic, symmetric),
                     max_iterations.saturating_sub(iterations),
                 )?;
-                x = ip.x;
-                sig = ip.sigma;
-                interior_iterations = ip.iterations;
-                iterations += ip.iterations;
-                (mom, _, mom_max, proj) = residuals(&x, &sig, &mut fu, &mut fk);
-                continue;
-            }
-            if iterations >= max_iterations || !mom_max.is_finite() || !proj.is_finite() {
-                self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
-                return Err(Error::PicardNotConverged {
-                    what: format!(
-                        "the exact step of eq. (11) did not converge: momentum residual {mom_max:.3e}, projection residual {proj:.3e} after {iterations} iterations ({interior_iterations} interior-point) (newton_tol {tol:.1e})"
-                    ),
-                    step,
-                    time,
-                });
+                x = al.x;
+                sig = al.sigma;
+                iterations += al.iterations;
+                (_, _, mom_max, proj) = residuals(&x, &sig, &mut fu, &mut fk);
+                if !(al.converged && mom_max <= tol && proj <= tol) {
+                    self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
+                    return Err(Error::PicardNotConverged {
+                        what: format!(
+                            "the exact step of eq. (11) did not converge: momentum residual {mom_max:.3e}, projection residual {proj:.3e} after {iterations} iterations ({interior_iterations} interior-point, {} augmented-Lagrangian updates) (newton_tol {tol:.1e})",
+                            al.outer
+                        ),
+                        step,
+                        time,
+                    });
+                }
+                break;
             }
             iterations += 1;
             // S_k, t_k and the Newton matrix
-            let delta = if polishing { POLISH_DELTA } else { NEWTON_DELTA };
+            let delta = NEWTON_DELTA;
             let mut rhs: Vec<f64> = fu.iter().map(|r| -r).collect();
             for (idx, t) in terms.iter().enumerate() {
                 let y = apply_b(t, &x);
@@ -712,13 +736,7 @@ impl ExactStep {
             let mut best: Option<(f64, Vec<f64>, Vec<[f64; 2]>)> = None;
             for _ in 0..=MAX_HALVINGS {
                 let xt: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
-                let mut st: Vec<[f64; 2]> = sig.iter().zip(&dsig).map(|(a, d)| [a[0] + alpha * d[0], a[1] + alpha * d[1]]).collect();
-                if polishing {
-                    // from the interior point's solution, the trial multipliers on their balls:
-                    // a location at the edge of its ball (|z_k| → 1) amplifies the linear
-                    // solve's round-off into |σ_k| − 1, which would hold the residual there
-                    st.iter_mut().for_each(|s| *s = onto_ball(*s));
-                }
+                let st: Vec<[f64; 2]> = sig.iter().zip(&dsig).map(|(a, d)| [a[0] + alpha * d[0], a[1] + alpha * d[1]]).collect();
                 let (mt, _, _, _) = residuals(&xt, &st, &mut fu_trial, &mut fk_trial);
                 let m = merit(mt, &fk_trial);
                 if best.as_ref().is_none_or(|b| m < b.0) {
@@ -732,7 +750,7 @@ impl ExactStep {
             let (_, xt, st) = best.expect("one trial at least");
             x = xt;
             sig = st;
-            (mom, _, mom_max, proj) = residuals(&x, &sig, &mut fu, &mut fk);
+            (mom, proj_r, mom_max, proj) = residuals(&x, &sig, &mut fu, &mut fk);
         }
         self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
         // write back ũ, σ and the stored equivalents

@@ -36,6 +36,7 @@
 //! Coulomb friction walls (paper eq. 8–9) are in [`crate::walls`].
 
 pub mod anderson;
+pub(crate) mod augmented;
 pub(crate) mod cone;
 pub mod exact;
 pub mod interior_point;
