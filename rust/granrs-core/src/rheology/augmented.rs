@@ -40,7 +40,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{apply, apply_ref, factor, Assembly, SymbolicCache, Term};
+use super::cone::{apply, apply_ref, factor, onto_ball, Assembly, SymbolicCache, Term};
 use crate::error::Result;
 
 /// The step's stopping test at (x, σ).
@@ -57,16 +57,6 @@ pub(crate) struct Augmented {
     pub outer: usize,
     /// Whether `converged(x, σ)` held at the end.
     pub converged: bool,
-}
-
-/// The projection on the unit ball.
-fn onto_ball(s: [f64; 2]) -> [f64; 2] {
-    let m = s[0].hypot(s[1]);
-    if m > 1.0 {
-        [s[0] / m, s[1] / m]
-    } else {
-        s
-    }
 }
 
 /// Runs the stage from (x, σ) with the penalties `c` (one per term). `apply_b(t, x)` is

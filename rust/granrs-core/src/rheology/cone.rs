@@ -87,6 +87,16 @@ pub(crate) fn apply_ref(a: SparseColMatRef<'_, usize, f64>, x: &[f64], out: &mut
     );
 }
 
+/// The projection of σ on the unit ball.
+pub(crate) fn onto_ball(s: [f64; 2]) -> [f64; 2] {
+    let m = s[0].hypot(s[1]);
+    if m > 1.0 {
+        [s[0] / m, s[1] / m]
+    } else {
+        s
+    }
+}
+
 /// Whether `a` is symmetric to 1e-14 of its largest entry (the predictor's operator with walls
 /// on every side is, to the last bit; periodic or open sides need not be).
 pub(crate) fn is_symmetric(a: &SparseColMat<usize, f64>) -> bool {

@@ -89,7 +89,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{apply, factor, is_symmetric, Assembly, Slot, SymbolicCache, Term};
+use super::cone::{apply, factor, is_symmetric, onto_ball, Assembly, Slot, SymbolicCache, Term};
 use super::{augmented, interior_point};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -823,16 +823,6 @@ impl ExactStep {
 fn natural_residual(s: [f64; 2], y: [f64; 2], r: f64) -> [f64; 2] {
     let p = onto_ball([s[0] + r * y[0], s[1] + r * y[1]]);
     [s[0] - p[0], s[1] - p[1]]
-}
-
-/// The projection of σ on the unit ball.
-fn onto_ball(s: [f64; 2]) -> [f64; 2] {
-    let m = s[0].hypot(s[1]);
-    if m > 1.0 {
-        [s[0] / m, s[1] / m]
-    } else {
-        s
-    }
 }
 
 /// The step's problem (`ExactProblem`) with the point (x, σ).

@@ -447,7 +447,8 @@ pub struct RheologyConfig {
     /// The exact step stops when both residuals of eq. (11) are below this (`exact.rs`, the
     /// stopping test).
     pub newton_tol: f64,
-    /// Iteration cap of the exact step: sparse factorisations, the interior point's included
+    /// Iteration cap of the exact step: sparse factorisations, the interior point's and the method
+    /// of multipliers' included
     /// (reaching it rejects the step, or stops the run).
     pub newton_max_iterations: usize,
 }
@@ -503,7 +504,7 @@ pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
         "solver",
         "picard",
         &["picard", "newton"],
-        "how eq. (11) is solved: the Picard iteration of eq. (12), or the exact step (semismooth Newton with an interior-point stage, rheology/exact.rs)",
+        "how eq. (11) is solved: the Picard iteration of eq. (12), or the exact step (semismooth Newton with an interior-point stage, finished by the method of multipliers; rheology/exact.rs)",
     ),
     options::float(
         "bi_projection",
@@ -521,7 +522,7 @@ pub const BI_PROJECTION_OPTIONS: &[OptionSpec] = &[
         1,
         100_000,
         "1",
-        "iteration cap of the exact step (sparse factorisations, the interior point's included)",
+        "iteration cap of the exact step (sparse factorisations, the interior point's and the method of multipliers' included)",
     ),
     options::float("bi_projection", "r", 1.0, 0.0, f64::INFINITY, "s", "r of Σ = P(Σ + r D(u)) (None: the local contraction bound of rheology/plastic.rs)")
         .open(true, true)
