@@ -38,9 +38,7 @@
 
 #![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
 
-use faer::sparse::{SparseColMat, Triplet};
-
-use super::cone::{apply, apply_ref, factor, onto_ball, Assembly, SymbolicCache, Term};
+use super::cone::{apply, apply_ref, factor, onto_ball, Assembly, Program};
 use crate::error::Result;
 
 /// The step's stopping test at (x, σ).
@@ -62,22 +60,16 @@ pub(crate) struct Augmented {
 /// Runs the stage from (x, σ) with the penalties `c` (one per term). `apply_b(t, x)` is
 /// B_k x + β_k; `converged(x, σ)` the step's stopping test (`exact.rs`), read after each update of
 /// the multipliers; `tol` its tolerance; at most `max_iterations` factorisations.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
-    n: usize,
-    (a_trip, assembly): (&[Triplet<usize, usize, f64>], &mut Assembly),
-    a_mat: &SparseColMat<usize, f64>,
-    b: &[f64],
-    terms: &[Term],
-    (cols, vals): (&[usize], &[f64]),
+    program: Program<'_>,
+    assembly: &mut Assembly,
     (x0, sigma0): (Vec<f64>, Vec<[f64; 2]>),
     c: &[f64],
-    apply_b: &dyn Fn(&Term, &[f64]) -> [f64; 2],
     converged: Converged<'_>,
     tol: f64,
-    (cache, symmetric): (&SymbolicCache, bool),
     max_iterations: usize,
 ) -> Result<Augmented> {
+    let Program { n, a_trip, a_mat, b, terms, cols, vals, apply_b, cache, symmetric } = program;
     let kc = terms.len();
     let mut x = x0;
     let mut sig = sigma0;

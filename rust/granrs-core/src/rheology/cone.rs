@@ -135,6 +135,23 @@ pub(crate) struct Term {
     pub(crate) slot: Slot,
 }
 
+/// The step's cone program as the interior-point and augmented-Lagrangian stages read it: A as
+/// triplets (in the assembly's order) and compressed, b, the terms with B's compressed rows
+/// (`cols`, `vals`; `apply_b(t, x)` = B_k x + β_k) and the factorisation's symbolic cache.
+#[derive(Clone, Copy)]
+pub(crate) struct Program<'a> {
+    pub(crate) n: usize,
+    pub(crate) a_trip: &'a [Triplet<usize, usize, f64>],
+    pub(crate) a_mat: &'a SparseColMat<usize, f64>,
+    pub(crate) b: &'a [f64],
+    pub(crate) terms: &'a [Term],
+    pub(crate) cols: &'a [usize],
+    pub(crate) vals: &'a [f64],
+    pub(crate) apply_b: &'a dyn Fn(&Term, &[f64]) -> [f64; 2],
+    pub(crate) cache: &'a SymbolicCache,
+    pub(crate) symmetric: bool,
+}
+
 /// The matrix A + Σ_k B_kᵀ M_k B_k of both solvers (M_k a term's dim × dim block) on a pattern
 /// built once per step: each coefficient's place among the compressed values is found once, so
 /// an iteration sums its coefficients in place, in a fixed order, without sorting.

@@ -89,7 +89,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{apply, factor, is_symmetric, onto_ball, Assembly, Slot, SymbolicCache, Term};
+use super::cone::{apply, factor, is_symmetric, onto_ball, Assembly, Program, Slot, SymbolicCache, Term};
 use super::{augmented, interior_point};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -597,23 +597,23 @@ impl ExactStep {
         while !(mom_max <= tol && proj <= tol) {
             let near = mom <= interior_point::POLISH_START && proj_r <= interior_point::POLISH_START;
             if near || iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite() {
+                let program = Program {
+                    n,
+                    a_trip: &a_trip,
+                    a_mat: &a_mat,
+                    b: &b,
+                    terms: &terms,
+                    cols: &cols,
+                    vals: &vals,
+                    apply_b: &apply_b,
+                    cache: &self.symbolic,
+                    symmetric,
+                };
                 if !near {
                     let mut x0 = b.clone();
                     factor(&self.symbolic_a, a_mat.as_ref(), symmetric)?.solve_in_place(&mut x0);
                     let mut projection = |x: &[f64], sig: &[[f64; 2]]| residuals(x, sig, &mut fu_trial, &mut fk_trial).1;
-                    let ip = interior_point::solve(
-                        n,
-                        (&a_trip, &mut assembly),
-                        &a_mat,
-                        &b,
-                        &terms,
-                        (&cols, &vals),
-                        x0,
-                        &apply_b,
-                        &mut projection,
-                        (&self.symbolic, symmetric),
-                        max_iterations.saturating_sub(iterations),
-                    )?;
+                    let ip = interior_point::solve(program, &mut assembly, x0, &mut projection, max_iterations.saturating_sub(iterations))?;
                     x = ip.x;
                     sig = ip.sigma;
                     interior_iterations = ip.iterations;
@@ -624,21 +624,7 @@ impl ExactStep {
                     let (_, _, m, p) = residuals(x, sig, &mut fu_trial, &mut fk_trial);
                     m <= tol && p <= tol
                 };
-                let al = augmented::solve(
-                    n,
-                    (&a_trip, &mut assembly),
-                    &a_mat,
-                    &b,
-                    &terms,
-                    (&cols, &vals),
-                    (x, sig),
-                    &c,
-                    &apply_b,
-                    &mut converged,
-                    tol,
-                    (&self.symbolic, symmetric),
-                    max_iterations.saturating_sub(iterations),
-                )?;
+                let al = augmented::solve(program, &mut assembly, (x, sig), &c, &mut converged, tol, max_iterations.saturating_sub(iterations))?;
                 x = al.x;
                 sig = al.sigma;
                 iterations += al.iterations;

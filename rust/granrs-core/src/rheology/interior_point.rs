@@ -35,9 +35,7 @@
 #![allow(clippy::needless_range_loop)] // the loops run over a cone's one or two components
 #![allow(clippy::type_complexity)] // a Newton direction's four parts, named where it is built
 
-use faer::sparse::{SparseColMat, Triplet};
-
-use super::cone::{apply, factor, Assembly, SymbolicCache, Term};
+use super::cone::{apply, factor, Assembly, Program};
 use crate::error::{Error, Result};
 
 /// The projection residual of eq. (11) at which the interior point hands over to the
@@ -147,20 +145,14 @@ pub(crate) struct InteriorPoint {
 /// Runs the interior-point stage (module doc) from the predictor without yield stress,
 /// `x0` (A x0 = b). `apply_b(t, x)` is B_k x + β_k; `projection(x, σ)` the projection residual
 /// of eq. (11); at most `max_iterations` iterations.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
-    n: usize,
-    (a_trip, assembly): (&[Triplet<usize, usize, f64>], &mut Assembly),
-    a_mat: &SparseColMat<usize, f64>,
-    b: &[f64],
-    terms: &[Term],
-    (cols, vals): (&[usize], &[f64]),
+    program: Program<'_>,
+    assembly: &mut Assembly,
     x0: Vec<f64>,
-    apply_b: &dyn Fn(&Term, &[f64]) -> [f64; 2],
     projection: &mut dyn FnMut(&[f64], &[[f64; 2]]) -> f64,
-    (cache, symmetric): (&SymbolicCache, bool),
     max_iterations: usize,
 ) -> Result<InteriorPoint> {
+    let Program { n, a_trip, a_mat, b, terms, cols, vals, apply_b, cache, symmetric } = program;
     let kc = terms.len();
     let mut x = x0;
     let mut y: Vec<[f64; 2]> = terms.iter().map(|t| apply_b(t, &x)).collect();
