@@ -34,7 +34,13 @@
 //!
 //! **Penalties.** c_k = r_k/[`super::exact::AUGMENTED_DELTA`], r_k the iteration's scale of
 //! `exact.rs` (c_k w_k ‖B_k‖² = d_k/δ against A's diagonal d_k): from the interior point's
-//! hand-over one to three updates of the multipliers reach the tolerance.
+//! hand-over one to three updates of the multipliers reach the tolerance. The penalties reach
+//! 1/δ times A's diagonal, and the momentum residual of a subproblem has a round-off floor that
+//! grows with them. When [`STALL`] Newton steps in a row have not halved the subproblem's best
+//! momentum residual while it is above the step's tolerance, every c_k is divided by
+//! [`SHRINK`] (at most [`MAX_SHRINKS`] times in a step) and the subproblem goes on from the same
+//! u: any positive sequence of penalties leaves the method of multipliers a proximal point
+//! method, with slower updates for smaller ones.
 
 #![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
 
@@ -47,19 +53,31 @@ type Converged<'a> = &'a mut dyn FnMut(&[f64], &[[f64; 2]]) -> bool;
 /// Backtracking halvings of one Newton step at most.
 const MAX_HALVINGS: usize = 30;
 
+/// Newton steps without halving the subproblem's best momentum residual before the penalties shrink.
+pub(crate) const STALL: usize = 3;
+
+/// The factor by which a stalled subproblem's penalties are divided.
+pub(crate) const SHRINK: f64 = 10.0;
+
+/// Shrinks of the penalties in one step at most.
+pub(crate) const MAX_SHRINKS: usize = 3;
+
 /// What the stage returns: x, σ, the factorisations taken and the outer iterations.
 pub(crate) struct Augmented {
     pub x: Vec<f64>,
     pub sigma: Vec<[f64; 2]>,
     pub iterations: usize,
     pub outer: usize,
+    /// How many times the penalties shrank.
+    pub shrinks: usize,
     /// Whether `converged(x, σ)` held at the end.
     pub converged: bool,
 }
 
-/// Runs the stage from (x, σ) with the penalties `c` (one per term). `apply_b(t, x)` is
-/// B_k x + β_k; `converged(x, σ)` the step's stopping test (`exact.rs`), read after each update of
-/// the multipliers; `tol` its tolerance; at most `max_iterations` factorisations.
+/// Runs the stage from (x, σ) with the penalties `c` (one per term; shrunk where a subproblem
+/// stalls, module doc). `apply_b(t, x)` is B_k x + β_k; `converged(x, σ)` the step's stopping
+/// test (`exact.rs`), read after each update of the multipliers; `tol` its tolerance; at most
+/// `max_iterations` factorisations.
 pub(crate) fn solve(
     program: Program<'_>,
     assembly: &mut Assembly,
@@ -71,15 +89,16 @@ pub(crate) fn solve(
 ) -> Result<Augmented> {
     let Program { n, a_trip, a_mat, b, terms, cols, vals, apply_b, cache, symmetric } = program;
     let kc = terms.len();
+    let mut c = c.to_vec();
     let mut x = x0;
     let mut sig = sigma0;
-    let (mut iterations, mut outer) = (0, 0);
-    let mut ax = vec![0.0; n];
+    let (mut iterations, mut outer, mut shrinks) = (0, 0, 0);
+    let (mut ax, mut force) = (vec![0.0; n], vec![0.0; n]);
     // ∇L into g and the momentum residual of ∇L at x; the multipliers P(σ + c y) into p
-    let eval = |x: &[f64], sig: &[[f64; 2]], c: &[f64], p: &mut Vec<[f64; 2]>, g: &mut Vec<f64>, ax: &mut Vec<f64>| -> f64 {
+    let eval = |x: &[f64], sig: &[[f64; 2]], c: &[f64], p: &mut Vec<[f64; 2]>, g: &mut Vec<f64>, ax: &mut [f64], force: &mut [f64]| -> f64 {
         apply(a_mat, x, ax);
         g.clear();
-        let mut force = vec![0.0; n];
+        force.fill(0.0);
         p.clear();
         for (idx, t) in terms.iter().enumerate() {
             let y = apply_b(t, x);
@@ -107,10 +126,12 @@ pub(crate) fn solve(
     };
     let (mut p, mut g) = (Vec::with_capacity(kc), Vec::with_capacity(n));
     let (mut pt, mut gt) = (Vec::with_capacity(kc), Vec::with_capacity(n));
+    let (mut dx, mut kd, mut res, mut xt) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut blocks: Vec<[[f64; 2]; 2]> = vec![[[0.0; 2]; 2]; kc];
     while iterations < max_iterations {
         // the subproblem: minimise L(·; σ)
-        let mut mom = eval(&x, &sig, c, &mut p, &mut g, &mut ax);
+        let mut mom = eval(&x, &sig, &c, &mut p, &mut g, &mut ax, &mut force);
+        let (mut best, mut since) = (mom, 0);
         while mom > 0.1 * tol && iterations < max_iterations {
             iterations += 1;
             let before = mom;
@@ -131,13 +152,11 @@ pub(crate) fn solve(
             }
             let k_mat = assembly.assemble(a_trip, terms, vals, |k| blocks[k]);
             let fac = factor(cache, k_mat, symmetric)?;
-            let rhs: Vec<f64> = g.iter().map(|r| -r).collect();
-            let mut dx = rhs.clone();
+            dx.iter_mut().zip(&g).for_each(|(d, r)| *d = -r);
             fac.solve_in_place(&mut dx);
             // one refinement against the assembled matrix
-            let mut kd = vec![0.0; n];
             apply_ref(k_mat, &dx, &mut kd);
-            let mut res: Vec<f64> = rhs.iter().zip(&kd).map(|(r, k)| r - k).collect();
+            res.iter_mut().zip(g.iter().zip(&kd)).for_each(|(e, (r, k))| *e = -r - k);
             fac.solve_in_place(&mut res);
             dx.iter_mut().zip(&res).for_each(|(d, r)| *d += r);
             // the line search on the derivative of L along dx, φ'(α) = ∇L(x + α dx)·dx: φ is
@@ -148,11 +167,11 @@ pub(crate) fn solve(
             let mut accepted = false;
             if slope < 0.0 {
                 for _ in 0..=MAX_HALVINGS {
-                    let xt: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
-                    let mt = eval(&xt, &sig, c, &mut pt, &mut gt, &mut ax);
+                    xt.iter_mut().zip(x.iter().zip(&dx)).for_each(|(t, (a, d))| *t = a + alpha * d);
+                    let mt = eval(&xt, &sig, &c, &mut pt, &mut gt, &mut ax, &mut force);
                     let dphi: f64 = gt.iter().zip(&dx).map(|(g, d)| g * d).sum();
                     if dphi <= 0.1 * slope.abs() {
-                        x = xt;
+                        std::mem::swap(&mut x, &mut xt);
                         std::mem::swap(&mut p, &mut pt);
                         std::mem::swap(&mut g, &mut gt);
                         mom = mt;
@@ -167,13 +186,25 @@ pub(crate) fn solve(
             if !accepted || (mom <= tol && mom > 0.5 * before) {
                 break;
             }
+            // a subproblem stalled above the tolerance: smaller penalties, the same u
+            if mom < 0.5 * best {
+                (best, since) = (mom, 0);
+            } else {
+                since += 1;
+            }
+            if since >= STALL && mom > tol && shrinks < MAX_SHRINKS {
+                shrinks += 1;
+                c.iter_mut().for_each(|c| *c /= SHRINK);
+                mom = eval(&x, &sig, &c, &mut p, &mut g, &mut ax, &mut force);
+                (best, since) = (mom, 0);
+            }
         }
         // the multipliers' update
         outer += 1;
         sig.clone_from(&p);
         if converged(&x, &sig) {
-            return Ok(Augmented { x, sigma: sig, iterations, outer, converged: true });
+            return Ok(Augmented { x, sigma: sig, iterations, outer, shrinks, converged: true });
         }
     }
-    Ok(Augmented { x, sigma: sig, iterations, outer, converged: false })
+    Ok(Augmented { x, sigma: sig, iterations, outer, shrinks, converged: false })
 }

@@ -51,7 +51,9 @@
 //! **Three stages.** The semismooth loop starts from the previous step's u and σ (δ =
 //! [`NEWTON_DELTA`]). Once its momentum residual (relative, 2-norm) and its projection residual
 //! with the iteration's r_k are both below 1e-4 (`interior_point::POLISH_START`), or after
-//! [`WARM_TRIES`] iterations if they are not, the method of multipliers of `augmented.rs` finishes
+//! [`WARM_TRIES`] iterations if they are not (after [`WARM_CHECK`] if the stopping test's
+//! projection residual is still above [`WARM_GIVE_UP`]: near rest, where the warm start's rigid
+//! locations send the loop away), the method of multipliers of `augmented.rs` finishes
 //! the step: in the second case from the interior-point solution of `interior_point.rs` (the
 //! same cone program, solved afresh from the predictor without yield stress down to that
 //! residual; its iteration count depends little on the grid). Each update of the method of
@@ -106,6 +108,13 @@ pub const AUGMENTED_DELTA: f64 = 1e-5;
 
 /// Semismooth Newton iterations from the warm start before the interior point takes over.
 pub const WARM_TRIES: usize = 6;
+
+/// Semismooth Newton iterations from the warm start after which a projection residual (the
+/// stopping test's) above [`WARM_GIVE_UP`] hands the step to the interior point.
+pub const WARM_CHECK: usize = 2;
+
+/// See [`WARM_CHECK`]: a multiplier still off by half its ball's radius.
+pub const WARM_GIVE_UP: f64 = 0.5;
 
 /// Iterative refinements of each Newton solve.
 pub const REFINEMENTS: usize = 2;
@@ -596,7 +605,10 @@ impl ExactStep {
         let mut interior_iterations = 0;
         while !(mom_max <= tol && proj <= tol) {
             let near = mom <= interior_point::POLISH_START && proj_r <= interior_point::POLISH_START;
-            if near || iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite() {
+            // a loop whose projection residual is still above WARM_GIVE_UP after WARM_CHECK
+            // iterations has left the warm start's neighbourhood: the interior point takes over
+            let lost = iterations >= WARM_CHECK && proj > WARM_GIVE_UP;
+            if near || lost || iterations == WARM_TRIES || !mom.is_finite() || !proj.is_finite() {
                 let program = Program {
                     n,
                     a_trip: &a_trip,
@@ -633,8 +645,8 @@ impl ExactStep {
                     self.last = Some(problem(n, &b, &a_trip, &terms, &cols, &vals, &x, &sig));
                     return Err(Error::PicardNotConverged {
                         what: format!(
-                            "the exact step of eq. (11) did not converge: momentum residual {mom_max:.3e}, projection residual {proj:.3e} after {iterations} iterations ({interior_iterations} interior-point, {} augmented-Lagrangian updates) (newton_tol {tol:.1e})",
-                            al.outer
+                            "the exact step of eq. (11) did not converge: momentum residual {mom_max:.3e}, projection residual {proj:.3e} after {iterations} iterations ({interior_iterations} interior-point, {} augmented-Lagrangian updates, penalties shrunk {} times) (newton_tol {tol:.1e})",
+                            al.outer, al.shrinks
                         ),
                         step,
                         time,
