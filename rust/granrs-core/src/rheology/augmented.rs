@@ -23,7 +23,7 @@
 //!
 //! **Inner iteration.** Newton's matrix is A + Σ_k w_k c_k B_kᵀ G_k B_k (G_k = I inside the
 //! ball, (I − nnᵀ)/|z_k| outside, n = z_k/|z_k|), symmetric positive definite where A is,
-//! assembled on the step's pattern (`cone::Assembly`) and factorised like the semismooth step's,
+//! assembled on the step's pattern (`cone::Assembly`) and solved like the semismooth step's,
 //! its solution refined once. The step is halved until the derivative of L along it,
 //! φ'(α) = ∇L(u + α du)·du, is at most a tenth of |φ'(0)|: along the line L is convex, so φ' grows
 //! with α and L decreases while φ' < 0. L's own value is not read: near the solution its change
@@ -44,7 +44,7 @@
 
 #![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
 
-use super::cone::{apply, apply_ref, factor, onto_ball, Assembly, Program};
+use super::cone::{apply, apply_ref, onto_ball, Assembly, Program};
 use crate::error::Result;
 
 /// The step's stopping test at (x, σ).
@@ -150,14 +150,14 @@ pub(crate) fn solve(
                     [[rho * (1.0 - nv[0] * nv[0]), -rho * nv[0] * nv[1]], [-rho * nv[1] * nv[0], rho * (1.0 - nv[1] * nv[1])]]
                 };
             }
-            let k_mat = assembly.assemble(a_trip, terms, vals, |k| blocks[k]);
-            let fac = factor(cache, k_mat, symmetric)?;
+            assembly.assemble(a_trip, terms, vals, |k| blocks[k]);
+            let fac = assembly.factor(cache, symmetric)?;
             dx.iter_mut().zip(&g).for_each(|(d, r)| *d = -r);
-            fac.solve_in_place(&mut dx);
+            fac.solve_in_place(&mut dx)?;
             // one refinement against the assembled matrix
-            apply_ref(k_mat, &dx, &mut kd);
+            apply_ref(fac.matrix(), &dx, &mut kd);
             res.iter_mut().zip(g.iter().zip(&kd)).for_each(|(e, (r, k))| *e = -r - k);
-            fac.solve_in_place(&mut res);
+            fac.solve_in_place(&mut res)?;
             dx.iter_mut().zip(&res).for_each(|(d, r)| *d += r);
             // the line search on the derivative of L along dx, φ'(α) = ∇L(x + α dx)·dx: φ is
             // convex, so φ' grows with α and φ decreases wherever φ' < 0; its value would be

@@ -36,9 +36,15 @@
 //!
 //!   (A + Σ_k w_k B_kᵀ S_k B_k) du = −F_u + Σ_k w_k B_kᵀ t_k,
 //!
-//! a sparse system factorised by faer's supernodal sparse Cholesky (LU where A is not symmetric;
-//! its pattern and the place of each coefficient are built once per step, `cone::Assembly`), its
-//! solution refined [`REFINEMENTS`] times against the matrix applied term by term. A
+//! a sparse system on a pattern built once per step (`cone::Assembly`: the place of each
+//! coefficient found once). Where the faces the terms reach (the granular layer) are at most half
+//! the unknowns and A is symmetric, faer's supernodal sparse Cholesky factorises the matrix's
+//! block on those faces only, and a conjugate-gradient iteration on the whole matrix, with that
+//! factor on the block and the diagonal elsewhere as preconditioner, solves it to round-off in
+//! 4–6 iterations (outside the block the matrix is A, whose viscous coupling is about
+//! 2ηδt/(ρh²) ~ 1e-3 of its diagonal on the column); otherwise the whole matrix is factorised
+//! (LU where A is not symmetric). The solution is refined [`REFINEMENTS`] times against the
+//! matrix applied term by term. A
 //! flowing location adds the Hessian of w|B u| (the viscosity w/|B u| across the flow
 //! direction); a rigid one adds the penalty
 //! (w r/δ) BᵀB that holds B u = 0, whose multiplier σ is updated from it. δ changes the step,
@@ -64,11 +70,11 @@
 //!
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–32.
-//! Sparse factorisations per step, column to t = 0.1 s (median): dry 4, 10, 25 and 31 at ny = 8,
-//! 16, 32 and 64 (the interior point's included where it runs), fluidised 2–4. To 3 s at ny = 16 the
-//! fluidised column comes to rest; at ny = 32 it stops at t = 1.35 s, one update's Newton loop
-//! held at a momentum residual of 3.8e-9. The cost, one sparse factorisation of the whole domain
-//! per iteration, is why the column's default is the Picard iteration.
+//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–24 at ny = 8–32, fluidised
+//! 2–3 (the interior point's included where it runs); near rest 30–45, where every step takes the
+//! interior point. At ny = 16 and 32 the dry and fluidised columns run to 3 s and meet the rest
+//! criterion between 1.65 and 2.16 s. Its cost to t = 0.1 s, 1.2–7 times the Picard iteration's
+//! at ny = 16–32 (`benchmarks/solver_cost.py`), is why the column's default is the Picard iteration.
 //!
 //! **The iteration's r_k** is d_k/(w_k ‖B_k‖²) (d_k the largest diagonal of A on the term's
 //! faces: the scale at which a unit change of σ_k and of r_k B_k u are comparable). It spans
@@ -91,7 +97,7 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::cone::{apply, factor, is_symmetric, onto_ball, Assembly, Program, Slot, SymbolicCache, Term};
+use super::cone::{apply, is_symmetric, onto_ball, solve_predictor, Assembly, Program, Slot, SymbolicCache, Term};
 use super::{augmented, interior_point};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -623,7 +629,7 @@ impl ExactStep {
                 };
                 if !near {
                     let mut x0 = b.clone();
-                    factor(&self.symbolic_a, a_mat.as_ref(), symmetric)?.solve_in_place(&mut x0);
+                    solve_predictor(&a_mat, &self.symbolic_a, symmetric, &mut x0)?;
                     let mut projection = |x: &[f64], sig: &[[f64; 2]]| residuals(x, sig, &mut fu_trial, &mut fk_trial).1;
                     let ip = interior_point::solve(program, &mut assembly, x0, &mut projection, max_iterations.saturating_sub(iterations))?;
                     x = ip.x;
@@ -693,13 +699,13 @@ impl ExactStep {
             // of a rigid location scales the round-off of one solve by about 1/δ
             // every coefficient, zero ones too: the pattern (and its symbolic factorisation) is
             // the same for every iteration of the step
-            let k_mat = assembly.assemble(&a_trip, &terms, &vals, |k| {
+            assembly.assemble(&a_trip, &terms, &vals, |k| {
                 let (w, m) = (terms[k].w, s_mat[k]);
                 [[w * m[0][0], w * m[0][1]], [w * m[1][0], w * m[1][1]]]
             });
-            let fac = factor(&self.symbolic, k_mat, symmetric)?;
+            let fac = assembly.factor(&self.symbolic, symmetric)?;
             let mut dx = rhs.clone();
-            fac.solve_in_place(&mut dx);
+            fac.solve_in_place(&mut dx)?;
             let (mut res, mut adx) = (vec![0.0; n], vec![0.0; n]);
             for _ in 0..REFINEMENTS {
                 apply(&a_mat, &dx, &mut adx);
@@ -715,7 +721,7 @@ impl ExactStep {
                         }
                     }
                 }
-                fac.solve_in_place(&mut res);
+                fac.solve_in_place(&mut res)?;
                 dx.iter_mut().zip(&res).for_each(|(d, r)| *d += r);
             }
             let dsig: Vec<[f64; 2]> = terms

@@ -22,7 +22,7 @@
 //!   (A + Σ_k B_kᵀ M_k B_k) dx = −r_x + Σ_k B_kᵀ g_k,   M_k = H_yy − H_y0 H_0y/H_00,
 //!
 //! g_k = [W⁻¹q]_y − H_y0 [W⁻¹q]_0/H_00, the matrix of the semismooth Newton step's pattern,
-//! factorised once per iteration like the semismooth step's. The predictor takes q_k = −λ_k, the
+//! solved once per iteration like the semismooth step's. The predictor takes q_k = −λ_k, the
 //! corrector q_k = λ_k \ (−λ_k∘λ_k − (W_k⁻¹ds_k^a)∘(W_k dz_k^a) + σ_c μ e) with
 //! σ_c = (μ_a/μ)³, and the step is 0.99 of the largest that keeps s and z in the cones.
 //!
@@ -35,7 +35,7 @@
 #![allow(clippy::needless_range_loop)] // the loops run over a cone's one or two components
 #![allow(clippy::type_complexity)] // a Newton direction's four parts, named where it is built
 
-use super::cone::{apply, factor, Assembly, Program};
+use super::cone::{apply, Assembly, Program};
 use crate::error::{Error, Result};
 
 /// The projection residual of eq. (11) at which the interior point hands over to the
@@ -218,9 +218,10 @@ pub(crate) fn solve(
             scal.push(s);
             hs.push((h00, h0y, hyy));
         }
-        let lu = factor(cache, assembly.assemble(a_trip, terms, vals, |k| blocks[k]), symmetric)?;
+        assembly.assemble(a_trip, terms, vals, |k| blocks[k]);
+        let lu = assembly.factor(cache, symmetric)?;
         // one Newton direction for the right-hand sides q_k: (dx, dt, B dx, dz_y)
-        let direction = |q: &[(f64, [f64; 2])]| -> (Vec<f64>, Vec<f64>, Vec<[f64; 2]>, Vec<[f64; 2]>) {
+        let direction = |q: &[(f64, [f64; 2])]| -> Result<(Vec<f64>, Vec<f64>, Vec<[f64; 2]>, Vec<[f64; 2]>)> {
             let mut rhs: Vec<f64> = rx.iter().map(|r| -r).collect();
             let mut a: Vec<(f64, [f64; 2])> = Vec::with_capacity(kc);
             for (k, term) in terms.iter().enumerate() {
@@ -237,7 +238,7 @@ pub(crate) fn solve(
                 }
                 a.push((a0, a1));
             }
-            lu.solve_in_place(&mut rhs);
+            lu.solve_in_place(&mut rhs)?;
             let dx = rhs;
             let (mut dt, mut bdx, mut dz) = (Vec::with_capacity(kc), Vec::with_capacity(kc), Vec::with_capacity(kc));
             for (k, term) in terms.iter().enumerate() {
@@ -254,7 +255,7 @@ pub(crate) fn solve(
                 bdx.push(bd);
                 dz.push(z);
             }
-            (dx, dt, bdx, dz)
+            Ok((dx, dt, bdx, dz))
         };
         let largest = |dt: &[f64], bdx: &[[f64; 2]], dz: &[[f64; 2]]| -> f64 {
             (0..kc).map(|k| max_step(t[k], y[k], dt[k], bdx[k]).min(max_step(w[k], zy[k], 0.0, dz[k]))).fold(f64::INFINITY, f64::min)
@@ -262,7 +263,7 @@ pub(crate) fn solve(
         // predictor
         let ll: Vec<(f64, [f64; 2])> = lam.iter().map(|&(l0, l1)| jordan(l0, l1, l0, l1)).collect();
         let q: Vec<(f64, [f64; 2])> = lam.iter().map(|&(l0, l1)| (-l0, [-l1[0], -l1[1]])).collect();
-        let (_, dt, bdx, dz) = direction(&q);
+        let (_, dt, bdx, dz) = direction(&q)?;
         let aa = largest(&dt, &bdx, &dz).min(1.0);
         let mu_aff = (0..kc)
             .map(|k| {
@@ -281,7 +282,7 @@ pub(crate) fn solve(
                 jordan_div(l0, l1, -ll[k].0 - c0 + sigma_c * mu, [-ll[k].1[0] - c1[0], -ll[k].1[1] - c1[1]])
             })
             .collect();
-        let (dx, dt, bdx, dz) = direction(&q);
+        let (dx, dt, bdx, dz) = direction(&q)?;
         let alpha = (STEP_FRACTION * largest(&dt, &bdx, &dz)).min(1.0);
         let finite = alpha.is_finite() && dx.iter().chain(&dt).all(|v| v.is_finite()) && dz.iter().all(|v| v[0].is_finite() && v[1].is_finite());
         if !finite || alpha <= 0.0 {
