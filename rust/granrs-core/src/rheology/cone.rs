@@ -292,7 +292,8 @@ impl Assembly {
 
 impl Split {
     /// The split of K's pattern (`ptr`, `rows`; rows ascending in each column), or `None` where
-    /// the terms reach more than [`SPLIT_SHARE`] of the faces or none.
+    /// the terms reach more than [`SPLIT_SHARE`] of the faces or none, or a diagonal coefficient
+    /// is missing from the pattern.
     fn new(n: usize, ptr: &[usize], rows: &[usize], terms: &[Term], cols: &[usize]) -> Option<Self> {
         let mut local = vec![usize::MAX; n];
         for t in terms {
@@ -319,7 +320,8 @@ impl Split {
             }
             gptr.push(grows.len());
         }
-        let diag = (0..n).map(|j| ptr[j] + rows[ptr[j]..ptr[j + 1]].binary_search(&j).expect("A's diagonal is in the pattern")).collect();
+        // every face's diagonal place (none missing: A's diagonal holds c = a₀ρ/δt > 0)
+        let diag = (0..n).map(|j| rows[ptr[j]..ptr[j + 1]].binary_search(&j).ok().map(|p| ptr[j] + p)).collect::<Option<Vec<usize>>>()?;
         let m = faces.len();
         let values = vec![0.0; gather.len()];
         let symbolic = SymbolicSparseColMat::new_checked(m, m, gptr, None, grows);
