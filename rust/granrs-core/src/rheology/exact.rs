@@ -70,8 +70,8 @@
 //!
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–32.
-//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–24 at ny = 8–32, fluidised
-//! 2–3 (the interior point's included where it runs); near rest 30–45, where every step takes the
+//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–37 at ny = 8–128, fluidised
+//! 2–6 (the interior point's included where it runs); near rest 30–45, where every step takes the
 //! interior point. At ny = 16 and 32 the dry and fluidised columns run to 3 s and meet the rest
 //! criterion between 1.65 and 2.16 s. Its cost to t = 0.1 s, 1.2–7 times the Picard iteration's
 //! at ny = 16–32 (`benchmarks/solver_cost.py`), is why the column's default is the Picard iteration.
