@@ -362,7 +362,6 @@ impl Solver<'_> {
             Kind::Split { split, fac, dinv, cache, fallback } => (split, fac, dinv, cache, fallback),
         };
         let n = x.len();
-        let b = x.to_vec();
         let mut zg = Vec::with_capacity(split.faces.len());
         let precondition = |r: &[f64], z: &mut [f64]| {
             zg.clear();
@@ -379,7 +378,6 @@ impl Solver<'_> {
         let whole = fallback.get_or_init(|| factor(cache, self.k, true));
         match whole {
             Ok(f) => {
-                x.copy_from_slice(&b);
                 f.solve_in_place(x);
                 Ok(())
             }
@@ -418,9 +416,9 @@ pub(crate) fn factor(cache: &SymbolicCache, mat: SparseColMatRef<'_, usize, f64>
 }
 
 /// x ← K⁻¹x by the preconditioned conjugate-gradient iteration from zero (`precondition(r, z)`:
-/// z ← P⁻¹r), serial. Stops when ‖r‖₂ ≤ [`CG_TOL`]·‖b‖₂ or after [`CG_STALL`] iterations without
-/// a tenfold fall; returns whether ‖r‖₂ ≤ [`CG_ACCEPT`]·‖b‖₂ (x is then the solution; otherwise
-/// x is left unspecified).
+/// z ← P⁻¹r), serial. Stops when the updated ‖r‖₂ ≤ [`CG_TOL`]·‖b‖₂ or after [`CG_STALL`]
+/// iterations without a tenfold fall; returns whether the true residual b − K x is then within
+/// [`CG_ACCEPT`]·‖b‖₂ (x is the solution), and otherwise leaves x = b.
 fn conjugate_gradient(k: SparseColMatRef<'_, usize, f64>, x: &mut [f64], mut precondition: impl FnMut(&[f64], &mut [f64])) -> bool {
     let n = x.len();
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
@@ -428,7 +426,8 @@ fn conjugate_gradient(k: SparseColMatRef<'_, usize, f64>, x: &mut [f64], mut pre
     if bnorm == 0.0 {
         return true;
     }
-    let (mut r, mut z, mut q) = (x.to_vec(), vec![0.0; n], vec![0.0; n]);
+    let b = x.to_vec();
+    let (mut r, mut z, mut q) = (b.clone(), vec![0.0; n], vec![0.0; n]);
     x.iter_mut().for_each(|v| *v = 0.0);
     precondition(&r, &mut z);
     let mut p = z.clone();
@@ -454,7 +453,13 @@ fn conjugate_gradient(k: SparseColMatRef<'_, usize, f64>, x: &mut [f64], mut pre
         p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + (rz_new / rz) * *p);
         rz = rz_new;
     }
-    rnorm <= CG_ACCEPT * bnorm
+    // the true residual: the updated one drifts from it by round-off
+    apply_ref(k, x, &mut q);
+    let accepted = b.iter().zip(&q).map(|(b, q)| (b - q) * (b - q)).sum::<f64>().sqrt() <= CG_ACCEPT * bnorm;
+    if !accepted {
+        x.copy_from_slice(&b);
+    }
+    accepted
 }
 
 /// x ← A⁻¹x for the predictor's operator A alone (the interior point's start): the
@@ -465,11 +470,9 @@ pub(crate) fn solve_predictor(a: &SparseColMat<usize, f64>, cache: &SymbolicCach
     if symmetric {
         let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
         let dinv: Vec<f64> = (0..a.ncols()).map(|j| (cp[j]..cp[j + 1]).find(|&e| ri[e] == j).map_or(1.0, |e| 1.0 / v[e])).collect();
-        let b = x.to_vec();
         if conjugate_gradient(a.as_ref(), x, |r, z| z.iter_mut().zip(r.iter().zip(&dinv)).for_each(|(z, (r, d))| *z = r * d)) {
             return Ok(());
         }
-        x.copy_from_slice(&b);
     }
     factor(cache, a.as_ref(), symmetric)?.solve_in_place(x);
     Ok(())
