@@ -184,7 +184,7 @@ def _certify(model) -> dict:
     assert abs(dj) <= 1e-9, out
     # granrs's own certificate: the duality gap of (x_g, σ_g) bounds J(x_g) − min J ≥ ½‖x_g − x*‖²_A.
     # Bounded by the Newton loop's newton_tol = 1e-9 as J's excess is; measured at most 1.9e-10 of
-    # |J| (ny = 16, dry, third step), 1.1e-10 or below elsewhere, and down to −2.0e-16 (J's
+    # |J| (ny = 16, dry, third step), 1.1e-10 or below elsewhere, and down to −4.1e-16 (J's
     # round-off: the difference of two sums over ~10³ faces); bounds newton_tol and −1e-14
     assert -1e-14 <= gap <= 1e-9, out
     return out

@@ -69,6 +69,45 @@ fn numeric_llt(sym: &Arc<SymbolicCholesky<usize>>, mat: faer::sparse::SparseColM
     Some(Factor::Llt(sym.clone(), values))
 }
 
+/// The n × n compressed matrix of `trips` (duplicates summed in their order): a counting sort by
+/// column, then a stable sort of each column's few rows, in O(nnz) for a stencil's matrix.
+pub(crate) fn compress(n: usize, trips: &[Triplet<usize, usize, f64>]) -> Result<SparseColMat<usize, f64>> {
+    let mut ptr = vec![0usize; n + 1];
+    for t in trips {
+        if t.row >= n || t.col >= n {
+            return Err(Error::SolverFailure {
+                solver: "sparse matrix of the exact step".into(),
+                message: format!("entry ({}, {}) outside {n} × {n}", t.row, t.col),
+            });
+        }
+        ptr[t.col + 1] += 1;
+    }
+    for j in 0..n {
+        ptr[j + 1] += ptr[j];
+    }
+    let mut next = ptr.clone();
+    let mut bucket = vec![(0usize, 0.0f64); trips.len()];
+    for t in trips {
+        bucket[next[t.col]] = (t.row, t.val);
+        next[t.col] += 1;
+    }
+    let (mut col_ptr, mut rows, mut vals) = (vec![0usize; n + 1], Vec::with_capacity(trips.len()), Vec::with_capacity(trips.len()));
+    for j in 0..n {
+        let col = &mut bucket[ptr[j]..ptr[j + 1]];
+        col.sort_by_key(|e| e.0);
+        for (k, &(r, v)) in col.iter().enumerate() {
+            if k > 0 && r == col[k - 1].0 {
+                *vals.last_mut().expect("a previous entry") += v;
+            } else {
+                rows.push(r);
+                vals.push(v);
+            }
+        }
+        col_ptr[j + 1] = rows.len();
+    }
+    Ok(SparseColMat::new(SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows), vals))
+}
+
 /// out ← A x (serial, the same bits on every thread setting).
 pub(crate) fn apply(a: &SparseColMat<usize, f64>, x: &[f64], out: &mut [f64]) {
     apply_ref(a.as_ref(), x, out);
@@ -161,34 +200,14 @@ pub(crate) struct Assembly {
     /// `assemble` visits them (term k, c, d, e ∈ rows[c], g ∈ rows[d]).
     place: Vec<usize>,
     values: Vec<f64>,
-    /// The block of the faces the terms reach (`factor`), where they are a minority.
-    split: Option<Split>,
 }
 
-/// The faces G that some term's B reaches and the rest R: K's block on G, its pattern and
-/// where its values lie among K's, its symbolic factorisation (built on first use), and the
-/// place of each diagonal coefficient.
-struct Split {
-    /// G's faces, ascending.
-    faces: Vec<usize>,
-    /// Each face's index in G, `usize::MAX` in R.
-    local: Vec<usize>,
-    symbolic: SymbolicSparseColMat<usize>,
-    gather: Vec<usize>,
-    values: Vec<f64>,
-    diag: Vec<usize>,
-    cache: SymbolicCache,
-}
-
-/// The largest share of the unknowns in G for which `factor` factorises K's block on G alone.
-const SPLIT_SHARE: f64 = 0.5;
-
-/// The conjugate-gradient iteration of the split solve (`Solver`) stops when ‖r‖₂ is below
-/// this times ‖b‖₂ ...
+/// The conjugate-gradient iteration (`conjugate_gradient`) stops when ‖r‖₂ is below this times
+/// ‖b‖₂ ...
 const CG_TOL: f64 = 1e-14;
 
 /// ... or after this many iterations without a tenfold fall of ‖r‖₂; where ‖r‖₂ is then above
-/// [`CG_ACCEPT`]·‖b‖₂ the whole matrix is factorised instead.
+/// [`CG_ACCEPT`]·‖b‖₂ the matrix is factorised instead.
 const CG_STALL: usize = 8;
 
 /// See [`CG_STALL`].
@@ -237,29 +256,14 @@ impl Assembly {
             ptr[j + 1] = rows.len();
         }
         let nnz = rows.len();
-        let split = Split::new(n, &ptr, &rows, terms, cols);
         let symbolic = SymbolicSparseColMat::new_checked(n, n, ptr, None, rows);
-        Ok(Assembly { symbolic, place, values: vec![0.0; nnz], split })
+        Ok(Assembly { symbolic, place, values: vec![0.0; nnz] })
     }
 
-    /// The factorisation of the matrix last assembled (`assemble`): of its block on the faces the
-    /// terms reach, with a conjugate-gradient iteration over the whole where that block is at
-    /// most [`SPLIT_SHARE`] of the unknowns and the matrix symmetric (`Solver`); of the whole
-    /// matrix otherwise (`factor`, `cache`).
-    pub(crate) fn factor<'a>(&'a mut self, cache: &'a SymbolicCache, symmetric: bool) -> Result<Solver<'a>> {
-        let whole = SparseColMatRef::new(self.symbolic.as_ref(), &self.values);
-        let split = match (&mut self.split, symmetric) {
-            (Some(split), true) => split,
-            _ => return Ok(Solver { k: whole, kind: Kind::Whole(factor(cache, whole, symmetric)?) }),
-        };
-        for (v, &g) in split.values.iter_mut().zip(&split.gather) {
-            *v = self.values[g];
-        }
-        let block = SparseColMatRef::new(split.symbolic.as_ref(), &split.values);
-        let fac = factor(&split.cache, block, true)?;
-        let dinv: Vec<f64> = split.diag.iter().map(|&d| 1.0 / self.values[d]).collect();
-        let split = &*split;
-        Ok(Solver { k: whole, kind: Kind::Split { split, fac, dinv, cache, fallback: std::cell::OnceCell::new() } })
+    /// The factorisation of the matrix last assembled (`assemble`): `factor`, with `cache`.
+    pub(crate) fn factor<'a>(&'a self, cache: &SymbolicCache, symmetric: bool) -> Result<Solver<'a>> {
+        let k = SparseColMatRef::new(self.symbolic.as_ref(), &self.values);
+        Ok(Solver { k, fac: factor(cache, k, symmetric)? })
     }
 
     /// The matrix with A's values (`a_trip`, in `new`'s order) and the blocks `block(k)` of the
@@ -290,60 +294,10 @@ impl Assembly {
     }
 }
 
-impl Split {
-    /// The split of K's pattern (`ptr`, `rows`; rows ascending in each column), or `None` where
-    /// the terms reach more than [`SPLIT_SHARE`] of the faces or none, or a diagonal coefficient
-    /// is missing from the pattern.
-    fn new(n: usize, ptr: &[usize], rows: &[usize], terms: &[Term], cols: &[usize]) -> Option<Self> {
-        let mut local = vec![usize::MAX; n];
-        for t in terms {
-            for c in 0..t.dim {
-                for e in t.rows[c].clone() {
-                    local[cols[e]] = 0;
-                }
-            }
-        }
-        let faces: Vec<usize> = (0..n).filter(|&f| local[f] == 0).collect();
-        if faces.is_empty() || faces.len() as f64 > SPLIT_SHARE * n as f64 {
-            return None;
-        }
-        for (k, &f) in faces.iter().enumerate() {
-            local[f] = k;
-        }
-        let (mut gptr, mut grows, mut gather) = (vec![0usize], Vec::new(), Vec::new());
-        for &j in &faces {
-            for e in ptr[j]..ptr[j + 1] {
-                if local[rows[e]] != usize::MAX {
-                    grows.push(local[rows[e]]);
-                    gather.push(e);
-                }
-            }
-            gptr.push(grows.len());
-        }
-        // every face's diagonal place (none missing: A's diagonal holds c = a₀ρ/δt > 0)
-        let diag = (0..n).map(|j| rows[ptr[j]..ptr[j + 1]].binary_search(&j).ok().map(|p| ptr[j] + p)).collect::<Option<Vec<usize>>>()?;
-        let m = faces.len();
-        let values = vec![0.0; gather.len()];
-        let symbolic = SymbolicSparseColMat::new_checked(m, m, gptr, None, grows);
-        Some(Split { faces, local, symbolic, gather, values, diag, cache: std::sync::Mutex::new(None) })
-    }
-}
-
 /// The solve with the Newton matrix K of an iteration (`Assembly::factor`).
 pub(crate) struct Solver<'a> {
     k: SparseColMatRef<'a, usize, f64>,
-    kind: Kind<'a>,
-}
-
-enum Kind<'a> {
-    /// K factorised whole.
-    Whole(Factor),
-    /// K_GG factorised; the conjugate-gradient iteration on K preconditioned by K_GG⁻¹ on G and
-    /// by K's diagonal on R. The terms' penalties (up to 1/δ times A's diagonal) sit in K_GG; the
-    /// coupling K_GR is A's viscous part, about 2ηδt/(ρh²) ≪ 1 of its diagonal on the column, so
-    /// the preconditioned matrix is the identity up to that and a few iterations reach the
-    /// round-off of a direct solve.
-    Split { split: &'a Split, fac: Factor, dinv: Vec<f64>, cache: &'a SymbolicCache, fallback: std::cell::OnceCell<Result<Factor>> },
+    fac: Factor,
 }
 
 impl Solver<'_> {
@@ -354,35 +308,8 @@ impl Solver<'_> {
 
     /// x ← K⁻¹x (serial: the same bits on every thread setting).
     pub(crate) fn solve_in_place(&self, x: &mut [f64]) -> Result<()> {
-        let (split, fac, dinv, cache, fallback) = match &self.kind {
-            Kind::Whole(f) => {
-                f.solve_in_place(x);
-                return Ok(());
-            }
-            Kind::Split { split, fac, dinv, cache, fallback } => (split, fac, dinv, cache, fallback),
-        };
-        let n = x.len();
-        let mut zg = Vec::with_capacity(split.faces.len());
-        let precondition = |r: &[f64], z: &mut [f64]| {
-            zg.clear();
-            zg.extend(split.faces.iter().map(|&f| r[f]));
-            fac.solve_in_place(&mut zg);
-            for j in 0..n {
-                z[j] = if split.local[j] == usize::MAX { r[j] * dinv[j] } else { zg[split.local[j]] };
-            }
-        };
-        if conjugate_gradient(self.k, x, precondition) {
-            return Ok(());
-        }
-        // the iteration stalled: the whole matrix, factorised once for this iteration
-        let whole = fallback.get_or_init(|| factor(cache, self.k, true));
-        match whole {
-            Ok(f) => {
-                f.solve_in_place(x);
-                Ok(())
-            }
-            Err(e) => Err(e.clone()),
-        }
+        self.fac.solve_in_place(x);
+        Ok(())
     }
 }
 
@@ -476,80 +403,4 @@ pub(crate) fn solve_predictor(a: &SparseColMat<usize, f64>, cache: &SymbolicCach
     }
     factor(cache, a.as_ref(), symmetric)?.solve_in_place(x);
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A tridiagonal A (diagonal d, off-diagonals −e) on n unknowns and one term per i in
-    /// [lo, hi) with B_k x = (x_{i+1} − x_i, x_{i+2} − x_i) and the block p·I: the shape of the
-    /// column's Newton matrix (a strong penalty on a minority of faces, a weak coupling elsewhere).
-    fn assembled(n: usize, d: f64, e: f64, (lo, hi): (usize, usize), p: f64) -> (Assembly, Vec<f64>) {
-        let mut a_trip = Vec::new();
-        for i in 0..n {
-            a_trip.push(Triplet::new(i, i, d));
-            if i + 1 < n {
-                a_trip.push(Triplet::new(i, i + 1, -e));
-                a_trip.push(Triplet::new(i + 1, i, -e));
-            }
-        }
-        let (mut cols, mut vals, mut terms) = (Vec::new(), Vec::new(), Vec::new());
-        for i in lo..hi {
-            let r0 = cols.len()..cols.len() + 2;
-            cols.extend([i + 1, i]);
-            vals.extend([1.0, -1.0]);
-            let r1 = cols.len()..cols.len() + 2;
-            cols.extend([i + 2, i]);
-            vals.extend([1.0, -1.0]);
-            terms.push(Term { w: 1.0, dim: 2, rows: [r0, r1], beta: [0.0; 2], r: 1.0, sigma: [0.0; 2], slot: Slot::Centre(i, 0) });
-        }
-        let mut assembly = Assembly::new(n, &a_trip, &terms, &cols).expect("pattern");
-        assembly.assemble(&a_trip, &terms, &vals, |_| [[p, 0.0], [0.0, p]]);
-        let b: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
-        (assembly, b)
-    }
-
-    /// ‖K x − b‖₂/‖b‖₂ and x, by `Assembly::factor`.
-    fn solved(assembly: &mut Assembly, b: &[f64], symmetric: bool) -> (f64, Vec<f64>) {
-        let cache: SymbolicCache = std::sync::Mutex::new(None);
-        let solver = assembly.factor(&cache, symmetric).expect("factorisation");
-        let mut x = b.to_vec();
-        solver.solve_in_place(&mut x).expect("solve");
-        let mut kx = vec![0.0; b.len()];
-        apply_ref(solver.matrix(), &x, &mut kx);
-        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|a| a * a).sum::<f64>().sqrt();
-        (norm(&mut kx.iter().zip(b).map(|(k, b)| k - b)) / norm(&mut b.iter().copied()), x)
-    }
-
-    #[test]
-    fn the_split_solve_agrees_with_the_whole_factorisation() {
-        // the column's ratios: penalties 1e5 times the diagonal, coupling 1e-3 of it; 20 % of
-        // the unknowns in the terms' block. The LU path (symmetric = false) factorises K whole.
-        let (mut assembly, b) = assembled(500, 1e3, 1.0, (200, 300), 1e8);
-        assert!(assembly.split.is_some());
-        let (res_split, x_split) = solved(&mut assembly, &b, true);
-        let (res_whole, x_whole) = solved(&mut assembly, &b, false);
-        let scale = x_whole.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let diff = x_split.iter().zip(&x_whole).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())) / scale;
-        // a backward-stable solve leaves ~1e-16·κ; κ(K) ≈ 1e8·4/1e3 here, so 1e-10 bounds both
-        assert!(res_split <= 1e-12 && res_whole <= 1e-12, "{res_split:e} {res_whole:e}");
-        assert!(diff <= 1e-10, "{diff:e}");
-    }
-
-    #[test]
-    fn a_strongly_coupled_rest_still_solves_to_round_off() {
-        // off-diagonals 0.4999 of the diagonal outside the block (κ ≈ 1e4 there): the
-        // preconditioner no longer makes K the identity; the iteration stops within CG_ACCEPT
-        // or the whole matrix is factorised
-        let (mut assembly, b) = assembled(500, 1.0, 0.4999, (240, 260), 1e5);
-        let (res, _) = solved(&mut assembly, &b, true);
-        assert!(res <= CG_ACCEPT, "{res:e}");
-    }
-
-    #[test]
-    fn terms_over_most_faces_factorise_the_whole_matrix() {
-        let (assembly, _) = assembled(100, 1e3, 1.0, (0, 90), 1e8);
-        assert!(assembly.split.is_none());
-    }
 }
