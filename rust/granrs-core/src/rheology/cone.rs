@@ -342,11 +342,11 @@ pub(crate) fn factor(cache: &SymbolicCache, mat: SparseColMatRef<'_, usize, f64>
     }
 }
 
-/// x ← K⁻¹x by the preconditioned conjugate-gradient iteration from zero (`precondition(r, z)`:
-/// z ← P⁻¹r), serial. Stops when the updated ‖r‖₂ ≤ [`CG_TOL`]·‖b‖₂ or after [`CG_STALL`]
+/// x ← K⁻¹x by the preconditioned conjugate-gradient iteration from zero (`k(p, q)`: q ← K p;
+/// `precondition(r, z)`: z ← P⁻¹r), serial. Stops when the updated ‖r‖₂ ≤ [`CG_TOL`]·‖b‖₂ or after [`CG_STALL`]
 /// iterations without a tenfold fall; returns whether the true residual b − K x is then within
 /// [`CG_ACCEPT`]·‖b‖₂ (x is the solution), and otherwise leaves x = b.
-fn conjugate_gradient(k: SparseColMatRef<'_, usize, f64>, x: &mut [f64], mut precondition: impl FnMut(&[f64], &mut [f64])) -> bool {
+fn conjugate_gradient(mut k: impl FnMut(&[f64], &mut [f64]), x: &mut [f64], mut precondition: impl FnMut(&[f64], &mut [f64])) -> bool {
     let n = x.len();
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
     let bnorm = dot(x, x).sqrt();
@@ -361,7 +361,7 @@ fn conjugate_gradient(k: SparseColMatRef<'_, usize, f64>, x: &mut [f64], mut pre
     let mut rz = dot(&r, &z);
     let (mut rnorm, mut best, mut since) = (bnorm, bnorm, 0);
     while rnorm > CG_TOL * bnorm && since < CG_STALL && rz > 0.0 {
-        apply_ref(k, &p, &mut q);
+        k(&p, &mut q);
         let pq = dot(&p, &q);
         if !(pq > 0.0 && pq.is_finite()) {
             break;
@@ -381,7 +381,7 @@ fn conjugate_gradient(k: SparseColMatRef<'_, usize, f64>, x: &mut [f64], mut pre
         rz = rz_new;
     }
     // the true residual: the updated one drifts from it by round-off
-    apply_ref(k, x, &mut q);
+    k(x, &mut q);
     let accepted = b.iter().zip(&q).map(|(b, q)| (b - q) * (b - q)).sum::<f64>().sqrt() <= CG_ACCEPT * bnorm;
     if !accepted {
         x.copy_from_slice(&b);
@@ -397,10 +397,57 @@ pub(crate) fn solve_predictor(a: &SparseColMat<usize, f64>, cache: &SymbolicCach
     if symmetric {
         let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
         let dinv: Vec<f64> = (0..a.ncols()).map(|j| (cp[j]..cp[j + 1]).find(|&e| ri[e] == j).map_or(1.0, |e| 1.0 / v[e])).collect();
-        if conjugate_gradient(a.as_ref(), x, |r, z| z.iter_mut().zip(r.iter().zip(&dinv)).for_each(|(z, (r, d))| *z = r * d)) {
+        if conjugate_gradient(|p, q| apply(a, p, q), x, |r, z| z.iter_mut().zip(r.iter().zip(&dinv)).for_each(|(z, (r, d))| *z = r * d)) {
             return Ok(());
         }
     }
     factor(cache, a.as_ref(), symmetric)?.solve_in_place(x);
+    Ok(())
+}
+
+/// x ← A_RR⁻¹x for A's block on the faces `rest` (`rest[f]`; x zero elsewhere on entry and on
+/// return), A symmetric: the conjugate-gradient iteration on the products with A masked to the
+/// block, preconditioned by its diagonal (its viscous coupling is ≪ its diagonal on the
+/// column), the block factorised (`factor`, `cache`) where that iteration stalls.
+pub(crate) fn solve_block(a: &SparseColMat<usize, f64>, rest: &[bool], cache: &SymbolicCache, x: &mut [f64]) -> Result<()> {
+    let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    let dinv: Vec<f64> = (0..a.ncols()).map(|j| if rest[j] { (cp[j]..cp[j + 1]).find(|&e| ri[e] == j).map_or(1.0, |e| 1.0 / v[e]) } else { 0.0 }).collect();
+    let masked = |p: &[f64], q: &mut [f64]| {
+        apply(a, p, q);
+        q.iter_mut().zip(rest).for_each(|(q, &r)| {
+            if !r {
+                *q = 0.0
+            }
+        });
+    };
+    if conjugate_gradient(masked, x, |r, z| z.iter_mut().zip(r.iter().zip(&dinv)).for_each(|(z, (r, d))| *z = r * d)) {
+        return Ok(());
+    }
+    // the block alone, factorised
+    let local: Vec<usize> = rest
+        .iter()
+        .scan(0, |k, &r| {
+            Some(if r {
+                *k += 1;
+                *k - 1
+            } else {
+                usize::MAX
+            })
+        })
+        .collect();
+    let mut trips = Vec::new();
+    for j in 0..a.ncols() {
+        for e in cp[j]..cp[j + 1] {
+            if rest[j] && rest[ri[e]] {
+                trips.push(Triplet::new(local[ri[e]], local[j], v[e]));
+            }
+        }
+    }
+    let m = rest.iter().filter(|&&r| r).count();
+    let mut y: Vec<f64> = x.iter().zip(rest).filter(|(_, &r)| r).map(|(x, _)| *x).collect();
+    factor(cache, compress(m, &trips)?.as_ref(), true)?.solve_in_place(&mut y);
+    for (f, &l) in local.iter().enumerate() {
+        x[f] = if l == usize::MAX { 0.0 } else { y[l] };
+    }
     Ok(())
 }

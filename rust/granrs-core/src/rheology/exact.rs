@@ -106,7 +106,7 @@
 
 use faer::sparse::Triplet;
 
-use super::cone::{apply, compress, is_symmetric, onto_ball, solve_predictor, Assembly, Program, Slot, SymbolicCache, Term};
+use super::cone::{apply, compress, is_symmetric, onto_ball, solve_block, solve_predictor, Assembly, Program, Slot, SymbolicCache, Term};
 use super::{augmented, interior_point};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -145,8 +145,15 @@ const SPLIT_SHARE: f64 = 0.5;
 /// Block sweeps of one step at most.
 const MAX_SWEEPS: usize = 10;
 
-/// Colour period of the probes along a non-periodic direction.
+/// Colour period of the strain rate's probes along a non-periodic direction: faces five apart
+/// never share a stencil or its ghosts (the strain rate and A on the first step).
 const PERIOD: usize = 5;
+
+/// Colour period of A's probes after the first step: A's rows reach one index in each
+/// direction, ghosts included (`fill_velocity_ghosts` mirrors a ghost onto the face next to
+/// the side), so faces three apart never share a row; the test
+/// `a_probed_three_apart_is_a_probed_five_apart` checks it on every kind of side.
+const PERIOD_A: usize = 3;
 
 /// What the exact step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -211,6 +218,7 @@ pub struct ExactStep {
     n_u: usize,
     n: usize,
     periods: (usize, usize),
+    periods_a: (usize, usize),
     periodic: (bool, bool),
     probe_u: Field,
     probe_v: Field,
@@ -230,6 +238,8 @@ pub struct ExactStep {
     symbolic_a: SymbolicCache,
     /// The same for A's block on the faces no term reaches (`sweeps`).
     symbolic_r: SymbolicCache,
+    /// Whether A is symmetric (`is_symmetric`), read on the first step.
+    symmetric: Option<bool>,
 }
 
 impl ExactStep {
@@ -240,8 +250,9 @@ impl ExactStep {
         let n_u = ru.len() * grid.ny;
         let n = n_u + rv.len() * grid.nx;
         let periodic = (periodic_pair(bc.get(Side::Left), bc.get(Side::Right)), periodic_pair(bc.get(Side::Bottom), bc.get(Side::Top)));
-        let period = |periodic: bool, m: usize| if !periodic || m % PERIOD == 0 { PERIOD } else { m };
-        let periods = (period(periodic.0, grid.nx), period(periodic.1, grid.ny));
+        let period = |p: usize, periodic: bool, m: usize| if !periodic || m % p == 0 { p } else { m };
+        let periods = (period(PERIOD, periodic.0, grid.nx), period(PERIOD, periodic.1, grid.ny));
+        let periods_a = (period(PERIOD_A, periodic.0, grid.nx), period(PERIOD_A, periodic.1, grid.ny));
         ExactStep {
             sigma_c: vec![[0.0; 2]; grid.nx * grid.ny],
             sigma_n: vec![[0.0; 2]; (grid.nx + 1) * (grid.ny + 1)],
@@ -250,6 +261,7 @@ impl ExactStep {
             n_u,
             n,
             periods,
+            periods_a,
             periodic,
             probe_u: Field::zeros(grid, Location::XFace),
             probe_v: Field::zeros(grid, Location::YFace),
@@ -263,6 +275,7 @@ impl ExactStep {
             symbolic: std::sync::Mutex::new(None),
             symbolic_a: std::sync::Mutex::new(None),
             symbolic_r: std::sync::Mutex::new(None),
+            symmetric: None,
         }
     }
 
@@ -274,17 +287,17 @@ impl ExactStep {
         self.n_u + (j - self.rv.start) * nx + i
     }
 
-    /// The unknown of component `comp` (0: u, 1: v) of colour (ci, cj) next to index (i, j) of
-    /// an output location, if there is one.
-    fn source(&self, grid: &Grid, comp: usize, (ci, cj): (usize, usize), i: isize, j: isize) -> Option<usize> {
-        let (px, py) = self.periods;
-        // the index ≡ c (mod p) within two of k (the probes' stencils reach one index, their
-        // ghosts two); across a periodic pair, modulo its length (p = m: one face per colour)
+    /// The unknown of component `comp` (0: u, 1: v) of colour (ci, cj), colour periods
+    /// (px, py), next to index (i, j) of an output location, if there is one.
+    #[allow(clippy::too_many_arguments)]
+    fn source(&self, grid: &Grid, (px, py): (usize, usize), comp: usize, (ci, cj): (usize, usize), i: isize, j: isize) -> Option<usize> {
+        // the index ≡ c (mod p) within (p − 1)/2 of k; across a periodic pair, modulo its length
+        // (p = m: one face per colour)
         let pick = |c: usize, k: isize, p: usize, m: usize, periodic: bool| -> isize {
             if periodic && p == m {
                 return c as isize;
             }
-            let lo = k - 2;
+            let lo = k - (p as isize - 1) / 2;
             let x = lo + (c as isize - lo).rem_euclid(p as isize);
             if periodic {
                 x.rem_euclid(m as isize)
@@ -306,7 +319,8 @@ impl ExactStep {
 
     /// Probes A (matrix-free `viscous_helmholtz` with homogeneous ghosts) and, with `strain`,
     /// the strain rate: returns A's triplets and the rows of ½(D_xx − D_yy) at centres and of
-    /// D_xy at nodes (empty without `strain`).
+    /// D_xy at nodes (empty without `strain`). The colours are [`PERIOD`] apart with `strain`,
+    /// [`PERIOD_A`] without.
     #[allow(clippy::too_many_arguments)]
     fn probe(
         &mut self,
@@ -323,7 +337,8 @@ impl ExactStep {
         let mut a = Vec::with_capacity(14 * self.n);
         let rows = |m: usize| RowSet { entries: vec![Vec::new(); if strain { m } else { 0 }] };
         let (mut dev, mut shear) = (rows(nx * ny), rows((nx + 1) * (ny + 1)));
-        let (px, py) = self.periods;
+        let periods = if strain { self.periods } else { self.periods_a };
+        let (px, py) = periods;
         for comp in 0..2 {
             for cj in 0..py {
                 for ci in 0..px {
@@ -354,7 +369,7 @@ impl ExactStep {
                         for i in self.ru.clone() {
                             let q = self.out_u.at(i as isize, j as isize);
                             if q != 0.0 {
-                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                if let Some(s) = self.source(grid, periods, comp, (ci, cj), i as isize, j as isize) {
                                     a.push(Triplet::new(self.index_u(i, j), s, q));
                                 }
                             }
@@ -364,7 +379,7 @@ impl ExactStep {
                         for i in 0..nx {
                             let q = self.out_v.at(i as isize, j as isize);
                             if q != 0.0 {
-                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                if let Some(s) = self.source(grid, periods, comp, (ci, cj), i as isize, j as isize) {
                                     a.push(Triplet::new(self.index_v(nx, i, j), s, q));
                                 }
                             }
@@ -378,7 +393,7 @@ impl ExactStep {
                         for i in 0..nx {
                             let d = 0.5 * (self.dxx.at(i as isize, j as isize) - self.dyy.at(i as isize, j as isize));
                             if d != 0.0 {
-                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                if let Some(s) = self.source(grid, periods, comp, (ci, cj), i as isize, j as isize) {
                                     dev.entries[j * nx + i].push((s, d));
                                 }
                             }
@@ -388,7 +403,7 @@ impl ExactStep {
                         for i in 0..=nx {
                             let d = self.dxy.at(i as isize, j as isize);
                             if d != 0.0 {
-                                if let Some(s) = self.source(grid, comp, (ci, cj), i as isize, j as isize) {
+                                if let Some(s) = self.source(grid, periods, comp, (ci, cj), i as isize, j as isize) {
                                     shear.entries[j * (nx + 1) + i].push((s, d));
                                 }
                             }
@@ -468,8 +483,9 @@ impl ExactStep {
         // A as a compressed matrix (for products) and its diagonal
         let a_mat = compress(n, &a_trip)?;
         // A symmetric (walls on every side): the Newton and interior-point matrices are
-        // symmetric positive definite, factorised by Cholesky
-        let symmetric = is_symmetric(&a_mat);
+        // symmetric positive definite, factorised by Cholesky. Whether it is depends on the kinds
+        // of side alone: read on the first step
+        let symmetric = *self.symmetric.get_or_insert_with(|| is_symmetric(&a_mat));
         let mut diag = vec![0.0; n];
         for t in &a_trip {
             if t.row == t.col {
@@ -915,9 +931,8 @@ struct Partition {
     /// G's faces, ascending, and each face's index in G (`usize::MAX` in R).
     faces: Vec<usize>,
     local: Vec<usize>,
-    /// R's faces, ascending, and each face's index in R (`usize::MAX` in G).
+    /// R's faces, ascending.
     rest: Vec<usize>,
-    rest_local: Vec<usize>,
 }
 
 impl Partition {
@@ -938,11 +953,7 @@ impl Partition {
             local[f] = k;
         }
         let rest: Vec<usize> = (0..n).filter(|&f| local[f] == usize::MAX).collect();
-        let mut rest_local = vec![usize::MAX; n];
-        for (k, &f) in rest.iter().enumerate() {
-            rest_local[f] = k;
-        }
-        Some(Partition { faces, local, rest, rest_local })
+        Some(Partition { faces, local, rest })
     }
 }
 
@@ -958,30 +969,35 @@ fn sweeps(
     mut sig: Vec<[f64; 2]>,
     (tol, max_iterations): (f64, usize),
 ) -> Result<Outcome> {
-    let (ng, nr) = (part.faces.len(), part.rest.len());
-    // A's four blocks, in the order of A's triplets (the same sums on every thread setting)
-    let (mut a_gg, mut a_rr, mut a_gr, mut a_rg) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let ng = part.faces.len();
+    // A's block on G and its coupling to R, in the order of A's triplets (the same sums on
+    // every thread setting)
+    let (mut a_gg, mut a_gr) = (Vec::new(), Vec::new());
     for t in p.a_trip {
         match (part.local[t.row], part.local[t.col]) {
-            (usize::MAX, usize::MAX) => a_rr.push(Triplet::new(part.rest_local[t.row], part.rest_local[t.col], t.val)),
-            (usize::MAX, _) => a_rg.push((part.rest_local[t.row], t.col, t.val)),
+            (usize::MAX, _) => {}
             (g, usize::MAX) => a_gr.push((g, t.col, t.val)),
             (g, h) => a_gg.push(Triplet::new(g, h, t.val)),
         }
     }
-    let (a_gg_mat, a_rr_mat) = (compress(ng, &a_gg)?, compress(nr, &a_rr)?);
+    let a_gg_mat = compress(ng, &a_gg)?;
+    let in_rest: Vec<bool> = part.local.iter().map(|&g| g == usize::MAX).collect();
     let cols_g: Vec<usize> = p.cols.iter().map(|&c| part.local[c]).collect();
     let apply_g = |t: &Term, x: &[f64]| apply_term(t, &cols_g, p.vals, x);
     let mut assembly = Assembly::new(ng, &a_gg, p.terms, &cols_g)?;
     // x_R ← A_RR⁻¹(b_R − A_RG x_G)
-    let solve_rest = |x: &mut [f64]| -> Result<()> {
-        let mut y: Vec<f64> = part.rest.iter().map(|&f| p.b[f]).collect();
-        for &(r, g, v) in &a_rg {
-            y[r] -= v * x[g];
+    let (mut xg, mut y) = (vec![0.0; p.n], vec![0.0; p.n]);
+    let mut solve_rest = |x: &mut [f64]| -> Result<()> {
+        for &f in &part.faces {
+            xg[f] = x[f];
         }
-        solve_predictor(&a_rr_mat, symbolic_r, true, &mut y)?;
-        for (k, &f) in part.rest.iter().enumerate() {
-            x[f] = y[k];
+        apply(p.a_mat, &xg, &mut y);
+        for f in 0..p.n {
+            y[f] = if in_rest[f] { p.b[f] - y[f] } else { 0.0 };
+        }
+        solve_block(p.a_mat, &in_rest, symbolic_r, &mut y)?;
+        for &f in &part.rest {
+            x[f] = y[f];
         }
         Ok(())
     };
@@ -1180,10 +1196,45 @@ mod tests {
     }
 
     #[test]
-    fn the_predictor_solve_reaches_round_off_weakly_or_strongly_coupled() {
+    fn a_probed_three_apart_is_a_probed_five_apart() {
+        // every kind of side, alone and mixed, on grids whose sizes 3 and 5 divide or not (a
+        // periodic direction of a size they do not divide takes one face per colour)
+        use VelocityBc::*;
+        let velocity = Velocity { normal: 0.3, tangential: -0.2 };
+        let sides: [[VelocityBc; 4]; 6] = [
+            [NoSlip; 4],
+            [NoSlip, FreeSlip, Coulomb, FreeSlip],
+            [velocity, Outflow, NoSlip, NavierSlip { slip_length: 0.05 }],
+            [FullyDeveloped, FullyDeveloped, Coulomb, FreeSlip],
+            [NoSlip, Outflow, FullyDeveloped, FullyDeveloped],
+            [FullyDeveloped; 4],
+        ];
+        for (nx, ny) in [(10, 7), (9, 15), (11, 6)] {
+            let grid = Grid::new(nx, ny, 1.0, 0.7).expect("grid");
+            let eta_c = Field::from_fn(&grid, Location::Centre, |x, y| 1e-3 + x * x + 0.3 * y);
+            let eta_n = Field::from_fn(&grid, Location::Node, |x, y| 2e-3 + 0.5 * x + y * y);
+            let c_u = Field::from_fn(&grid, Location::XFace, |x, y| 1e3 * (1.0 + x * y));
+            let c_v = Field::from_fn(&grid, Location::YFace, |x, y| 1e3 * (1.5 - x + y));
+            for [l, r, b, t] in sides {
+                let bc = BoundaryConditions::uniform(NoSlip).with(Side::Left, l).with(Side::Right, r).with(Side::Bottom, b).with(Side::Top, t);
+                let mut step = ExactStep::new(&grid, &bc);
+                let sorted = |mut a: Vec<Triplet<usize, usize, f64>>| {
+                    a.sort_by_key(|t| (t.col, t.row));
+                    a.into_iter().map(|t| (t.row, t.col, t.val.to_bits())).collect::<Vec<_>>()
+                };
+                let (a5, dev, _) = step.probe(&grid, &bc, &eta_c, &eta_n, &c_u, &c_v, true, Exec::SERIAL);
+                let (a3, ..) = step.probe(&grid, &bc, &eta_c, &eta_n, &c_u, &c_v, false, Exec::SERIAL);
+                assert!(!dev.entries.is_empty() && a5.len() > 5 * step.n, "{nx} × {ny}, {l:?} {r:?} {b:?} {t:?}");
+                assert_eq!(sorted(a3), sorted(a5), "{nx} × {ny}, {l:?} {r:?} {b:?} {t:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_predictor_and_block_solves_reach_round_off_weakly_or_strongly_coupled() {
         // the conjugate-gradient path (coupling 1e-3 of the diagonal) and the factorisation it
-        // falls back on (0.4999: κ ≈ 1e4, the iteration stalls above CG_ACCEPT or not)
-        for (d, e) in [(1e3, 1.0), (1.0, 0.4999)] {
+        // falls back on (0.49999: κ ≈ 1e5, the iteration stalls)
+        for (d, e) in [(1e3, 1.0), (1.0, 0.49999)] {
             let n = 500;
             let (a_trip, b, ..) = program(n, d, e, (0, 0));
             let a = compress(n, &a_trip).expect("A");
@@ -1196,6 +1247,14 @@ mod tests {
             let res = norm(&mut ax.iter().zip(&b).map(|(a, b)| a - b)) / norm(&mut b.iter().copied());
             // the acceptance of the iteration (1e-11) or a backward-stable factorisation
             assert!(res <= 1e-11, "({d}, {e}): {res:e}");
+            // the block on the faces i with i mod 50 ≠ 0 (`solve_block`): x zero off the block
+            let rest: Vec<bool> = (0..n).map(|i| i % 50 != 0).collect();
+            let rhs: Vec<f64> = b.iter().zip(&rest).map(|(b, &r)| if r { *b } else { 0.0 }).collect();
+            let mut x = rhs.clone();
+            solve_block(&a, &rest, &cache, &mut x).expect("block solve");
+            apply(&a, &x, &mut ax);
+            let res = norm(&mut (0..n).filter(|&i| rest[i]).map(|i| ax[i] - rhs[i])) / norm(&mut rhs.iter().copied());
+            assert!(res <= 1e-11 && (0..n).all(|i| rest[i] || x[i] == 0.0), "({d}, {e}) block: {res:e}");
         }
     }
 }
