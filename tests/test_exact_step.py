@@ -174,7 +174,7 @@ def _certify(model) -> dict:
     gap = _dual_gap(prob) / abs(jg)
     out = {"t": model.time, "n": A.shape[0], "terms": len(prob.dim), "dx": dx, "ddiss": ddiss, "dJ": dj, "gap": gap}
     # the acceptance, 1e-6, on x and on the dissipation: measured at most 3.1e-8 on x (ny = 16, dry,
-    # first step) and 2.6e-9 on the dissipation (ny = 16, dry, t = 0.25 s) at ny = 8-32
+    # first step) and 1.0e-9 on the dissipation (ny = 16, dry, third step) at ny = 8-32
     assert dx <= 1e-6, out
     assert ddiss <= 1e-6, out
     # J is flat at its minimum; the Newton loop stops when its relative residuals are below
