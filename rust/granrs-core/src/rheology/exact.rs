@@ -81,11 +81,13 @@
 //!
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–32.
-//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–37 at ny = 8–128, fluidised
-//! 2–6 (the interior point's included where it runs); near rest 30–45, where every step takes the
-//! interior point. At ny = 16 and 32 the dry and fluidised columns run to 3 s and meet the rest
-//! criterion between 1.65 and 2.16 s. Its cost to t = 0.1 s, 1.2–7 times the Picard iteration's
-//! at ny = 16–32 (`benchmarks/solver_cost.py`), is why the column's default is the Picard iteration.
+//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–30 at ny = 8–64,
+//! fluidised 2–6 at ny = 8–128 (the interior point's included where it runs); near rest about 35,
+//! where every step takes the interior point. The dry and fluidised columns run to 3 s at ny = 32
+//! and 64 and meet the rest criterion before 2.1 s. To t = 0.1 s it costs 2–2.7 times the Picard
+//! iteration on the fluidised column and 5.5–14 times on the dry one at ny = 16–32
+//! (`benchmarks/solver_cost.py`), and near rest about 35 factorisations a step: the column's
+//! default is the Picard iteration.
 //!
 //! **The iteration's r_k** is d_k/(w_k ‖B_k‖²) (d_k the largest diagonal of A on the term's
 //! faces: the scale at which a unit change of σ_k and of r_k B_k u are comparable). It spans
