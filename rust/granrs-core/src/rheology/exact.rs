@@ -49,19 +49,20 @@
 //! predictor and of the strain rate; B, which depends on the grid and the boundaries alone, is
 //! probed on the first step only.
 //!
-//! **Block sweeps.** The terms reach only the faces G of the granular layer (1–10 % of the
-//! unknowns on the column); on the rest R the step is linear, A_RR x_R = b_R − A_RG x_G. Where A
-//! is symmetric and G at most [`SPLIT_SHARE`] of the unknowns, the step alternates (block
-//! Gauss–Seidel): the nonlinear problem on G with x_R fixed (b_G − A_GR x_R on its right) by the
-//! three stages below, then x_R by a conjugate-gradient iteration preconditioned by A_RR's
-//! diagonal (`cone::solve_predictor`), until the whole problem's residuals (below) are within
-//! the tolerance, at most [`MAX_SWEEPS`] times. G and R are coupled only by A's viscous part,
-//! about 2ηδt/(ρh²) ≪ 1 of its diagonal on the column, so each sweep multiplies the coupling's
-//! error by about its square: two or three sweeps a step, and from the second the stages start
-//! within `POLISH_START` (below) and take one or two factorisations. The stages' test on G
-//! counts each face's scale and the largest of R's (`Scales`) as the whole problem's test does,
-//! so it is the whole test with x_R fixed. Every factorisation is then of G's size, and R costs
-//! a few products with A a sweep instead of a few with the Newton matrix per iteration.
+//! **Block sweeps.** The terms reach only the faces G of the granular layer (1–14 % of the
+//! unknowns on the column at ny = 16–64); on the rest R the step is linear, A_RR x_R = b_R −
+//! A_RG x_G. Where A is symmetric and G at most [`SPLIT_SHARE`] of the unknowns, the step
+//! alternates (block Gauss–Seidel): x_R for the current x_G, then the nonlinear problem on G
+//! with x_R fixed (b_G − A_GR x_R on its right) by the three stages below, then x_R again, until
+//! the whole problem's residuals (below) are within the tolerance, at most [`MAX_SWEEPS`] times.
+//! x_R comes from a conjugate-gradient iteration on A masked to R, preconditioned by its
+//! diagonal (`cone::solve_block`). G and R are coupled only by A's viscous part, about
+//! 2ηδt/(ρh²) ≪ 1 of its diagonal on the column, so each sweep multiplies the coupling's error
+//! by about its square: one sweep in most steps (ny = 32 to 0.1 s: 57 for 56 steps dry, 55 for
+//! 50 fluidised), and from the second the stages start within `POLISH_START` (below). The
+//! stages' test on G counts each face's scale and the largest of R's (`Scales`) as the whole
+//! problem's test does, so it is the whole test with x_R fixed. Every factorisation is then of
+//! G's size, and R costs a few products with A a sweep.
 //!
 //! **Three stages.** The semismooth loop starts from the previous step's u and σ (δ =
 //! [`NEWTON_DELTA`]). Once its momentum residual (relative, 2-norm) and its projection residual
@@ -81,7 +82,7 @@
 //!
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–32.
-//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–30 at ny = 8–64,
+//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–35 at ny = 8–128,
 //! fluidised 2–6 at ny = 8–128 (the interior point's included where it runs); near rest about 35,
 //! where every step takes the interior point. The dry and fluidised columns run to 3 s at ny = 32
 //! and 64 and meet the rest criterion before 2.1 s. To t = 0.1 s it costs 2–2.7 times the Picard
@@ -152,10 +153,10 @@ const MAX_HALVINGS: usize = 12;
 /// The largest share of the unknowns that the faces the terms reach (G) may hold for the step to
 /// run as block sweeps over G and the rest (`sweeps`); above it, or where A is not symmetric,
 /// the whole problem is iterated at once.
-const SPLIT_SHARE: f64 = 0.5;
+pub const SPLIT_SHARE: f64 = 0.5;
 
 /// Block sweeps of one step at most.
-const MAX_SWEEPS: usize = 10;
+pub const MAX_SWEEPS: usize = 10;
 
 /// Colour period of the strain rate's probes along a non-periodic direction: faces five apart
 /// never share a stencil or its ghosts (the strain rate and A on the first step).
