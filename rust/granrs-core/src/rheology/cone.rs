@@ -395,13 +395,9 @@ fn conjugate_gradient(mut k: impl FnMut(&[f64], &mut [f64]), x: &mut [f64], mut 
 /// that iteration stalls or A is not symmetric.
 pub(crate) fn solve_predictor(a: &SparseColMat<usize, f64>, cache: &SymbolicCache, symmetric: bool, x: &mut [f64]) -> Result<()> {
     if symmetric {
-        let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
-        let dinv: Vec<f64> = (0..a.ncols()).map(|j| (cp[j]..cp[j + 1]).find(|&e| ri[e] == j).map_or(1.0, |e| 1.0 / v[e])).collect();
-        if conjugate_gradient(|p, q| apply(a, p, q), x, |r, z| z.iter_mut().zip(r.iter().zip(&dinv)).for_each(|(z, (r, d))| *z = r * d)) {
-            return Ok(());
-        }
+        return solve_block(a, &vec![true; a.ncols()], cache, x);
     }
-    factor(cache, a.as_ref(), symmetric)?.solve_in_place(x);
+    factor(cache, a.as_ref(), false)?.solve_in_place(x);
     Ok(())
 }
 
