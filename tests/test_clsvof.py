@@ -77,3 +77,26 @@ def test_the_deposit_profile_is_the_volume_per_column():
         obs.fraction_profile(np.zeros(3), 0.1)
     with pytest.raises(ValueError, match="dy"):
         obs.fraction_profile(f, 0.0)
+
+
+def test_the_rest_criterion_sees_a_film_thinner_than_half_a_cell(tmp_path):
+    from granrs._granrs import VOLUME_FRACTION_MIN
+    from granrs.cases.column import granular_speed
+
+    model = build_model(column_case(config(tmp_path)))
+    dy = model.grid.dy
+    # the column's rectangle and, along the base beyond it, a film a quarter of a cell thick:
+    # F = 0.25 on the lowest row, Φ = −dy/4 at those centres (their centres lie above the film)
+    x = model.grid.centres()[0][0]
+    film = x > 0.5
+    phi = np.array(model.phi)
+    phi[0, film] = -0.25 * dy
+    model.set_initial(phi=phi, u=lambda x, y: 0.3 * (x > 0.5) * (y < dy), balance_pressure=False)
+    f = model.volume_fraction
+    assert np.all(f[0, film] > VOLUME_FRACTION_MIN) and np.all(model.phi[0, film] < 0)
+    uc, vc = model.centre_velocity()
+    # the film moves at 0.3 m/s, the column not at all: the speed is the film's, which a test on
+    # Φ > 0 alone reports as 0
+    assert granular_speed(model) == pytest.approx(float(np.max(np.hypot(uc, vc)[0, film])))
+    assert granular_speed(model) == pytest.approx(0.3)
+    assert float(np.max(np.hypot(uc, vc)[model.phi > 0], initial=0.0)) < 1e-12

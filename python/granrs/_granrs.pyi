@@ -15,12 +15,15 @@ __all__ = [
     "check_option",
     "check_room",
     "__version__",
+    "VOLUME_FRACTION_MIN",
     "ParameterError",
     "SolverError",
     "SimulationError",
 ]
 
 __version__: str
+#: Volume fractions below this count as no dense material (``levelset/vof.rs``'s F_MIN).
+VOLUME_FRACTION_MIN: float
 
 class ParameterError(ValueError): ...
 

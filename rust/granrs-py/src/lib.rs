@@ -780,6 +780,7 @@ fn _granrs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_option, m)?)?;
     m.add_function(wrap_pyfunction!(check_room, m)?)?;
     m.add("__version__", granrs_core::VERSION)?;
+    m.add("VOLUME_FRACTION_MIN", granrs_core::levelset::vof::F_MIN)?;
     m.add("ParameterError", m.py().get_type::<ParameterError>())?;
     m.add("SolverError", m.py().get_type::<SolverError>())?;
     m.add("SimulationError", m.py().get_type::<SimulationError>())?;

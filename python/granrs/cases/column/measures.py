@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..._granrs import ParameterError
+from ..._granrs import VOLUME_FRACTION_MIN, ParameterError
 
 
 def front_cell(phi: np.ndarray, max_gap: int = 2) -> int | None:
@@ -37,10 +37,16 @@ def front_position(phi: np.ndarray, dx: float, max_gap: int = 2) -> float:
 
 
 def granular_speed(model) -> float:
-    """The largest cell-centre speed over the cells with Φ > 0 (0 without any): what the column's
-    rest criterion (:class:`RestCriterion`) and summary.json's ``final_granular_speed_m_s`` read."""
+    """The largest cell-centre speed over the cells that hold granular material (0 without any):
+    Φ > 0, and with the conserved volume fraction (``interface_transport = "clsvof"``) also every
+    cell with F above ``VOLUME_FRACTION_MIN`` (a film thinner than half a cell has Φ < 0 at its
+    centres). What the column's rest criterion (:class:`RestCriterion`) and summary.json's
+    ``final_granular_speed_m_s`` read."""
     uc, vc = model.centre_velocity()
     inside = model.phi > 0
+    fraction = getattr(model, "volume_fraction", None)
+    if fraction is not None:
+        inside = inside | (fraction > VOLUME_FRACTION_MIN)
     return float(np.max(np.hypot(uc, vc)[inside])) if inside.any() else 0.0
 
 
