@@ -44,7 +44,7 @@
 
 #![allow(clippy::needless_range_loop)] // the loops run over a term's one or two components
 
-use super::cone::{apply, apply_ref, onto_ball, Assembly, Program};
+use super::cone::{apply, apply_ref, norm, onto_ball, Assembly, Program};
 use crate::error::Result;
 
 /// The step's stopping test at (x, σ).
@@ -139,7 +139,7 @@ pub(crate) fn solve(
                 let y = apply_b(t, &x);
                 let s = sig[idx];
                 let z = [s[0] + c[idx] * y[0], s[1] + c[idx] * y[1]];
-                let nz = if t.dim == 1 { z[0].abs() } else { z[0].hypot(z[1]) };
+                let nz = if t.dim == 1 { z[0].abs() } else { norm(z[0], z[1]) };
                 let wc = t.w * c[idx];
                 blocks[idx] = if nz <= 1.0 {
                     [[wc, 0.0], [0.0, wc]]

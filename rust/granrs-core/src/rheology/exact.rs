@@ -111,7 +111,7 @@
 
 use faer::sparse::Triplet;
 
-use super::cone::{apply, compress, is_symmetric, onto_ball, solve_block, solve_predictor, Assembly, Program, Slot, SymbolicCache, Term};
+use super::cone::{apply, compress, is_symmetric, norm, onto_ball, solve_block, solve_predictor, Assembly, Program, Slot, SymbolicCache, Term};
 use super::{augmented, interior_point};
 use crate::error::{Error, Result};
 use crate::exec::Exec;
@@ -509,12 +509,18 @@ impl ExactStep {
         let held = |side: Side| matches!(bc.get(side), VelocityBc::FreeSlip | VelocityBc::Coulomb);
         let (mut cols, mut vals) = (Vec::<usize>::new(), Vec::<f64>::new());
         let mut terms: Vec<Term> = Vec::new();
+        // a row of B with one entry per face: the parts' coefficients of a face summed (the
+        // four corners of a centre share faces), in the order the faces first appear
         let push_row = |cols: &mut Vec<usize>, vals: &mut Vec<f64>, parts: &[(&[(usize, f64)], f64)]| -> Range<usize> {
             let start = cols.len();
             for (entries, weight) in parts {
                 for &(k, val) in entries.iter() {
-                    cols.push(k);
-                    vals.push(weight * val);
+                    if let Some(q) = cols[start..].iter().position(|&c| c == k) {
+                        vals[start + q] += weight * val;
+                    } else {
+                        cols.push(k);
+                        vals.push(weight * val);
+                    }
                 }
             }
             start..cols.len()
@@ -734,9 +740,9 @@ fn residuals(p: &Program, sc: &Scales, x: &[f64], sig: &[[f64; 2]], fu: &mut Vec
     for (t, s) in p.terms.iter().zip(sig) {
         let y = (p.apply_b)(t, x);
         let f = natural_residual(*s, y, t.r);
-        proj = nan_max(proj, f[0].hypot(f[1]));
+        proj = nan_max(proj, norm(f[0], f[1]));
         let g = natural_residual(*s, y, sc.r_hat(t));
-        proj_hat = nan_max(proj_hat, g[0].hypot(g[1]));
+        proj_hat = nan_max(proj_hat, norm(g[0], g[1]));
         fk.push(f);
         for c in 0..t.dim {
             for e in t.rows[c].clone() {
@@ -864,7 +870,7 @@ fn iterate(
             let y = apply_b(t, &x);
             let s = sig[idx];
             let z = [s[0] + t.r * y[0], s[1] + t.r * y[1]];
-            let nz = if t.dim == 1 { z[0].abs() } else { z[0].hypot(z[1]) };
+            let nz = if t.dim == 1 { z[0].abs() } else { norm(z[0], z[1]) };
             let f = fk[idx];
             let (sm, tv) = if nz <= 1.0 {
                 let a = t.r / delta;

@@ -35,7 +35,7 @@
 #![allow(clippy::needless_range_loop)] // the loops run over a cone's one or two components
 #![allow(clippy::type_complexity)] // a Newton direction's four parts, named where it is built
 
-use super::cone::{apply, Assembly, Program};
+use super::cone::{apply, norm, Assembly, Program};
 use crate::error::{Error, Result};
 
 /// The projection residual of eq. (11) at which the interior point hands over to the
@@ -101,7 +101,7 @@ struct Scaling {
 impl Scaling {
     fn new(t: f64, y: [f64; 2], z0: f64, zy: [f64; 2]) -> Self {
         // t² − |y|² as (t − |y|)(t + |y|): no cancellation near the cone's boundary
-        let (ny, nz) = (y[0].hypot(y[1]), zy[0].hypot(zy[1]));
+        let (ny, nz) = (norm(y[0], y[1]), norm(zy[0], zy[1]));
         let sn = ((t - ny) * (t + ny)).sqrt();
         let zn = ((z0 - nz) * (z0 + nz)).sqrt();
         let (s0, s1) = (t / sn, [y[0] / sn, y[1] / sn]);
