@@ -82,13 +82,14 @@
 //!
 //! **Measured (docs/validation.md "The exact step of eq. (11)").** Its solution agrees with an
 //! independent interior-point solution of the same cone program to 3.1e-8 (x) at ny = 8–32.
-//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–35 at ny = 8–128,
-//! fluidised 2–6 at ny = 8–128 (the interior point's included where it runs); near rest about 35,
+//! Newton matrices solved per step, column to t = 0.1 s (median): dry 4–37 at ny = 8–128,
+//! fluidised 2–7 at ny = 8–128 (the interior point's included where it runs); near rest about 35,
 //! where every step takes the interior point. The dry and fluidised columns run to 3 s at ny = 32
-//! and 64 and meet the rest criterion before 2.1 s. To t = 0.1 s it costs 2–2.7 times the Picard
-//! iteration on the fluidised column and 5.5–14 times on the dry one at ny = 16–32
-//! (`benchmarks/solver_cost.py`), and near rest about 35 factorisations a step: the column's
-//! default is the Picard iteration.
+//! and 64 and meet the rest criterion before 2.2 s. To t = 0.1 s it costs 2.4–2.8 times the Picard
+//! iteration on the fluidised column and 5.9–13 times on the dry one at ny = 16–32; whole runs to
+//! rest cost 8.6–10.6 times Picard's (which never rests) and 2.3–3.6 times the deposit-at-rest
+//! recipe's at ny = 32–64 (`benchmarks/solver_cost.py`): the column's default is the Picard
+//! iteration.
 //!
 //! **The iteration's r_k** is d_k/(w_k ‖B_k‖²) (d_k the largest diagonal of A on the term's
 //! faces: the scale at which a unit change of σ_k and of r_k B_k u are comparable). It spans
