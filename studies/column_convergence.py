@@ -6,6 +6,7 @@
     python studies/column_convergence.py --channel-width 0.1 --out out/convergence-walls   # with side walls
     python studies/column_convergence.py --ny 32 64 --literal-sign --out out/convergence  # + the literal air supply
     python studies/column_convergence.py --ensemble fluidised=out/ens-fl32 dry=out/ens-dry32   # round-off spreads
+    python studies/column_convergence.py --interface-transport clsvof --out out/convergence-clsvof   # conservative interface
 
 Grids from ny = 128 up run on the active region with open right and top sides (BAND = ny/16
 cells of air, the same 28 mm at every grid; `--active-region BAND --active-region-sides
@@ -45,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from granrs import ActiveRegion, SideWalls
+from granrs import ActiveRegion, SideWalls, options
 from granrs.cases.column import PAPER_RUNOUT_EXP, PAPER_RUNOUT_SIM, ColumnCase, Fluidisation, run_columns, run_finished
 from granrs.observables import observable_keys
 
@@ -58,13 +59,19 @@ ENSEMBLE = Path(__file__).resolve().parents[1] / "tests" / "data" / "column_obse
 ACTIVE_REGION_FROM_NY = 128
 
 
-def case_for(ny: int, fluidised: bool, threads: int, channel_width, air_supply: str = "injection") -> ColumnCase:
+def case_for(
+    ny: int, fluidised: bool, threads: int, channel_width, air_supply: str = "injection", transport: str | None = None
+) -> ColumnCase:
     """The study's case on the grid ny: the whole domain below ACTIVE_REGION_FROM_NY, the open
-    active window (BAND = ny/16) from it up."""
+    active window (BAND = ny/16) from it up; with ``transport = "clsvof"`` the interface moves the
+    conserved volume fraction and the global mass correction is off."""
     window = dict(active_region=ActiveRegion(ny // 16, sides="open-right-top")) if ny >= ACTIVE_REGION_FROM_NY else {}
     side_walls = None if channel_width is None else SideWalls(channel_width, ColumnCase().base.friction_angle)
     fluidisation = Fluidisation(fluidised=fluidised, air_supply=air_supply)
-    return ColumnCase(ny=ny, fluidisation=fluidisation, threads=threads, side_walls=side_walls, **window)
+    case = ColumnCase(ny=ny, fluidisation=fluidisation, threads=threads, side_walls=side_walls, **window)
+    if transport == "clsvof":
+        case = case.with_options(interface_transport="clsvof", mass_correction=False)
+    return case
 
 
 def run_folder(out: Path, ny: int, fluidised: bool, air_supply: str = "injection") -> Path:
@@ -87,7 +94,10 @@ def run_missing(runs: list, out: Path, args: argparse.Namespace) -> None:
     for ny, fl, supply in todo:
         print(f"running ny = {ny}, {run_folder(out, ny, fl, supply).name} ...", flush=True)
     cases = [
-        (case_for(ny, fl, args.threads, args.channel_width, supply), run_folder(out, ny, fl, supply))
+        (
+            case_for(ny, fl, args.threads, args.channel_width, supply, args.interface_transport),
+            run_folder(out, ny, fl, supply),
+        )
         for ny, fl, supply in todo
     ]
     run_columns(cases, jobs=args.jobs, progress=args.jobs == 1)
@@ -188,6 +198,13 @@ def main() -> None:
         dest="literal_sign",
         action="store_true",
         help="also run the fluidised column with the printed sign of the air supply (an outflow)",
+    )
+    ap.add_argument(
+        "--interface-transport",
+        dest="interface_transport",
+        choices=list(options.spec("interface_transport").choices),
+        default=options.spec("interface_transport").default,
+        help="the interface's transport (Interface.transport); clsvof runs without the global mass correction",
     )
     ap.add_argument(
         "--ensemble",

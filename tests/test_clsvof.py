@@ -3,6 +3,8 @@ the volume fraction F is a read-only live view, is saved in checkpoints (a resta
 for bit), VTK and NetCDF outputs, and the column's deposit observables read the volume per
 column from it."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -64,15 +66,27 @@ def test_vtk_and_netcdf_carry_the_volume_fraction(tmp_path):
     model = build_model(column_case(cfg))  # the initial state again
     frame = read_vti(sorted((tmp_path / "fields").glob("*.vti"))[0])
     np.testing.assert_array_equal(frame["fields"]["volume_fraction"], model.volume_fraction)
+    # the run's observables read the volume per column from F, and say so
+    summary = json.loads(next(tmp_path.glob("**/summary.json")).read_text())
+    assert summary["observables"]["profile_definition"] == obs.FRACTION_PROFILE_DEFINITION
     nc = next(tmp_path.glob("**/*.nc"))
     with xr.open_dataset(nc) as ds:
         assert ds["volume_fraction"].attrs["units"] == "1"
         np.testing.assert_array_equal(ds["volume_fraction"].isel(time=0).values, model.volume_fraction)
 
 
-def test_the_deposit_profile_is_the_volume_per_column():
+def test_the_deposit_profile_is_the_volume_per_column(tmp_path):
     f = np.array([[1.0, 1.0, 0.25], [0.5, 0.0, 0.0]])
     np.testing.assert_array_equal(obs.fraction_profile(f, 0.5), [0.75, 0.5, 0.125])
+    # a model with F reads it; one without reads its level set's fill fractions
+    model = build_model(column_case(config(tmp_path)))
+    np.testing.assert_array_equal(
+        obs.model_volume_profile(model), obs.fraction_profile(model.volume_fraction, model.grid.dy)
+    )
+    assert obs.model_profile_definition(model) == obs.FRACTION_PROFILE_DEFINITION
+    plain = build_model(column_case(resolve({"grid": {"ny": 16}})))
+    np.testing.assert_array_equal(obs.model_volume_profile(plain), obs.volume_profile(plain.phi, plain.grid.dy))
+    assert obs.model_profile_definition(plain) == obs.PROFILE_DEFINITION
     with pytest.raises(ValueError, match="fraction"):
         obs.fraction_profile(np.zeros(3), 0.1)
     with pytest.raises(ValueError, match="dy"):

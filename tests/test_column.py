@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from granrs import ActiveRegion, BiProjection, ParameterError, SideWalls, SimulationError, TimeStepping
+from granrs import ActiveRegion, BiProjection, ParameterError, SideWalls, SimulationError, TimeStepping, options
 from granrs.cases.column import (
     PAPER_RUNOUT_SIM,
     ColumnCase,
@@ -975,6 +975,22 @@ def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
     subprocess.run([*args, "--out", str(tmp_path / "jobs1")], check=True, capture_output=True)
     assert (done / "summary.json").read_bytes() == kept
     assert run_finished(cut) and (tmp_path / "jobs1" / "observables.csv").read_text() == a
+
+
+def test_column_convergence_runs_the_conservative_interface_without_the_correction():
+    """studies/column_convergence.py --interface-transport clsvof: the study's cases move the
+    volume fraction and run without the global mass correction (which clsvof refuses); the
+    default keeps the level set with it; a transport outside the option's choices is refused
+    with the argument's name before any run."""
+    script = Path(__file__).resolve().parents[1] / "studies" / "column_convergence.py"
+    study = runpy.run_path(str(script))
+    for transport, correction in (("clsvof", False), ("level-set", True)):
+        for ny in (32, 128):
+            case = study["case_for"](ny, True, 1, None, transport=transport)
+            opts = options.merge(case.numerics, case.objects())
+            assert (opts["interface_transport"], opts["mass_correction"]) == (transport, correction)
+    r = subprocess.run([sys.executable, str(script), "--interface-transport", "vof"], capture_output=True, text=True)
+    assert r.returncode != 0 and "--interface-transport" in r.stderr and "clsvof" in r.stderr
 
 
 def _mark_interrupted(folder: Path, reason: str = "interrupted: KeyboardInterrupt") -> None:

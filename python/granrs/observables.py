@@ -46,6 +46,17 @@ PROFILE_DEFINITION = (
     "h(x) = sum_j f_ij dy, the granular volume per column of cells, f = min(1, max(0, 1/2 + "
     "phi/dy)) the cell's fill fraction from the level set (as a VOF code's sum_j f dy)"
 )
+#: The definition with the conserved volume fractions (``interface_transport = "clsvof"``).
+FRACTION_PROFILE_DEFINITION = (
+    "h(x) = sum_j F_ij dy, the granular volume per column of cells, F the conserved volume "
+    "fraction of the clsvof transport"
+)
+
+
+def model_profile_definition(model) -> str:
+    """What :func:`model_volume_profile` reads for ``model``: :data:`FRACTION_PROFILE_DEFINITION`
+    where it has volume fractions, else :data:`PROFILE_DEFINITION`."""
+    return FRACTION_PROFILE_DEFINITION if getattr(model, "volume_fraction", None) is not None else PROFILE_DEFINITION
 
 
 def _check_profile(h, dx: float) -> np.ndarray:
@@ -304,7 +315,7 @@ def observable_keys(
     )
 
 
-def summarise(final: dict, initial: dict, records: Optional[dict] = None) -> dict:
+def summarise(final: dict, initial: dict, records: Optional[dict] = None, definition: str = PROFILE_DEFINITION) -> dict:
     """summary.json's ``observables``: the final profile's, with the travel and the fronts' maxima.
 
     Parameters
@@ -315,6 +326,9 @@ def summarise(final: dict, initial: dict, records: Optional[dict] = None) -> dic
         :func:`observe_profile` of the initial profile.
     records : dict, optional
         Time series of the same keys (lists), for the largest value each front reached.
+    definition : str, optional
+        The profile's definition (:func:`model_profile_definition`), written as
+        ``profile_definition``.
 
     Returns
     -------
@@ -329,7 +343,7 @@ def summarise(final: dict, initial: dict, records: Optional[dict] = None) -> dic
         if k.startswith("front_h") and len(v):
             arr = np.asarray(v, dtype=float)
             out["max_" + k] = _json_float(np.nanmax(arr)) if np.any(np.isfinite(arr)) else None
-    out["profile_definition"] = PROFILE_DEFINITION
+    out["profile_definition"] = definition
     return out
 
 

@@ -280,7 +280,9 @@ def run_column(
         summary["pieces_removed_total"] = int(np.sum(hist["pieces_removed"]))
     if rec["energy"]:
         summary["energy"] = energy_summary(rec["energy"][-1])
-    summary["observables"] = _observables_summary(rec, profiles["hvol_final"], grid.dx, grid.dy, lc)
+    summary["observables"] = _observables_summary(
+        rec, profiles["hvol_final"], grid.dx, grid.dy, lc, obs.model_profile_definition(model)
+    )
     if fluid and rec["t"]:
         summary["fluidisation"] = fluidisation_summary(rec["t"], rec["pf_ratio_reservoir"], rec["pf_ratio_channel"])
     summary.update(extra_summary or {})

@@ -148,14 +148,16 @@ def _record_observables(rec: dict, h: np.ndarray, dx: float, cell: float, x_gate
         rec.setdefault(k, []).append(v)
 
 
-def _observables_summary(rec: dict, h_final: np.ndarray, dx: float, cell: float, x_gate: float) -> dict:
+def _observables_summary(
+    rec: dict, h_final: np.ndarray, dx: float, cell: float, x_gate: float, definition: str = obs.PROFILE_DEFINITION
+) -> dict:
     """summary.json["observables"]: those of the final volume profile (profiles.csv's hvol_final),
     the centre of mass's travel since the first record, the fronts' largest values over the
     records, the thicknesses in cells in metres and the profile's definition."""
     final = obs.observe_profile(h_final, dx, cell, x_gate)
     keys = obs.observable_keys()
     initial = {k: rec[k][0] for k in keys} if rec.get(keys[0]) else final
-    out = obs.summarise(final, initial, {k: rec[k] for k in keys if k in rec})
+    out = obs.summarise(final, initial, {k: rec[k] for k in keys if k in rec}, definition)
     out["cell_m"] = cell
     out["distances_from"] = "the gate, x = L_c"
     return out
