@@ -977,11 +977,12 @@ def test_column_convergence_side_by_side_gives_the_same_study(tmp_path):
     assert run_finished(cut) and (tmp_path / "jobs1" / "observables.csv").read_text() == a
 
 
-def test_column_convergence_runs_the_conservative_interface_without_the_correction():
+def test_column_convergence_runs_the_conservative_interface_without_the_correction(tmp_path):
     """studies/column_convergence.py --interface-transport clsvof: the study's cases move the
-    volume fraction and run without the global mass correction (which clsvof refuses); the
-    default keeps the level set with it; a transport outside the option's choices is refused
-    with the argument's name before any run."""
+    volume fraction and run without the global mass correction (which clsvof refuses), and its
+    table reports the conserved volume's largest change (bound 1e-10, the corrected level set's;
+    measured 1e-13 - 4e-12 at ny = 32 - 256); the default keeps the level set with it; a transport
+    outside the option's choices is refused with the argument's name before any run."""
     script = Path(__file__).resolve().parents[1] / "studies" / "column_convergence.py"
     study = runpy.run_path(str(script))
     for transport, correction in (("clsvof", False), ("level-set", True)):
@@ -991,6 +992,11 @@ def test_column_convergence_runs_the_conservative_interface_without_the_correcti
             assert (opts["interface_transport"], opts["mass_correction"]) == (transport, correction)
     r = subprocess.run([sys.executable, str(script), "--interface-transport", "vof"], capture_output=True, text=True)
     assert r.returncode != 0 and "--interface-transport" in r.stderr and "clsvof" in r.stderr
+    args = ["--ny", "16", "--interface-transport", "clsvof", "--out", str(tmp_path)]
+    subprocess.run([sys.executable, str(script), *args], check=True, capture_output=True)
+    with open(tmp_path / "convergence.csv") as f:
+        (row,) = list(csv.DictReader(f))
+    assert 0.0 <= float(row["volume_rel_error_max"]) < 1e-10
 
 
 def _mark_interrupted(folder: Path, reason: str = "interrupted: KeyboardInterrupt") -> None:
