@@ -53,10 +53,15 @@ FRACTION_PROFILE_DEFINITION = (
 )
 
 
+def _volume_fraction(model):
+    """The model's conserved volume fractions (``interface_transport = "clsvof"``), else None."""
+    return getattr(model, "volume_fraction", None)
+
+
 def model_profile_definition(model) -> str:
     """What :func:`model_volume_profile` reads for ``model``: :data:`FRACTION_PROFILE_DEFINITION`
     where it has volume fractions, else :data:`PROFILE_DEFINITION`."""
-    return FRACTION_PROFILE_DEFINITION if getattr(model, "volume_fraction", None) is not None else PROFILE_DEFINITION
+    return PROFILE_DEFINITION if _volume_fraction(model) is None else FRACTION_PROFILE_DEFINITION
 
 
 def _check_profile(h, dx: float) -> np.ndarray:
@@ -121,7 +126,7 @@ def model_volume_profile(model) -> np.ndarray:
     """The granular volume per column of a model: :func:`fraction_profile` of its conserved
     volume fractions when it has them (``interface_transport = "clsvof"``), else
     :func:`volume_profile` of its level set."""
-    fraction = getattr(model, "volume_fraction", None)
+    fraction = _volume_fraction(model)
     if fraction is not None:
         return fraction_profile(fraction, model.grid.dy)
     return volume_profile(model.phi, model.grid.dy)
