@@ -1,16 +1,19 @@
 """Whole column runs with each way of solving the bi-projection's step, in alternation on the same
 machine: the Picard iteration of eq. (12) (the default), the exact step of eq. (11)
 (``bi_projection.solver = "newton"``) and the deposit-at-rest recipe (the Picard iteration with the
-five options of docs/howto/deposit-at-rest.md). Gives each run's wall time, steps, iterations per
-step and stop reason, and each solver's time inside the run over the Picard run's of the same round.
+five options of docs/howto/deposit-at-rest.md); on request the exact step with the light phase at
+its own CFL number (``newton-cfl-light``: ``--cfl-light 0.9``). Gives each run's wall time, steps,
+iterations per step, stop reason, observables and arrest record, and each solver's time inside the
+run over the Picard run's of the same round.
 
     .venv/bin/python benchmarks/solver_cost.py [--ny 16 32] [--columns fluidised dry]
-        [--t-end 0.1] [--rounds 3] [--solvers picard newton recipe] [--threads 1] [--out FILE.json]
+        [--t-end 0.1] [--rounds 3] [--solvers picard newton recipe [newton-cfl-light]] [--threads 1]
+        [--out FILE.json]
 
 Each run is ``granrs run column --ny N [--no-fluidised] --t-end T --threads K --quiet`` in a
 process of its own, with the solver's ``--set`` items; a round runs every solver once, in the
-order given. The wall time is the process's (start-up included) and ``wall_s`` of its
-summary.json (the time inside the run). A run that stops with an error is a row with its stop
+order given (a solver's flags beside its ``--set`` items in ``FLAGS``). The wall time is the
+process's (start-up included) and ``wall_s`` of its summary.json (the time inside the run). A run that stops with an error is a row with its stop
 reason, not the end of the script. Ratios are taken round by round and their median reported.
 """
 
@@ -29,6 +32,7 @@ from pathlib import Path
 SOLVERS = {
     "picard": [],
     "newton": ["bi_projection.solver='newton'"],
+    "newton-cfl-light": ["bi_projection.solver='newton'"],
     "recipe": [
         "bi_projection.proximal_restarts=20",
         "bi_projection.anderson_depth=5",
@@ -37,6 +41,9 @@ SOLVERS = {
         "interface.redistance_tolerance=0.01",
     ],
 }
+
+#: Flags beside the ``--set`` items.
+FLAGS = {"newton-cfl-light": ["--cfl-light", "0.9"]}
 
 COLUMNS = {"fluidised": "--fluidised", "dry": "--no-fluidised"}
 
@@ -48,6 +55,7 @@ def run(ny: int, column: str, solver: str, args: argparse.Namespace, out: Path) 
     cmd += ["--threads", str(args.threads), "--quiet", "--overwrite", "--out", str(out)]
     for item in SOLVERS[solver]:
         cmd += ["--set", item]
+    cmd += FLAGS.get(solver, [])
     t0 = time.perf_counter()
     r = subprocess.run(cmd, capture_output=True, text=True, check=False)
     row: dict = {"ny": ny, "column": column, "solver": solver, "process_wall_s": time.perf_counter() - t0}
@@ -64,6 +72,10 @@ def run(ny: int, column: str, solver: str, args: argparse.Namespace, out: Path) 
         "iterations": s.get("bi_projection_iterations"),
         "eq11_residual_max": s.get("eq11_residual_max"),
         "runout_m": s["runout_m"],
+        "observables": s.get("observables"),
+        "rest": {
+            k: s.get(k) for k in ("arrest_time_s", "max_front_time_s", "front_retreat_m", "final_granular_speed_m_s")
+        },
     }
 
 
@@ -111,7 +123,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ny", type=int, nargs="+", default=[16, 32])
     ap.add_argument("--columns", nargs="+", default=list(COLUMNS), choices=list(COLUMNS))
-    ap.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=list(SOLVERS))
+    ap.add_argument("--solvers", nargs="+", default=["picard", "newton", "recipe"], choices=list(SOLVERS))
     ap.add_argument("--t-end", type=float, default=0.1, help="simulated time of each run [s] (3: the whole collapse)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1)

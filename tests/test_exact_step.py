@@ -283,8 +283,9 @@ def test_the_summary_reports_the_solver_its_iterations_and_residual(tmp_path):
 
 def test_the_solver_cost_benchmark_runs_each_solver(tmp_path):
     """benchmarks/solver_cost.py (docs/benchmarks.md, "The exact-step solver costs") at ny = 8 for
-    0.02 s, one round: a row per solver with its iterations, the exact step's residual below
-    newton_tol, and the Picard run's ratio to itself."""
+    0.02 s, one round: a row per solver with its iterations and observables, the exact step's
+    residual below newton_tol (with the light phase at its own CFL number too), and the Picard
+    run's ratio to itself."""
     script = Path(__file__).resolve().parents[1] / "benchmarks" / "solver_cost.py"
     out = tmp_path / "rows.json"
     cmd = [
@@ -298,12 +299,42 @@ def test_the_solver_cost_benchmark_runs_each_solver(tmp_path):
         "0.02",
         "--rounds",
         "1",
+        "--solvers",
+        "picard",
+        "newton",
+        "recipe",
+        "newton-cfl-light",
         "--out",
         str(out),
     ]
     r = subprocess.run(cmd, capture_output=True, text=True, check=True)
     rows = {row["solver"]: row for row in json.loads(out.read_text())["rows"]}
-    assert set(rows) == {"picard", "newton", "recipe"}
+    assert set(rows) == {"picard", "newton", "recipe", "newton-cfl-light"}
     assert all(row["stop_reason"] == "stop_time" and row["iterations"]["median"] >= 1 for row in rows.values())
+    assert all(row["observables"]["profile_area_m2"] > 0 and "arrest_time_s" in row["rest"] for row in rows.values())
     assert rows["newton"]["eq11_residual_max"] <= 1e-9 and rows["picard"]["eq11_residual_max"] is None
+    assert rows["newton-cfl-light"]["eq11_residual_max"] <= 1e-9
     assert "| 8 | dry | picard |" in r.stdout and "| 1.00 |" in r.stdout
+
+
+def test_the_cfl_light_comparison_reads_solver_cost_rows(tmp_path):
+    """benchmarks/cfl_light_effect.py (docs/benchmarks.md, "The exact-step solver costs"): the
+    option passes only where its change at the fine grid is below the grid's change for every
+    observable; rows as solver_cost.py writes them, one observable moved past the grid's change."""
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "cfl_light_effect.py"
+    names = ["front_h1mm_m", "front_h2mm_m", "front_h5mm_m", "front_h20mm_m", "q50_m", "q95_m", "q99_m"]
+    names.append("centre_of_mass_travel_m")
+
+    def row(ny, solver, shift):
+        obs = {n: 1.0 + shift for n in names}
+        return {"ny": ny, "column": "dry", "solver": solver, "runout_m": 1.0 + shift, "observables": obs}
+
+    def verdict(option_shift):
+        rows = [row(64, "newton", 0.0), row(128, "newton", 0.01), row(128, "newton-cfl-light", 0.01 + option_shift)]
+        path = tmp_path / "rows.json"
+        path.write_text(json.dumps({"rows": rows}))
+        r = subprocess.run([sys.executable, str(script), str(path)], capture_output=True, text=True, check=True)
+        assert r.stdout.count("| dry |") == len(names) + 1
+        return "is below" in r.stdout
+
+    assert verdict(0.004) and not verdict(0.02) and not verdict(-0.011)
