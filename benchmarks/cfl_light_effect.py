@@ -25,9 +25,12 @@ OBSERVABLES = [
     "front_h5mm_m",
     "front_h20mm_m",
     "q50_m",
+    "q90_m",
     "q95_m",
     "q99_m",
     "centre_of_mass_travel_m",
+    "h_back_wall_m",
+    "h_gate_m",
     "runout_m",
 ]
 
