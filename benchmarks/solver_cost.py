@@ -13,8 +13,9 @@ run over the Picard run's of the same round.
 Each run is ``granrs run column --ny N [--no-fluidised] --t-end T --threads K --quiet`` in a
 process of its own, with the solver's ``--set`` items; a round runs every solver once, in the
 order given (a solver's flags beside its ``--set`` items in ``FLAGS``). The wall time is the
-process's (start-up included) and ``wall_s`` of its summary.json (the time inside the run). A run that stops with an error is a row with its stop
-reason, not the end of the script. Ratios are taken round by round and their median reported.
+process's (start-up included) and ``wall_s`` of its summary.json (the time inside the run). A run
+that stops with an error is a row with its stop reason, not the end of the script. Ratios are
+taken round by round and their median reported.
 """
 
 from __future__ import annotations
