@@ -57,10 +57,9 @@ impl ModelConfig {
         if self.redistance.piece_removal_cells > 0 {
             f += n;
         }
-        // the volume fraction: F and its two moments, the same after the first sweep, the nine
-        // rows of the cells' reconstruction and the twelve of their segments
+        // the volume fraction: F, its first sweep and the four fields of the PLIC segments
         if self.interface_transport == crate::levelset::InterfaceTransport::Clsvof && self.light.is_some() {
-            f += 27 * c;
+            f += 6 * c;
         }
         // the film-sparing mass correction: its weight and the rows' maxima
         if self.redistance.mass_correction_film > 0.0 {
