@@ -57,9 +57,10 @@ impl ModelConfig {
         if self.redistance.piece_removal_cells > 0 {
             f += n;
         }
-        // the volume fraction: F, its first sweep and the four fields of the PLIC segments
+        // the volume fraction: F, its first sweep, the four fields of the PLIC segments and F in
+        // the step's snapshot
         if self.interface_transport == crate::levelset::InterfaceTransport::Clsvof && self.light.is_some() {
-            f += 6 * c;
+            f += 7 * c;
         }
         // the film-sparing mass correction: its weight and the rows' maxima
         if self.redistance.mass_correction_film > 0.0 {
