@@ -427,14 +427,20 @@ def _wait_for(predicate, timeout=120.0):
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
 def test_sigterm_and_sighup_stop_a_run_as_ctrl_c_does(tmp_path, signum):
-    # ny = 16 up to 3 s: many seconds of wall time, far more than the 10 records the test waits for
-    path = run_file(tmp_path, grid={"ny": 16}, time={"t_end": 3.0}, output={"checkpoint_every_s": 1.0})
+    # ny = 16 up to 30 s and no stop at rest: far longer than the 10 records the test waits for
+    # (it still runs after 6 s of wall time), so that the signal reaches a running simulation
+    path = run_file(
+        tmp_path, grid={"ny": 16}, time={"t_end": 30.0}, rest={"speed": 1e-9}, output={"checkpoint_every_s": 1.0}
+    )
     out = tmp_path / "out"
+    # the child starts with the default disposition: under nohup (SIGHUP ignored, which granrs
+    # respects) the test would otherwise see a run that goes on
     proc = subprocess.Popen(
         [sys.executable, "-m", "granrs.cli", "run", str(path), "--quiet"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=lambda: signal.signal(signum, signal.SIG_DFL),
     )
     _wait_for(lambda: _rows(out) >= 10)
     proc.send_signal(signum)
