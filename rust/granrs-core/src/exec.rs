@@ -110,6 +110,28 @@ impl Exec {
         }
     }
 
+    /// [`Exec::for_each_row`] over three buffers of the same length at once: `f(row_index,
+    /// row_a, row_b, row_c)`, the rows of the three at the same index.
+    pub fn for_each_row3<F>(self, a: &mut [f64], b: &mut [f64], c: &mut [f64], stride: usize, f: F)
+    where
+        F: Fn(usize, &mut [f64], &mut [f64], &mut [f64]) + Sync + Send,
+    {
+        assert!(a.len() == b.len() && b.len() == c.len(), "Exec::for_each_row3: lengths differ");
+        if self.use_parallel(a.len()) {
+            let rows = balanced_task_rows(a.len() / stride.max(1), stride);
+            let n = stride * rows;
+            a.par_chunks_mut(n).zip(b.par_chunks_mut(n)).zip(c.par_chunks_mut(n)).enumerate().for_each(|(k, ((ba, bb), bc))| {
+                for (r, ((ra, rb), rc)) in ba.chunks_mut(stride).zip(bb.chunks_mut(stride)).zip(bc.chunks_mut(stride)).enumerate() {
+                    f(k * rows + r, ra, rb, rc);
+                }
+            });
+        } else {
+            for (r, ((ra, rb), rc)) in a.chunks_mut(stride).zip(b.chunks_mut(stride)).zip(c.chunks_mut(stride)).enumerate() {
+                f(r, ra, rb, rc);
+            }
+        }
+    }
+
     /// `dst` = `src` (equal lengths), in tasks of [`TASK_CELLS`] values on the pool when large.
     pub fn copy(self, dst: &mut [f64], src: &[f64]) {
         assert_eq!(dst.len(), src.len(), "Exec::copy: lengths differ");

@@ -24,6 +24,41 @@ fn rectangle_fraction(grid: &Grid, (x0, x1, y0, y1): (f64, f64, f64, f64)) -> Fi
     f
 }
 
+/// The moments about each cell's centre (cell units, `VolumeFraction::mx`, `my`) of the
+/// rectangle's part in it.
+fn rectangle_moments(grid: &Grid, (x0, x1, y0, y1): (f64, f64, f64, f64)) -> (Field, Field) {
+    let mut mx = Field::zeros(grid, Location::Centre);
+    let mut my = Field::zeros(grid, Location::Centre);
+    for j in 0..grid.ny {
+        for i in 0..grid.nx {
+            let (cx0, cy0) = (grid.x0 + i as f64 * grid.dx, grid.y0 + j as f64 * grid.dy);
+            let (a0, a1) = (((x0 - cx0) / grid.dx).clamp(0.0, 1.0), ((x1 - cx0) / grid.dx).clamp(0.0, 1.0));
+            let (b0, b1) = (((y0 - cy0) / grid.dy).clamp(0.0, 1.0), ((y1 - cy0) / grid.dy).clamp(0.0, 1.0));
+            let area = (a1 - a0) * (b1 - b0);
+            if area > 0.0 && area < 1.0 {
+                mx.set(i, j, area * (0.5 * (a0 + a1) - 0.5));
+                my.set(i, j, area * (0.5 * (b0 + b1) - 0.5));
+            }
+        }
+    }
+    (mx, my)
+}
+
+/// The dense volume's first moments (∫x dV, ∫y dV) from F and its cells' moments.
+fn first_moments(vof: &VolumeFraction, grid: &Grid) -> (f64, f64) {
+    let (mut sx, mut sy) = (0.0, 0.0);
+    for j in 0..grid.ny {
+        for i in 0..grid.nx {
+            let (ii, jj) = (i as isize, j as isize);
+            let f = vof.f.at(ii, jj);
+            let (xc, yc) = (grid.x0 + (i as f64 + 0.5) * grid.dx, grid.y0 + (j as f64 + 0.5) * grid.dy);
+            sx += f * xc + vof.mx.at(ii, jj) * grid.dx;
+            sy += f * yc + vof.my.at(ii, jj) * grid.dy;
+        }
+    }
+    (sx * grid.dx * grid.dy, sy * grid.dx * grid.dy)
+}
+
 /// The cell-edge bounding box [x_lo, x_hi] × [y_lo, y_hi] of the cells with F > `tiny`.
 fn extent(f: &Field, grid: &Grid, tiny: f64) -> [f64; 4] {
     let mut b = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
@@ -47,8 +82,13 @@ fn faces(grid: &Grid, loc: Location, vel: impl Fn(f64, f64) -> f64) -> Field {
 
 struct FilmRun {
     volume_rel_change: f64,
-    /// Largest distance, in cells, between the sides of the film's bounding box and the exact one's.
+    /// Largest distance, in cells, between the sides of the film's bounding box (cells with
+    /// F > F_MIN) and the exact one's.
     extent_error_cells: f64,
+    /// The same for the cells with F > 1e-4.
+    extent_error_cells_1e4: f64,
+    /// The dense volume's centroid against the exact one's, in cells.
+    centroid_error_cells: f64,
     f_min: f64,
     f_max: f64,
 }
@@ -63,6 +103,7 @@ fn film(thickness_cells: f64, motion: &str, normal: PlicNormal, exec: Exec) -> F
     let mut vof = VolumeFraction::new(&grid, normal);
     vof.f = rectangle_fraction(&grid, rect);
     vof.f.extrapolate_ghosts_constant();
+    (vof.mx, vof.my) = rectangle_moments(&grid, rect);
     let mut phi = Field::zeros(&grid, Location::Centre);
     init_signed_distance(&Shape::Rectangle { x0: rect.0, x1: rect.1, y0: rect.2, y1: rect.3 }, &grid, &mut phi).unwrap();
     vof.rebuild_level_set(&mut phi, &grid, exec);
@@ -89,9 +130,20 @@ fn film(thickness_cells: f64, motion: &str, normal: PlicNormal, exec: Exec) -> F
         }
     }
     let exact = rectangle_fraction(&grid, (rect.0 + shift.0, rect.1 + shift.0, rect.2 + shift.1, rect.3 + shift.1));
-    let (a, b) = (extent(&vof.f, &grid, vof::F_MIN), extent(&exact, &grid, 0.0));
-    let extent_error_cells = a.iter().zip(&b).map(|(x, y)| (x - y).abs() / h).fold(0.0, f64::max);
-    FilmRun { volume_rel_change: (vof.volume(&grid, exec) - v0) / v0, extent_error_cells, f_min, f_max }
+    let b = extent(&exact, &grid, 0.0);
+    let error = |tiny: f64| extent(&vof.f, &grid, tiny).iter().zip(&b).map(|(x, y)| (x - y).abs() / h).fold(0.0, f64::max);
+    let (sx, sy) = first_moments(&vof, &grid);
+    let v = vof.volume(&grid, exec);
+    let (cx, cy) = (0.5 * (rect.0 + rect.1) + shift.0, 0.5 * (rect.2 + rect.3) + shift.1);
+    let centroid_error_cells = (sx / v - cx).hypot(sy / v - cy) / h;
+    FilmRun {
+        volume_rel_change: (v - v0) / v0,
+        extent_error_cells: error(vof::F_MIN),
+        extent_error_cells_1e4: error(1e-4),
+        centroid_error_cells,
+        f_min,
+        f_max,
+    }
 }
 
 #[test]
@@ -119,9 +171,11 @@ fn films_keep_their_volume_to_round_off() {
             for t in [0.5, 1.0, 2.0, 6.0] {
                 let r = film(t, motion, normal, Exec::SERIAL);
                 println!(
-                    "{normal:?}, {motion}, {t} cells: ΔV/V = {:.3e}, extent error {:.0} cells, F in [{:.3e}, 1 + {:.3e}]",
+                    "{normal:?}, {motion}, {t} cells: ΔV/V = {:.3e}, extent error {:.0} cells ({:.0} for F > 1e-4), centroid {:.1e} cells, F in [{:.3e}, 1 + {:.3e}]",
                     r.volume_rel_change,
                     r.extent_error_cells,
+                    r.extent_error_cells_1e4,
+                    r.centroid_error_cells,
                     r.f_min,
                     r.f_max - 1.0
                 );
@@ -130,18 +184,24 @@ fn films_keep_their_volume_to_round_off() {
                 assert!(r.volume_rel_change.abs() < 1e-12, "{normal:?} {motion} {t}: ΔV/V = {:e}", r.volume_rel_change);
                 // bounded (Weymouth & Yue 2010, §3.2) to round-off: measured within 2e-16 of [0, 1]
                 assert!(r.f_min > -1e-14 && r.f_max < 1.0 + 1e-14, "{normal:?} {motion} {t}: F in [{}, {}]", r.f_min, r.f_max);
-                // extent: films of 2 cells and more stay within one cell of the exact film's
-                // cells (measured 0-1 cell, 2 for the rotated 2-cell film); translated films of
-                // ½ and 1 cell within 3 cells (measured 2-3: the rear end recedes while the film
-                // thickens). Rotated one turn, films of ½ and 1 cell break into blobs of about a
-                // cell that travel ahead of the flow (measured 4-22 cells): not asserted, the
-                // limit of a single PLIC line per cell (docs/models.md, "Interface transport").
-                let bound = match (motion, t >= 2.0) {
-                    ("rotation", true) => 2.0,
-                    (_, true) => 1.0,
-                    ("diagonal", false) => 3.0,
-                    _ => f64::INFINITY,
+                // extent (the bounding box of the cells with F > F_MIN against the exact film's):
+                // the acceptance is one cell. Met by every film translated and, with the level
+                // set's normals, by the films of ½ and 6 cells rotated one turn (measured 0-1).
+                // Not met: the rotated 1-cell film, 2 cells by a speck of 1e-5 of a cell beyond
+                // its end (1 for the cells with F > 1e-4), the rotated 2-cell film, 2 cells
+                // across it; with Youngs's normals the rotated films of ½, 1, 2 and 6 cells,
+                // measured 4, 3, 2, 2. The bounds below are those measurements.
+                let bound = match (normal, motion) {
+                    (_, "diagonal") => 1.0,
+                    (PlicNormal::LevelSet, _) if t == 1.0 || t == 2.0 => 2.0,
+                    (PlicNormal::LevelSet, _) => 1.0,
+                    (PlicNormal::Youngs, _) if t == 0.5 => 4.0,
+                    (PlicNormal::Youngs, _) if t == 1.0 => 3.0,
+                    (PlicNormal::Youngs, _) => 2.0,
                 };
+                if normal == PlicNormal::LevelSet && motion == "rotation" && t == 1.0 {
+                    assert!(r.extent_error_cells_1e4 <= 1.0, "cells with F > 1e-4: extent error {} cells", r.extent_error_cells_1e4);
+                }
                 assert!(r.extent_error_cells <= bound, "{normal:?} {motion} {t}: extent error {} cells", r.extent_error_cells);
                 if motion == "rotation" && t == 1.0 {
                     let p = pool.install(|| film(t, motion, normal, Exec::with_threads(2)));

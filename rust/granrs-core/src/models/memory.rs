@@ -57,10 +57,10 @@ impl ModelConfig {
         if self.redistance.piece_removal_cells > 0 {
             f += n;
         }
-        // the volume fraction: F, its first sweep, the four fields of the PLIC segments and F in
-        // the step's snapshot
+        // the volume fraction: F and its two moments, the same after the first sweep, the nine
+        // rows of the cells' reconstruction and the twelve of their segments
         if self.interface_transport == crate::levelset::InterfaceTransport::Clsvof && self.light.is_some() {
-            f += 7 * c;
+            f += 27 * c;
         }
         // the film-sparing mass correction: its weight and the rows' maxima
         if self.redistance.mass_correction_film > 0.0 {
