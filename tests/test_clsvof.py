@@ -121,10 +121,10 @@ def test_a_sheet_holds_on_the_base_where_its_friction_does_not_fade_with_h_eps(t
     """The conserved sheet on the base (dry column, ny = 16, the exact step, to 3 s): with the
     paper's yield stress and base friction, both tan(α) p H_ε(Φ), a sheet thinner than ε keeps
     little friction (H_ε enters through the factor and through p) and slides on with the air over
-    it (measured 0.63 m/s at 3 s, its 1 mm front at 3.14 m); with both full over the density's
+    it (measured 0.65 m/s at 3 s, its 1 mm front at 3.32 m); with both full over the density's
     support (``interface_yield = "density-support"``) its body stops and only its last cells move
-    (measured 0.026 m/s, the 1 mm front at 2.22 m). Bounds at about half and twice the measured
-    speeds; the volume is conserved to 1e-10 in both."""
+    (measured 0.005 m/s, the 1 mm front at 2.42 m). Bounds at about half the first speed and ten
+    times the second; the volume is conserved to 1e-10 in both."""
     summaries = {}
     for placement in ("paper", "density-support"):
         out = tmp_path / placement

@@ -331,6 +331,30 @@ mod tests {
     /// `with_active_workers` returns what `f` returns, outside a pool, on one thread and on
     /// several, with parallel sweeps (and the joins in which the calling thread may take a
     /// waiting job) inside `f`, and the sweeps give the same sums as serially.
+    /// The three buffers' rows reach `f` together, each row once, with its index: serial and
+    /// parallel write the same values.
+    #[test]
+    fn for_each_row3_hands_the_rows_of_the_three_buffers_together() {
+        let run = |exec: Exec| {
+            let (mut a, mut b, mut c) = (vec![0.0; 64 * 4096], vec![1.0; 64 * 4096], vec![2.0; 64 * 4096]);
+            exec.for_each_row3(&mut a, &mut b, &mut c, 4096, |j, ra, rb, rc| {
+                for ((x, y), z) in ra.iter_mut().zip(rb.iter_mut()).zip(rc.iter_mut()) {
+                    *x += j as f64;
+                    *y += *x;
+                    *z += *y + 1.0;
+                }
+            });
+            (a, b, c)
+        };
+        let serial = run(Exec::SERIAL);
+        for j in 0..64 {
+            assert!(serial.0[j * 4096..(j + 1) * 4096].iter().all(|&x| x == j as f64));
+            assert!(serial.2[j * 4096..(j + 1) * 4096].iter().all(|&x| x == j as f64 + 4.0));
+        }
+        let pool = build_pool(2).unwrap();
+        assert_eq!(pool.install(|| run(Exec::with_threads(2))), serial);
+    }
+
     #[test]
     fn active_workers_run_f_and_its_sweeps_to_the_same_result() {
         let sweep = |exec: Exec| {

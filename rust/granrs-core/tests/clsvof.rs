@@ -136,14 +136,7 @@ fn film(thickness_cells: f64, motion: &str, normal: PlicNormal, exec: Exec) -> F
     let v = vof.volume(&grid, exec);
     let (cx, cy) = (0.5 * (rect.0 + rect.1) + shift.0, 0.5 * (rect.2 + rect.3) + shift.1);
     let centroid_error_cells = (sx / v - cx).hypot(sy / v - cy) / h;
-    FilmRun {
-        volume_rel_change: (v - v0) / v0,
-        extent_error_cells: error(vof::F_MIN),
-        extent_error_cells_1e4: error(1e-4),
-        centroid_error_cells,
-        f_min,
-        f_max,
-    }
+    FilmRun { volume_rel_change: (v - v0) / v0, extent_error_cells: error(vof::F_MIN), extent_error_cells_1e4: error(1e-4), centroid_error_cells, f_min, f_max }
 }
 
 #[test]

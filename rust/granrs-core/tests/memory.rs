@@ -95,7 +95,7 @@ fn the_estimate_matches_the_bytes_a_model_takes() {
     let mut clsvof = dry.clone();
     clsvof.interface_transport = granrs_core::levelset::InterfaceTransport::Clsvof;
     clsvof.mass_correction = false;
-    cases.push(("dry, the volume fraction (clsvof)", clsvof));
+    cases.push(("dry, the volume fraction and its moments (clsvof)", clsvof));
     let mut restarts = dry.clone();
     restarts.rheology.proximal_restarts = 5;
     restarts.rheology.picard_tol = 1e-3;

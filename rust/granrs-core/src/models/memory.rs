@@ -58,9 +58,10 @@ impl ModelConfig {
             f += n;
         }
         // the volume fraction: F and its two moments, the same after the first sweep, the nine
-        // rows of the cells' reconstruction and the twelve of their segments
+        // rows of the cells' reconstruction and the twelve of their segments, and F and its
+        // moments in the step's snapshot
         if self.interface_transport == crate::levelset::InterfaceTransport::Clsvof && self.light.is_some() {
-            f += 27 * c;
+            f += 30 * c;
         }
         // the film-sparing mass correction: its weight and the rows' maxima
         if self.redistance.mass_correction_film > 0.0 {
