@@ -110,6 +110,16 @@ impl Interface {
         Ok(())
     }
 
+    /// Φ as the material properties read it: `phi` itself, or with the volume fraction Φ whose
+    /// H_ε is F in thin zones ([`VolumeFraction::properties_level_set`]). `phi` has its ghosts
+    /// filled.
+    pub fn properties_level_set<'a>(&'a mut self, phi: &'a Field, eps: f64, grid: &Grid, exec: Exec) -> &'a Field {
+        match self.vof.as_mut() {
+            Some(vof) => vof.properties_level_set(phi, eps, grid, exec),
+            None => phi,
+        }
+    }
+
     /// With `piece_removal_cells` > 0, turns the regions of {Φ > 0} of at most that many cells,
     /// other than the largest, to air ([`super::pieces`]) and returns how many cells changed (0
     /// without the option).

@@ -190,6 +190,8 @@ pub struct VolumeFraction {
     /// Per row j, the union of `rows` over the rows j ± [`SEARCH_CELLS`] (a cell farther than
     /// that from it along x has no segment in its search window).
     near: Vec<(usize, usize)>,
+    /// Φ as the properties read it ([`VolumeFraction::properties_level_set`]).
+    weight: Field,
     /// The last step's budget.
     pub budget: VolumeBudget,
 }
@@ -213,6 +215,7 @@ impl VolumeFraction {
             seg,
             rows: vec![(0, 0); grid.ny],
             near: vec![(0, 0); grid.ny],
+            weight: c(),
             budget: VolumeBudget::default(),
         }
     }
@@ -442,6 +445,60 @@ impl VolumeFraction {
         });
         phi.extrapolate_ghosts_linear();
     }
+
+    /// Φ as the material properties read it (the module's "Thin zones"): Φ itself wherever a
+    /// full cell (F ≥ 1 − [`F_MIN`]) lies within [`THIN_ZONE_CELLS`] cells, and elsewhere the
+    /// value whose H_ε is the cell's F (H_ε⁻¹(F); −max(|Φ|, ε) where F ≤ [`F_MIN`]), so that
+    /// there ρ = ρ_l + (ρ_d − ρ_l) F. `phi` is the rebuilt Φ with its ghosts filled.
+    pub fn properties_level_set(&mut self, phi: &Field, eps: f64, grid: &Grid, exec: Exec) -> &Field {
+        self.f.extrapolate_ghosts_constant();
+        let (fs, ps, st) = (self.f.slice(), phi.slice(), phi.stride());
+        let nx = grid.nx;
+        let z = THIN_ZONE_CELLS as isize;
+        exec.for_each_row(self.weight.slice_mut(), st, |r, row| {
+            if r < HALO || r >= grid.ny + HALO {
+                return;
+            }
+            for i in HALO..nx + HALO {
+                let k = r * st + i;
+                let (fk, pk) = (fs[k], ps[k]);
+                row[i] = pk;
+                // a full cell, or an empty one outside the blend, reads the same either way
+                if fk >= 1.0 - F_MIN || (fk <= F_MIN && pk <= -eps) {
+                    continue;
+                }
+                let full = (-z..=z).any(|dj| {
+                    let b = (k as isize + dj * st as isize) as usize;
+                    fs[b - THIN_ZONE_CELLS..=b + THIN_ZONE_CELLS].iter().any(|&x| x >= 1.0 - F_MIN)
+                });
+                if !full {
+                    row[i] = if fk <= F_MIN { -(pk.abs().max(eps)) } else { heaviside_inverse(fk, eps) };
+                }
+            }
+        });
+        self.weight.extrapolate_ghosts_linear();
+        &self.weight
+    }
+}
+
+/// The reach, in cells, of the full cell that makes a cell's properties read Φ rather than F
+/// ([`VolumeFraction::properties_level_set`]): two cells, beyond the blend's half-width
+/// ε = 1.5 h, so that the properties of a layer at least one full cell thick are the level set's.
+pub const THIN_ZONE_CELLS: usize = 2;
+
+/// Φ ∈ (−ε, ε) with H_ε(Φ) = f for 0 < f < 1: H_ε is increasing there; bisection to the last bit
+/// (62 halvings of [−ε, ε]).
+pub fn heaviside_inverse(f: f64, eps: f64) -> f64 {
+    let (mut a, mut b) = (-eps, eps);
+    for _ in 0..62 {
+        let m = 0.5 * (a + b);
+        if crate::levelset::heaviside(m, eps) < f {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    0.5 * (a + b)
 }
 
 impl crate::grid::StateArrays for VolumeFraction {

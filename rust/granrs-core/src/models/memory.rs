@@ -58,10 +58,10 @@ impl ModelConfig {
             f += n;
         }
         // the volume fraction: F and its two moments, the same after the first sweep, the nine
-        // rows of the cells' reconstruction and the twelve of their segments, and F and its
-        // moments in the step's snapshot
+        // rows of the cells' reconstruction and the twelve of their segments, F and its moments
+        // in the step's snapshot, and Φ as the properties read it
         if self.interface_transport == crate::levelset::InterfaceTransport::Clsvof && self.light.is_some() {
-            f += 30 * c;
+            f += 31 * c;
         }
         // the film-sparing mass correction: its weight and the rows' maxima
         if self.redistance.mass_correction_film > 0.0 {

@@ -395,7 +395,9 @@ impl TwoPhaseModel {
             return;
         }
         self.phi.extrapolate_ghosts_linear();
-        self.properties.update(&self.phi, &self.config.property_laws(), exec);
+        let laws = self.config.property_laws();
+        let phi = self.levelset.properties_level_set(&self.phi, laws.eps, &self.config.grid, exec);
+        self.properties.update(phi, &laws, exec);
         self.pressure.density_changed();
     }
 
