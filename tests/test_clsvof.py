@@ -121,10 +121,10 @@ def test_a_sheet_holds_on_the_base_where_its_friction_does_not_fade_with_h_eps(t
     """The conserved sheet on the base (dry column, ny = 16, the exact step, to 3 s): with the
     paper's yield stress and base friction, both tan(α) p H_ε(Φ), a sheet thinner than ε keeps
     little friction (H_ε enters through the factor and through p) and slides on with the air over
-    it (measured 0.65 m/s at 3 s, its 1 mm front at 3.32 m); with both full over the density's
-    support (``interface_yield = "density-support"``) its body stops and only its last cells move
-    (measured 0.005 m/s, the 1 mm front at 2.42 m). Bounds at about half the first speed and ten
-    times the second; the volume is conserved to 1e-10 in both."""
+    it (measured 0.57 m/s at 3 s, its 1 mm front at 3.17 m); with both full over the density's
+    support (``interface_yield = "density-support"``) it stops (measured 4.3e-4 m/s, the 1 mm
+    front at 2.65 m). Bounds at about half the first speed, ten times the second and half the
+    fronts' gap (0.52 m); the volume is conserved to 1e-10 in both."""
     summaries = {}
     for placement in ("paper", "density-support"):
         out = tmp_path / placement
@@ -142,6 +142,6 @@ def test_a_sheet_holds_on_the_base_where_its_friction_does_not_fade_with_h_eps(t
         summaries[placement] = json.loads((out / "summary.json").read_text())
     paper, support = summaries["paper"], summaries["density-support"]
     assert paper["final_granular_speed_m_s"] > 0.3
-    assert support["final_granular_speed_m_s"] < 0.05
-    assert support["observables"]["front_h1mm_m"] < paper["observables"]["front_h1mm_m"] - 0.5
+    assert support["final_granular_speed_m_s"] < 5e-3
+    assert support["observables"]["front_h1mm_m"] < paper["observables"]["front_h1mm_m"] - 0.25
     assert max(abs(s["volume_rel_error"]) for s in summaries.values()) < 1e-10

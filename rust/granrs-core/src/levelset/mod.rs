@@ -68,5 +68,7 @@ pub use stage::{Interface, TransportVelocity};
 pub use subcell::{interface_diagonal, interface_faces, interface_fraction, THETA_MIN};
 pub use transport::{cfl_number, max_transport_rate, stable_dt, LevelSetTransport, DEFAULT_CFL};
 pub use validation::{single_vortex, single_vortex_with, zalesak, zalesak_with, CaseOptions, LevelSetMetrics};
-pub use vof::{fraction_volume, plic_alpha, plic_area, swept_volume, InterfaceTransport, PlicNormal, VolumeBudget, VolumeFraction};
+pub use vof::{
+    fraction_volume, heaviside_inverse, plic_alpha, plic_area, swept_volume, InterfaceTransport, PlicNormal, VolumeBudget, VolumeFraction, THIN_ZONE_CELLS,
+};
 pub use weno5::WenoWeights;

@@ -72,6 +72,15 @@
 //! (ε = 1.5h) reads. Cells with F below [`F_MIN`] (above 1 − F_MIN) count as empty (full) for
 //! the rebuild: a speck of volume would otherwise raise H_ε(Φ) around it.
 //!
+//! Thin zones (what the material properties read). Where no full cell (F ≥ 1 − [`F_MIN`]) lies
+//! within [`THIN_ZONE_CELLS`] cells, the dense phase is a film or a speck thinner than the
+//! blend's width 2ε, and H_ε of a distance to its slab is about ½ whatever its F: a film of
+//! F ~ 1e-3 in the air would weigh half the grains' density over 3 cells. There the properties
+//! read Φ_w = H_ε⁻¹(F) instead of Φ (−max(|Φ|, ε) where F ≤ [`F_MIN`]), so that
+//! ρ = ρ_l + (ρ_d − ρ_l) F and η the harmonic blend with weight F; elsewhere Φ_w = Φ
+//! ([`VolumeFraction::properties_level_set`]). Φ itself stays the distance to the segments: its
+//! normals place the lines and the slabs.
+//!
 //! Every kernel writes each row from rows read only (the y-sweep's face fluxes are computed by
 //! both rows beside the face with the same arithmetic), and the sums add rows in the fixed
 //! blocks of [`Exec::sum_rows`]: serial and parallel runs give the same bits. The work fields are
