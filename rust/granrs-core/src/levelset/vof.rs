@@ -468,10 +468,10 @@ impl VolumeFraction {
             if r < HALO || r >= grid.ny + HALO {
                 return;
             }
-            for i in HALO..nx + HALO {
+            for (i, w) in row.iter_mut().enumerate().skip(HALO).take(nx) {
                 let k = r * st + i;
                 let (fk, pk) = (fs[k], ps[k]);
-                row[i] = pk;
+                *w = pk;
                 // a full cell, or an empty one outside the blend, reads the same either way
                 if fk >= 1.0 - F_MIN || (fk <= F_MIN && pk <= -eps) {
                     continue;
@@ -481,7 +481,7 @@ impl VolumeFraction {
                     fs[b - THIN_ZONE_CELLS..=b + THIN_ZONE_CELLS].iter().any(|&x| x >= 1.0 - F_MIN)
                 });
                 if !full {
-                    row[i] = if fk <= F_MIN { -(pk.abs().max(eps)) } else { heaviside_inverse(fk, eps) };
+                    *w = if fk <= F_MIN { -(pk.abs().max(eps)) } else { heaviside_inverse(fk, eps) };
                 }
             }
         });
