@@ -328,9 +328,6 @@ mod tests {
         }
     }
 
-    /// `with_active_workers` returns what `f` returns, outside a pool, on one thread and on
-    /// several, with parallel sweeps (and the joins in which the calling thread may take a
-    /// waiting job) inside `f`, and the sweeps give the same sums as serially.
     /// The three buffers' rows reach `f` together, each row once, with its index: serial and
     /// parallel write the same values.
     #[test]
@@ -355,6 +352,9 @@ mod tests {
         assert_eq!(pool.install(|| run(Exec::with_threads(2))), serial);
     }
 
+    /// `with_active_workers` returns what `f` returns, outside a pool, on one thread and on
+    /// several, with parallel sweeps (and the joins in which the calling thread may take a
+    /// waiting job) inside `f`, and the sweeps give the same sums as serially.
     #[test]
     fn active_workers_run_f_and_its_sweeps_to_the_same_result() {
         let sweep = |exec: Exec| {

@@ -326,20 +326,11 @@ fn the_properties_read_f_in_thin_zones_and_phi_elsewhere() {
     let layer = (0.0, 1.0, 0.0, 0.3);
     let film = (0.1, 0.9, 0.7 + 0.2 * h, 0.7 + 0.201 * h);
     let mut vof = VolumeFraction::new(&grid, PlicNormal::LevelSet);
-    let (a, b) = (rectangle_fraction(&grid, layer), rectangle_fraction(&grid, film));
-    vof.f = Field::from_fn(&grid, Location::Centre, |_, _| 0.0);
-    for j in 0..grid.ny {
-        for i in 0..grid.nx {
-            vof.f.set(i, j, a.at(i as isize, j as isize) + b.at(i as isize, j as isize));
-        }
-    }
-    let (ma, mya) = rectangle_moments(&grid, layer);
-    let (mb, myb) = rectangle_moments(&grid, film);
-    for j in 0..grid.ny {
-        for i in 0..grid.nx {
-            let (ii, jj) = (i as isize, j as isize);
-            vof.mx.set(i, j, ma.at(ii, jj) + mb.at(ii, jj));
-            vof.my.set(i, j, mya.at(ii, jj) + myb.at(ii, jj));
+    // the two rectangles share no cell: F and the moments are their sums
+    let ((ma, mya), (mb, myb)) = (rectangle_moments(&grid, layer), rectangle_moments(&grid, film));
+    for (out, a, b) in [(&mut vof.f, rectangle_fraction(&grid, layer), rectangle_fraction(&grid, film)), (&mut vof.mx, ma, mb), (&mut vof.my, mya, myb)] {
+        for ((o, x), y) in out.slice_mut().iter_mut().zip(a.slice()).zip(b.slice()) {
+            *o = x + y;
         }
     }
     let mut phi = Field::zeros(&grid, Location::Centre);
