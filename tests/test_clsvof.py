@@ -118,20 +118,21 @@ def test_the_rest_criterion_sees_a_film_thinner_than_half_a_cell(tmp_path):
 
 @pytest.mark.slow
 def test_a_sheet_holds_on_the_base_where_its_friction_does_not_fade_with_h_eps(tmp_path):
-    """The conserved sheet on the base (dry column, ny = 16, the exact step, to 3 s): with the
-    paper's yield stress and base friction, both tan(α) p H_ε(Φ), a sheet thinner than ε keeps
-    little friction (H_ε enters through the factor and through p) and slides on with the air over
-    it (measured 0.57 m/s at 3 s, its 1 mm front at 3.17 m); with both full over the density's
-    support (``interface_yield = "density-support"``) it stops (measured 4.3e-4 m/s, the 1 mm
-    front at 2.65 m). Bounds at about half the first speed, ten times the second and half the
-    fronts' gap (0.52 m); the volume is conserved to 1e-10 in both."""
+    """The conserved sheet on the base (dry column, ny = 16, the exact step): with the paper's
+    yield stress and base friction, both tan(α) p H_ε(Φ), a sheet thinner than ε keeps little
+    friction (H_ε enters through the factor and through p) and slides on with the air over it
+    (measured 0.65 m/s at 3 s, its 1 mm front at 3.34 m); with both full over the density's
+    support (``interface_yield = "density-support"``) it decelerates and stops (the rest
+    criterion holds at 3.14 s, 5e-7 m/s, the 1 mm front at 2.82 m). Bounds: about half the first
+    speed; the rest criterion's speed (5 mm/s) and its stop reason; half the fronts' gap (0.52 m);
+    the volume conserved to 1e-10 in both."""
     summaries = {}
-    for placement in ("paper", "density-support"):
+    for placement, t_end in (("paper", 3.0), ("density-support", 3.5)):
         out = tmp_path / placement
         cfg = resolve(
             {
                 "grid": {"ny": 16},
-                "time": {"t_end": 3.0},
+                "time": {"t_end": t_end},
                 "fluidisation": {"fluidised": False},
                 "bi_projection": {"solver": "newton", "interface_yield": placement},
                 "interface": {"transport": "clsvof", "mass_correction": False},
@@ -142,6 +143,6 @@ def test_a_sheet_holds_on_the_base_where_its_friction_does_not_fade_with_h_eps(t
         summaries[placement] = json.loads((out / "summary.json").read_text())
     paper, support = summaries["paper"], summaries["density-support"]
     assert paper["final_granular_speed_m_s"] > 0.3
-    assert support["final_granular_speed_m_s"] < 5e-3
+    assert support["stop_reason"] == "rest" and support["final_granular_speed_m_s"] < 5e-3
     assert support["observables"]["front_h1mm_m"] < paper["observables"]["front_h1mm_m"] - 0.25
     assert max(abs(s["volume_rel_error"]) for s in summaries.values()) < 1e-10

@@ -9,8 +9,8 @@
 //! ([`Interface::remove_pieces`], [`super::pieces`]), whose area a second correction puts
 //! back. With `interface_transport = "clsvof"` the dense volume fraction F is transported first
 //! by the conservative split PLIC scheme of [`super::vof`] with the same u^{n+½} (its normals
-//! from Φⁿ), and after Φ's transport and redistancing Φ is rebuilt as the distance to F's
-//! interface ([`Interface::advance`]). The material properties of step 2 are the properties
+//! from Φⁿ), and after Φ's transport Φ is rebuilt as the distance to F's interface
+//! ([`Interface::advance`]); the rebuild replaces the redistancing, which then does not run. The material properties of step 2 are the properties
 //! room's (`properties/mod.rs`).
 
 use super::{DetachedPieces, FilmWeight, LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension, VolumeFraction};
@@ -62,7 +62,8 @@ impl Interface {
     /// Step 1: Φ^{n+1} from Φⁿ (in `phi`) transported over δt with u^{n+½}, then redistanced
     /// when `redistance`. With the volume fraction ([`Interface::vof`]) F is transported first
     /// with u^{n+½} (the one-fluid velocity, whose discrete divergence is the pressure solve's
-    /// residual; the x-sweep first when `x_first`), and Φ^{n+1} is rebuilt from F^{n+1} last.
+    /// residual; the x-sweep first when `x_first`), and Φ^{n+1} is rebuilt from F^{n+1} last,
+    /// in place of the redistancing (`redistance` is then not read).
     ///
     /// Transport with the time-centred velocity: advecting Φ with uⁿ alone lags the interface
     /// behind the flow, which feeds interfacial gravity waves (a heavy layer at rest then grows
@@ -101,7 +102,7 @@ impl Interface {
         } else {
             self.transport.advect(phi, vel.out_u, vel.out_v, grid, dt, exec)?;
         }
-        if redistance {
+        if redistance && self.vof.is_none() {
             self.redistancer.redistance(phi, grid, exec)?;
         }
         if let Some(vof) = self.vof.as_mut() {

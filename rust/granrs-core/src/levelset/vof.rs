@@ -65,11 +65,17 @@
 //! Level set from F (Sussman & Puckett 2000, *J. Comput. Phys.* 162, 301–337, §3.3): at each
 //! cell centre Φ = ±d, d the distance to the nearest segment within [`SEARCH_CELLS`] cells (a
 //! slab's two sides and its cap count), positive inside the cell's own dense part (a cell
-//! without one: F > ½). Where d exceeds
-//! [`BAND_CELLS`] h (no segment near enough for d to be exact) Φ keeps the magnitude of the
-//! transported Φ, at least [`BAND_CELLS`] h, with the sign of F. Φ's zero level is then the
-//! fractions' interface and Φ the exact distance to it in the band |Φ| ≤ 3h that H_ε(Φ)
-//! (ε = 1.5h) reads. Cells with F below [`F_MIN`] (above 1 − F_MIN) count as empty (full) for
+//! without one: F > ½; beyond the segments, F > ½). From there
+//! outwards Φ is the chamfer distance: [`CHAMFER_STEPS`] Jacobi sweeps of |Φ| ← min over the
+//! eight neighbours of |Φ_nb| + (δx, δy or their diagonal), each cell never above its own d,
+//! and ±9h where no sweep reaches. Φ's zero level is then the fractions' interface, Φ the exact
+//! distance to it in the band |Φ| ≤ [`BAND_CELLS`] h = 3h that H_ε(Φ) (ε = 1.5h) reads, and an
+//! upper bound of the distance out to 9h (exact along the axes and diagonals, at most 8 % above
+//! it between them), past the farthest threshold a reader puts on Φ (the light phase's CFL band,
+//! 6h; the active window's support, 4.5h). The rebuild is the level set's redistancing: it sets
+//! every cell at every step from the segments alone, so the PDE redistancing
+//! (`redistance_every`) does not run with the volume fraction, and no value of the transported
+//! Φ beyond the interface cells' normals reaches the next step. Cells with F below [`F_MIN`] (above 1 − F_MIN) count as empty (full) for
 //! the rebuild: a speck of volume would otherwise raise H_ε(Φ) around it.
 //!
 //! Thin zones (what the material properties read). Where no full cell (F ≥ 1 − [`F_MIN`]) lies
@@ -96,6 +102,13 @@ pub const BAND_CELLS: f64 = 3.0;
 /// Cells searched on each side for the nearest segment: a point at distance ≤ 3h from a cell
 /// centre lies in a cell at most ⌈3 + ½⌉ = 4 cells away.
 pub const SEARCH_CELLS: usize = 4;
+
+/// Jacobi sweeps of the chamfer distance beyond the band: Φ is a distance bound out to
+/// (BAND_CELLS + CHAMFER_STEPS) h = 9h and ±9h beyond, past the farthest threshold any reader
+/// puts on Φ (the light phase's CFL band, 6h; the active window's support, 4.5h).
+pub const CHAMFER_STEPS: f64 = 6.0;
+// an even number of sweeps ends in Φ
+const _: () = assert!(CHAMFER_STEPS as usize % 2 == 0);
 
 /// Fractions below F_MIN (above 1 − F_MIN) are empty (full) cells for the rebuild of Φ.
 pub const F_MIN: f64 = 1e-6;
@@ -199,6 +212,9 @@ pub struct VolumeFraction {
     /// Per row j, the union of `rows` over the rows j ± [`SEARCH_CELLS`] (a cell farther than
     /// that from it along x has no segment in its search window).
     near: Vec<(usize, usize)>,
+    /// Per row, the columns [first, last + 1) whose Φ the chamfer sweeps can set below the
+    /// far value (within [`SEARCH_CELLS`] + [`CHAMFER_STEPS`] cells of a segment).
+    reach: Vec<(usize, usize)>,
     /// Φ as the properties read it ([`VolumeFraction::properties_level_set`]).
     weight: Field,
     /// The last step's budget.
@@ -224,6 +240,7 @@ impl VolumeFraction {
             seg,
             rows: vec![(0, 0); grid.ny],
             near: vec![(0, 0); grid.ny],
+            reach: vec![(0, 0); grid.ny],
             weight: c(),
             budget: VolumeBudget::default(),
         }
@@ -342,9 +359,9 @@ impl VolumeFraction {
     }
 
     /// Rebuilds Φ from F's interface (the module's "Level set from F"): the exact distance to the
-    /// PLIC segments in the band |Φ| ≤ [`BAND_CELLS`] h, the sign of F beyond. `phi` holds the
-    /// transported Φ on entry (its magnitude is kept beyond the band; its gradient gives the
-    /// normals with [`PlicNormal::LevelSet`]).
+    /// PLIC segments in the band |Φ| ≤ [`BAND_CELLS`] h, the chamfer distance beyond, the sign of
+    /// F. `phi` holds the transported Φ on entry (its gradient gives the normals with
+    /// [`PlicNormal::LevelSet`]); every cell of it is overwritten.
     pub fn rebuild_level_set(&mut self, phi: &mut Field, grid: &Grid, exec: Exec) {
         phi.extrapolate_ghosts_linear();
         for fld in [&mut self.f, &mut self.mx, &mut self.my] {
@@ -401,6 +418,7 @@ impl VolumeFraction {
         let seg = &self.seg;
         let rows = &self.rows;
         let band = BAND_CELLS * grid.h();
+        let far = (BAND_CELLS + CHAMFER_STEPS) * grid.h();
         exec.for_each_row(phi.slice_mut(), st, |r, row| {
             if r < HALO || r >= ny + HALO {
                 return;
@@ -426,8 +444,7 @@ impl VolumeFraction {
                 let (nlo, nhi) = near[j];
                 if ihi <= nlo || ilo >= nhi {
                     // no segment in the window
-                    let mag = row[i + HALO].abs().max(band);
-                    row[i + HALO] = if dense { mag } else { -mag };
+                    row[i + HALO] = if dense { far } else { -far };
                     continue;
                 }
                 for (jj, &(a, b)) in rows.iter().enumerate().take(jhi).skip(jlo) {
@@ -447,11 +464,56 @@ impl VolumeFraction {
                         }
                     }
                 }
-                let d = d2.sqrt();
-                let mag = if d <= band { d } else { row[i + HALO].abs().max(band) };
+                let mag = d2.sqrt().min(far);
                 row[i + HALO] = if dense { mag } else { -mag };
             }
         });
+        // beyond the band: the chamfer distance from the band, by Jacobi sweeps between Φ and
+        // `half` (equal outside `reach`, where no sweep can lower FAR)
+        let steps = CHAMFER_STEPS as usize;
+        for j in 0..ny {
+            let (lo, hi) = (j.saturating_sub(SEARCH_CELLS + steps), (j + SEARCH_CELLS + steps + 1).min(ny));
+            let (a, b) = rows[lo..hi].iter().filter(|r| r.1 > r.0).fold((usize::MAX, 0), |(a, b), r| (a.min(r.0), b.max(r.1)));
+            self.reach[j] = if b > a { (a.saturating_sub(SEARCH_CELLS + steps), (b + SEARCH_CELLS + steps).min(nx)) } else { (0, 0) };
+        }
+        self.half.slice_mut().copy_from_slice(phi.slice());
+        let reach = &self.reach;
+        let (wx, wy, wd) = (dx, dy, dx.hypot(dy));
+        for step in 0..steps {
+            let (src, dst) = if step % 2 == 0 { (&*phi, &mut self.half) } else { (&self.half, &mut *phi) };
+            let ps = src.slice();
+            exec.for_each_row(dst.slice_mut(), st, |r, row| {
+                if r < HALO || r >= ny + HALO {
+                    return;
+                }
+                let j = r - HALO;
+                let (lo, hi) = reach[j];
+                for i in lo..hi {
+                    let k = r * st + i + HALO;
+                    let p = ps[k];
+                    let mut m = p.abs();
+                    if m <= band {
+                        continue;
+                    }
+                    let (w, e, s, n) = (i > 0, i + 1 < nx, j > 0, j + 1 < ny);
+                    for (ok, o, d) in [
+                        (w, k - 1, wx),
+                        (e, k + 1, wx),
+                        (s, k - st, wy),
+                        (n, k + st, wy),
+                        (w && s, k - st - 1, wd),
+                        (e && s, k - st + 1, wd),
+                        (w && n, k + st - 1, wd),
+                        (e && n, k + st + 1, wd),
+                    ] {
+                        if ok {
+                            m = m.min(ps[o].abs() + d);
+                        }
+                    }
+                    row[i + HALO] = m.copysign(p);
+                }
+            });
+        }
         phi.extrapolate_ghosts_linear();
     }
 

@@ -140,7 +140,7 @@ pub struct ModelConfig {
 pub const MODEL_OPTIONS: &[OptionSpec] = &[
     options::float("interface", "interface_width", 1.5, 0.0, 10.0, "cells", "half-width ε/h of the smoothed interface (h = min(dx, dy))"),
     options::boolean("interface", "transport_interface", true, "whether the level set is transported (false: a frozen interface)"),
-    options::int("interface", "redistance_every", 10, 0, 1_000_000, "steps", "redistance the level set every this many steps (0: never)"),
+    options::int("interface", "redistance_every", 10, 0, 1_000_000, "steps", "redistance the level set every this many steps (0: never); with interface_transport = clsvof the level set is rebuilt from the volume fraction at every step instead and this is not read"),
     options::boolean(
         "interface",
         "mass_correction",
