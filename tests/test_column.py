@@ -981,10 +981,10 @@ def test_column_convergence_runs_the_conservative_interface_without_the_correcti
     """studies/column_convergence.py --interface-transport clsvof: the study's cases move the
     volume fraction and run without the global mass correction (which clsvof refuses), and its
     table reports the conserved volume's largest change (bound 1e-10, the corrected level set's;
-    measured 7e-14 - 1.6e-12 at ny = 32 - 256; at ny = 32, 8.4e-13); the default keeps the level set
-    with it; a transport outside the option's choices is refused with the argument's name before
+    measured 4.9e-13 - 8.1e-11 at ny = 32 - 256; at ny = 32, 9.6e-13); the default keeps the level
+    set with it; a transport outside the option's choices is refused with the argument's name before
     any run. ny = 32: at ny = 16 the fluidised sheet on the base reaches the domain's end at
-    2.84 s, which the run refuses."""
+    2.80 s, which the run refuses."""
     script = Path(__file__).resolve().parents[1] / "studies" / "column_convergence.py"
     study = runpy.run_path(str(script))
     for transport, correction in (("clsvof", False), ("level-set", True)):

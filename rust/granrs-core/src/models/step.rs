@@ -17,7 +17,8 @@
 //!    removal of small detached pieces of {Φ > 0} (`levelset::Interface::remove_pieces`,
 //!    `piece_removal_cells`), followed by the correction again when it removed any. With
 //!    `interface_transport = "clsvof"` the dense volume fraction F is transported first (split
-//!    PLIC fluxes, conservative) and Φ^{n+1} is rebuilt from F^{n+1} last (`levelset/vof.rs`).
+//!    PLIC fluxes, conservative) and Φ^{n+1} is rebuilt from F^{n+1} last, in place of the
+//!    redistancing (`levelset/vof.rs`).
 //! 3. `properties` [step 2]: ρ^{n+1} on faces, η^{n+1} at centres and nodes, from H_ε(Φ^{n+1})
 //!    (`properties::MaterialProperties::update`).
 //! 4. `pore_pressure` [step 3]: p_f^{n+1} (`pore_pressure::PorePressure::advance`, implicit
