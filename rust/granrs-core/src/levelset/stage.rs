@@ -10,8 +10,8 @@
 //! back. With `interface_transport = "clsvof"` the dense volume fraction F is transported first
 //! by the conservative split PLIC scheme of [`super::vof`] with the same u^{n+½} (its normals
 //! from Φⁿ), and after Φ's transport Φ is rebuilt as the distance to F's interface
-//! ([`Interface::advance`]); the rebuild replaces the redistancing, which then does not run. The material properties of step 2 are the properties
-//! room's (`properties/mod.rs`).
+//! ([`Interface::advance`]); the rebuild replaces the redistancing, which then does not run.
+//! The material properties of step 2 are the properties room's (`properties/mod.rs`).
 
 use super::{DetachedPieces, FilmWeight, LevelSetTransport, RedistanceSettings, Redistancer, VelocityExtension, VolumeFraction};
 use crate::error::Result;

@@ -65,18 +65,18 @@
 //! Level set from F (Sussman & Puckett 2000, *J. Comput. Phys.* 162, 301–337, §3.3): at each
 //! cell centre Φ = ±d, d the distance to the nearest segment within [`SEARCH_CELLS`] cells (a
 //! slab's two sides and its cap count), positive inside the cell's own dense part (a cell
-//! without one: F > ½; beyond the segments, F > ½). From there
-//! outwards Φ is the chamfer distance: [`CHAMFER_STEPS`] Jacobi sweeps of |Φ| ← min over the
-//! eight neighbours of |Φ_nb| + (δx, δy or their diagonal), each cell never above its own d,
-//! and ±9h where no sweep reaches. Φ's zero level is then the fractions' interface, Φ the exact
+//! without one, and every cell beyond: F > ½). From there outwards Φ is the chamfer distance:
+//! [`CHAMFER_STEPS`] Jacobi sweeps of |Φ| ← min over the eight neighbours of |Φ_nb| + (δx, δy
+//! or their diagonal), each cell never above its own d, and ±9h where no sweep reaches. Φ's zero level is then the fractions' interface, Φ the exact
 //! distance to it in the band |Φ| ≤ [`BAND_CELLS`] h = 3h that H_ε(Φ) (ε = 1.5h) reads, and an
 //! upper bound of the distance out to 9h (exact along the axes and diagonals, at most 8 % above
 //! it between them), past the farthest threshold a reader puts on Φ (the light phase's CFL band,
 //! 6h; the active window's support, 4.5h). The rebuild is the level set's redistancing: it sets
 //! every cell at every step from the segments alone, so the PDE redistancing
 //! (`redistance_every`) does not run with the volume fraction, and no value of the transported
-//! Φ beyond the interface cells' normals reaches the next step. Cells with F below [`F_MIN`] (above 1 − F_MIN) count as empty (full) for
-//! the rebuild: a speck of volume would otherwise raise H_ε(Φ) around it.
+//! Φ beyond the interface cells' normals reaches the next step. Cells with F below [`F_MIN`]
+//! (above 1 − F_MIN) count as empty (full) for the rebuild: a speck of volume would otherwise
+//! raise H_ε(Φ) around it.
 //!
 //! Thin zones (what the material properties read). Where no full cell (F ≥ 1 − [`F_MIN`]) lies
 //! within [`THIN_ZONE_CELLS`] cells, the dense phase is a film or a speck thinner than the
@@ -106,9 +106,9 @@ pub const SEARCH_CELLS: usize = 4;
 /// Jacobi sweeps of the chamfer distance beyond the band: Φ is a distance bound out to
 /// (BAND_CELLS + CHAMFER_STEPS) h = 9h and ±9h beyond, past the farthest threshold any reader
 /// puts on Φ (the light phase's CFL band, 6h; the active window's support, 4.5h).
-pub const CHAMFER_STEPS: f64 = 6.0;
+pub const CHAMFER_STEPS: usize = 6;
 // an even number of sweeps ends in Φ
-const _: () = assert!(CHAMFER_STEPS as usize % 2 == 0);
+const _: () = assert!(CHAMFER_STEPS % 2 == 0);
 
 /// Fractions below F_MIN (above 1 − F_MIN) are empty (full) cells for the rebuild of Φ.
 pub const F_MIN: f64 = 1e-6;
@@ -411,14 +411,13 @@ impl VolumeFraction {
             };
         }
         for j in 0..ny {
-            let (lo, hi) = (j.saturating_sub(SEARCH_CELLS), (j + SEARCH_CELLS + 1).min(ny));
-            self.near[j] = self.rows[lo..hi].iter().filter(|r| r.1 > r.0).fold((usize::MAX, 0), |(a, b), r| (a.min(r.0), b.max(r.1)));
+            self.near[j] = rows_union(&self.rows, j, SEARCH_CELLS);
         }
         let near = &self.near;
         let seg = &self.seg;
         let rows = &self.rows;
         let band = BAND_CELLS * grid.h();
-        let far = (BAND_CELLS + CHAMFER_STEPS) * grid.h();
+        let far = (BAND_CELLS + CHAMFER_STEPS as f64) * grid.h();
         exec.for_each_row(phi.slice_mut(), st, |r, row| {
             if r < HALO || r >= ny + HALO {
                 return;
@@ -469,17 +468,16 @@ impl VolumeFraction {
             }
         });
         // beyond the band: the chamfer distance from the band, by Jacobi sweeps between Φ and
-        // `half` (equal outside `reach`, where no sweep can lower FAR)
-        let steps = CHAMFER_STEPS as usize;
+        // `half` (equal outside `reach`, where no sweep can lower the far value)
+        let spread = SEARCH_CELLS + CHAMFER_STEPS;
         for j in 0..ny {
-            let (lo, hi) = (j.saturating_sub(SEARCH_CELLS + steps), (j + SEARCH_CELLS + steps + 1).min(ny));
-            let (a, b) = rows[lo..hi].iter().filter(|r| r.1 > r.0).fold((usize::MAX, 0), |(a, b), r| (a.min(r.0), b.max(r.1)));
-            self.reach[j] = if b > a { (a.saturating_sub(SEARCH_CELLS + steps), (b + SEARCH_CELLS + steps).min(nx)) } else { (0, 0) };
+            let (a, b) = rows_union(rows, j, spread);
+            self.reach[j] = if b > a { (a.saturating_sub(spread), (b + spread).min(nx)) } else { (0, 0) };
         }
         self.half.slice_mut().copy_from_slice(phi.slice());
         let reach = &self.reach;
         let (wx, wy, wd) = (dx, dy, dx.hypot(dy));
-        for step in 0..steps {
+        for step in 0..CHAMFER_STEPS {
             let (src, dst) = if step % 2 == 0 { (&*phi, &mut self.half) } else { (&self.half, &mut *phi) };
             let ps = src.slice();
             exec.for_each_row(dst.slice_mut(), st, |r, row| {
@@ -768,6 +766,13 @@ fn cap_segment(m1: f64, m2: f64, lo: f64, hi: f64, rect: [f64; 4], dx: f64, dy: 
     let pt = |t: f64| if along_x { ((t - 0.5) * dx, (fixed - 0.5) * dy) } else { ((fixed - 0.5) * dx, (t - 0.5) * dy) };
     let (p, q) = (pt(a), pt(b));
     Some([p.0, p.1, q.0, q.1])
+}
+
+/// The columns [first, last + 1) holding a segment in the rows j ± `k` (`rows` per row; (usize::MAX,
+/// 0) where none does).
+fn rows_union(rows: &[(usize, usize)], j: usize, k: usize) -> (usize, usize) {
+    let (lo, hi) = (j.saturating_sub(k), (j + k + 1).min(rows.len()));
+    rows[lo..hi].iter().filter(|r| r.1 > r.0).fold((usize::MAX, 0), |(a, b), r| (a.min(r.0), b.max(r.1)))
 }
 
 /// A cell of the interface: F_MIN < F < 1 − F_MIN.
